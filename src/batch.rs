@@ -1,0 +1,109 @@
+//! Batched element-wise kernels: one function applied to every row of fixed-size arrays.
+//!
+//! Batches are slices of fixed-size rows (`&[[f64; 4]]` for quaternions, `&[[f64; 9]]` for
+//! row-major 3x3 matrices...). Large batches run on the rayon thread pool in fixed chunks; the
+//! result is bitwise the same whatever the thread count, because every row is computed by the
+//! same scalar code and nothing is reduced across rows. When rows fail, the error of the
+//! lowest failing row is returned, also independent of the thread count.
+
+use crate::error::{Error, Result};
+use rayon::prelude::*;
+
+/// Rows per parallel chunk; batches shorter than this run on the calling thread.
+const CHUNK: usize = 8192;
+
+/// The length of a result broadcast from two batches: equal lengths, or one of them 1.
+pub fn broadcast_len(a: (&str, usize), b: (&str, usize)) -> Result<usize> {
+    match (a.1, b.1) {
+        (n, m) if n == m => Ok(n),
+        (1, m) => Ok(m),
+        (n, 1) => Ok(n),
+        (n, m) => Err(Error::invalid(
+            a.0,
+            format!("holds {n} items but {} holds {m}; lengths must match or one must be 1", b.0),
+        )),
+    }
+}
+
+/// Fill `out[i]` with `f(i)` for every row, in parallel for large batches.
+fn fill<const O: usize>(
+    out: &mut [[f64; O]],
+    f: impl Fn(usize) -> Result<[f64; O]> + Sync,
+) -> Result<()> {
+    let run_chunk = |start: usize, chunk: &mut [[f64; O]]| -> Option<Error> {
+        for (k, row) in chunk.iter_mut().enumerate() {
+            match f(start + k) {
+                Ok(value) => *row = value,
+                Err(e) => return Some(e.at(start + k)),
+            }
+        }
+        None
+    };
+    let first_error = if out.len() <= CHUNK {
+        run_chunk(0, out)
+    } else {
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .filter_map(|(c, chunk)| run_chunk(c * CHUNK, chunk).map(|e| (c, e)))
+            .min_by_key(|(c, _)| *c)
+            .map(|(_, e)| e)
+    };
+    first_error.map_or(Ok(()), Err)
+}
+
+/// `out[i] = f(&input[i])` for every row.
+pub fn map<const I: usize, const O: usize>(
+    input: &[[f64; I]],
+    out: &mut [[f64; O]],
+    f: impl Fn(&[f64; I]) -> Result<[f64; O]> + Sync,
+) -> Result<()> {
+    if input.len() != out.len() {
+        return Err(Error::invalid("out", "must have as many rows as the input"));
+    }
+    fill(out, |i| f(&input[i]))
+}
+
+/// `out[i] = f(&a[i], &b[i])` with a batch of length 1 broadcast against the other.
+pub fn map2<const A: usize, const B: usize, const O: usize>(
+    a: &[[f64; A]],
+    b: &[[f64; B]],
+    out: &mut [[f64; O]],
+    f: impl Fn(&[f64; A], &[f64; B]) -> Result<[f64; O]> + Sync,
+) -> Result<()> {
+    let n = broadcast_len(("a", a.len()), ("b", b.len()))?;
+    if out.len() != n {
+        return Err(Error::invalid("out", "must have the broadcast length of the inputs"));
+    }
+    let (sa, sb) = (usize::from(a.len() > 1), usize::from(b.len() > 1));
+    fill(out, |i| f(&a[i * sa], &b[i * sb]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lowest_failing_row_is_reported_for_large_batches() {
+        let input: Vec<[f64; 1]> = (0..100_000).map(|i| [i as f64]).collect();
+        let mut out = vec![[0.0; 1]; input.len()];
+        let err = map(&input, &mut out, |x| {
+            if x[0] >= 30_000.0 && x[0] as usize % 7 == 0 {
+                Err(Error::invalid("x", "bad"))
+            } else {
+                Ok([x[0] * 2.0])
+            }
+        })
+        .unwrap_err();
+        assert_eq!(err, Error::InvalidInput { arg: "x".into(), index: Some(30_002), reason: "bad".into() });
+    }
+
+    #[test]
+    fn broadcasting_repeats_a_single_row() {
+        let a = [[2.0]];
+        let b = [[1.0], [2.0], [3.0]];
+        let mut out = [[0.0]; 3];
+        map2(&a, &b, &mut out, |x, y| Ok([x[0] * y[0]])).unwrap();
+        assert_eq!(out, [[2.0], [4.0], [6.0]]);
+        assert!(broadcast_len(("a", 2), ("b", 3)).is_err());
+    }
+}

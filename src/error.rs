@@ -1,0 +1,103 @@
+//! The one error type of kinema.
+//!
+//! Every fallible function in the core returns [`Result<T>`]. The Python bindings map
+//! [`Error::InvalidInput`] and [`Error::Shape`] to `ValueError`, [`Error::Parse`] to
+//! `kinema.ParseError` (a `ValueError`) and [`Error::Diverged`] / [`Error::SolverFailed`] to
+//! `kinema.SimulationError`, so no Rust panic ever reaches Python for bad input.
+
+use std::fmt;
+
+/// `Result` with kinema's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What went wrong, with enough context to fix it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Error {
+    /// An argument holds a value the method cannot use (zero quaternion, NaN, negative mass...).
+    InvalidInput {
+        /// Name of the argument, as the user-facing API spells it.
+        arg: String,
+        /// Index of the offending item in a batch, if the argument is a batch.
+        index: Option<usize>,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// An array argument has the wrong shape.
+    Shape {
+        /// Name of the argument.
+        arg: String,
+        /// The shape that was expected, e.g. `"(N, 4)"`.
+        expected: String,
+        /// The shape that was received.
+        got: Vec<usize>,
+    },
+    /// A file or text could not be parsed.
+    Parse {
+        /// File name (or `"<string>"`).
+        file: String,
+        /// 1-based line number.
+        line: usize,
+        /// What the parser expected to find.
+        expected: String,
+    },
+    /// A simulation produced a non-finite or exploding state; the state was left at the last
+    /// good step.
+    Diverged {
+        /// Index of the step (counted from the start of the call) that failed.
+        step: usize,
+        /// Index of the first element (particle, body, vertex) found bad.
+        index: usize,
+        /// What was detected.
+        reason: String,
+    },
+    /// A linear or nonlinear solver failed (not positive definite, no convergence...).
+    SolverFailed {
+        /// What failed and why.
+        reason: String,
+    },
+}
+
+impl Error {
+    /// An [`Error::InvalidInput`] for argument `arg` without a batch index.
+    pub fn invalid(arg: impl Into<String>, reason: impl Into<String>) -> Self {
+        Error::InvalidInput { arg: arg.into(), index: None, reason: reason.into() }
+    }
+
+    /// The same error, attributed to item `index` of a batch.
+    pub fn at(self, index: usize) -> Self {
+        match self {
+            Error::InvalidInput { arg, reason, .. } => {
+                Error::InvalidInput { arg, index: Some(index), reason }
+            }
+            other => other,
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::InvalidInput { arg, index: Some(i), reason } => write!(f, "{arg}[{i}]: {reason}"),
+            Error::InvalidInput { arg, index: None, reason } => write!(f, "{arg}: {reason}"),
+            Error::Shape { arg, expected, got } => {
+                write!(f, "{arg}: expected shape {expected}, got {got:?}")
+            }
+            Error::Parse { file, line, expected } => write!(f, "{file}:{line}: expected {expected}"),
+            Error::Diverged { step, index, reason } => {
+                write!(f, "diverged at step {step}, element {index}: {reason}")
+            }
+            Error::SolverFailed { reason } => write!(f, "solver failed: {reason}"),
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+/// Check that every value is finite, naming `arg` and the item index on failure.
+pub fn ensure_finite<const N: usize>(arg: &str, item: &[f64; N]) -> Result<()> {
+    if item.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::invalid(arg, "contains NaN or infinity"))
+    }
+}

@@ -1,0 +1,15 @@
+//! # kinema: physically based animation
+//!
+//! A pure-Rust core (this crate) with Python bindings in [`bindings`] behind the `python` cargo
+//! feature. Every subject lives in its own module; all share the conventions of
+//! `ARCHITECTURE.md`: SI units, +Y up, scalar-first `(w, x, y, z)` quaternions, `f64` everywhere,
+//! batches as slices of fixed-size rows, and one [`Error`] type.
+
+pub mod batch;
+pub mod error;
+pub mod rotation;
+
+#[cfg(feature = "python")]
+mod bindings;
+
+pub use error::{Error, Result};

@@ -1,0 +1,189 @@
+//! Euler angles (intrinsic, upper case) and fixed angles (extrinsic, lower case) in all 12
+//! axis sequences, to and from unit quaternions.
+//!
+//! An extrinsic sequence `ijk` with angles `(a, b, c)` rotates about the fixed world axes `i`,
+//! then `j`, then `k`: `q = q_k(c) q_j(b) q_i(a)`. The intrinsic sequence `IJK` rotates about
+//! the moving body axes and equals `q_i(a) q_j(b) q_k(c)`, so `XYZ` with `(a, b, c)` is `zyx`
+//! with `(c, b, a)`.
+//!
+//! Quaternion to angles follows Bernardes & Viollet 2022 ("Quaternion to Euler angles
+//! conversion: a direct, general and computationally efficient method", PLOS ONE 17(11)):
+//! a Tait–Bryan sequence `ijk` is turned into the proper sequence `iji` by the change of frame
+//! `q' = q_j(pi/2) q`, and for a proper sequence `q = (a, b, c, d)` rearranged so that
+//! `a = cos(β/2) cos(θ+)`, `b = cos(β/2) sin(θ+)`, `c = sin(β/2) cos(θ-)`,
+//! `d = sin(β/2) sin(θ-)`; then `β = 2 atan2(|(c, d)|, |(a, b)|)` and the outer angles are
+//! `θ+ ∓ θ-` with `θ+ = atan2(b, a)`, `θ- = atan2(d, c)`. Only `atan2` and `hypot` are used,
+//! so no input yields NaN and the accuracy is uniform up to the singularity.
+//!
+//! At gimbal lock (the middle angle within [`GIMBAL_LOCK_TOL`] of its singular value) only the
+//! sum or the difference of the outer angles is defined; the third angle is set to 0 and the
+//! first carries the rest, and the lock is reported to the caller.
+
+use crate::error::{ensure_finite, Error, Result};
+use glam::{DQuat, DVec3};
+use std::f64::consts::{FRAC_PI_2, PI};
+
+/// Distance (radians) of the middle angle from its singular value within which a
+/// decomposition is treated as gimbal-locked.
+///
+/// Far below any angle an animator could mean, yet far above the ~1e-16 rounding of
+/// quaternions built exactly at lock. Near (but not at) lock the general formula is used: its
+/// outer angles are individually ill-conditioned but always reproduce the rotation.
+pub const GIMBAL_LOCK_TOL: f64 = 1e-10;
+
+/// A parsed Euler-angle sequence such as `"XYZ"` (intrinsic) or `"zxz"` (extrinsic).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EulerSequence {
+    /// Axis indices (0 = x, 1 = y, 2 = z) in the order written.
+    pub axes: [usize; 3],
+    /// Upper case: rotations about the moving body axes.
+    pub intrinsic: bool,
+}
+
+fn unit(axis: usize) -> DVec3 {
+    DVec3::AXES[axis]
+}
+
+fn elementary(axis: usize, angle: f64) -> DQuat {
+    let (s, c) = (0.5 * angle).sin_cos();
+    let v = unit(axis) * s;
+    DQuat::from_xyzw(v.x, v.y, v.z, c)
+}
+
+/// Wrap an angle into `(-pi, pi]`.
+fn wrap(a: f64) -> f64 {
+    if a > PI {
+        a - 2.0 * PI
+    } else if a <= -PI {
+        a + 2.0 * PI
+    } else {
+        a
+    }
+}
+
+impl EulerSequence {
+    /// Parse a 3-letter sequence over `x y z`, all upper case (intrinsic) or all lower case
+    /// (extrinsic), with no axis repeated next to itself: the 6 Tait–Bryan (`xyz`, ...) and
+    /// 6 proper Euler (`zxz`, ...) sequences.
+    ///
+    /// # Errors
+    /// Anything else, with the offending string in the message.
+    pub fn parse(seq: &str) -> Result<Self> {
+        let bad = |why: &str| Error::invalid("seq", format!("{seq:?} {why}"));
+        let chars: Vec<char> = seq.chars().collect();
+        if chars.len() != 3 {
+            return Err(bad("must have exactly 3 letters from x, y, z"));
+        }
+        let intrinsic = chars.iter().all(|c| c.is_ascii_uppercase());
+        if !intrinsic && !chars.iter().all(|c| c.is_ascii_lowercase()) {
+            return Err(bad("mixes upper case (intrinsic) and lower case (extrinsic)"));
+        }
+        let mut axes = [0; 3];
+        for (a, c) in axes.iter_mut().zip(&chars) {
+            *a = match c.to_ascii_lowercase() {
+                'x' => 0,
+                'y' => 1,
+                'z' => 2,
+                _ => return Err(bad("must have exactly 3 letters from x, y, z")),
+            };
+        }
+        if axes[0] == axes[1] || axes[1] == axes[2] {
+            return Err(bad("repeats an axis in consecutive positions"));
+        }
+        Ok(EulerSequence { axes, intrinsic })
+    }
+
+    /// Proper Euler (`zxz`-like, first axis = last axis) rather than Tait–Bryan.
+    pub fn is_proper(&self) -> bool {
+        self.axes[0] == self.axes[2]
+    }
+
+    /// Unit quaternion of the rotation given by `angles` (radians) in this sequence.
+    ///
+    /// # Errors
+    /// Non-finite angles.
+    pub fn to_quat(&self, angles: &[f64; 3]) -> Result<DQuat> {
+        ensure_finite("angles", angles)?;
+        let [a, b, c] = *angles;
+        let [i, j, k] = self.axes;
+        let q = if self.intrinsic {
+            elementary(i, a) * elementary(j, b) * elementary(k, c)
+        } else {
+            elementary(k, c) * elementary(j, b) * elementary(i, a)
+        };
+        Ok(q.normalize())
+    }
+
+    /// Angles (radians) of unit quaternion `q` in this sequence and whether the decomposition
+    /// is gimbal-locked.
+    ///
+    /// Ranges: first and third angle in `(-pi, pi]`; the middle one in `[-pi/2, pi/2]` for
+    /// Tait–Bryan sequences and in `[0, pi]` for proper Euler sequences.
+    pub fn from_quat(&self, q: DQuat) -> ([f64; 3], bool) {
+        // Work with the extrinsic order of application: first about i, then j, last about k.
+        let [i, j, k] = if self.intrinsic {
+            [self.axes[2], self.axes[1], self.axes[0]]
+        } else {
+            self.axes
+        };
+        let proper = i == k;
+        let m = 3 - i - j; // the axis that is neither i nor j
+        let parity = if j == (i + 1) % 3 { 1.0 } else { -1.0 }; // e_i × e_j = parity e_m
+        let v = [q.x, q.y, q.z];
+        let (a, b, c, d) = if proper {
+            (q.w, v[i], v[j], parity * v[m])
+        } else {
+            // q' = (1 + e_j) q ∝ q_j(pi/2) q turns ijk into the proper sequence iji.
+            (q.w - v[j], v[i] + parity * v[m], v[j] + q.w, parity * v[m] - v[i])
+        };
+        let beta = 2.0 * c.hypot(d).atan2(a.hypot(b));
+        let (plus, minus) = (b.atan2(a), d.atan2(c));
+        let low = beta <= GIMBAL_LOCK_TOL;
+        let high = beta >= PI - GIMBAL_LOCK_TOL;
+        // first: angle about i (applied first); last: angle about k in the proper frame.
+        let (first, last) = match (low, high, self.intrinsic) {
+            (false, false, _) => (plus - minus, plus + minus),
+            // Locked: the output's third angle is zero. Extrinsic output is (first, β, last),
+            // intrinsic output is (last, β, first).
+            (true, _, false) => (2.0 * plus, 0.0),
+            (_, true, false) => (-2.0 * minus, 0.0),
+            (true, _, true) => (0.0, 2.0 * plus),
+            (_, true, true) => (0.0, 2.0 * minus),
+        };
+        let (last, beta) = if proper { (last, beta) } else { (parity * last, beta - FRAC_PI_2) };
+        let (first, last) = (wrap(first), wrap(last));
+        let angles = if self.intrinsic { [last, beta, first] } else { [first, beta, last] };
+        (angles, low || high)
+    }
+
+    /// Whether `angles` in this sequence are at gimbal lock, where the first and third axes
+    /// coincide: the middle angle at ±pi/2 (Tait–Bryan) or at 0 or pi (proper Euler), within
+    /// `atol`. The distance is measured as `|cos β|` (Tait–Bryan) or `|sin β|` (proper), which
+    /// equals the angular distance to the nearest singular value to first order.
+    pub fn is_gimbal_locked(&self, angles: &[f64; 3], atol: f64) -> bool {
+        let b = angles[1];
+        let distance = if self.is_proper() { b.sin().abs() } else { b.cos().abs() };
+        distance <= atol
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_accepts_the_24_sequences_only() {
+        let mut n = 0;
+        for s in ["x", "y", "z"].iter().flat_map(|a| {
+            ["x", "y", "z"].iter().flat_map(move |b| ["x", "y", "z"].iter().map(move |c| format!("{a}{b}{c}")))
+        }) {
+            let ok = EulerSequence::parse(&s).is_ok();
+            assert_eq!(ok, EulerSequence::parse(&s.to_uppercase()).is_ok());
+            n += usize::from(ok);
+        }
+        assert_eq!(n, 12);
+        assert!(EulerSequence::parse("xYz").is_err());
+        assert!(EulerSequence::parse("xyzx").is_err());
+        assert!(EulerSequence::parse("abc").is_err());
+    }
+}

@@ -1,0 +1,110 @@
+//! Rotation matrices (row-major `[f64; 9]`) to and from unit quaternions, and the nearest
+//! rotation to an arbitrary matrix.
+
+use crate::error::{ensure_finite, Error, Result};
+use glam::DQuat;
+use nalgebra::Matrix3;
+
+/// Largest entry of `|RᵀR - I|` (and `|det R - 1|`) accepted for a rotation matrix.
+///
+/// Matrices further from orthonormal are refused unless orthonormalisation is asked for,
+/// because silently projecting them would hide a bug in the caller's data.
+pub const ROTATION_MATRIX_TOL: f64 = 1e-6;
+
+/// Row-major rotation matrix of unit quaternion `q` (the standard formula, e.g.
+/// Shoemake 1985, "Animating rotation with quaternion curves", eq. in section 3).
+pub fn quat_to_matrix(q: DQuat) -> [f64; 9] {
+    let (w, x, y, z) = (q.w, q.x, q.y, q.z);
+    let (xx, yy, zz) = (x * x, y * y, z * z);
+    let (xy, xz, yz) = (x * y, x * z, y * z);
+    let (wx, wy, wz) = (w * x, w * y, w * z);
+    [
+        1.0 - 2.0 * (yy + zz),
+        2.0 * (xy - wz),
+        2.0 * (xz + wy),
+        2.0 * (xy + wz),
+        1.0 - 2.0 * (xx + zz),
+        2.0 * (yz - wx),
+        2.0 * (xz - wy),
+        2.0 * (yz + wx),
+        1.0 - 2.0 * (xx + yy),
+    ]
+}
+
+/// Whether row-major `m` is a rotation: `|RᵀR - I| <= tol` entry-wise and `det R > 0`.
+pub fn is_rotation_matrix(m: &[f64; 9], tol: f64) -> bool {
+    let r = Matrix3::from_row_slice(m);
+    let e = r.transpose() * r - Matrix3::identity();
+    e.amax() <= tol && (r.determinant() - 1.0).abs() <= tol
+}
+
+/// The rotation nearest to `m` in the Frobenius norm: `U diag(1, 1, det(U Vᵀ)) Vᵀ` from the
+/// SVD `m = U Σ Vᵀ` (the orthogonal Procrustes solution, Higham 1989).
+///
+/// # Errors
+/// Non-finite entries, or a matrix of rank below 2 (no unique nearest rotation).
+pub fn orthonormalize(m: &[f64; 9]) -> Result<[f64; 9]> {
+    ensure_finite("matrix", m)?;
+    let svd = Matrix3::from_row_slice(m).svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return Err(Error::invalid("matrix", "singular value decomposition failed"));
+    };
+    let mut s = svd.singular_values;
+    s.as_mut_slice().sort_by(|a, b| b.total_cmp(a));
+    if !(s[1] > f64::EPSILON * s[0].max(f64::MIN_POSITIVE)) {
+        return Err(Error::invalid("matrix", "has rank below 2; no unique nearest rotation"));
+    }
+    let d = (u * v_t).determinant().signum();
+    let r = u * Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, d)) * v_t;
+    let mut out = [0.0; 9];
+    for (k, o) in out.iter_mut().enumerate() {
+        *o = r[(k / 3, k % 3)];
+    }
+    Ok(out)
+}
+
+/// Unit quaternion of rotation matrix `m` (row-major).
+///
+/// Shepperd's method (Shepperd 1978, "Quaternion from rotation matrix", J. Guidance and
+/// Control 1(3)): the largest of `4w², 4x², 4y², 4z²` is found from the trace and the diagonal
+/// and the other components are taken from sums and differences of off-diagonal pairs, so no
+/// square root of a small number is ever divided by.
+///
+/// With `orthonormalize`, `m` is first replaced by its nearest rotation ([`orthonormalize`]).
+///
+/// # Errors
+/// Non-finite entries; a matrix further than [`ROTATION_MATRIX_TOL`] from a rotation when
+/// `orthonormalize` is false.
+pub fn quat_from_matrix(m: &[f64; 9], orthonormalize: bool) -> Result<DQuat> {
+    ensure_finite("matrix", m)?;
+    let m = if orthonormalize {
+        self::orthonormalize(m)?
+    } else if is_rotation_matrix(m, ROTATION_MATRIX_TOL) {
+        *m
+    } else {
+        return Err(Error::invalid(
+            "matrix",
+            "is not a rotation (RᵀR != I or det <= 0); pass orthonormalize=True to project it",
+        ));
+    };
+    let [r00, r01, r02, r10, r11, r12, r20, r21, r22] = m;
+    let trace = r00 + r11 + r22;
+    let (w, x, y, z) = if trace >= r00 && trace >= r11 && trace >= r22 {
+        let w = 0.5 * (1.0 + trace).sqrt();
+        let s = 0.25 / w;
+        (w, (r21 - r12) * s, (r02 - r20) * s, (r10 - r01) * s)
+    } else if r00 >= r11 && r00 >= r22 {
+        let x = 0.5 * (1.0 + r00 - r11 - r22).sqrt();
+        let s = 0.25 / x;
+        ((r21 - r12) * s, x, (r01 + r10) * s, (r02 + r20) * s)
+    } else if r11 >= r22 {
+        let y = 0.5 * (1.0 - r00 + r11 - r22).sqrt();
+        let s = 0.25 / y;
+        ((r02 - r20) * s, (r01 + r10) * s, y, (r12 + r21) * s)
+    } else {
+        let z = 0.5 * (1.0 - r00 - r11 + r22).sqrt();
+        let s = 0.25 / z;
+        ((r10 - r01) * s, (r02 + r20) * s, (r12 + r21) * s, z)
+    };
+    Ok(DQuat::from_xyzw(x, y, z, w).normalize())
+}

@@ -1,0 +1,31 @@
+//! 3D rotations: unit quaternions, matrices, Euler and fixed angles, rotation vectors,
+//! axis-angle, spherical interpolation and homogeneous transforms.
+//!
+//! Conventions (see `ARCHITECTURE.md`):
+//! - Quaternions are scalar-first `(w, x, y, z)` at every array boundary, with the Hamilton
+//!   product; inside Rust they are [`glam::DQuat`]. A vector is rotated actively,
+//!   `v' = q v q*`, the same as `v' = R v` with column vectors.
+//! - `q` and `-q` are the same rotation; [`canonical`] picks `w >= 0`.
+//! - Matrices cross the boundary row-major as `[f64; 9]` (3x3) or `[f64; 16]` (4x4).
+//! - Euler sequences are 3-letter strings: upper case intrinsic, lower case extrinsic
+//!   ([`EulerSequence`]).
+//!
+//! Every function that accepts user data checks it and returns [`crate::Error`] instead of
+//! producing NaN: zero or non-finite quaternions, matrices that are not rotations, zero axes.
+
+mod euler;
+mod matrix;
+mod quat;
+mod rotvec;
+mod slerp;
+mod transform;
+
+pub use euler::{EulerSequence, GIMBAL_LOCK_TOL};
+pub use matrix::{is_rotation_matrix, orthonormalize, quat_from_matrix, quat_to_matrix, ROTATION_MATRIX_TOL};
+pub use quat::{canonical, quat_from_wxyz, quat_to_wxyz, rotation_angle};
+pub use rotvec::{quat_from_axis_angle, quat_from_rotvec, quat_to_axis_angle, quat_to_rotvec};
+pub use slerp::slerp;
+pub use transform::{
+    transform_apply_direction, transform_apply_point, transform_compose, transform_from_parts,
+    transform_invert, validate_transform,
+};

@@ -1,0 +1,73 @@
+//! Unit quaternions at the array boundary: checked construction from `(w, x, y, z)`,
+//! normalisation that neither overflows nor underflows, the canonical sign, the angle.
+
+use crate::error::{ensure_finite, Error, Result};
+use glam::DQuat;
+
+/// A unit quaternion from scalar-first components `(w, x, y, z)`, normalised.
+///
+/// Any non-zero finite 4-vector is accepted and scaled to unit length (the scale does not
+/// change the rotation it denotes). Tiny or huge components are rescaled by their largest
+/// magnitude first so the norm neither underflows nor overflows.
+///
+/// # Errors
+/// [`Error::InvalidInput`] (argument `quat`) for a zero or non-finite quaternion.
+pub fn quat_from_wxyz(q: &[f64; 4]) -> Result<DQuat> {
+    ensure_finite("quat", q)?;
+    let n2 = q.iter().map(|c| c * c).sum::<f64>();
+    let scale = if n2.is_normal() && n2 < 1e300 {
+        n2.sqrt()
+    } else {
+        let m = q.iter().fold(0.0_f64, |m, c| m.max(c.abs()));
+        if m == 0.0 {
+            return Err(Error::invalid("quat", "is zero; a rotation needs a non-zero quaternion"));
+        }
+        m * q.iter().map(|c| (c / m) * (c / m)).sum::<f64>().sqrt()
+    };
+    Ok(DQuat::from_xyzw(q[1] / scale, q[2] / scale, q[3] / scale, q[0] / scale))
+}
+
+/// Scalar-first components `(w, x, y, z)` of `q`.
+pub fn quat_to_wxyz(q: DQuat) -> [f64; 4] {
+    [q.w, q.x, q.y, q.z]
+}
+
+/// The representative of `{q, -q}` with `w > 0`; when `w == 0`, the first non-zero of
+/// `x, y, z` is made positive (the same rule as scipy's `canonical=True`).
+pub fn canonical(q: DQuat) -> DQuat {
+    let first_nonzero = [q.w, q.x, q.y, q.z].into_iter().find(|c| *c != 0.0).unwrap_or(1.0);
+    if first_nonzero < 0.0 {
+        -q
+    } else {
+        q
+    }
+}
+
+/// The rotation angle of unit quaternion `q` in radians, in `[0, pi]`:
+/// `2 atan2(|v|, |w|)`, accurate for tiny angles and near pi alike.
+pub fn rotation_angle(q: DQuat) -> f64 {
+    2.0 * q.xyz().length().atan2(q.w.abs())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normalises_tiny_and_huge_quaternions() {
+        for s in [1e-200, 1e-310, 1e200, 1e307] {
+            let q = quat_from_wxyz(&[s, s, 0.0, 0.0]).unwrap();
+            assert!((q.w - 0.5_f64.sqrt()).abs() < 1e-15 && (q.x - q.w).abs() < 1e-15, "{s}");
+        }
+        assert!(quat_from_wxyz(&[0.0; 4]).is_err());
+        assert!(quat_from_wxyz(&[f64::NAN, 1.0, 0.0, 0.0]).is_err());
+    }
+
+    #[test]
+    fn canonical_sign() {
+        let q = DQuat::from_xyzw(0.0, -1.0, 0.0, 0.0);
+        assert_eq!(quat_to_wxyz(canonical(q)), [0.0, 1.0, 0.0, 0.0]);
+        let q = DQuat::from_xyzw(0.6, 0.0, 0.0, -0.8);
+        assert_eq!(quat_to_wxyz(canonical(q)), [0.8, -0.6, -0.0, -0.0]);
+    }
+}
