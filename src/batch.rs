@@ -94,7 +94,10 @@ mod tests {
             }
         })
         .unwrap_err();
-        assert_eq!(err, Error::InvalidInput { arg: "x".into(), index: Some(30_002), reason: "bad".into() });
+        assert_eq!(
+            err,
+            Error::InvalidInput { arg: "x".into(), index: Some(30_002), reason: "bad".into() }
+        );
     }
 
     #[test]

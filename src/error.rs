@@ -77,12 +77,16 @@ impl Error {
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Error::InvalidInput { arg, index: Some(i), reason } => write!(f, "{arg}[{i}]: {reason}"),
+            Error::InvalidInput { arg, index: Some(i), reason } => {
+                write!(f, "{arg}[{i}]: {reason}")
+            }
             Error::InvalidInput { arg, index: None, reason } => write!(f, "{arg}: {reason}"),
             Error::Shape { arg, expected, got } => {
                 write!(f, "{arg}: expected shape {expected}, got {got:?}")
             }
-            Error::Parse { file, line, expected } => write!(f, "{file}:{line}: expected {expected}"),
+            Error::Parse { file, line, expected } => {
+                write!(f, "{file}:{line}: expected {expected}")
+            }
             Error::Diverged { step, index, reason } => {
                 write!(f, "diverged at step {step}, element {index}: {reason}")
             }

@@ -121,11 +121,8 @@ impl EulerSequence {
     /// Tait–Bryan sequences and in `[0, pi]` for proper Euler sequences.
     pub fn from_quat(&self, q: DQuat) -> ([f64; 3], bool) {
         // Work with the extrinsic order of application: first about i, then j, last about k.
-        let [i, j, k] = if self.intrinsic {
-            [self.axes[2], self.axes[1], self.axes[0]]
-        } else {
-            self.axes
-        };
+        let [i, j, k] =
+            if self.intrinsic { [self.axes[2], self.axes[1], self.axes[0]] } else { self.axes };
         let proper = i == k;
         let m = 3 - i - j; // the axis that is neither i nor j
         let parity = if j == (i + 1) % 3 { 1.0 } else { -1.0 }; // e_i × e_j = parity e_m
@@ -175,7 +172,9 @@ mod tests {
     fn parse_accepts_the_24_sequences_only() {
         let mut n = 0;
         for s in ["x", "y", "z"].iter().flat_map(|a| {
-            ["x", "y", "z"].iter().flat_map(move |b| ["x", "y", "z"].iter().map(move |c| format!("{a}{b}{c}")))
+            ["x", "y", "z"]
+                .iter()
+                .flat_map(move |b| ["x", "y", "z"].iter().map(move |c| format!("{a}{b}{c}")))
         }) {
             let ok = EulerSequence::parse(&s).is_ok();
             assert_eq!(ok, EulerSequence::parse(&s.to_uppercase()).is_ok());

@@ -15,16 +15,17 @@ use glam::DQuat;
 pub fn quat_from_wxyz(q: &[f64; 4]) -> Result<DQuat> {
     ensure_finite("quat", q)?;
     let n2 = q.iter().map(|c| c * c).sum::<f64>();
-    let scale = if n2.is_normal() && n2 < 1e300 {
-        n2.sqrt()
-    } else {
-        let m = q.iter().fold(0.0_f64, |m, c| m.max(c.abs()));
-        if m == 0.0 {
-            return Err(Error::invalid("quat", "is zero; a rotation needs a non-zero quaternion"));
-        }
-        m * q.iter().map(|c| (c / m) * (c / m)).sum::<f64>().sqrt()
-    };
-    Ok(DQuat::from_xyzw(q[1] / scale, q[2] / scale, q[3] / scale, q[0] / scale))
+    if n2.is_normal() && n2 < 1e300 {
+        let n = n2.sqrt();
+        return Ok(DQuat::from_xyzw(q[1] / n, q[2] / n, q[3] / n, q[0] / n));
+    }
+    let m = q.iter().fold(0.0_f64, |m, c| m.max(c.abs()));
+    if m == 0.0 {
+        return Err(Error::invalid("quat", "is zero; a rotation needs a non-zero quaternion"));
+    }
+    let q = q.map(|c| c / m);
+    let n = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+    Ok(DQuat::from_xyzw(q[1] / n, q[2] / n, q[3] / n, q[0] / n))
 }
 
 /// Scalar-first components `(w, x, y, z)` of `q`.
@@ -65,7 +66,7 @@ mod tests {
 
     #[test]
     fn canonical_sign() {
-        let q = DQuat::from_xyzw(0.0, -1.0, 0.0, 0.0);
+        let q = DQuat::from_xyzw(-1.0, 0.0, 0.0, 0.0);
         assert_eq!(quat_to_wxyz(canonical(q)), [0.0, 1.0, 0.0, 0.0]);
         let q = DQuat::from_xyzw(0.6, 0.0, 0.0, -0.8);
         assert_eq!(quat_to_wxyz(canonical(q)), [0.8, -0.6, -0.0, -0.0]);

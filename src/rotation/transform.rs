@@ -23,7 +23,11 @@ pub fn validate_transform(m: &[f64; 16]) -> Result<()> {
 ///
 /// # Errors
 /// Non-finite translation or scale (the quaternion is assumed unit and checked upstream).
-pub fn transform_from_parts(q: DQuat, translation: &[f64; 3], scale: &[f64; 3]) -> Result<[f64; 16]> {
+pub fn transform_from_parts(
+    q: DQuat,
+    translation: &[f64; 3],
+    scale: &[f64; 3],
+) -> Result<[f64; 16]> {
     ensure_finite("translation", translation)?;
     ensure_finite("scale", scale)?;
     let r = super::quat_to_matrix(q);
@@ -58,7 +62,10 @@ pub fn transform_invert(m: &[f64; 16]) -> Result<[f64; 16]> {
     let det = a.determinant();
     let scale = a.x_axis.length() * a.y_axis.length() * a.z_axis.length();
     if !(det.abs() > 1e-14 * scale) {
-        return Err(Error::invalid("matrix", "linear part is singular; the transform has no inverse"));
+        return Err(Error::invalid(
+            "matrix",
+            "linear part is singular; the transform has no inverse",
+        ));
     }
     let inv = a.inverse();
     let t = -(inv * glam::DVec3::new(m[3], m[7], m[11]));

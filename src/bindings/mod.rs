@@ -1,0 +1,1 @@
+//! PyO3 bindings: the compiled module `kinema._kinema`.
