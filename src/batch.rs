@@ -25,8 +25,13 @@ pub fn broadcast_len(a: (&str, usize), b: (&str, usize)) -> Result<usize> {
     }
 }
 
+/// Item `i` of a batch broadcast to any length: a batch of one repeats its single item.
+pub fn item<T>(batch: &[T], i: usize) -> &T {
+    &batch[if batch.len() == 1 { 0 } else { i }]
+}
+
 /// Fill `out[i]` with `f(i)` for every row, in parallel for large batches.
-fn fill<const O: usize>(
+pub fn fill<const O: usize>(
     out: &mut [[f64; O]],
     f: impl Fn(usize) -> Result<[f64; O]> + Sync,
 ) -> Result<()> {
@@ -74,8 +79,7 @@ pub fn map2<const A: usize, const B: usize, const O: usize>(
     if out.len() != n {
         return Err(Error::invalid("out", "must have the broadcast length of the inputs"));
     }
-    let (sa, sb) = (usize::from(a.len() > 1), usize::from(b.len() > 1));
-    fill(out, |i| f(&a[i * sa], &b[i * sb]))
+    fill(out, |i| f(item(a, i), item(b, i)))
 }
 
 #[cfg(test)]

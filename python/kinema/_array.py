@@ -1,0 +1,46 @@
+"""Argument checking shared by every Python-facing function.
+
+Array-likes are converted once to C-contiguous float64; shapes are checked with messages
+that name the argument and the shape received (see CONVENTIONS: "Arrays and the Python
+boundary").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def as_batch(value: object, name: str, row_shape: tuple[int, ...]) -> tuple[np.ndarray, bool]:
+    """Convert ``value`` to a C-contiguous float64 batch of shape ``(N, *row_shape)``.
+
+    A single item of shape ``row_shape`` is accepted too and becomes a batch of one.
+    Returns the batch and whether the input was a single item.
+
+    Raises ValueError naming ``name`` for values that cannot be converted to float64 or that
+    have another shape. Finiteness is checked by the Rust kernels, which name the item.
+    """
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{name}: cannot convert to a float64 array ({e})") from None
+    if arr.shape == row_shape:
+        return np.ascontiguousarray(arr.reshape((1, *row_shape))), True
+    if arr.ndim == len(row_shape) + 1 and arr.shape[1:] == row_shape:
+        return np.ascontiguousarray(arr), False
+    expected = ", ".join(str(d) for d in row_shape)
+    raise ValueError(
+        f"{name}: expected shape ({expected}) or (N, {expected}), got {arr.shape}"
+    )
+
+
+def as_scalars(value: object, name: str) -> tuple[np.ndarray, bool]:
+    """Convert a scalar or 1-D array-like to a float64 column ``(N, 1)``; see :func:`as_batch`."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{name}: cannot convert to a float64 array ({e})") from None
+    if arr.ndim == 0:
+        return arr.reshape(1, 1), True
+    if arr.ndim == 1:
+        return np.ascontiguousarray(arr.reshape(-1, 1)), False
+    raise ValueError(f"{name}: expected a scalar or shape (N,), got {arr.shape}")

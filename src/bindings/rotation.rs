@@ -1,0 +1,398 @@
+//! Rotation kernels for `kinema.rotation`: every function maps batches of rows and
+//! broadcasts a batch of one against a batch of N.
+
+use super::array::{rows, to_numpy};
+use super::error::detached;
+use crate::batch::{broadcast_len, fill, item, map, map2};
+use crate::error::{ensure_finite, Error, Result};
+use crate::rotation::{self as rot, EulerSequence};
+use glam::{DQuat, DVec3};
+use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
+use pyo3::prelude::*;
+
+type Array<'py> = Bound<'py, PyArrayDyn<f64>>;
+
+fn q(row: &[f64; 4]) -> Result<DQuat> {
+    rot::quat_from_wxyz(row)
+}
+
+fn wxyz(q: DQuat) -> [f64; 4] {
+    rot::quat_to_wxyz(q)
+}
+
+/// Unit quaternions (N, 4) from any non-zero finite 4-vectors (N, 4); `canonical` picks w >= 0.
+#[pyfunction]
+fn quat_normalize<'py>(
+    py: Python<'py>,
+    quat: PyReadonlyArrayDyn<'py, f64>,
+    canonical: bool,
+) -> PyResult<Array<'py>> {
+    let input = rows::<4>(&quat, "quat", &[4])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 4]; input.len()];
+        map(input, &mut out, |r| {
+            let q = q(r)?;
+            Ok(wxyz(if canonical { rot::canonical(q) } else { q }))
+        })?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4]))
+}
+
+/// Hamilton products a * b (N, 4) of quaternion batches broadcast one against N.
+#[pyfunction]
+fn quat_multiply<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArrayDyn<'py, f64>,
+    b: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let (a, b) = (rows::<4>(&a, "a", &[4])?, rows::<4>(&b, "b", &[4])?);
+    let n = broadcast_len(("a", a.len()), ("b", b.len()))?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 4]; n];
+        map2(a, b, &mut out, |x, y| Ok(wxyz((q(x)? * q(y)?).normalize())))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4]))
+}
+
+/// Rotation matrices (N, 3, 3) of quaternions (N, 4).
+#[pyfunction]
+fn quat_to_matrix<'py>(
+    py: Python<'py>,
+    quat: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let input = rows::<4>(&quat, "quat", &[4])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 9]; input.len()];
+        map(input, &mut out, |r| Ok(rot::quat_to_matrix(q(r)?)))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[3, 3]))
+}
+
+/// Quaternions (N, 4) of rotation matrices (N, 3, 3); non-rotations are refused unless
+/// `orthonormalize` projects them onto the nearest rotation.
+#[pyfunction]
+fn matrix_to_quat<'py>(
+    py: Python<'py>,
+    matrix: PyReadonlyArrayDyn<'py, f64>,
+    orthonormalize: bool,
+) -> PyResult<Array<'py>> {
+    let input = rows::<9>(&matrix, "matrix", &[3, 3])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 4]; input.len()];
+        map(input, &mut out, |m| Ok(wxyz(rot::quat_from_matrix(m, orthonormalize)?)))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4]))
+}
+
+/// Rotation vectors (N, 3) of quaternions (N, 4), angle in [0, pi].
+#[pyfunction]
+fn quat_to_rotvec<'py>(
+    py: Python<'py>,
+    quat: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let input = rows::<4>(&quat, "quat", &[4])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 3]; input.len()];
+        map(input, &mut out, |r| Ok(rot::quat_to_rotvec(q(r)?)))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[3]))
+}
+
+/// Quaternions (N, 4) of rotation vectors (N, 3).
+#[pyfunction]
+fn rotvec_to_quat<'py>(
+    py: Python<'py>,
+    rotvec: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let input = rows::<3>(&rotvec, "rotvec", &[3])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 4]; input.len()];
+        map(input, &mut out, |v| Ok(wxyz(rot::quat_from_rotvec(v)?)))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4]))
+}
+
+/// Quaternions (N, 4) of axes (N, 3) and angles (N, 1), broadcast one against N.
+#[pyfunction]
+fn axis_angle_to_quat<'py>(
+    py: Python<'py>,
+    axis: PyReadonlyArrayDyn<'py, f64>,
+    angle: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let (axis, angle) = (rows::<3>(&axis, "axis", &[3])?, rows::<1>(&angle, "angle", &[1])?);
+    let n = broadcast_len(("axis", axis.len()), ("angle", angle.len()))?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 4]; n];
+        map2(axis, angle, &mut out, |a, t| Ok(wxyz(rot::quat_from_axis_angle(a, t[0])?)))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4]))
+}
+
+/// Unit axes (N, 3) and angles in [0, pi] (N, 1) of quaternions (N, 4).
+#[pyfunction]
+fn quat_to_axis_angle<'py>(
+    py: Python<'py>,
+    quat: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let input = rows::<4>(&quat, "quat", &[4])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 4]; input.len()];
+        map(input, &mut out, |r| {
+            let ([x, y, z], angle) = rot::quat_to_axis_angle(q(r)?);
+            Ok([x, y, z, angle])
+        })?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4]))
+}
+
+/// Quaternions (N, 4) of Euler angles (N, 3) in sequence `seq`.
+#[pyfunction]
+fn euler_to_quat<'py>(
+    py: Python<'py>,
+    seq: &str,
+    angles: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let seq = EulerSequence::parse(seq)?;
+    let input = rows::<3>(&angles, "angles", &[3])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 4]; input.len()];
+        map(input, &mut out, |a| Ok(wxyz(seq.to_quat(a)?)))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4]))
+}
+
+/// Euler angles (N, 3) in sequence `seq` of quaternions (N, 4), plus a fourth column that is
+/// 1.0 where the decomposition is gimbal-locked (third angle set to 0) and 0.0 elsewhere.
+#[pyfunction]
+fn quat_to_euler<'py>(
+    py: Python<'py>,
+    seq: &str,
+    quat: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let seq = EulerSequence::parse(seq)?;
+    let input = rows::<4>(&quat, "quat", &[4])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 4]; input.len()];
+        map(input, &mut out, |r| {
+            let ([a, b, c], locked) = seq.from_quat(q(r)?);
+            Ok([a, b, c, f64::from(u8::from(locked))])
+        })?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4]))
+}
+
+/// Whether Euler angles (N, 3) in `seq` are within `atol` of gimbal lock: (N, 1) of 0.0/1.0.
+#[pyfunction]
+fn euler_gimbal_lock<'py>(
+    py: Python<'py>,
+    seq: &str,
+    angles: PyReadonlyArrayDyn<'py, f64>,
+    atol: f64,
+) -> PyResult<Array<'py>> {
+    let seq = EulerSequence::parse(seq)?;
+    let input = rows::<3>(&angles, "angles", &[3])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 1]; input.len()];
+        map(input, &mut out, |a| {
+            ensure_finite("angles", a)?;
+            Ok([f64::from(u8::from(seq.is_gimbal_locked(a, atol)))])
+        })?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[1]))
+}
+
+/// Rotation angles in [0, pi] (N, 1) of quaternions (N, 4).
+#[pyfunction]
+fn quat_angle<'py>(py: Python<'py>, quat: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Array<'py>> {
+    let input = rows::<4>(&quat, "quat", &[4])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 1]; input.len()];
+        map(input, &mut out, |r| Ok([rot::rotation_angle(q(r)?)]))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[1]))
+}
+
+/// Vectors (N, 3) rotated by quaternions (N, 4), broadcast one against N; `inverse` applies
+/// the inverse rotations.
+#[pyfunction]
+fn quat_apply<'py>(
+    py: Python<'py>,
+    quat: PyReadonlyArrayDyn<'py, f64>,
+    vectors: PyReadonlyArrayDyn<'py, f64>,
+    inverse: bool,
+) -> PyResult<Array<'py>> {
+    let (qs, vs) = (rows::<4>(&quat, "quat", &[4])?, rows::<3>(&vectors, "vectors", &[3])?);
+    let n = broadcast_len(("rotations", qs.len()), ("vectors", vs.len()))?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 3]; n];
+        map2(qs, vs, &mut out, |r, v| {
+            ensure_finite("vectors", v)?;
+            let q = q(r)?;
+            let q = if inverse { q.conjugate() } else { q };
+            Ok((q * DVec3::from_array(*v)).to_array())
+        })?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[3]))
+}
+
+/// Spherical linear interpolation between q0 and q1 (N, 4) at parameters t (N, 1); all three
+/// broadcast one against N.
+#[pyfunction]
+fn quat_slerp<'py>(
+    py: Python<'py>,
+    q0: PyReadonlyArrayDyn<'py, f64>,
+    q1: PyReadonlyArrayDyn<'py, f64>,
+    t: PyReadonlyArrayDyn<'py, f64>,
+    shortest: bool,
+) -> PyResult<Array<'py>> {
+    let (a, b, t) =
+        (rows::<4>(&q0, "r0", &[4])?, rows::<4>(&q1, "r1", &[4])?, rows::<1>(&t, "t", &[1])?);
+    let n = broadcast_len(("r0", a.len()), ("r1", b.len()))?;
+    let n = broadcast_len(("t", t.len()), ("rotations", n))?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 4]; n];
+        fill(&mut out, |i| {
+            let tt = item(t, i)[0];
+            if !tt.is_finite() {
+                return Err(Error::invalid("t", "is NaN or infinite"));
+            }
+            Ok(wxyz(rot::slerp(q(item(a, i))?, q(item(b, i))?, tt, shortest)))
+        })?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4]))
+}
+
+/// Affine transforms (N, 4, 4) from unit quaternions (N, 4), translations (N, 3) and per-axis
+/// scales (N, 3), all broadcast one against N: `M = T R S`.
+#[pyfunction]
+fn transform_from_parts<'py>(
+    py: Python<'py>,
+    quat: PyReadonlyArrayDyn<'py, f64>,
+    translation: PyReadonlyArrayDyn<'py, f64>,
+    scale: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let qs = rows::<4>(&quat, "rotation", &[4])?;
+    let ts = rows::<3>(&translation, "translation", &[3])?;
+    let ss = rows::<3>(&scale, "scale", &[3])?;
+    let n = broadcast_len(("rotation", qs.len()), ("translation", ts.len()))?;
+    let n = broadcast_len(("scale", ss.len()), ("rotation", n))?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 16]; n];
+        fill(&mut out, |i| rot::transform_from_parts(q(item(qs, i))?, item(ts, i), item(ss, i)))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4, 4]))
+}
+
+/// Checked affine transforms (N, 4, 4): finite, last row (0, 0, 0, 1).
+#[pyfunction]
+fn transform_validate<'py>(
+    py: Python<'py>,
+    matrix: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let ms = rows::<16>(&matrix, "matrix", &[4, 4])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 16]; ms.len()];
+        map(ms, &mut out, |m| rot::validate_transform(m).map(|_| *m))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4, 4]))
+}
+
+/// Products a @ b (N, 4, 4) of transform batches broadcast one against N.
+#[pyfunction]
+fn transform_compose<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArrayDyn<'py, f64>,
+    b: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let (a, b) = (rows::<16>(&a, "a", &[4, 4])?, rows::<16>(&b, "b", &[4, 4])?);
+    let n = broadcast_len(("a", a.len()), ("b", b.len()))?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 16]; n];
+        map2(a, b, &mut out, |x, y| Ok(rot::transform_compose(x, y)))?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4, 4]))
+}
+
+/// Inverses (N, 4, 4) of affine transforms (N, 4, 4).
+#[pyfunction]
+fn transform_invert<'py>(
+    py: Python<'py>,
+    matrix: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let ms = rows::<16>(&matrix, "matrix", &[4, 4])?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 16]; ms.len()];
+        map(ms, &mut out, rot::transform_invert)?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[4, 4]))
+}
+
+/// Points (or, with `directions`, direction vectors) (N, 3) mapped by transforms (N, 4, 4),
+/// broadcast one against N.
+#[pyfunction]
+fn transform_apply<'py>(
+    py: Python<'py>,
+    matrix: PyReadonlyArrayDyn<'py, f64>,
+    points: PyReadonlyArrayDyn<'py, f64>,
+    directions: bool,
+) -> PyResult<Array<'py>> {
+    let ms = rows::<16>(&matrix, "matrix", &[4, 4])?;
+    let ps = rows::<3>(&points, "points", &[3])?;
+    let n = broadcast_len(("transforms", ms.len()), ("points", ps.len()))?;
+    let out = detached(py, || {
+        let mut out = vec![[0.0; 3]; n];
+        map2(ms, ps, &mut out, |m, p| {
+            ensure_finite("points", p)?;
+            Ok(if directions {
+                rot::transform_apply_direction(m, p)
+            } else {
+                rot::transform_apply_point(m, p)
+            })
+        })?;
+        Ok(out)
+    })?;
+    Ok(to_numpy(py, out, &[3]))
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("GIMBAL_LOCK_TOL", rot::GIMBAL_LOCK_TOL)?;
+    m.add("ROTATION_MATRIX_TOL", rot::ROTATION_MATRIX_TOL)?;
+    m.add_function(wrap_pyfunction!(quat_normalize, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_multiply, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_to_matrix, m)?)?;
+    m.add_function(wrap_pyfunction!(matrix_to_quat, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_to_rotvec, m)?)?;
+    m.add_function(wrap_pyfunction!(rotvec_to_quat, m)?)?;
+    m.add_function(wrap_pyfunction!(axis_angle_to_quat, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_to_axis_angle, m)?)?;
+    m.add_function(wrap_pyfunction!(euler_to_quat, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_to_euler, m)?)?;
+    m.add_function(wrap_pyfunction!(euler_gimbal_lock, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_angle, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_apply, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_slerp, m)?)?;
+    m.add_function(wrap_pyfunction!(transform_from_parts, m)?)?;
+    m.add_function(wrap_pyfunction!(transform_validate, m)?)?;
+    m.add_function(wrap_pyfunction!(transform_compose, m)?)?;
+    m.add_function(wrap_pyfunction!(transform_invert, m)?)?;
+    m.add_function(wrap_pyfunction!(transform_apply, m)?)?;
+    Ok(())
+}
