@@ -1,0 +1,9 @@
+"""Demos run by ``kinema demo [NAME]``: each writes pictures and returns a summary.
+
+``DEMOS`` maps a demo's name to a one-line description; the module ``kinema.demos.<name>``
+provides ``run(out_dir, quick) -> dict``.
+"""
+
+DEMOS: dict[str, str] = {
+    "rotations": "gimbal lock of Euler angles against quaternion slerp",
+}
