@@ -51,7 +51,7 @@ pub fn orthonormalize(m: &[f64; 9]) -> Result<[f64; 9]> {
     };
     let mut s = svd.singular_values;
     s.as_mut_slice().sort_by(|a, b| b.total_cmp(a));
-    if !(s[1] > f64::EPSILON * s[0].max(f64::MIN_POSITIVE)) {
+    if s[1] <= f64::EPSILON * s[0].max(f64::MIN_POSITIVE) {
         return Err(Error::invalid("matrix", "has rank below 2; no unique nearest rotation"));
     }
     let d = (u * v_t).determinant().signum();

@@ -45,9 +45,10 @@ pub fn canonical(q: DQuat) -> DQuat {
 }
 
 /// The rotation angle of unit quaternion `q` in radians, in `[0, pi]`:
-/// `2 atan2(|v|, |w|)`, accurate for tiny angles and near pi alike.
+/// `2 atan2(|v|, |w|)`, accurate for tiny angles (down to subnormal ones: `|v|` is formed
+/// with `hypot`, which does not underflow) and near pi alike.
 pub fn rotation_angle(q: DQuat) -> f64 {
-    2.0 * q.xyz().length().atan2(q.w.abs())
+    2.0 * q.x.hypot(q.y).hypot(q.z).atan2(q.w.abs())
 }
 
 #[cfg(test)]

@@ -56,12 +56,14 @@ pub fn transform_compose(a: &[f64; 16], b: &[f64; 16]) -> [f64; 16] {
 /// Inverse of affine `m`: `[A t; 0 1]⁻¹ = [A⁻¹ -A⁻¹t; 0 1]`.
 ///
 /// # Errors
-/// A linear part that is singular (relative determinant below `1e-14`).
+/// An invalid transform (see [`validate_transform`]) or a linear part that is singular
+/// (determinant below `1e-14` times the product of its column norms).
 pub fn transform_invert(m: &[f64; 16]) -> Result<[f64; 16]> {
+    validate_transform(m)?;
     let a = glam::DMat3::from_cols_array(&[m[0], m[4], m[8], m[1], m[5], m[9], m[2], m[6], m[10]]);
     let det = a.determinant();
     let scale = a.x_axis.length() * a.y_axis.length() * a.z_axis.length();
-    if !(det.abs() > 1e-14 * scale) {
+    if det.abs() <= 1e-14 * scale {
         return Err(Error::invalid(
             "matrix",
             "linear part is singular; the transform has no inverse",

@@ -1,0 +1,163 @@
+//! The rotation core through the Rust API: round trips, composition, slerp and the extremes,
+//! as property tests (proptest) and closed-form cases.
+
+use glam::{DQuat, DVec3};
+use kinema::rotation::*;
+use proptest::prelude::*;
+use std::f64::consts::{FRAC_PI_2, PI};
+
+const SEQUENCES: [&str; 12] = ["xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "xyx", "xzx", "yxy", "yzy", "zxz", "zyz"];
+
+fn all_sequences() -> Vec<EulerSequence> {
+    SEQUENCES
+        .iter()
+        .flat_map(|s| [EulerSequence::parse(s).unwrap(), EulerSequence::parse(&s.to_uppercase()).unwrap()])
+        .collect()
+}
+
+/// Angle (radians) of the rotation taking `b` to `a`.
+fn distance(a: DQuat, b: DQuat) -> f64 {
+    rotation_angle(a * b.conjugate())
+}
+
+fn unit_quat() -> impl Strategy<Value = DQuat> {
+    prop::array::uniform4(-1.0f64..1.0)
+        .prop_filter("non-zero", |q| q.iter().map(|c| c * c).sum::<f64>() > 1e-6)
+        .prop_map(|q| quat_from_wxyz(&q).unwrap())
+}
+
+proptest! {
+    #[test]
+    fn matrix_round_trip(q in unit_quat()) {
+        let m = quat_to_matrix(q);
+        prop_assert!(is_rotation_matrix(&m, 1e-14));
+        prop_assert!(distance(quat_from_matrix(&m, false).unwrap(), q) < 1e-14);
+    }
+
+    #[test]
+    fn euler_round_trip_in_every_sequence(q in unit_quat()) {
+        for seq in all_sequences() {
+            let (angles, _) = seq.from_quat(q);
+            prop_assert!(angles.iter().all(|a| a.is_finite()));
+            prop_assert!(distance(seq.to_quat(&angles).unwrap(), q) < 1e-13, "{seq:?}");
+        }
+    }
+
+    #[test]
+    fn euler_angles_round_trip_away_from_lock(a in -3.1f64..3.1, b in 0.05f64..1.5, c in -3.1f64..3.1) {
+        for seq in all_sequences() {
+            let angles = if seq.is_proper() { [a, b * 2.0, c] } else { [a, b - 0.75, c] };
+            let (back, locked) = seq.from_quat(seq.to_quat(&angles).unwrap());
+            prop_assert!(!locked);
+            for k in 0..3 {
+                prop_assert!((back[k] - angles[k]).abs() < 1e-11, "{seq:?} {angles:?} {back:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn rotvec_round_trip(v in prop::array::uniform3(-1.8f64..1.8)) {
+        let q = quat_from_rotvec(&v).unwrap();
+        let back = quat_to_rotvec(q);
+        for k in 0..3 {
+            prop_assert!((back[k] - v[k]).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn composition_acts_like_matrix_product(p in unit_quat(), q in unit_quat(), v in prop::array::uniform3(-10.0f64..10.0)) {
+        let v = DVec3::from_array(v);
+        let lhs = (p * q) * v;
+        let rhs = p * (q * v);
+        prop_assert!((lhs - rhs).length() < 1e-13);
+        let m = quat_to_matrix(p);
+        let mv = DVec3::new(
+            m[0] * v.x + m[1] * v.y + m[2] * v.z,
+            m[3] * v.x + m[4] * v.y + m[5] * v.z,
+            m[6] * v.x + m[7] * v.y + m[8] * v.z,
+        );
+        prop_assert!((mv - p * v).length() < 1e-13);
+    }
+
+    #[test]
+    fn slerp_has_constant_angular_speed(p in unit_quat(), q in unit_quat()) {
+        let total = distance(q, p);
+        prop_assert!(distance(slerp(p, q, 0.0, true), p) < 1e-15);
+        prop_assert!(distance(slerp(p, q, 1.0, true), q) < 1e-14);
+        for k in 1..10 {
+            let t = f64::from(k) / 10.0;
+            prop_assert!((distance(slerp(p, q, t, true), p) - t * total).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn transform_inverse(q in unit_quat(), t in prop::array::uniform3(-5.0f64..5.0), s in prop::array::uniform3(0.1f64..3.0)) {
+        let m = transform_from_parts(q, &t, &s).unwrap();
+        let id = transform_compose(&transform_invert(&m).unwrap(), &m);
+        for (k, x) in id.iter().enumerate() {
+            let expected = if k % 5 == 0 { 1.0 } else { 0.0 };
+            prop_assert!((x - expected).abs() < 1e-12);
+        }
+    }
+}
+
+#[test]
+fn intrinsic_xyz_is_extrinsic_zyx_reversed() {
+    let a = [0.3, -1.2, 2.5];
+    let xyz = EulerSequence::parse("XYZ").unwrap().to_quat(&a).unwrap();
+    let zyx = EulerSequence::parse("zyx").unwrap().to_quat(&[a[2], a[1], a[0]]).unwrap();
+    assert!(distance(xyz, zyx) < 1e-15);
+}
+
+#[test]
+fn gimbal_lock_sets_third_angle_to_zero() {
+    for seq in all_sequences() {
+        for middle in if seq.is_proper() { [0.0, PI] } else { [FRAC_PI_2, -FRAC_PI_2] } {
+            let angles = [0.4, middle, -0.9];
+            assert!(seq.is_gimbal_locked(&angles, GIMBAL_LOCK_TOL));
+            let q = seq.to_quat(&angles).unwrap();
+            let (out, locked) = seq.from_quat(q);
+            assert!(locked, "{seq:?} {middle}");
+            assert_eq!(out[2], 0.0);
+            assert!(distance(seq.to_quat(&out).unwrap(), q) < 1e-14, "{seq:?} {out:?}");
+        }
+    }
+}
+
+#[test]
+fn closed_form_cases() {
+    // 90° about z maps x to y.
+    let q = quat_from_axis_angle(&[0.0, 0.0, 2.0], FRAC_PI_2).unwrap();
+    assert!((q * DVec3::X - DVec3::Y).length() < 1e-15);
+    let m = quat_to_matrix(q);
+    let expected = [0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    assert!(m.iter().zip(expected).all(|(a, b)| (a - b).abs() < 1e-15));
+    // A half turn about x: the quaternion is (0, 1, 0, 0) and the rotation vector (pi, 0, 0).
+    let m = [1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0];
+    let q = canonical(quat_from_matrix(&m, false).unwrap());
+    assert_eq!(quat_to_wxyz(q), [0.0, 1.0, 0.0, 0.0]);
+    assert_eq!(quat_to_rotvec(q), [PI, 0.0, 0.0]);
+}
+
+#[test]
+fn tiny_and_near_pi_rotation_vectors() {
+    for angle in [1e-300, 1e-12, 1e-6, PI - 1e-12] {
+        let v = [angle * 0.6, 0.0, angle * 0.8];
+        let q = quat_from_rotvec(&v).unwrap();
+        assert!((rotation_angle(q) - angle).abs() <= 1e-15 * angle.max(1e-300), "{angle}");
+        let back = quat_to_rotvec(q);
+        assert!((back[0] - v[0]).abs() <= 1e-15 * angle && (back[2] - v[2]).abs() <= 1e-15 * angle);
+    }
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_nan() {
+    assert!(quat_from_wxyz(&[0.0; 4]).is_err());
+    assert!(quat_from_wxyz(&[f64::INFINITY, 0.0, 0.0, 0.0]).is_err());
+    assert!(quat_from_matrix(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0], false).is_err());
+    assert!(quat_from_matrix(&[f64::NAN; 9], true).is_err());
+    assert!(quat_from_axis_angle(&[0.0; 3], 1.0).is_err());
+    assert!(EulerSequence::parse("XYZ").unwrap().to_quat(&[f64::NAN, 0.0, 0.0]).is_err());
+    let singular = transform_from_parts(DQuat::IDENTITY, &[0.0; 3], &[1.0, 0.0, 1.0]).unwrap();
+    assert!(transform_invert(&singular).is_err());
+}
