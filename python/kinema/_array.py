@@ -28,9 +28,7 @@ def as_batch(value: object, name: str, row_shape: tuple[int, ...]) -> tuple[np.n
     if arr.ndim == len(row_shape) + 1 and arr.shape[1:] == row_shape:
         return np.ascontiguousarray(arr), False
     expected = ", ".join(str(d) for d in row_shape)
-    raise ValueError(
-        f"{name}: expected shape ({expected}) or (N, {expected}), got {arr.shape}"
-    )
+    raise ValueError(f"{name}: expected shape ({expected}) or (N, {expected}), got {arr.shape}")
 
 
 def as_scalars(value: object, name: str) -> tuple[np.ndarray, bool]:

@@ -133,7 +133,9 @@ class Rotation:
         return cls._make(q, n is None)
 
     @classmethod
-    def random(cls, n: int | None = None, *, seed: int | np.random.Generator | None = None) -> Rotation:
+    def random(
+        cls, n: int | None = None, *, seed: int | np.random.Generator | None = None
+    ) -> Rotation:
         """Rotations drawn uniformly (Haar measure): normalised Gaussian 4-vectors.
 
         Single if ``n`` is None, else a stack of ``n``; ``seed`` makes the draw repeatable.
@@ -288,7 +290,9 @@ def slerp(r0: Rotation, r1: Rotation, t: Any, *, shortest: bool = True) -> Rotat
     return Rotation._make(q, r0.single and r1.single and single_t)
 
 
-def gimbal_lock(seq: str, angles: Any, *, atol: float = GIMBAL_LOCK_TOL, degrees: bool = False) -> Any:
+def gimbal_lock(
+    seq: str, angles: Any, *, atol: float = GIMBAL_LOCK_TOL, degrees: bool = False
+) -> Any:
     """Whether Euler ``angles`` ``(3,)`` or ``(N, 3)`` in ``seq`` are at gimbal lock.
 
     True where the middle angle is within ``atol`` radians of ±90° (Tait–Bryan sequences) or
@@ -325,9 +329,13 @@ class Transform:
         rot = Rotation.identity() if rotation is None else rotation
         if not isinstance(rot, Rotation):
             raise ValueError(f"rotation: expected a Rotation, got {type(rot).__name__}")
-        t, single_t = as_batch((0.0, 0.0, 0.0) if translation is None else translation, "translation", (3,))
+        t, single_t = as_batch(
+            (0.0, 0.0, 0.0) if translation is None else translation, "translation", (3,)
+        )
         s_arr = np.asarray(1.0 if scale is None else scale, dtype=np.float64)
-        s, single_s = as_batch(np.broadcast_to(s_arr, (3,)) if s_arr.ndim == 0 else s_arr, "scale", (3,))
+        s, single_s = as_batch(
+            np.broadcast_to(s_arr, (3,)) if s_arr.ndim == 0 else s_arr, "scale", (3,)
+        )
         self._matrix = _kinema.transform_from_parts(rot._quat, t, s)
         self._single = rot.single and single_t and single_s
 

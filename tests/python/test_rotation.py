@@ -7,17 +7,16 @@ import itertools
 import pickle
 import warnings
 
+import kinema
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
-from scipy.spatial.transform import Rotation as SciRotation
-from scipy.spatial.transform import Slerp as SciSlerp
-
-import kinema
 from kinema import GimbalLockWarning, Rotation, Transform, slerp
 from kinema.rotation import gimbal_lock
+from scipy.spatial.transform import Rotation as SciRotation
+from scipy.spatial.transform import Slerp as SciSlerp
 
 TAIT_BRYAN = ["".join(p) for p in itertools.permutations("xyz")]
 PROPER = [a + b + a for a in "xyz" for b in "xyz" if a != b]
@@ -44,7 +43,11 @@ def test_24_sequences_are_all_the_sequences():
 def test_quat_and_matrix_agree_with_scipy(rots):
     np.testing.assert_allclose(rots.as_matrix(), sci(rots).as_matrix(), atol=1e-15)
     back = Rotation.from_matrix(sci(rots).as_matrix())
-    np.testing.assert_allclose(back.as_quat(canonical=True), sci(rots).as_quat(canonical=True, scalar_first=True), atol=1e-15)
+    np.testing.assert_allclose(
+        back.as_quat(canonical=True),
+        sci(rots).as_quat(canonical=True, scalar_first=True),
+        atol=1e-15,
+    )
 
 
 def test_scalar_last_interop(rots):
@@ -57,11 +60,15 @@ def test_scalar_last_interop(rots):
 def test_rotvec_agrees_with_scipy(rots):
     np.testing.assert_allclose(rots.as_rotvec(), sci(rots).as_rotvec(), atol=1e-14)
     v = sci(rots).as_rotvec()
-    np.testing.assert_allclose(Rotation.from_rotvec(v).as_matrix(), sci(rots).as_matrix(), atol=1e-15)
+    np.testing.assert_allclose(
+        Rotation.from_rotvec(v).as_matrix(), sci(rots).as_matrix(), atol=1e-15
+    )
     np.testing.assert_allclose(rots.as_rotvec(degrees=True), np.rad2deg(rots.as_rotvec()))
 
 
-@pytest.mark.parametrize("angle", [1e-300, 1e-12, 1e-8, 1e-4, 1.0, np.pi - 1e-6, np.pi - 1e-12, np.pi])
+@pytest.mark.parametrize(
+    "angle", [1e-300, 1e-12, 1e-8, 1e-4, 1.0, np.pi - 1e-6, np.pi - 1e-12, np.pi]
+)
 def test_rotvec_round_trip_at_tiny_and_near_pi_angles(angle):
     axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
     r = Rotation.from_rotvec(angle * axis)
@@ -91,7 +98,9 @@ def test_axis_angle_round_trip_and_broadcast():
 @pytest.mark.parametrize("seq", SEQUENCES)
 def test_euler_agrees_with_scipy(seq, rots):
     angles = sci(rots).as_euler(seq)
-    np.testing.assert_allclose(Rotation.from_euler(seq, angles).as_matrix(), sci(rots).as_matrix(), atol=1e-15)
+    np.testing.assert_allclose(
+        Rotation.from_euler(seq, angles).as_matrix(), sci(rots).as_matrix(), atol=1e-15
+    )
     ours = rots.as_euler(seq)
     diff = np.angle(np.exp(1j * (ours - angles)))  # compare modulo 2 pi
     np.testing.assert_allclose(diff, 0.0, atol=1e-12)
@@ -149,7 +158,9 @@ def test_gimbal_warning_can_be_silenced():
 
 def test_apply_matches_matrix_product_and_inverse(rots):
     v = np.random.default_rng(2).standard_normal((len(rots), 3))
-    np.testing.assert_allclose(rots.apply(v), np.einsum("nij,nj->ni", rots.as_matrix(), v), atol=1e-14)
+    np.testing.assert_allclose(
+        rots.apply(v), np.einsum("nij,nj->ni", rots.as_matrix(), v), atol=1e-14
+    )
     np.testing.assert_allclose(rots.apply(rots.apply(v), inverse=True), v, atol=1e-14)
     np.testing.assert_allclose(rots.apply(v[0]), sci(rots).apply(v[0]), atol=1e-14)
     assert rots[3].apply(v[0]).shape == (3,)
@@ -266,7 +277,9 @@ def test_transform_apply_compose_invert():
     p = rng.standard_normal((20, 3))
     np.testing.assert_allclose(tf.apply(p), r.apply(p * s) + t, atol=1e-14)
     np.testing.assert_allclose(tf.apply_directions(p), r.apply(p * s), atol=1e-14)
-    np.testing.assert_allclose((tf.inv() * tf).as_matrix(), np.broadcast_to(np.eye(4), (20, 4, 4)), atol=1e-13)
+    np.testing.assert_allclose(
+        (tf.inv() * tf).as_matrix(), np.broadcast_to(np.eye(4), (20, 4, 4)), atol=1e-13
+    )
     np.testing.assert_allclose((tf * tf[0]).as_matrix(), m @ m[0], atol=1e-14)
     np.testing.assert_allclose(tf.translation, t)
     single = Transform(translation=[1.0, 2.0, 3.0], scale=2.0)
@@ -361,7 +374,9 @@ def test_top_level_names():
 
 # ---------------------------------------------------------------- properties
 finite = st.floats(-1e3, 1e3, allow_nan=False)
-quats = arrays(np.float64, 4, elements=st.floats(-1, 1, allow_nan=False)).filter(lambda q: np.linalg.norm(q) > 1e-3)
+quats = arrays(np.float64, 4, elements=st.floats(-1, 1, allow_nan=False)).filter(
+    lambda q: np.linalg.norm(q) > 1e-3
+)
 
 
 @settings(max_examples=200, deadline=None)
@@ -378,8 +393,12 @@ def test_property_euler_round_trip(q, seq):
 @given(q=quats, p=quats, v=arrays(np.float64, 3, elements=finite))
 def test_property_apply_and_compose(q, p, v):
     a, b = Rotation.from_quat(q), Rotation.from_quat(p)
-    np.testing.assert_allclose((a * b).apply(v), a.apply(b.apply(v)), atol=1e-12 * (1 + np.abs(v).max()))
-    np.testing.assert_allclose(np.linalg.norm(a.apply(v)), np.linalg.norm(v), rtol=1e-14, atol=1e-300)
+    np.testing.assert_allclose(
+        (a * b).apply(v), a.apply(b.apply(v)), atol=1e-12 * (1 + np.abs(v).max())
+    )
+    np.testing.assert_allclose(
+        np.linalg.norm(a.apply(v)), np.linalg.norm(v), rtol=1e-14, atol=1e-300
+    )
     r = Rotation.from_matrix(a.as_matrix())
     assert angle_between(r, a)[0] < 1e-14
     assert angle_between(Rotation.from_rotvec(a.as_rotvec()), a)[0] < 1e-14

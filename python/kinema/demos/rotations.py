@@ -57,7 +57,9 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
     w_euler, w_slerp = _angular_speed(euler_path, dt), _angular_speed(slerp_path, dt)
 
     pitches = np.deg2rad(np.linspace(0.0, 90.0, 31 if quick else 91))
-    sigma = np.array([_rate_jacobian_min_singular_value("XYZ", np.array([0.3, p, -0.4])) for p in pitches])
+    sigma = np.array(
+        [_rate_jacobian_min_singular_value("XYZ", np.array([0.3, p, -0.4])) for p in pitches]
+    )
     locked = gimbal_lock("XYZ", [0.3, np.pi / 2, -0.4])
 
     fig = plt.figure(figsize=(15, 4.6))
