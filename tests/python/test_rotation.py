@@ -7,16 +7,17 @@ import itertools
 import pickle
 import warnings
 
-import kinema
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
-from kinema import GimbalLockWarning, Rotation, Transform, slerp
-from kinema.rotation import gimbal_lock
 from scipy.spatial.transform import Rotation as SciRotation
 from scipy.spatial.transform import Slerp as SciSlerp
+
+import kinema
+from kinema import GimbalLockWarning, Rotation, Transform, slerp
+from kinema.rotation import gimbal_lock
 
 TAIT_BRYAN = ["".join(p) for p in itertools.permutations("xyz")]
 PROPER = [a + b + a for a in "xyz" for b in "xyz" if a != b]
