@@ -6,12 +6,15 @@ use kinema::rotation::*;
 use proptest::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
-const SEQUENCES: [&str; 12] = ["xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "xyx", "xzx", "yxy", "yzy", "zxz", "zyz"];
+const SEQUENCES: [&str; 12] =
+    ["xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "xyx", "xzx", "yxy", "yzy", "zxz", "zyz"];
 
 fn all_sequences() -> Vec<EulerSequence> {
     SEQUENCES
         .iter()
-        .flat_map(|s| [EulerSequence::parse(s).unwrap(), EulerSequence::parse(&s.to_uppercase()).unwrap()])
+        .flat_map(|s| {
+            [EulerSequence::parse(s).unwrap(), EulerSequence::parse(&s.to_uppercase()).unwrap()]
+        })
         .collect()
 }
 

@@ -1,0 +1,112 @@
+"""Batched rotation kernels at N = 10^6 against scipy.spatial.transform (and numpy-quaternion
+when installed), timed in one process. Prints a markdown table of best-of-k wall times and the
+speed-up ratio (peer time / kinema time).
+
+Run: python bench/bench_rotation.py [--n 1000000] [--repeat 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+from collections.abc import Callable
+
+import numpy as np
+from scipy import __version__ as scipy_version
+from scipy.spatial.transform import Rotation as R
+from scipy.spatial.transform import Slerp
+
+import kinema
+from kinema import Rotation, slerp
+
+try:
+    import quaternion as npq  # numpy-quaternion
+except ImportError:
+    npq = None
+
+
+def best(fn: Callable[[], object], repeat: int) -> float:
+    """Best wall time of ``repeat`` calls, in milliseconds (after one warm-up call)."""
+    fn()
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return 1e3 * min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--n", type=int, default=1_000_000)
+    parser.add_argument("--repeat", type=int, default=5)
+    args = parser.parse_args()
+    n, k = args.n, args.repeat
+
+    rng = np.random.default_rng(0)
+    q = rng.standard_normal((n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q_xyzw = np.ascontiguousarray(q[:, [1, 2, 3, 0]])
+    v = rng.standard_normal((n, 3))
+    t = np.linspace(0.0, 1.0, n)
+
+    ours, theirs = Rotation.from_quat(q), R.from_quat(q_xyzw)
+    ours2, theirs2 = Rotation.from_quat(q[::-1].copy()), R.from_quat(q_xyzw[::-1].copy())
+    mats = theirs.as_matrix()
+    eul = theirs.as_euler("xyz")
+    rv = theirs.as_rotvec()
+    key = R.from_quat(q_xyzw[:2])
+    sl = Slerp([0.0, 1.0], key)
+    o0, o1 = ours[0], ours[1]
+
+    cases: list[tuple[str, Callable[[], object], Callable[[], object], Callable[[], object] | None]] = [
+        ("from_quat (normalise)", lambda: Rotation.from_quat(q), lambda: R.from_quat(q_xyzw), None),
+        ("as_matrix", ours.as_matrix, theirs.as_matrix, None),
+        ("from_matrix", lambda: Rotation.from_matrix(mats), lambda: R.from_matrix(mats), None),
+        ("as_euler('xyz')", lambda: ours.as_euler("xyz"), lambda: theirs.as_euler("xyz"), None),
+        ("from_euler('xyz')", lambda: Rotation.from_euler("xyz", eul), lambda: R.from_euler("xyz", eul), None),
+        ("as_rotvec", ours.as_rotvec, theirs.as_rotvec, None),
+        ("from_rotvec", lambda: Rotation.from_rotvec(rv), lambda: R.from_rotvec(rv), None),
+        ("apply (N rotations, N vectors)", lambda: ours.apply(v), lambda: theirs.apply(v), None),
+        ("compose r1 * r2", lambda: ours * ours2, lambda: theirs * theirs2, None),
+        ("slerp (2 keys, N times)", lambda: slerp(o0, o1, t), lambda: sl(t), None),
+    ]
+    if npq is not None:
+        qa, qb = npq.as_quat_array(q), npq.as_quat_array(q[::-1].copy())
+        extra = {
+            "as_matrix": lambda: npq.as_rotation_matrix(qa),
+            "from_matrix": lambda: npq.from_rotation_matrix(mats),
+            "apply (N rotations, N vectors)": lambda: npq.rotate_vectors(qa, v, axis=-1),
+            "compose r1 * r2": lambda: qa * qb,
+            "as_rotvec": lambda: npq.as_rotation_vector(qa),
+            "from_rotvec": lambda: npq.from_rotation_vector(rv),
+            "slerp (2 keys, N times)": lambda: npq.slerp_evaluate(qa[0], qa[1], t),
+        }
+        cases = [(name, a, b, extra.get(name)) for name, a, b, _ in cases]
+
+    print(f"N = {n}, best of {k}; kinema {kinema.__version__}, scipy {scipy_version}, "
+          f"numpy {np.__version__}, numpy-quaternion {'yes' if npq else 'not installed'}; "
+          f"{platform.machine()}, {os.cpu_count()} threads\n")
+    header = "| operation | kinema (ms) | scipy (ms) | scipy / kinema |"
+    sep = "|---|---:|---:|---:|"
+    if npq is not None:
+        header += " numpy-quaternion (ms) | npq / kinema |"
+        sep += "---:|---:|"
+    print(header)
+    print(sep)
+    for name, mine, scipy_fn, npq_fn in cases:
+        a, b = best(mine, k), best(scipy_fn, k)
+        row = f"| {name} | {a:.1f} | {b:.1f} | {b / a:.1f}x |"
+        if npq is not None:
+            if npq_fn is None:
+                row += " – | – |"
+            else:
+                c = best(npq_fn, k)
+                row += f" {c:.1f} | {c / a:.1f}x |"
+        print(row)
+
+
+if __name__ == "__main__":
+    main()
