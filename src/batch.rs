@@ -91,7 +91,7 @@ mod tests {
         let input: Vec<[f64; 1]> = (0..100_000).map(|i| [i as f64]).collect();
         let mut out = vec![[0.0; 1]; input.len()];
         let err = map(&input, &mut out, |x| {
-            if x[0] >= 30_000.0 && x[0] as usize % 7 == 0 {
+            if x[0] >= 30_000.0 && (x[0] as usize).is_multiple_of(7) {
                 Err(Error::invalid("x", "bad"))
             } else {
                 Ok([x[0] * 2.0])
