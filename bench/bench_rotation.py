@@ -61,12 +61,19 @@ def main() -> None:
     sl = Slerp([0.0, 1.0], key)
     o0, o1 = ours[0], ours[1]
 
-    cases: list[tuple[str, Callable[[], object], Callable[[], object], Callable[[], object] | None]] = [
+    cases: list[
+        tuple[str, Callable[[], object], Callable[[], object], Callable[[], object] | None]
+    ] = [
         ("from_quat (normalise)", lambda: Rotation.from_quat(q), lambda: R.from_quat(q_xyzw), None),
         ("as_matrix", ours.as_matrix, theirs.as_matrix, None),
         ("from_matrix", lambda: Rotation.from_matrix(mats), lambda: R.from_matrix(mats), None),
         ("as_euler('xyz')", lambda: ours.as_euler("xyz"), lambda: theirs.as_euler("xyz"), None),
-        ("from_euler('xyz')", lambda: Rotation.from_euler("xyz", eul), lambda: R.from_euler("xyz", eul), None),
+        (
+            "from_euler('xyz')",
+            lambda: Rotation.from_euler("xyz", eul),
+            lambda: R.from_euler("xyz", eul),
+            None,
+        ),
         ("as_rotvec", ours.as_rotvec, theirs.as_rotvec, None),
         ("from_rotvec", lambda: Rotation.from_rotvec(rv), lambda: R.from_rotvec(rv), None),
         ("apply (N rotations, N vectors)", lambda: ours.apply(v), lambda: theirs.apply(v), None),
@@ -86,9 +93,11 @@ def main() -> None:
         }
         cases = [(name, a, b, extra.get(name)) for name, a, b, _ in cases]
 
-    print(f"N = {n}, best of {k}; kinema {kinema.__version__}, scipy {scipy_version}, "
-          f"numpy {np.__version__}, numpy-quaternion {'yes' if npq else 'not installed'}; "
-          f"{platform.machine()}, {os.cpu_count()} threads\n")
+    print(
+        f"N = {n}, best of {k}; kinema {kinema.__version__}, scipy {scipy_version}, "
+        f"numpy {np.__version__}, numpy-quaternion {'yes' if npq else 'not installed'}; "
+        f"{platform.machine()}, {os.cpu_count()} threads\n"
+    )
     header = "| operation | kinema (ms) | scipy (ms) | scipy / kinema |"
     sep = "|---|---:|---:|---:|"
     if npq is not None:
