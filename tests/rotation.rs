@@ -127,6 +127,24 @@ fn gimbal_lock_sets_third_angle_to_zero() {
     }
 }
 
+proptest! {
+    #[test]
+    fn exact_gimbal_lock_is_always_detected(a in -3.14f64..3.14, c in -3.14f64..3.14, side in 0usize..2) {
+        for seq in all_sequences() {
+            let middle = match (seq.is_proper(), side) {
+                (true, 0) => 0.0,
+                (true, _) => PI,
+                (false, 0) => FRAC_PI_2,
+                (false, _) => -FRAC_PI_2,
+            };
+            let q = seq.to_quat(&[a, middle, c]).unwrap();
+            let (out, locked) = seq.from_quat(q);
+            prop_assert!(locked, "{seq:?} {a} {middle} {c}");
+            prop_assert!(distance(seq.to_quat(&out).unwrap(), q) < 1e-14);
+        }
+    }
+}
+
 #[test]
 fn closed_form_cases() {
     // 90° about z maps x to y.

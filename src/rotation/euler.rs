@@ -26,10 +26,12 @@ use std::f64::consts::{FRAC_PI_2, PI};
 /// Distance (radians) of the middle angle from its singular value within which a
 /// decomposition is treated as gimbal-locked.
 ///
-/// Far below any angle an animator could mean, yet far above the ~1e-16 rounding of
-/// quaternions built exactly at lock. Near (but not at) lock the general formula is used: its
-/// outer angles are individually ill-conditioned but always reproduce the rotation.
-pub const GIMBAL_LOCK_TOL: f64 = 1e-10;
+/// Collapsing onto "third angle = 0" changes the rotation by up to about this angle, so the
+/// tolerance sits just above the rounding noise of quaternions built exactly at lock (below
+/// 1e-15) and no higher: every decomposition reproduces its rotation to ~1e-14 or better.
+/// Farther from lock the general formula is used; its outer angles are individually
+/// ill-conditioned there, but they always reproduce the rotation.
+pub const GIMBAL_LOCK_TOL: f64 = 1e-14;
 
 /// A parsed Euler-angle sequence such as `"XYZ"` (intrinsic) or `"zxz"` (extrinsic).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
