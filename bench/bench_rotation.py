@@ -52,6 +52,7 @@ def main() -> None:
     v = rng.standard_normal((n, 3))
     t = np.linspace(0.0, 1.0, n)
 
+    q_raw, q_raw_xyzw = 2.5 * q, 2.5 * q_xyzw  # not unit: from_quat must normalise
     ours, theirs = Rotation.from_quat(q), R.from_quat(q_xyzw)
     ours2, theirs2 = Rotation.from_quat(q[::-1].copy()), R.from_quat(q_xyzw[::-1].copy())
     mats = theirs.as_matrix()
@@ -64,7 +65,12 @@ def main() -> None:
     cases: list[
         tuple[str, Callable[[], object], Callable[[], object], Callable[[], object] | None]
     ] = [
-        ("from_quat (normalise)", lambda: Rotation.from_quat(q), lambda: R.from_quat(q_xyzw), None),
+        (
+            "from_quat (normalise)",
+            lambda: Rotation.from_quat(q_raw),
+            lambda: R.from_quat(q_raw_xyzw),
+            None,
+        ),
         ("as_matrix", ours.as_matrix, theirs.as_matrix, None),
         ("from_matrix", lambda: Rotation.from_matrix(mats), lambda: R.from_matrix(mats), None),
         ("as_euler('xyz')", lambda: ours.as_euler("xyz"), lambda: theirs.as_euler("xyz"), None),
@@ -85,11 +91,15 @@ def main() -> None:
         extra = {
             "as_matrix": lambda: npq.as_rotation_matrix(qa),
             "from_matrix": lambda: npq.from_rotation_matrix(mats),
-            "apply (N rotations, N vectors)": lambda: npq.rotate_vectors(qa, v, axis=-1),
+            # rotate_vectors would rotate every vector by every rotation (N x N); this is the
+            # element-wise q v q* that the other libraries compute.
+            "apply (N rotations, N vectors)": lambda: npq.as_vector_part(
+                qa * npq.from_vector_part(v) * qa.conjugate()
+            ),
             "compose r1 * r2": lambda: qa * qb,
             "as_rotvec": lambda: npq.as_rotation_vector(qa),
             "from_rotvec": lambda: npq.from_rotation_vector(rv),
-            "slerp (2 keys, N times)": lambda: npq.slerp_evaluate(qa[0], qa[1], t),
+            "slerp (2 keys, N times)": lambda: npq.slerp(qa[0], qa[1], 0.0, 1.0, t),
         }
         cases = [(name, a, b, extra.get(name)) for name, a, b, _ in cases]
 

@@ -3,11 +3,12 @@
 //!
 //! Inputs arrive as C-contiguous `float64` arrays (the Python layer converts array-likes once);
 //! a batch of `n` items of shape `row_shape` is viewed as `&[[f64; N]]` with
-//! `N = product(row_shape)`.
+//! `N = product(row_shape)`. Results are written straight into new numpy arrays.
 
+use super::error::detached;
 use crate::error::Error;
-use numpy::ndarray::{ArrayD, IxDyn};
-use numpy::{IntoPyArray, PyArrayDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::ndarray::IxDyn;
+use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 fn shape_text(row_shape: &[usize]) -> String {
@@ -37,15 +38,27 @@ pub fn rows<'a, const N: usize>(
     Ok(flat.as_chunks::<N>().0)
 }
 
-/// A numpy array of shape `(rows.len(), *row_shape)` that takes ownership of `rows`.
-pub fn to_numpy<'py, const N: usize>(
+/// A new numpy array of shape `(n, *row_shape)` whose rows `fill` computes with the GIL
+/// released; errors map to Python exceptions (see [`detached`]).
+///
+/// The buffer comes from numpy's allocator, which backs large arrays with huge pages: for
+/// batches of millions of rows the page faults of a fresh buffer otherwise cost more than the
+/// kernel itself.
+pub fn compute<'py, const N: usize>(
     py: Python<'py>,
-    rows: Vec<[f64; N]>,
+    n: usize,
     row_shape: &[usize],
-) -> Bound<'py, PyArrayDyn<f64>> {
-    let mut shape = vec![rows.len()];
+    fill: impl FnOnce(&mut [[f64; N]]) -> Result<(), Error> + Send,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let mut shape = vec![n];
     shape.extend_from_slice(row_shape);
-    ArrayD::from_shape_vec(IxDyn(&shape), rows.into_flattened())
-        .expect("row length equals the product of row_shape")
-        .into_pyarray(py)
+    let array = PyArrayDyn::<f64>::zeros(py, IxDyn(&shape), false);
+    {
+        let mut guard = array.readwrite();
+        let flat = guard.as_slice_mut().expect("a new numpy array is contiguous");
+        let (rows, rest) = flat.as_chunks_mut::<N>();
+        assert!(rest.is_empty(), "row length equals the product of row_shape");
+        detached(py, || fill(rows))?;
+    }
+    Ok(array)
 }

@@ -1,8 +1,7 @@
 //! Rotation kernels for `kinema.rotation`: every function maps batches of rows and
 //! broadcasts a batch of one against a batch of N.
 
-use super::array::{rows, to_numpy};
-use super::error::detached;
+use super::array::{compute, rows};
 use crate::batch::{broadcast_len, fill, item, map, map2};
 use crate::error::{ensure_finite, Error, Result};
 use crate::rotation::{self as rot, EulerSequence};
@@ -28,18 +27,16 @@ fn quat_normalize<'py>(
     canonical: bool,
 ) -> PyResult<Array<'py>> {
     let input = rows::<4>(&quat, "quat", &[4])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 4]; input.len()];
-        map(input, &mut out, |r| {
+    compute(py, input.len(), &[4], |out| {
+        map(input, out, |r| {
             let q = q(r)?;
             Ok(wxyz(if canonical { rot::canonical(q) } else { q }))
-        })?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4]))
+        })
+    })
 }
 
-/// Hamilton products a * b (N, 4) of quaternion batches broadcast one against N.
+/// Hamilton products a * b (N, 4) of quaternion batches broadcast one against N (the product
+/// of unit quaternions is unit to rounding; any later kernel renormalises if it drifts).
 #[pyfunction]
 fn quat_multiply<'py>(
     py: Python<'py>,
@@ -48,12 +45,7 @@ fn quat_multiply<'py>(
 ) -> PyResult<Array<'py>> {
     let (a, b) = (rows::<4>(&a, "a", &[4])?, rows::<4>(&b, "b", &[4])?);
     let n = broadcast_len(("a", a.len()), ("b", b.len()))?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 4]; n];
-        map2(a, b, &mut out, |x, y| Ok(wxyz((q(x)? * q(y)?).normalize())))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4]))
+    compute(py, n, &[4], |out| map2(a, b, out, |x, y| Ok(wxyz(q(x)? * q(y)?))))
 }
 
 /// Rotation matrices (N, 3, 3) of quaternions (N, 4).
@@ -63,12 +55,7 @@ fn quat_to_matrix<'py>(
     quat: PyReadonlyArrayDyn<'py, f64>,
 ) -> PyResult<Array<'py>> {
     let input = rows::<4>(&quat, "quat", &[4])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 9]; input.len()];
-        map(input, &mut out, |r| Ok(rot::quat_to_matrix(q(r)?)))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[3, 3]))
+    compute(py, input.len(), &[3, 3], |out| map(input, out, |r| Ok(rot::quat_to_matrix(q(r)?))))
 }
 
 /// Quaternions (N, 4) of rotation matrices (N, 3, 3); non-rotations are refused unless
@@ -80,12 +67,9 @@ fn matrix_to_quat<'py>(
     orthonormalize: bool,
 ) -> PyResult<Array<'py>> {
     let input = rows::<9>(&matrix, "matrix", &[3, 3])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 4]; input.len()];
-        map(input, &mut out, |m| Ok(wxyz(rot::quat_from_matrix(m, orthonormalize)?)))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4]))
+    compute(py, input.len(), &[4], |out| {
+        map(input, out, |m| Ok(wxyz(rot::quat_from_matrix(m, orthonormalize)?)))
+    })
 }
 
 /// Rotation vectors (N, 3) of quaternions (N, 4), angle in [0, pi].
@@ -95,12 +79,7 @@ fn quat_to_rotvec<'py>(
     quat: PyReadonlyArrayDyn<'py, f64>,
 ) -> PyResult<Array<'py>> {
     let input = rows::<4>(&quat, "quat", &[4])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 3]; input.len()];
-        map(input, &mut out, |r| Ok(rot::quat_to_rotvec(q(r)?)))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[3]))
+    compute(py, input.len(), &[3], |out| map(input, out, |r| Ok(rot::quat_to_rotvec(q(r)?))))
 }
 
 /// Quaternions (N, 4) of rotation vectors (N, 3).
@@ -110,12 +89,7 @@ fn rotvec_to_quat<'py>(
     rotvec: PyReadonlyArrayDyn<'py, f64>,
 ) -> PyResult<Array<'py>> {
     let input = rows::<3>(&rotvec, "rotvec", &[3])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 4]; input.len()];
-        map(input, &mut out, |v| Ok(wxyz(rot::quat_from_rotvec(v)?)))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4]))
+    compute(py, input.len(), &[4], |out| map(input, out, |v| Ok(wxyz(rot::quat_from_rotvec(v)?))))
 }
 
 /// Quaternions (N, 4) of axes (N, 3) and angles (N, 1), broadcast one against N.
@@ -127,12 +101,9 @@ fn axis_angle_to_quat<'py>(
 ) -> PyResult<Array<'py>> {
     let (axis, angle) = (rows::<3>(&axis, "axis", &[3])?, rows::<1>(&angle, "angle", &[1])?);
     let n = broadcast_len(("axis", axis.len()), ("angle", angle.len()))?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 4]; n];
-        map2(axis, angle, &mut out, |a, t| Ok(wxyz(rot::quat_from_axis_angle(a, t[0])?)))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4]))
+    compute(py, n, &[4], |out| {
+        map2(axis, angle, out, |a, t| Ok(wxyz(rot::quat_from_axis_angle(a, t[0])?)))
+    })
 }
 
 /// Unit axes (N, 3) and angles in [0, pi] (N, 1) of quaternions (N, 4).
@@ -142,15 +113,12 @@ fn quat_to_axis_angle<'py>(
     quat: PyReadonlyArrayDyn<'py, f64>,
 ) -> PyResult<Array<'py>> {
     let input = rows::<4>(&quat, "quat", &[4])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 4]; input.len()];
-        map(input, &mut out, |r| {
+    compute(py, input.len(), &[4], |out| {
+        map(input, out, |r| {
             let ([x, y, z], angle) = rot::quat_to_axis_angle(q(r)?);
             Ok([x, y, z, angle])
-        })?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4]))
+        })
+    })
 }
 
 /// Quaternions (N, 4) of Euler angles (N, 3) in sequence `seq`.
@@ -162,12 +130,7 @@ fn euler_to_quat<'py>(
 ) -> PyResult<Array<'py>> {
     let seq = EulerSequence::parse(seq)?;
     let input = rows::<3>(&angles, "angles", &[3])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 4]; input.len()];
-        map(input, &mut out, |a| Ok(wxyz(seq.to_quat(a)?)))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4]))
+    compute(py, input.len(), &[4], |out| map(input, out, |a| Ok(wxyz(seq.to_quat(a)?))))
 }
 
 /// Euler angles (N, 3) in sequence `seq` of quaternions (N, 4), plus a fourth column that is
@@ -180,15 +143,12 @@ fn quat_to_euler<'py>(
 ) -> PyResult<Array<'py>> {
     let seq = EulerSequence::parse(seq)?;
     let input = rows::<4>(&quat, "quat", &[4])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 4]; input.len()];
-        map(input, &mut out, |r| {
+    compute(py, input.len(), &[4], |out| {
+        map(input, out, |r| {
             let ([a, b, c], locked) = seq.from_quat(q(r)?);
             Ok([a, b, c, f64::from(u8::from(locked))])
-        })?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4]))
+        })
+    })
 }
 
 /// Whether Euler angles (N, 3) in `seq` are within `atol` of gimbal lock: (N, 1) of 0.0/1.0.
@@ -201,27 +161,19 @@ fn euler_gimbal_lock<'py>(
 ) -> PyResult<Array<'py>> {
     let seq = EulerSequence::parse(seq)?;
     let input = rows::<3>(&angles, "angles", &[3])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 1]; input.len()];
-        map(input, &mut out, |a| {
+    compute(py, input.len(), &[1], |out| {
+        map(input, out, |a| {
             ensure_finite("angles", a)?;
             Ok([f64::from(u8::from(seq.is_gimbal_locked(a, atol)))])
-        })?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[1]))
+        })
+    })
 }
 
 /// Rotation angles in [0, pi] (N, 1) of quaternions (N, 4).
 #[pyfunction]
 fn quat_angle<'py>(py: Python<'py>, quat: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Array<'py>> {
     let input = rows::<4>(&quat, "quat", &[4])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 1]; input.len()];
-        map(input, &mut out, |r| Ok([rot::rotation_angle(q(r)?)]))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[1]))
+    compute(py, input.len(), &[1], |out| map(input, out, |r| Ok([rot::rotation_angle(q(r)?)])))
 }
 
 /// Vectors (N, 3) rotated by quaternions (N, 4), broadcast one against N; `inverse` applies
@@ -235,17 +187,14 @@ fn quat_apply<'py>(
 ) -> PyResult<Array<'py>> {
     let (qs, vs) = (rows::<4>(&quat, "quat", &[4])?, rows::<3>(&vectors, "vectors", &[3])?);
     let n = broadcast_len(("rotations", qs.len()), ("vectors", vs.len()))?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 3]; n];
-        map2(qs, vs, &mut out, |r, v| {
+    compute(py, n, &[3], |out| {
+        map2(qs, vs, out, |r, v| {
             ensure_finite("vectors", v)?;
             let q = q(r)?;
             let q = if inverse { q.conjugate() } else { q };
             Ok((q * DVec3::from_array(*v)).to_array())
-        })?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[3]))
+        })
+    })
 }
 
 /// Spherical linear interpolation between q0 and q1 (N, 4) at parameters t (N, 1); all three
@@ -262,18 +211,15 @@ fn quat_slerp<'py>(
         (rows::<4>(&q0, "r0", &[4])?, rows::<4>(&q1, "r1", &[4])?, rows::<1>(&t, "t", &[1])?);
     let n = broadcast_len(("r0", a.len()), ("r1", b.len()))?;
     let n = broadcast_len(("t", t.len()), ("rotations", n))?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 4]; n];
-        fill(&mut out, |i| {
+    compute(py, n, &[4], |out| {
+        fill(out, |i| {
             let tt = item(t, i)[0];
             if !tt.is_finite() {
                 return Err(Error::invalid("t", "is NaN or infinite"));
             }
             Ok(wxyz(rot::slerp(q(item(a, i))?, q(item(b, i))?, tt, shortest)))
-        })?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4]))
+        })
+    })
 }
 
 /// Affine transforms (N, 4, 4) from unit quaternions (N, 4), translations (N, 3) and per-axis
@@ -290,12 +236,9 @@ fn transform_from_parts<'py>(
     let ss = rows::<3>(&scale, "scale", &[3])?;
     let n = broadcast_len(("rotation", qs.len()), ("translation", ts.len()))?;
     let n = broadcast_len(("scale", ss.len()), ("rotation", n))?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 16]; n];
-        fill(&mut out, |i| rot::transform_from_parts(q(item(qs, i))?, item(ts, i), item(ss, i)))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4, 4]))
+    compute(py, n, &[4, 4], |out| {
+        fill(out, |i| rot::transform_from_parts(q(item(qs, i))?, item(ts, i), item(ss, i)))
+    })
 }
 
 /// Checked affine transforms (N, 4, 4): finite, last row (0, 0, 0, 1).
@@ -305,12 +248,7 @@ fn transform_validate<'py>(
     matrix: PyReadonlyArrayDyn<'py, f64>,
 ) -> PyResult<Array<'py>> {
     let ms = rows::<16>(&matrix, "matrix", &[4, 4])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 16]; ms.len()];
-        map(ms, &mut out, |m| rot::validate_transform(m).map(|_| *m))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4, 4]))
+    compute(py, ms.len(), &[4, 4], |out| map(ms, out, |m| rot::validate_transform(m).map(|_| *m)))
 }
 
 /// Products a @ b (N, 4, 4) of transform batches broadcast one against N.
@@ -322,12 +260,7 @@ fn transform_compose<'py>(
 ) -> PyResult<Array<'py>> {
     let (a, b) = (rows::<16>(&a, "a", &[4, 4])?, rows::<16>(&b, "b", &[4, 4])?);
     let n = broadcast_len(("a", a.len()), ("b", b.len()))?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 16]; n];
-        map2(a, b, &mut out, |x, y| Ok(rot::transform_compose(x, y)))?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4, 4]))
+    compute(py, n, &[4, 4], |out| map2(a, b, out, |x, y| Ok(rot::transform_compose(x, y))))
 }
 
 /// Inverses (N, 4, 4) of affine transforms (N, 4, 4).
@@ -337,12 +270,7 @@ fn transform_invert<'py>(
     matrix: PyReadonlyArrayDyn<'py, f64>,
 ) -> PyResult<Array<'py>> {
     let ms = rows::<16>(&matrix, "matrix", &[4, 4])?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 16]; ms.len()];
-        map(ms, &mut out, rot::transform_invert)?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[4, 4]))
+    compute(py, ms.len(), &[4, 4], |out| map(ms, out, rot::transform_invert))
 }
 
 /// Points (or, with `directions`, direction vectors) (N, 3) mapped by transforms (N, 4, 4),
@@ -357,19 +285,16 @@ fn transform_apply<'py>(
     let ms = rows::<16>(&matrix, "matrix", &[4, 4])?;
     let ps = rows::<3>(&points, "points", &[3])?;
     let n = broadcast_len(("transforms", ms.len()), ("points", ps.len()))?;
-    let out = detached(py, || {
-        let mut out = vec![[0.0; 3]; n];
-        map2(ms, ps, &mut out, |m, p| {
+    compute(py, n, &[3], |out| {
+        map2(ms, ps, out, |m, p| {
             ensure_finite("points", p)?;
             Ok(if directions {
                 rot::transform_apply_direction(m, p)
             } else {
                 rot::transform_apply_point(m, p)
             })
-        })?;
-        Ok(out)
-    })?;
-    Ok(to_numpy(py, out, &[3]))
+        })
+    })
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

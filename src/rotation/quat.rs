@@ -7,24 +7,31 @@ use glam::DQuat;
 /// A unit quaternion from scalar-first components `(w, x, y, z)`, normalised.
 ///
 /// Any non-zero finite 4-vector is accepted and scaled to unit length (the scale does not
-/// change the rotation it denotes). Tiny or huge components are rescaled by their largest
+/// change the rotation it denotes); one whose squared norm is within 4 ulp of 1 is returned
+/// as is. Tiny or huge components are rescaled by their largest
 /// magnitude first so the norm neither underflows nor overflows.
 ///
 /// # Errors
 /// [`Error::InvalidInput`] (argument `quat`) for a zero or non-finite quaternion.
 pub fn quat_from_wxyz(q: &[f64; 4]) -> Result<DQuat> {
-    ensure_finite("quat", q)?;
-    let n2 = q.iter().map(|c| c * c).sum::<f64>();
-    if n2.is_normal() && n2 < 1e300 {
-        let n = n2.sqrt();
-        return Ok(DQuat::from_xyzw(q[1] / n, q[2] / n, q[3] / n, q[0] / n));
+    let n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    // Already unit to rounding (the common case inside kinema): dividing would change nothing
+    // beyond 2 ulp, and repeated products cannot drift further than this bound.
+    if (n2 - 1.0).abs() <= 4.0 * f64::EPSILON {
+        return Ok(DQuat::from_xyzw(q[1], q[2], q[3], q[0]));
     }
+    // A normal, finite squared norm (NaN and infinity fail `is_normal`).
+    if n2.is_normal() && n2 < 1e300 {
+        let inv = 1.0 / n2.sqrt();
+        return Ok(DQuat::from_xyzw(q[1] * inv, q[2] * inv, q[3] * inv, q[0] * inv));
+    }
+    ensure_finite("quat", q)?;
     let m = q.iter().fold(0.0_f64, |m, c| m.max(c.abs()));
     if m == 0.0 {
         return Err(Error::invalid("quat", "is zero; a rotation needs a non-zero quaternion"));
     }
     let q = q.map(|c| c / m);
-    let n = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
     Ok(DQuat::from_xyzw(q[1] / n, q[2] / n, q[3] / n, q[0] / n))
 }
 
