@@ -7,6 +7,7 @@
 
 pub mod batch;
 pub mod error;
+pub mod rigid;
 pub mod rotation;
 
 #[cfg(feature = "python")]
