@@ -7,6 +7,7 @@ use pyo3::prelude::*;
 
 mod array;
 mod error;
+mod rigid;
 mod rotation;
 
 /// The compiled core of kinema. Use it through the `kinema` package, which checks and
@@ -16,5 +17,6 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     error::register(m)?;
     rotation::register(m)?;
+    rigid::register(m)?;
     Ok(())
 }

@@ -196,7 +196,7 @@ fn mesh_mass_properties(
         let outer = |u: DVec3| DMat3::from_cols(u * u.x, u * u.y, u * u.z);
         second += (outer(a) + outer(b) + outer(c) + outer(s)) * (det / 120.0);
     }
-    if !(volume > 0.0) {
+    if volume.is_nan() || volume <= 0.0 {
         return Err(Error::invalid(
             "triangles",
             format!(

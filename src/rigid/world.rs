@@ -74,6 +74,9 @@ pub struct BodyDesc {
     pub fixed: bool,
 }
 
+/// Next-step state, committed only when the whole step succeeded.
+type Scratch = (Vec<DVec3>, Vec<DVec3>, Vec<DQuat>, Vec<DVec3>);
+
 /// Free rigid bodies in a uniform gravity field, as a struct of arrays (index = body id).
 #[derive(Clone, Debug)]
 pub struct World {
@@ -95,7 +98,7 @@ pub struct World {
     // Forces and torques (world frame, about the centre of mass) applied during the next step.
     force: Vec<DVec3>,
     torque: Vec<DVec3>,
-    scratch: Box<(Vec<DVec3>, Vec<DVec3>, Vec<DQuat>, Vec<DVec3>)>,
+    scratch: Box<Scratch>,
 }
 
 fn rotate_about(axis: usize, angle: f64) -> DQuat {
@@ -185,7 +188,7 @@ impl World {
         let p_mat = DMat3::from_cols_slice(p.as_slice());
         let principal = DQuat::from_mat3(&p_mat).normalize();
         let moments = DVec3::new(eig.eigenvalues[0], eig.eigenvalues[1], eig.eigenvalues[2]);
-        if !(moments.min_element() > 0.0) {
+        if moments.is_nan() || moments.min_element() <= 0.0 {
             return Err(Error::invalid("shape", "has a non-positive principal moment of inertia"));
         }
         let q = (q_body * principal).normalize();
@@ -398,7 +401,7 @@ fn rotate(
                 // Exact flow of Πₖ²/2Iₖ: the body turns by +θ about its axis k, Π by -θ.
                 let theta = frac * h * pi[axis] / m[axis];
                 let r = rotate_about(axis, theta);
-                q = q * r;
+                q *= r;
                 pi = r.conjugate() * pi;
             }
             (q.normalize(), pi + 0.5 * h * tau)

@@ -6,4 +6,5 @@ provides ``run(out_dir, quick) -> dict``.
 
 DEMOS: dict[str, str] = {
     "rotations": "gimbal lock of Euler angles against quaternion slerp",
+    "rigid": "the tumbling T-handle and the drift of each rotation integrator",
 }

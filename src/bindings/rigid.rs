@@ -1,0 +1,205 @@
+//! `kinema.rigid`: a compiled world of free rigid bodies.
+
+use super::array::compute;
+use super::error::detached;
+use crate::error::Error;
+use crate::rigid::{BodyDesc, RotationIntegrator, Shape, World};
+use glam::{DQuat, DVec3};
+use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
+use pyo3::prelude::*;
+
+type Array<'py> = Bound<'py, PyArrayDyn<f64>>;
+
+fn vec3(v: [f64; 3]) -> DVec3 {
+    DVec3::from_array(v)
+}
+
+/// Free rigid bodies stepped together; see `kinema.rigid.World` for the documented API.
+#[pyclass(module = "kinema._kinema")]
+pub struct RigidWorld {
+    world: World,
+}
+
+#[pymethods]
+impl RigidWorld {
+    /// An empty world with gravity (m/s², world frame) and a rotation integrator name.
+    #[new]
+    fn new(gravity: [f64; 3], integrator: &str) -> PyResult<Self> {
+        if !gravity.iter().all(|g| g.is_finite()) {
+            return Err(Error::invalid("gravity", "contains NaN or infinity").into());
+        }
+        Ok(RigidWorld { world: World::new(vec3(gravity), RotationIntegrator::parse(integrator)?) })
+    }
+
+    /// Add a body; `kind` is sphere | box | capsule | cylinder | mesh with `dims` its
+    /// dimensions (radius; half extents; radius, height; radius, height) or, for meshes,
+    /// `vertices` (V, 3) and `triangles` (T, 3) as float indices. Returns the body index.
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (kind, dims, vertices, triangles, density, mass, position, orientation, velocity, angular_velocity, fixed))]
+    fn add_body(
+        &mut self,
+        kind: &str,
+        dims: Vec<f64>,
+        vertices: Option<PyReadonlyArrayDyn<'_, f64>>,
+        triangles: Option<PyReadonlyArrayDyn<'_, f64>>,
+        density: Option<f64>,
+        mass: Option<f64>,
+        position: [f64; 3],
+        orientation: [f64; 4],
+        velocity: [f64; 3],
+        angular_velocity: [f64; 3],
+        fixed: bool,
+    ) -> PyResult<usize> {
+        let dim = |k: usize| {
+            dims.get(k).copied().ok_or_else(|| Error::invalid("shape", "missing dimensions"))
+        };
+        let shape = match kind {
+            "sphere" => Shape::Sphere { radius: dim(0)? },
+            "box" => Shape::Box { half_extents: DVec3::new(dim(0)?, dim(1)?, dim(2)?) },
+            "capsule" => Shape::Capsule { radius: dim(0)?, height: dim(1)? },
+            "cylinder" => Shape::Cylinder { radius: dim(0)?, height: dim(1)? },
+            "mesh" => {
+                let (Some(v), Some(t)) = (vertices, triangles) else {
+                    return Err(
+                        Error::invalid("shape", "a mesh needs vertices and triangles").into()
+                    );
+                };
+                let v = super::array::rows::<3>(&v, "vertices", &[3])?;
+                let t_rows = super::array::rows::<3>(&t, "triangles", &[3])?;
+                let mut tris = Vec::with_capacity(t_rows.len());
+                for (i, row) in t_rows.iter().enumerate() {
+                    if row.iter().any(|x| x.fract() != 0.0 || *x < 0.0 || !x.is_finite()) {
+                        return Err(Error::InvalidInput {
+                            arg: "triangles".into(),
+                            index: Some(i),
+                            reason: "indices must be non-negative integers".into(),
+                        }
+                        .into());
+                    }
+                    tris.push(row.map(|x| x as usize));
+                }
+                Shape::Mesh { vertices: v.iter().map(|&p| vec3(p)).collect(), triangles: tris }
+            }
+            other => {
+                return Err(Error::invalid("shape", format!("unknown shape kind {other:?}")).into())
+            }
+        };
+        let o = orientation;
+        let desc = BodyDesc {
+            shape,
+            density,
+            mass,
+            position: vec3(position),
+            orientation: DQuat::from_xyzw(o[1], o[2], o[3], o[0]),
+            velocity: vec3(velocity),
+            angular_velocity: vec3(angular_velocity),
+            fixed,
+        };
+        Ok(self.world.add_body(&desc)?)
+    }
+
+    /// Number of bodies.
+    fn __len__(&self) -> usize {
+        self.world.len()
+    }
+
+    /// Mass (kg) of body `i`.
+    fn mass(&self, i: usize) -> PyResult<f64> {
+        self.check(i)?;
+        Ok(self.world.mass(i))
+    }
+
+    /// Inertia tensor about the centre of mass, body axes, row-major (9,) (kg m²).
+    fn inertia(&self, i: usize) -> PyResult<Vec<f64>> {
+        self.check(i)?;
+        Ok(self.world.inertia(i).transpose().to_cols_array().to_vec())
+    }
+
+    /// Centre of mass in the body frame (m).
+    fn center_of_mass(&self, i: usize) -> PyResult<[f64; 3]> {
+        self.check(i)?;
+        Ok(self.world.center_of_mass(i).to_array())
+    }
+
+    /// Advance `steps` steps of `dt` seconds (GIL released).
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: usize) -> PyResult<()> {
+        let world = &mut self.world;
+        detached(py, || world.step(dt, steps))
+    }
+
+    /// Apply `force` (N) at world `point` (m) of body `i` during the next step.
+    fn apply_force(&mut self, i: usize, force: [f64; 3], point: [f64; 3]) -> PyResult<()> {
+        Ok(self.world.apply_force(i, vec3(force), vec3(point))?)
+    }
+
+    /// World positions of the body origins (N, 3) (m).
+    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
+        let w = &self.world;
+        compute(py, w.len(), &[3], |out| {
+            out.iter_mut().enumerate().for_each(|(i, o)| *o = w.position(i).to_array());
+            Ok(())
+        })
+    }
+
+    /// Orientations (N, 4), scalar-first, body → world.
+    fn orientations<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
+        let w = &self.world;
+        compute(py, w.len(), &[4], |out| {
+            out.iter_mut()
+                .enumerate()
+                .for_each(|(i, o)| *o = crate::rotation::quat_to_wxyz(w.orientation(i)));
+            Ok(())
+        })
+    }
+
+    /// Centre-of-mass velocities (N, 3) (m/s).
+    fn velocities<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
+        let w = &self.world;
+        compute(py, w.len(), &[3], |out| {
+            out.iter_mut().enumerate().for_each(|(i, o)| *o = w.velocity(i).to_array());
+            Ok(())
+        })
+    }
+
+    /// Angular velocities in the world frame (N, 3) (rad/s).
+    fn angular_velocities<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
+        let w = &self.world;
+        compute(py, w.len(), &[3], |out| {
+            out.iter_mut().enumerate().for_each(|(i, o)| *o = w.angular_velocity(i).to_array());
+            Ok(())
+        })
+    }
+
+    /// Total kinetic energy (J).
+    fn kinetic_energy(&self) -> f64 {
+        self.world.kinetic_energy()
+    }
+
+    /// Total linear momentum (kg m/s).
+    fn linear_momentum(&self) -> [f64; 3] {
+        self.world.linear_momentum().to_array()
+    }
+
+    /// Total angular momentum about the world origin (kg m²/s).
+    fn angular_momentum(&self) -> [f64; 3] {
+        self.world.angular_momentum().to_array()
+    }
+}
+
+impl RigidWorld {
+    fn check(&self, i: usize) -> PyResult<()> {
+        if i < self.world.len() {
+            Ok(())
+        } else {
+            Err(Error::invalid(
+                "body",
+                format!("index {i} out of range ({} bodies)", self.world.len()),
+            )
+            .into())
+        }
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<RigidWorld>()
+}
