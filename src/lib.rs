@@ -7,6 +7,7 @@
 
 pub mod batch;
 pub mod error;
+pub mod ode;
 pub mod rigid;
 pub mod rotation;
 

@@ -1,0 +1,131 @@
+//! Time integration of ordinary differential equations `y' = f(t, y)`.
+//!
+//! One contract for every system in kinema: an [`OdeSystem`] supplies `f` (and optionally its
+//! Jacobian `∂f/∂y`); a [`Stepper`] owns every workspace and advances the state by fixed steps
+//! with one of the [`Method`]s; [`solve_adaptive`] runs the Dormand–Prince 5(4) pair with error
+//! control. Second-order methods (symplectic Euler, velocity Verlet) read the state as
+//! `y = [x; v]` with `f = [v; a(t, x, v)]`.
+//!
+//! Every method states its order and its stability function `R(z)` (the growth factor per step
+//! on the test equation `y' = λy` with `z = hλ`), see [`stability_function`] and
+//! [`max_stable_dt`]; the tests measure both. Sources: Hairer, Nørsett & Wanner, *Solving ODEs
+//! I* (explicit Runge–Kutta, Dormand–Prince 1980); Hairer & Wanner, *Solving ODEs II* (implicit
+//! Euler, trapezoidal rule, BDF2); Hairer, Lubich & Wanner, *Geometric Numerical Integration*
+//! (symplectic Euler, Störmer–Verlet).
+
+mod adaptive;
+mod stability;
+mod stepper;
+
+pub use adaptive::{solve_adaptive, AdaptiveSolution};
+pub use stability::{max_stable_dt, stability_function};
+pub use stepper::Stepper;
+
+use crate::error::{Error, Result};
+use nalgebra::DMatrix;
+
+/// A first-order system `y' = f(t, y)` of fixed dimension.
+pub trait OdeSystem {
+    /// Length of the state vector.
+    fn dim(&self) -> usize;
+    /// Write `f(t, y)` into `dydt` (both of length [`OdeSystem::dim`]).
+    ///
+    /// # Errors
+    /// Whatever the system reports (e.g. an exception in a Python callback).
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<()>;
+    /// Write the Jacobian `∂f/∂y` (dim x dim) into `jac` and return `true`, or return `false`
+    /// when the system has no analytic Jacobian (implicit methods then use finite differences).
+    ///
+    /// # Errors
+    /// Whatever the system reports.
+    fn jacobian(&mut self, _t: f64, _y: &[f64], _jac: &mut DMatrix<f64>) -> Result<bool> {
+        Ok(false)
+    }
+}
+
+/// A fixed-step integration method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Forward Euler, order 1, `R(z) = 1 + z`.
+    ExplicitEuler,
+    /// Explicit midpoint rule (RK2), order 2, `R(z) = 1 + z + z²/2`.
+    Midpoint,
+    /// Heun's method (explicit trapezoid, RK2), order 2, `R(z) = 1 + z + z²/2`.
+    Heun,
+    /// The classic Runge–Kutta method, order 4, `R(z) = Σ_{k≤4} z^k/k!`.
+    Rk4,
+    /// Semi-implicit (symplectic) Euler on `y = [x; v]`: `v₁ = v₀ + h a(x₀, v₀)`,
+    /// `x₁ = x₀ + h v₁`. Order 1, symplectic for conservative forces.
+    SymplecticEuler,
+    /// Velocity Verlet / leapfrog (kick–drift–kick) on `y = [x; v]`. Order 2, symplectic and
+    /// time-reversible for conservative forces; velocity-dependent forces are evaluated at the
+    /// half-step velocity.
+    VelocityVerlet,
+    /// Backward Euler, order 1, L-stable, `R(z) = 1/(1 - z)`; Newton iterations.
+    ImplicitEuler,
+    /// Trapezoidal rule (Crank–Nicolson), order 2, A-stable, `R(z) = (1 + z/2)/(1 - z/2)`.
+    Trapezoidal,
+    /// Two-step backward differentiation formula, order 2, A-stable:
+    /// `y₂ - 4/3 y₁ + 1/3 y₀ = 2/3 h f(t₂, y₂)`, started with one backward Euler step.
+    Bdf2,
+}
+
+impl Method {
+    /// Every fixed-step method, in the order of the docs.
+    pub const ALL: [Method; 9] = [
+        Method::ExplicitEuler,
+        Method::Midpoint,
+        Method::Heun,
+        Method::Rk4,
+        Method::SymplecticEuler,
+        Method::VelocityVerlet,
+        Method::ImplicitEuler,
+        Method::Trapezoidal,
+        Method::Bdf2,
+    ];
+
+    /// The method's name as the Python API spells it (`"rk4"`, `"implicit_euler"`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::ExplicitEuler => "explicit_euler",
+            Method::Midpoint => "midpoint",
+            Method::Heun => "heun",
+            Method::Rk4 => "rk4",
+            Method::SymplecticEuler => "symplectic_euler",
+            Method::VelocityVerlet => "velocity_verlet",
+            Method::ImplicitEuler => "implicit_euler",
+            Method::Trapezoidal => "trapezoidal",
+            Method::Bdf2 => "bdf2",
+        }
+    }
+
+    /// Parse a name of [`Method::name`].
+    ///
+    /// # Errors
+    /// An unknown name, listing the known ones.
+    pub fn parse(name: &str) -> Result<Self> {
+        Method::ALL.into_iter().find(|m| m.name() == name).ok_or_else(|| {
+            let known: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+            Error::invalid("method", format!("{name:?} is not one of {}", known.join(", ")))
+        })
+    }
+
+    /// Order of convergence.
+    pub fn order(self) -> u32 {
+        match self {
+            Method::ExplicitEuler | Method::SymplecticEuler | Method::ImplicitEuler => 1,
+            Method::Rk4 => 4,
+            _ => 2,
+        }
+    }
+
+    /// Whether each step solves a (non)linear system.
+    pub fn is_implicit(self) -> bool {
+        matches!(self, Method::ImplicitEuler | Method::Trapezoidal | Method::Bdf2)
+    }
+
+    /// Whether the method needs the state split as `y = [x; v]`.
+    pub fn is_second_order(self) -> bool {
+        matches!(self, Method::SymplecticEuler | Method::VelocityVerlet)
+    }
+}

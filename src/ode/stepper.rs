@@ -1,0 +1,329 @@
+//! Fixed-step integration with preallocated workspaces.
+
+// Numeric kernels index several arrays in step; index loops read closest to the formulas.
+#![allow(clippy::needless_range_loop)]
+
+use super::{Method, OdeSystem};
+use crate::error::{Error, Result};
+use nalgebra::DMatrix;
+
+/// Advances an [`OdeSystem`] by fixed steps of one [`Method`], allocating nothing per step.
+///
+/// A step either completes or returns an error and leaves `y` untouched. Implicit methods
+/// solve their equations by simplified Newton iterations with the Jacobian (analytic, or by
+/// forward differences) evaluated once per step and a dense LU factorisation with partial
+/// pivoting, in place.
+#[derive(Clone, Debug)]
+pub struct Stepper {
+    method: Method,
+    n: usize,
+    k: [Vec<f64>; 4],
+    stage: Vec<f64>,
+    y_new: Vec<f64>,
+    prev: Vec<f64>,
+    prev_h: Option<f64>,
+    jac: DMatrix<f64>,
+    lu: Vec<f64>,
+    pivots: Vec<usize>,
+    /// Newton tolerance: stop when `max|Δy| ≤ newton_tol (1 + max|y|)`. Default 1e-10.
+    pub newton_tol: f64,
+    /// Newton iterations before a step fails with [`Error::SolverFailed`]. Default 20.
+    pub max_newton: usize,
+    /// Right-hand-side evaluations so far.
+    pub nfev: usize,
+    /// Jacobian evaluations (analytic or by differences) so far.
+    pub njev: usize,
+}
+
+impl Stepper {
+    /// A stepper for systems of dimension `n`.
+    ///
+    /// # Errors
+    /// A second-order method with odd `n` (the state must be `[x; v]`).
+    pub fn new(method: Method, n: usize) -> Result<Self> {
+        if method.is_second_order() && !n.is_multiple_of(2) {
+            return Err(Error::invalid(
+                "y0",
+                format!("{} needs a state [x; v] of even length, got {n}", method.name()),
+            ));
+        }
+        let implicit = method.is_implicit();
+        let m = if implicit { n } else { 0 };
+        Ok(Stepper {
+            method,
+            n,
+            k: std::array::from_fn(|_| vec![0.0; n]),
+            stage: vec![0.0; n],
+            y_new: vec![0.0; n],
+            prev: vec![0.0; n],
+            prev_h: None,
+            jac: DMatrix::zeros(m, m),
+            lu: vec![0.0; m * m],
+            pivots: vec![0; m],
+            newton_tol: 1e-10,
+            max_newton: 20,
+            nfev: 0,
+            njev: 0,
+        })
+    }
+
+    /// The method this stepper uses.
+    pub fn method(&self) -> Method {
+        self.method
+    }
+
+    /// Forget the history of multistep methods (call after changing the state from outside).
+    pub fn reset(&mut self) {
+        self.prev_h = None;
+    }
+
+    fn eval<S: OdeSystem>(
+        &mut self,
+        sys: &mut S,
+        t: f64,
+        which: usize,
+        y: Option<&[f64]>,
+    ) -> Result<()> {
+        self.nfev += 1;
+        let input = y.unwrap_or(&self.stage);
+        sys.rhs(t, input, &mut self.k[which])
+    }
+
+    /// Advance `y` (length `n`) from `t` by one step of `h > 0`.
+    ///
+    /// # Errors
+    /// A bad `h` or `y` length, a system error, a Newton failure ([`Error::SolverFailed`]) or a
+    /// non-finite result ([`Error::Diverged`] with step 0 and the first bad component); `y` is
+    /// unchanged in every case.
+    pub fn step<S: OdeSystem>(&mut self, sys: &mut S, t: f64, y: &mut [f64], h: f64) -> Result<()> {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Error::invalid("dt", format!("must be positive and finite, got {h}")));
+        }
+        if y.len() != self.n || sys.dim() != self.n {
+            return Err(Error::invalid(
+                "y0",
+                format!("has length {}, the system has dimension {}", y.len(), sys.dim()),
+            ));
+        }
+        let n = self.n;
+        match self.method {
+            Method::ExplicitEuler => {
+                self.eval(sys, t, 0, Some(y))?;
+                for i in 0..n {
+                    self.y_new[i] = y[i] + h * self.k[0][i];
+                }
+            }
+            Method::Midpoint => {
+                self.eval(sys, t, 0, Some(y))?;
+                for i in 0..n {
+                    self.stage[i] = y[i] + 0.5 * h * self.k[0][i];
+                }
+                self.eval(sys, t + 0.5 * h, 1, None)?;
+                for i in 0..n {
+                    self.y_new[i] = y[i] + h * self.k[1][i];
+                }
+            }
+            Method::Heun => {
+                self.eval(sys, t, 0, Some(y))?;
+                for i in 0..n {
+                    self.stage[i] = y[i] + h * self.k[0][i];
+                }
+                self.eval(sys, t + h, 1, None)?;
+                for i in 0..n {
+                    self.y_new[i] = y[i] + 0.5 * h * (self.k[0][i] + self.k[1][i]);
+                }
+            }
+            Method::Rk4 => {
+                self.eval(sys, t, 0, Some(y))?;
+                for (s, c) in [(1, 0.5), (2, 0.5), (3, 1.0)] {
+                    for i in 0..n {
+                        self.stage[i] = y[i] + c * h * self.k[s - 1][i];
+                    }
+                    self.eval(sys, t + c * h, s, None)?;
+                }
+                for i in 0..n {
+                    let k = &self.k;
+                    self.y_new[i] =
+                        y[i] + h / 6.0 * (k[0][i] + 2.0 * k[1][i] + 2.0 * k[2][i] + k[3][i]);
+                }
+            }
+            Method::SymplecticEuler => {
+                let m = n / 2;
+                self.eval(sys, t, 0, Some(y))?;
+                for i in 0..m {
+                    let v1 = y[m + i] + h * self.k[0][m + i];
+                    self.y_new[m + i] = v1;
+                    self.y_new[i] = y[i] + h * v1;
+                }
+            }
+            Method::VelocityVerlet => {
+                let m = n / 2;
+                self.eval(sys, t, 0, Some(y))?;
+                for i in 0..m {
+                    let v_half = y[m + i] + 0.5 * h * self.k[0][m + i];
+                    self.stage[m + i] = v_half;
+                    self.stage[i] = y[i] + h * v_half;
+                }
+                self.eval(sys, t + h, 1, None)?;
+                for i in 0..m {
+                    self.y_new[i] = self.stage[i];
+                    self.y_new[m + i] = self.stage[m + i] + 0.5 * h * self.k[1][m + i];
+                }
+            }
+            Method::ImplicitEuler | Method::Trapezoidal | Method::Bdf2 => {
+                self.implicit_step(sys, t, y, h)?
+            }
+        }
+        if let Some(bad) = self.y_new.iter().position(|x| !x.is_finite()) {
+            return Err(Error::Diverged {
+                step: 0,
+                index: bad,
+                reason: format!("{} produced a non-finite state", self.method.name()),
+            });
+        }
+        if self.method == Method::Bdf2 {
+            self.prev.copy_from_slice(y);
+            self.prev_h = Some(h);
+        }
+        y.copy_from_slice(&self.y_new);
+        Ok(())
+    }
+
+    /// Solve `y₁ = base + γ h f(t + h, y₁)` for the implicit methods by simplified Newton.
+    fn implicit_step<S: OdeSystem>(
+        &mut self,
+        sys: &mut S,
+        t: f64,
+        y: &[f64],
+        h: f64,
+    ) -> Result<()> {
+        let n = self.n;
+        let t1 = t + h;
+        // The explicit part `base` (in k[2]) and the weight `gamma` of f(t1, y1).
+        let bdf2 =
+            self.method == Method::Bdf2 && self.prev_h.is_some_and(|p| (p - h).abs() <= 1e-12 * h);
+        let gamma = match self.method {
+            Method::Trapezoidal => {
+                self.eval(sys, t, 0, Some(y))?;
+                for i in 0..n {
+                    self.k[2][i] = y[i] + 0.5 * h * self.k[0][i];
+                }
+                0.5
+            }
+            _ if bdf2 => {
+                for i in 0..n {
+                    self.k[2][i] = (4.0 * y[i] - self.prev[i]) / 3.0;
+                }
+                2.0 / 3.0
+            }
+            _ => {
+                self.k[2].copy_from_slice(y);
+                1.0
+            }
+        };
+        // Jacobian at (t1, y) and the iteration matrix I - γ h J, factorised once.
+        self.jacobian(sys, t1, y)?;
+        for c in 0..n {
+            for r in 0..n {
+                self.lu[r * n + c] = f64::from(u8::from(r == c)) - gamma * h * self.jac[(r, c)];
+            }
+        }
+        lu_factor(&mut self.lu, &mut self.pivots, n)?;
+        self.y_new.copy_from_slice(y);
+        for _ in 0..self.max_newton {
+            self.nfev += 1;
+            sys.rhs(t1, &self.y_new, &mut self.k[1])?;
+            // Residual G = y - base - γ h f(y); solve (I - γhJ) Δ = -G.
+            for i in 0..n {
+                self.stage[i] = -(self.y_new[i] - self.k[2][i] - gamma * h * self.k[1][i]);
+            }
+            lu_solve(&self.lu, &self.pivots, n, &mut self.stage);
+            let (mut step, mut size) = (0.0_f64, 0.0_f64);
+            for i in 0..n {
+                self.y_new[i] += self.stage[i];
+                step = step.max(self.stage[i].abs());
+                size = size.max(self.y_new[i].abs());
+            }
+            if !step.is_finite() {
+                break;
+            }
+            if step <= self.newton_tol * (1.0 + size) {
+                return Ok(());
+            }
+        }
+        Err(Error::SolverFailed {
+            reason: format!(
+                "{}: Newton did not converge in {} iterations; reduce dt",
+                self.method.name(),
+                self.max_newton
+            ),
+        })
+    }
+
+    /// Fill `self.jac` with ∂f/∂y at (t, y): analytic if the system has it, else forward
+    /// differences with steps `sqrt(eps) max(|y_j|, 1)`.
+    fn jacobian<S: OdeSystem>(&mut self, sys: &mut S, t: f64, y: &[f64]) -> Result<()> {
+        self.njev += 1;
+        if sys.jacobian(t, y, &mut self.jac)? {
+            return Ok(());
+        }
+        let n = self.n;
+        self.eval(sys, t, 3, Some(y))?;
+        self.stage.copy_from_slice(y);
+        for j in 0..n {
+            let d = f64::EPSILON.sqrt() * y[j].abs().max(1.0);
+            self.stage[j] = y[j] + d;
+            self.nfev += 1;
+            sys.rhs(t, &self.stage, &mut self.k[1])?;
+            for i in 0..n {
+                self.jac[(i, j)] = (self.k[1][i] - self.k[3][i]) / d;
+            }
+            self.stage[j] = y[j];
+        }
+        Ok(())
+    }
+}
+
+/// In-place LU factorisation with partial pivoting of the row-major `n x n` matrix `a`.
+fn lu_factor(a: &mut [f64], pivots: &mut [usize], n: usize) -> Result<()> {
+    for col in 0..n {
+        let p = (col..n)
+            .max_by(|&i, &j| a[i * n + col].abs().total_cmp(&a[j * n + col].abs()))
+            .unwrap_or(col);
+        let pivot = a[p * n + col];
+        if pivot == 0.0 || !pivot.is_finite() {
+            return Err(Error::SolverFailed {
+                reason: "the Newton iteration matrix is singular".into(),
+            });
+        }
+        pivots[col] = p;
+        if p != col {
+            for c in 0..n {
+                a.swap(col * n + c, p * n + c);
+            }
+        }
+        for r in col + 1..n {
+            let f = a[r * n + col] / pivot;
+            a[r * n + col] = f;
+            for c in col + 1..n {
+                a[r * n + c] -= f * a[col * n + c];
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Solve `A x = b` in place from the factors of [`lu_factor`].
+fn lu_solve(a: &[f64], pivots: &[usize], n: usize, b: &mut [f64]) {
+    for (col, &p) in pivots.iter().enumerate().take(n) {
+        b.swap(col, p);
+    }
+    for r in 0..n {
+        let s: f64 = (0..r).map(|c| a[r * n + c] * b[c]).sum();
+        b[r] -= s;
+    }
+    for r in (0..n).rev() {
+        let s: f64 = (r + 1..n).map(|c| a[r * n + c] * b[c]).sum();
+        b[r] = (b[r] - s) / a[r * n + r];
+    }
+}
