@@ -4,7 +4,8 @@ Every array argument is a C-contiguous float64 numpy array; shapes are given in 
 docstrings of the Rust functions (``src/bindings/``). Prefer the Python API in ``kinema``.
 """
 
-from typing import final
+from collections.abc import Callable
+from typing import Any, final
 
 import numpy as np
 import numpy.typing as npt
@@ -71,3 +72,27 @@ class RigidWorld:
     def kinetic_energy(self) -> float: ...
     def linear_momentum(self) -> list[float]: ...
     def angular_momentum(self) -> list[float]: ...
+
+# --- ode ---
+
+def ode_solve_fixed(
+    f: Callable[[float, _F64], Any],
+    y0: _F64,
+    t0: float,
+    t1: float,
+    steps: int,
+    method: str,
+    jac: Callable[[float, _F64], Any] | None = None,
+) -> tuple[_F64, int, int]: ...
+def ode_solve_adaptive(
+    f: Callable[[float, _F64], Any],
+    y0: _F64,
+    t0: float,
+    t1: float,
+    rtol: float,
+    atol: float,
+    max_steps: int,
+) -> tuple[_F64, _F64, int, int]: ...
+def ode_stability_function(method: str, z: _F64) -> _F64: ...
+def ode_max_stable_dt(method: str, eigenvalues: _F64) -> float: ...
+def ode_methods() -> list[tuple[str, int, bool, bool]]: ...

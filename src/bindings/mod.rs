@@ -7,6 +7,7 @@ use pyo3::prelude::*;
 
 mod array;
 mod error;
+mod ode;
 mod rigid;
 mod rotation;
 
@@ -18,5 +19,6 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     error::register(m)?;
     rotation::register(m)?;
     rigid::register(m)?;
+    ode::register(m)?;
     Ok(())
 }

@@ -58,8 +58,8 @@ pub enum Method {
     /// `x₁ = x₀ + h v₁`. Order 1, symplectic for conservative forces.
     SymplecticEuler,
     /// Velocity Verlet / leapfrog (kick–drift–kick) on `y = [x; v]`. Order 2, symplectic and
-    /// time-reversible for conservative forces; velocity-dependent forces are evaluated at the
-    /// half-step velocity.
+    /// time-reversible for conservative forces; for velocity-dependent forces the closing kick
+    /// uses the predicted velocity `v₀ + h a₀`, which keeps second order.
     VelocityVerlet,
     /// Backward Euler, order 1, L-stable, `R(z) = 1/(1 - z)`; Newton iterations.
     ImplicitEuler,

@@ -157,17 +157,21 @@ impl Stepper {
                 }
             }
             Method::VelocityVerlet => {
+                // Kick–drift–kick; the closing kick evaluates a(x₁, v₀ + h a₀), which equals the
+                // textbook a(x₁) for conservative forces and keeps second order when the force
+                // depends on the velocity (damping, drag).
                 let m = n / 2;
                 self.eval(sys, t, 0, Some(y))?;
                 for i in 0..m {
-                    let v_half = y[m + i] + 0.5 * h * self.k[0][m + i];
-                    self.stage[m + i] = v_half;
-                    self.stage[i] = y[i] + h * v_half;
+                    let a0 = self.k[0][m + i];
+                    self.y_new[m + i] = y[m + i] + 0.5 * h * a0;
+                    self.y_new[i] = y[i] + h * self.y_new[m + i];
+                    self.stage[i] = self.y_new[i];
+                    self.stage[m + i] = y[m + i] + h * a0;
                 }
                 self.eval(sys, t + h, 1, None)?;
                 for i in 0..m {
-                    self.y_new[i] = self.stage[i];
-                    self.y_new[m + i] = self.stage[m + i] + 0.5 * h * self.k[1][m + i];
+                    self.y_new[m + i] += 0.5 * h * self.k[1][m + i];
                 }
             }
             Method::ImplicitEuler | Method::Trapezoidal | Method::Bdf2 => {

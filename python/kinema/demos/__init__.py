@@ -6,5 +6,6 @@ provides ``run(out_dir, quick) -> dict``.
 
 DEMOS: dict[str, str] = {
     "rotations": "gimbal lock of Euler angles against quaternion slerp",
+    "integrators": "stability regions and a work-precision diagram of the ODE methods",
     "rigid": "the tumbling T-handle and the drift of each rotation integrator",
 }

@@ -1,0 +1,196 @@
+//! `kinema.ode`: integrators driven by Python callables, and the stability analysis.
+
+use super::array::{compute, rows};
+use crate::error::Error;
+use crate::ode::{max_stable_dt, solve_adaptive, stability_function, Method, OdeSystem, Stepper};
+use nalgebra::{Complex, DMatrix};
+use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
+use pyo3::prelude::*;
+
+type Array<'py> = Bound<'py, PyArrayDyn<f64>>;
+
+/// An [`OdeSystem`] whose `f(t, y)` (and optional `jac(t, y)`) are Python callables. The GIL
+/// is held throughout (every evaluation calls Python); a Python exception is kept and re-raised.
+struct PySystem<'py> {
+    py: Python<'py>,
+    f: Bound<'py, PyAny>,
+    jac: Option<Bound<'py, PyAny>>,
+    n: usize,
+    error: Option<PyErr>,
+}
+
+impl PySystem<'_> {
+    fn call(
+        &mut self,
+        func: &Bound<'_, PyAny>,
+        t: f64,
+        y: &[f64],
+        expect: usize,
+        what: &str,
+    ) -> crate::Result<Vec<f64>> {
+        let arr = PyArray1::from_slice(self.py, y);
+        let result = func.call1((t, arr)).and_then(|r| {
+            let np = self.py.import("numpy")?;
+            np.call_method1("ravel", (np.call_method1("asarray", (r, "float64"))?,))?
+                .extract::<Vec<f64>>()
+        });
+        match result {
+            Ok(v) if v.len() == expect => Ok(v),
+            Ok(v) => {
+                Err(Error::invalid(what, format!("returned {} values, expected {expect}", v.len())))
+            }
+            Err(e) => {
+                self.error = Some(e);
+                Err(Error::invalid(what, "raised an exception"))
+            }
+        }
+    }
+}
+
+impl OdeSystem for PySystem<'_> {
+    fn dim(&self) -> usize {
+        self.n
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> crate::Result<()> {
+        let f = self.f.clone();
+        let v = self.call(&f, t, y, self.n, "f")?;
+        dydt.copy_from_slice(&v);
+        Ok(())
+    }
+    fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut DMatrix<f64>) -> crate::Result<bool> {
+        let Some(j) = self.jac.clone() else { return Ok(false) };
+        let v = self.call(&j, t, y, self.n * self.n, "jac")?;
+        for r in 0..self.n {
+            for c in 0..self.n {
+                jac[(r, c)] = v[r * self.n + c];
+            }
+        }
+        Ok(true)
+    }
+}
+
+fn finish<T>(system: &mut PySystem<'_>, result: crate::Result<T>) -> PyResult<T> {
+    match (system.error.take(), result) {
+        (Some(e), Err(_)) => Err(e),
+        (_, r) => r.map_err(PyErr::from),
+    }
+}
+
+/// Fixed-step solve of y' = f(t, y) from t0 with `steps` steps of (t1 - t0)/steps; returns the
+/// states (steps + 1, n) and the counts (nfev, njev).
+#[pyfunction]
+#[pyo3(signature = (f, y0, t0, t1, steps, method, jac=None))]
+#[allow(clippy::too_many_arguments)]
+fn ode_solve_fixed<'py>(
+    py: Python<'py>,
+    f: Bound<'py, PyAny>,
+    y0: PyReadonlyArrayDyn<'py, f64>,
+    t0: f64,
+    t1: f64,
+    steps: usize,
+    method: &str,
+    jac: Option<Bound<'py, PyAny>>,
+) -> PyResult<(Array<'py>, usize, usize)> {
+    let method = Method::parse(method)?;
+    let y0 = y0
+        .as_slice()
+        .map_err(|_| PyErr::from(Error::invalid("y0", "must be contiguous")))?
+        .to_vec();
+    let n = y0.len();
+    if !(t0.is_finite() && t1.is_finite() && t1 > t0) || steps == 0 {
+        return Err(Error::invalid(
+            "t_span",
+            format!("needs finite t1 > t0 and at least one step, got ({t0}, {t1}), {steps} steps"),
+        )
+        .into());
+    }
+    let mut system = PySystem { py, f, jac, n, error: None };
+    let mut stepper = Stepper::new(method, n)?;
+    let h = (t1 - t0) / steps as f64;
+    let mut out = vec![0.0; (steps + 1) * n];
+    out[..n].copy_from_slice(&y0);
+    let mut y = y0;
+    for s in 0..steps {
+        let r = stepper.step(&mut system, t0 + s as f64 * h, &mut y, h).map_err(|e| match e {
+            Error::Diverged { index, reason, .. } => Error::Diverged { step: s, index, reason },
+            other => other,
+        });
+        finish(&mut system, r)?;
+        out[(s + 1) * n..(s + 2) * n].copy_from_slice(&y);
+    }
+    let states = numpy::PyArray1::from_vec(py, out).reshape([steps + 1, n])?.to_dyn().clone();
+    Ok((states, stepper.nfev, stepper.njev))
+}
+
+/// Dormand–Prince 5(4) solve; returns (times (M,), states (M, n), nfev, rejected).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn ode_solve_adaptive<'py>(
+    py: Python<'py>,
+    f: Bound<'py, PyAny>,
+    y0: PyReadonlyArrayDyn<'py, f64>,
+    t0: f64,
+    t1: f64,
+    rtol: f64,
+    atol: f64,
+    max_steps: usize,
+) -> PyResult<(Array<'py>, Array<'py>, usize, usize)> {
+    let y0 = y0
+        .as_slice()
+        .map_err(|_| PyErr::from(Error::invalid("y0", "must be contiguous")))?
+        .to_vec();
+    let n = y0.len();
+    let mut system = PySystem { py, f, jac: None, n, error: None };
+    let r = solve_adaptive(&mut system, &y0, t0, t1, rtol, atol, max_steps);
+    let sol = finish(&mut system, r)?;
+    let m = sol.t.len();
+    let t = numpy::PyArray1::from_vec(py, sol.t).to_dyn().clone();
+    let y = numpy::PyArray1::from_vec(py, sol.y).reshape([m, n])?.to_dyn().clone();
+    Ok((t, y, sol.nfev, sol.rejected))
+}
+
+/// R(z) of `method` at points z given as (N, 2) rows (re, im); returns (N, 2).
+#[pyfunction]
+fn ode_stability_function<'py>(
+    py: Python<'py>,
+    method: &str,
+    z: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let method = Method::parse(method)?;
+    let zs = rows::<2>(&z, "z", &[2])?;
+    compute(py, zs.len(), &[2], |out| {
+        crate::batch::map(zs, out, |p| {
+            let r = stability_function(method, Complex::new(p[0], p[1]));
+            Ok([r.re, r.im])
+        })
+    })
+}
+
+/// The largest stable step of `method` for eigenvalues given as (N, 2) rows (re, im).
+#[pyfunction]
+fn ode_max_stable_dt(method: &str, eigenvalues: PyReadonlyArrayDyn<'_, f64>) -> PyResult<f64> {
+    let method = Method::parse(method)?;
+    let eig: Vec<Complex<f64>> = rows::<2>(&eigenvalues, "eigenvalues", &[2])?
+        .iter()
+        .map(|p| Complex::new(p[0], p[1]))
+        .collect();
+    Ok(max_stable_dt(method, &eig)?)
+}
+
+/// (name, order, implicit, second_order) of every fixed-step method.
+#[pyfunction]
+fn ode_methods() -> Vec<(&'static str, u32, bool, bool)> {
+    Method::ALL
+        .iter()
+        .map(|m| (m.name(), m.order(), m.is_implicit(), m.is_second_order()))
+        .collect()
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(ode_solve_fixed, m)?)?;
+    m.add_function(wrap_pyfunction!(ode_solve_adaptive, m)?)?;
+    m.add_function(wrap_pyfunction!(ode_stability_function, m)?)?;
+    m.add_function(wrap_pyfunction!(ode_max_stable_dt, m)?)?;
+    m.add_function(wrap_pyfunction!(ode_methods, m)?)?;
+    Ok(())
+}

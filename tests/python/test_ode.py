@@ -1,0 +1,92 @@
+"""kinema.ode through Python: orders on the built-in problems, stability analysis against the
+closed forms, agreement with scipy.integrate.solve_ivp, and bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import kinema
+from kinema import ode
+
+
+@pytest.mark.parametrize("method", sorted(ode.METHODS))
+def test_observed_order_on_the_damped_spring(method):
+    rows = ode.work_precision("damped_spring", [method], [0.01, 0.005])
+    observed = math.log2(rows[0].error / rows[1].error)
+    assert abs(observed - ode.METHODS[method]) < 0.15, observed
+
+
+def test_dopri5_agrees_with_scipy_on_kepler():
+    prob = ode.PROBLEMS["kepler"]()
+    t, y = ode.solve(prob.f, prob.y0, prob.t_span, method="dopri5", rtol=1e-10, atol=1e-12)
+    ref = solve_ivp(prob.f, prob.t_span, prob.y0, method="DOP853", rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(y[-1], ref.y[:, -1], atol=1e-8)
+    np.testing.assert_allclose(y[-1], prob.exact(prob.t_span[1]), atol=1e-8)
+    assert t[0] == 0.0 and t[-1] == prob.t_span[1]
+
+
+def test_implicit_methods_on_the_stiff_chain_with_and_without_jacobian():
+    prob = ode.PROBLEMS["spring_chain"]()
+    exact = prob.exact(prob.t_span[1])
+    # Accuracy at h ω_max = 0.2: first-order implicit Euler damps the fast modes most.
+    for method, bound in [("implicit_euler", 0.5), ("trapezoidal", 0.05), ("bdf2", 0.1)]:
+        _, with_jac = ode.solve(prob.f, prob.y0, prob.t_span, dt=1e-3, method=method, jac=prob.jac)
+        _, no_jac = ode.solve(prob.f, prob.y0, prob.t_span, dt=1e-3, method=method)
+        np.testing.assert_allclose(with_jac[-1], no_jac[-1], atol=1e-6)
+        assert np.max(np.abs(with_jac[-1] - exact)) < bound
+
+
+def test_stability_function_and_limits():
+    assert ode.stability_function("explicit_euler", -1.5) == pytest.approx(-0.5)
+    z = np.array([-1.0, 1j, -2 + 1j])
+    np.testing.assert_allclose(
+        ode.stability_function("rk4", z), 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
+    )
+    np.testing.assert_allclose(ode.stability_function("implicit_euler", z), 1 / (1 - z))
+    assert ode.max_stable_dt("explicit_euler", [-4.0]) == pytest.approx(0.5, rel=1e-12)
+    assert ode.max_stable_dt("rk4", [3j, -3j]) == pytest.approx(math.sqrt(8) / 3, rel=1e-10)
+    assert ode.max_stable_dt("velocity_verlet", [10j]) == pytest.approx(0.2, rel=1e-10)
+    assert ode.max_stable_dt("bdf2", [-1e9, 1e3j]) == math.inf
+    assert ode.max_stable_dt("explicit_euler", [1j]) == 0.0
+
+
+def test_measured_limit_matches_max_stable_dt():
+    lam = -50.0
+    h = ode.max_stable_dt("heun", [lam])
+    for factor, grows in [(0.99, False), (1.01, True)]:
+        _, y = ode.solve(
+            lambda t, y: lam * y, [1.0], (0, 2000 * factor * h), dt=factor * h, method="heun"
+        )
+        assert (abs(y[-1, 0]) > 1.0) == grows
+
+
+def test_second_order_and_energy():
+    t, x, v = ode.solve_second_order(lambda t, x, v: -x, [1.0], [0.0], (0, 100), dt=0.05)
+    energy = 0.5 * (x[:, 0] ** 2 + v[:, 0] ** 2)
+    assert np.max(np.abs(energy - 0.5)) < 1e-3
+    assert len(t) == 2001 and x.shape == (2001, 1)
+
+
+def test_bad_input_and_errors():
+    with pytest.raises(ValueError, match="dt"):
+        ode.solve(lambda t, y: y, [1.0], (0, 1), method="rk4")
+    with pytest.raises(ValueError, match="method"):
+        ode.solve(lambda t, y: y, [1.0], (0, 1), dt=0.1, method="rk45")
+    with pytest.raises(ValueError, match="t_span"):
+        ode.solve(lambda t, y: y, [1.0], (1, 0), dt=0.1)
+    with pytest.raises(ValueError, match="y0"):
+        ode.solve(lambda t, y: y, [np.nan], (0, 1), dt=0.1)
+    with pytest.raises(ValueError, match="f: returned 2 values"):
+        ode.solve(lambda t, y: [1.0, 2.0], [1.0], (0, 1), dt=0.1)
+    with pytest.raises(ZeroDivisionError):
+        ode.solve(lambda t, y: 1 / 0, [1.0], (0, 1), dt=0.1)
+    with pytest.raises(kinema.SimulationError, match="step 0"), np.errstate(over="ignore"):
+        ode.solve(lambda t, y: 1e300 * y, [1e300], (0, 1), dt=1.0, method="explicit_euler")
+    with pytest.raises(ValueError, match="eigenvalues"):
+        ode.max_stable_dt("rk4", [1.0])
+    with pytest.raises(ValueError, match="even length"):
+        ode.solve(lambda t, y: y, [1.0], (0, 1), dt=0.1, method="symplectic_euler")
