@@ -8,6 +8,7 @@
 pub mod batch;
 pub mod error;
 pub mod ode;
+pub mod particles;
 pub mod rigid;
 pub mod rotation;
 

@@ -1,0 +1,267 @@
+//! Forces on particles, each a pure function of positions and velocities that adds into a
+//! force buffer. Conservative forces also report their potential energy.
+
+use crate::error::{Error, Result};
+use glam::DVec3;
+
+/// A force acting on the particles of a [`super::ParticleSystem`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum Force {
+    /// Uniform field `f = m g` (N); potential `-m g·x`.
+    Gravity {
+        /// Acceleration (m/s²).
+        g: DVec3,
+    },
+    /// Drag against the air moving at `wind` (m/s): `f = -k₁ u - k₂ |u| u`, `u = v - wind`,
+    /// with `k₂ = ½ ρ C_d A` (kg/m) and `k₁` (kg/s) per particle.
+    Drag {
+        /// Linear coefficient k₁ (kg/s).
+        linear: f64,
+        /// Quadratic coefficient k₂ = ½ ρ C_d A (kg/m).
+        quadratic: f64,
+        /// Air velocity (m/s).
+        wind: DVec3,
+    },
+    /// Velocity damping `f = -c m v` (c in 1/s): every particle loses speed at the same rate.
+    Damping {
+        /// Rate (1/s).
+        rate: f64,
+    },
+    /// Hookean springs with dampers between particle pairs:
+    /// `f_i = -[k (|d| - L) + c (v_i - v_j)·d̂] d̂`, `d = x_i - x_j`, `f_j = -f_i`.
+    Springs {
+        /// Particle pairs.
+        pairs: Vec<[usize; 2]>,
+        /// Rest lengths (m), one per pair.
+        rest: Vec<f64>,
+        /// Stiffness (N/m).
+        stiffness: f64,
+        /// Damping along the spring (N s/m).
+        damping: f64,
+    },
+    /// Softened inverse-square attraction to a point, `f = s m (c - x) / (|c - x|² + ε²)^{3/2}`
+    /// (negative `strength` repels); potential `-s m / sqrt(|c - x|² + ε²)`.
+    Attractor {
+        /// Centre (m).
+        center: DVec3,
+        /// Strength s (m³/s²).
+        strength: f64,
+        /// Softening length ε (m) > 0.
+        softening: f64,
+    },
+    /// Swirl around an axis through `center`: `f = s m (â × r⊥) / (|r⊥| + ε)` with `r⊥` the
+    /// offset from the axis, a force of nearly constant magnitude `s m` tangent to circles.
+    Vortex {
+        /// A point of the axis (m).
+        center: DVec3,
+        /// Axis direction (normalised here).
+        axis: DVec3,
+        /// Strength s (m/s²).
+        strength: f64,
+        /// Core radius ε (m) > 0.
+        core: f64,
+    },
+    /// Divergence-free turbulence: `f = s m curl ψ(x / L)` with `ψ` three independent smooth
+    /// gradient-noise fields (curl noise, Bridson, Houriham & Nordenstam 2007).
+    Turbulence {
+        /// Strength s (m/s²).
+        strength: f64,
+        /// Length scale L of the eddies (m).
+        scale: f64,
+        /// Seed of the noise.
+        seed: u64,
+    },
+    /// Soft pairwise repulsion within `radius`: `f = k (r - d) d̂` for `d < r`, found with a
+    /// spatial hash grid of cell size `radius` (O(N) neighbours, never all pairs).
+    NeighborRepulsion {
+        /// Interaction radius r (m).
+        radius: f64,
+        /// Stiffness k (N/m).
+        stiffness: f64,
+    },
+    /// Newtonian gravity between every pair of free particles (O(N²); pinned ones take no
+    /// part), softened: `f_i = Σ G m_i m_j d / (|d|² + ε²)^{3/2}`.
+    NBodyGravity {
+        /// Gravitational constant G (m³ kg⁻¹ s⁻²).
+        constant: f64,
+        /// Softening length ε (m).
+        softening: f64,
+    },
+}
+
+fn check(arg: &str, ok: bool, why: &str) -> Result<()> {
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::invalid(arg, why))
+    }
+}
+
+impl Force {
+    /// Check the parameters against a system of `n` particles.
+    ///
+    /// # Errors
+    /// Non-finite parameters, non-positive lengths where positive ones are required, spring
+    /// indices out of range or equal, rest lengths of the wrong count or negative.
+    pub fn validate(&self, n: usize) -> Result<()> {
+        match self {
+            Force::Gravity { g } => check("g", g.is_finite(), "must be finite"),
+            Force::Drag { linear, quadratic, wind } => check(
+                "drag",
+                linear.is_finite()
+                    && quadratic.is_finite()
+                    && *linear >= 0.0
+                    && *quadratic >= 0.0
+                    && wind.is_finite(),
+                "coefficients must be finite and >= 0",
+            ),
+            Force::Damping { rate } => {
+                check("rate", rate.is_finite() && *rate >= 0.0, "must be finite and >= 0")
+            }
+            Force::Springs { pairs, rest, stiffness, damping } => {
+                check("rest", rest.len() == pairs.len(), "needs one rest length per pair")?;
+                check(
+                    "stiffness",
+                    stiffness.is_finite() && *stiffness >= 0.0,
+                    "must be finite and >= 0",
+                )?;
+                check(
+                    "damping",
+                    damping.is_finite() && *damping >= 0.0,
+                    "must be finite and >= 0",
+                )?;
+                for (k, (p, l)) in pairs.iter().zip(rest).enumerate() {
+                    if p[0] >= n || p[1] >= n || p[0] == p[1] {
+                        return Err(Error::InvalidInput {
+                            arg: "pairs".into(),
+                            index: Some(k),
+                            reason: format!("{p:?} must be two different particles below {n}"),
+                        });
+                    }
+                    if !(l.is_finite() && *l >= 0.0) {
+                        return Err(Error::InvalidInput {
+                            arg: "rest".into(),
+                            index: Some(k),
+                            reason: "must be finite and >= 0".into(),
+                        });
+                    }
+                }
+                Ok(())
+            }
+            Force::Attractor { center, strength, softening } => {
+                check("center", center.is_finite(), "must be finite")?;
+                check("strength", strength.is_finite(), "must be finite")?;
+                check("softening", softening.is_finite() && *softening > 0.0, "must be positive")
+            }
+            Force::Vortex { center, axis, strength, core } => {
+                check("center", center.is_finite(), "must be finite")?;
+                check(
+                    "axis",
+                    axis.is_finite() && axis.length() > 0.0,
+                    "must be a finite non-zero vector",
+                )?;
+                check("strength", strength.is_finite(), "must be finite")?;
+                check("core", core.is_finite() && *core > 0.0, "must be positive")
+            }
+            Force::Turbulence { strength, scale, .. } => {
+                check("strength", strength.is_finite(), "must be finite")?;
+                check("scale", scale.is_finite() && *scale > 0.0, "must be positive")
+            }
+            Force::NeighborRepulsion { radius, stiffness } => {
+                check("radius", radius.is_finite() && *radius > 0.0, "must be positive")?;
+                check(
+                    "stiffness",
+                    stiffness.is_finite() && *stiffness >= 0.0,
+                    "must be finite and >= 0",
+                )
+            }
+            Force::NBodyGravity { constant, softening } => {
+                check(
+                    "constant",
+                    constant.is_finite() && *constant >= 0.0,
+                    "must be finite and >= 0",
+                )?;
+                check(
+                    "softening",
+                    softening.is_finite() && *softening >= 0.0,
+                    "must be finite and >= 0",
+                )
+            }
+        }
+    }
+}
+
+// ------------------------------------------------------------------ gradient noise
+
+fn hash(mut x: u64) -> u64 {
+    // SplitMix64 finaliser.
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
+}
+
+fn gradient(seed: u64, i: i64, j: i64, k: i64) -> DVec3 {
+    let h = hash(
+        seed ^ hash(
+            (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ hash((j as u64) ^ hash(k as u64)),
+        ),
+    );
+    // A direction from 12 cube-edge vectors (Perlin 2002).
+    const G: [[f64; 3]; 12] = [
+        [1.0, 1.0, 0.0],
+        [-1.0, 1.0, 0.0],
+        [1.0, -1.0, 0.0],
+        [-1.0, -1.0, 0.0],
+        [1.0, 0.0, 1.0],
+        [-1.0, 0.0, 1.0],
+        [1.0, 0.0, -1.0],
+        [-1.0, 0.0, -1.0],
+        [0.0, 1.0, 1.0],
+        [0.0, -1.0, 1.0],
+        [0.0, 1.0, -1.0],
+        [0.0, -1.0, -1.0],
+    ];
+    DVec3::from_array(G[(h % 12) as usize])
+}
+
+/// Perlin gradient noise and its gradient at `p` (quintic fade, C2).
+pub fn noise_with_gradient(seed: u64, p: DVec3) -> (f64, DVec3) {
+    let base = p.floor();
+    let f = p - base;
+    let fade = |t: f64| t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
+    let dfade = |t: f64| 30.0 * t * t * (t * (t - 2.0) + 1.0);
+    let (u, du) = (
+        DVec3::new(fade(f.x), fade(f.y), fade(f.z)),
+        DVec3::new(dfade(f.x), dfade(f.y), dfade(f.z)),
+    );
+    let (i0, j0, k0) = (base.x as i64, base.y as i64, base.z as i64);
+    let mut value = 0.0;
+    let mut grad = DVec3::ZERO;
+    for c in 0..8 {
+        let (di, dj, dk) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
+        let g = gradient(seed, i0 + di as i64, j0 + dj as i64, k0 + dk as i64);
+        let d = f - DVec3::new(di as f64, dj as f64, dk as f64);
+        let dot = g.dot(d);
+        let wx = if di == 1 { u.x } else { 1.0 - u.x };
+        let wy = if dj == 1 { u.y } else { 1.0 - u.y };
+        let wz = if dk == 1 { u.z } else { 1.0 - u.z };
+        let sx = if di == 1 { du.x } else { -du.x };
+        let sy = if dj == 1 { du.y } else { -du.y };
+        let sz = if dk == 1 { du.z } else { -du.z };
+        let w = wx * wy * wz;
+        value += w * dot;
+        grad += w * g + dot * DVec3::new(sx * wy * wz, wx * sy * wz, wx * wy * sz);
+    }
+    (value, grad)
+}
+
+/// `curl ψ` at `p` for the vector potential ψ made of three noise fields seeded apart.
+pub fn curl_noise(seed: u64, p: DVec3) -> DVec3 {
+    let (_, g1) = noise_with_gradient(seed, p);
+    let (_, g2) =
+        noise_with_gradient(seed.wrapping_add(0x51ed_270b), p + DVec3::new(31.4, 15.9, 26.5));
+    let (_, g3) =
+        noise_with_gradient(seed.wrapping_add(0xa3b1_9d7f), p + DVec3::new(-27.1, 82.8, 18.2));
+    // ψ = (n1, n2, n3): curl = (∂n3/∂y - ∂n2/∂z, ∂n1/∂z - ∂n3/∂x, ∂n2/∂x - ∂n1/∂y).
+    DVec3::new(g3.y - g2.z, g1.z - g3.x, g2.x - g1.y)
+}

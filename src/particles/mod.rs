@@ -1,0 +1,711 @@
+//! Particle systems: state as a struct of arrays, forces, colliders with restitution and
+//! Coulomb friction, emitters with age and lifespan, stepped by any fixed-step method of
+//! [`crate::ode`].
+//!
+//! The state is one buffer `y = [x; v]` (positions then velocities, `3 capacity` values each)
+//! so that the shared integrators step it directly and Python can view positions and
+//! velocities without a copy. The capacity is fixed at construction: emitters recycle dead
+//! slots and never reallocate. Pinned particles have infinite mass (inverse mass 0).
+//!
+//! A step: integrate forces with the chosen method (Witkin & Baraff, *Physically Based
+//! Modeling*, SIGGRAPH course notes, "Particle system dynamics"), then resolve collisions by
+//! projecting penetrating particles onto the surface and applying a normal impulse with
+//! restitution and a Coulomb friction impulse (static when the tangential speed can be
+//! cancelled, dynamic otherwise; the same bound `μ × penetration` limits the tangential
+//! displacement of the step, as in position-based friction, Macklin et al. 2014), then age
+//! particles and emit new ones. Contacts slower than
+//! twice the speed gravity adds in one step are treated as resting (no bounce), which keeps
+//! resting particles exactly on the surface without jitter.
+
+mod forces;
+
+pub use forces::{curl_noise, noise_with_gradient, Force};
+
+use crate::error::{Error, Result};
+use crate::ode::{Method, OdeSystem, Stepper};
+use glam::DVec3;
+
+/// A surface particles collide with.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Collider {
+    /// The half-space above the plane through `point` with unit `normal` is free.
+    Plane {
+        /// A point of the plane (m).
+        point: DVec3,
+        /// Normal pointing to the free side (normalised here).
+        normal: DVec3,
+        /// Coefficient of restitution in [0, 1].
+        restitution: f64,
+        /// Coulomb friction coefficient >= 0.
+        friction: f64,
+    },
+    /// A sphere; particles stay outside it, or inside it with `inside`.
+    Sphere {
+        /// Centre (m).
+        center: DVec3,
+        /// Radius (m) > 0.
+        radius: f64,
+        /// Keep particles inside instead of outside.
+        inside: bool,
+        /// Coefficient of restitution in [0, 1].
+        restitution: f64,
+        /// Coulomb friction coefficient >= 0.
+        friction: f64,
+    },
+}
+
+/// Emits particles at a rate into dead slots.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Emitter {
+    /// Particles per second.
+    pub rate: f64,
+    /// Centre of the emission ball (m).
+    pub position: DVec3,
+    /// Radius of the emission ball (m); 0 emits from a point.
+    pub position_spread: f64,
+    /// Mean initial velocity (m/s).
+    pub velocity: DVec3,
+    /// Radius of the ball of velocity perturbations (m/s).
+    pub velocity_spread: f64,
+    /// Lifespan of emitted particles (s).
+    pub lifespan: f64,
+    /// Mass of emitted particles (kg).
+    pub mass: f64,
+    /// Seed of the emitter's random numbers.
+    pub seed: u64,
+}
+
+/// Counters of the last call to [`ParticleSystem::step`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepStats {
+    /// Particles emitted.
+    pub emitted: usize,
+    /// Emissions dropped for lack of a dead slot.
+    pub dropped: usize,
+    /// Particles that reached their lifespan.
+    pub expired: usize,
+    /// Collision responses applied.
+    pub contacts: usize,
+}
+
+/// A fixed-capacity particle system.
+#[derive(Clone, Debug)]
+pub struct ParticleSystem {
+    n: usize,
+    y: Vec<f64>,
+    backup: Vec<f64>,
+    mass: Vec<f64>,
+    inv_mass: Vec<f64>,
+    age: Vec<f64>,
+    lifespan: Vec<f64>,
+    alive: Vec<bool>,
+    forces: Vec<Force>,
+    colliders: Vec<Collider>,
+    emitters: Vec<(Emitter, f64, u64)>,
+    cells: Vec<(u64, u32)>,
+    stepper: Option<Stepper>,
+    time: f64,
+    /// Counters of the last step call.
+    pub stats: StepStats,
+}
+
+fn splitmix(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+fn uniform_in_ball(state: &mut u64) -> DVec3 {
+    loop {
+        let mut u = || (splitmix(state) >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+        let p = DVec3::new(u(), u(), u());
+        if p.length_squared() <= 1.0 {
+            return p;
+        }
+    }
+}
+
+impl ParticleSystem {
+    /// A system of `positions.len()` live particles (and room for `capacity` in all; extra
+    /// slots start dead) with the given velocities and masses (kg; `f64::INFINITY` pins a
+    /// particle).
+    ///
+    /// # Errors
+    /// Length mismatches, non-finite positions or velocities, masses that are not positive
+    /// (or infinite), a capacity below the particle count.
+    pub fn new(
+        positions: &[DVec3],
+        velocities: &[DVec3],
+        masses: &[f64],
+        capacity: usize,
+    ) -> Result<Self> {
+        let live = positions.len();
+        if velocities.len() != live || masses.len() != live {
+            return Err(Error::invalid(
+                "velocities",
+                "positions, velocities and masses must have the same length",
+            ));
+        }
+        if capacity < live {
+            return Err(Error::invalid(
+                "capacity",
+                format!("{capacity} is below the {live} particles given"),
+            ));
+        }
+        for (arg, v) in [("positions", positions), ("velocities", velocities)] {
+            if let Some(i) = v.iter().position(|p| !p.is_finite()) {
+                return Err(Error::InvalidInput {
+                    arg: arg.into(),
+                    index: Some(i),
+                    reason: "contains NaN or infinity".into(),
+                });
+            }
+        }
+        if let Some(i) = masses.iter().position(|m| m.is_nan() || *m <= 0.0) {
+            return Err(Error::InvalidInput {
+                arg: "masses".into(),
+                index: Some(i),
+                reason: format!("must be positive (inf pins), got {}", masses[i]),
+            });
+        }
+        let n = capacity;
+        let mut y = vec![0.0; 6 * n];
+        for i in 0..live {
+            y[3 * i..3 * i + 3].copy_from_slice(&positions[i].to_array());
+            y[3 * n + 3 * i..3 * n + 3 * i + 3].copy_from_slice(&velocities[i].to_array());
+        }
+        let mut mass = vec![1.0; n];
+        mass[..live].copy_from_slice(masses);
+        Ok(ParticleSystem {
+            n,
+            backup: y.clone(),
+            y,
+            inv_mass: mass.iter().map(|m| if m.is_finite() { 1.0 / m } else { 0.0 }).collect(),
+            mass,
+            age: vec![0.0; n],
+            lifespan: vec![f64::INFINITY; n],
+            alive: (0..n).map(|i| i < live).collect(),
+            forces: Vec::new(),
+            colliders: Vec::new(),
+            emitters: Vec::new(),
+            cells: Vec::with_capacity(n),
+            stepper: None,
+            time: 0.0,
+            stats: StepStats::default(),
+        })
+    }
+
+    /// Number of slots (live and dead).
+    pub fn capacity(&self) -> usize {
+        self.n
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Positions, `3 capacity` values (x, y, z per slot) (m).
+    pub fn positions(&self) -> &[f64] {
+        &self.y[..3 * self.n]
+    }
+
+    /// Velocities, `3 capacity` values (m/s).
+    pub fn velocities(&self) -> &[f64] {
+        &self.y[3 * self.n..]
+    }
+
+    /// The whole state `[x; v]` for writing; call [`ParticleSystem::state_changed`] after.
+    pub fn state_mut(&mut self) -> &mut [f64] {
+        &mut self.y
+    }
+
+    /// Forget integrator history after the state was changed from outside.
+    pub fn state_changed(&mut self) {
+        if let Some(s) = self.stepper.as_mut() {
+            s.reset();
+        }
+    }
+
+    /// Which slots hold live particles.
+    pub fn alive(&self) -> &[bool] {
+        &self.alive
+    }
+
+    /// Age of each slot (s).
+    pub fn ages(&self) -> &[f64] {
+        &self.age
+    }
+
+    /// Mass of each slot (kg; infinite when pinned).
+    pub fn masses(&self) -> &[f64] {
+        &self.mass
+    }
+
+    /// Add a force.
+    ///
+    /// # Errors
+    /// Invalid parameters ([`Force::validate`]).
+    pub fn add_force(&mut self, force: Force) -> Result<()> {
+        force.validate(self.n)?;
+        self.forces.push(match force {
+            Force::Vortex { center, axis, strength, core } => {
+                Force::Vortex { center, axis: axis.normalize(), strength, core }
+            }
+            f => f,
+        });
+        Ok(())
+    }
+
+    /// Add a collider.
+    ///
+    /// # Errors
+    /// Non-finite or out-of-range parameters (restitution outside [0, 1], negative friction,
+    /// zero normal, non-positive radius).
+    pub fn add_collider(&mut self, collider: Collider) -> Result<()> {
+        let (e, mu) = match &collider {
+            Collider::Plane { point, normal, restitution, friction } => {
+                if !(point.is_finite() && normal.is_finite() && normal.length() > 0.0) {
+                    return Err(Error::invalid(
+                        "normal",
+                        "plane needs a finite point and a non-zero normal",
+                    ));
+                }
+                (*restitution, *friction)
+            }
+            Collider::Sphere { center, radius, restitution, friction, .. } => {
+                if !(center.is_finite() && radius.is_finite() && *radius > 0.0) {
+                    return Err(Error::invalid(
+                        "radius",
+                        "sphere needs a finite centre and a positive radius",
+                    ));
+                }
+                (*restitution, *friction)
+            }
+        };
+        if !((0.0..=1.0).contains(&e)) {
+            return Err(Error::invalid("restitution", format!("must be in [0, 1], got {e}")));
+        }
+        if !(mu.is_finite() && mu >= 0.0) {
+            return Err(Error::invalid("friction", format!("must be finite and >= 0, got {mu}")));
+        }
+        self.colliders.push(match collider {
+            Collider::Plane { point, normal, restitution, friction } => {
+                Collider::Plane { point, normal: normal.normalize(), restitution, friction }
+            }
+            c => c,
+        });
+        Ok(())
+    }
+
+    /// Add an emitter.
+    ///
+    /// # Errors
+    /// Negative or non-finite rate, spreads, lifespan or mass.
+    pub fn add_emitter(&mut self, emitter: Emitter) -> Result<()> {
+        let e = &emitter;
+        let ok = e.rate.is_finite()
+            && e.rate >= 0.0
+            && e.position.is_finite()
+            && e.velocity.is_finite()
+            && e.position_spread.is_finite()
+            && e.position_spread >= 0.0
+            && e.velocity_spread.is_finite()
+            && e.velocity_spread >= 0.0
+            && e.lifespan > 0.0
+            && e.mass.is_finite()
+            && e.mass > 0.0;
+        if !ok {
+            return Err(Error::invalid(
+                "emitter",
+                "rate, spreads >= 0, lifespan > 0, mass > 0, all finite (lifespan may be inf)",
+            ));
+        }
+        let seed = emitter.seed;
+        self.emitters.push((emitter, 0.0, seed));
+        Ok(())
+    }
+
+    /// Kinetic energy of the live, unpinned particles (J).
+    pub fn kinetic_energy(&self) -> f64 {
+        let v = self.velocities();
+        (0..self.n)
+            .filter(|&i| self.alive[i] && self.inv_mass[i] > 0.0)
+            .map(|i| {
+                0.5 * self.mass[i]
+                    * (v[3 * i].powi(2) + v[3 * i + 1].powi(2) + v[3 * i + 2].powi(2))
+            })
+            .sum()
+    }
+
+    /// Potential energy of the conservative forces (gravity, springs, attractors, n-body
+    /// gravity) over live particles (J).
+    pub fn potential_energy(&self) -> f64 {
+        let x = |i: usize| DVec3::from_slice(&self.y[3 * i..3 * i + 3]);
+        let live = |i: usize| self.alive[i] && self.inv_mass[i] > 0.0;
+        let mut e = 0.0;
+        for f in &self.forces {
+            match f {
+                Force::Gravity { g } => {
+                    e -= (0..self.n)
+                        .filter(|&i| live(i))
+                        .map(|i| self.mass[i] * g.dot(x(i)))
+                        .sum::<f64>()
+                }
+                Force::Springs { pairs, rest, stiffness, .. } => {
+                    e += pairs
+                        .iter()
+                        .zip(rest)
+                        .map(|(p, l)| 0.5 * stiffness * ((x(p[0]) - x(p[1])).length() - l).powi(2))
+                        .sum::<f64>()
+                }
+                Force::Attractor { center, strength, softening } => {
+                    e -= (0..self.n)
+                        .filter(|&i| live(i))
+                        .map(|i| {
+                            strength * self.mass[i]
+                                / ((x(i) - *center).length_squared() + softening * softening).sqrt()
+                        })
+                        .sum::<f64>()
+                }
+                Force::NBodyGravity { constant, softening } => {
+                    for i in (0..self.n).filter(|&i| live(i)) {
+                        for j in (i + 1..self.n).filter(|&j| live(j)) {
+                            e -= constant * self.mass[i] * self.mass[j]
+                                / ((x(i) - x(j)).length_squared() + softening * softening).sqrt();
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+        e
+    }
+
+    /// Advance `steps` steps of `dt` seconds with `method`.
+    ///
+    /// # Errors
+    /// A bad `dt`, an integrator failure, or a non-finite state ([`Error::Diverged`] naming the
+    /// step and the particle); the system is left at the last good step.
+    pub fn step(&mut self, dt: f64, steps: usize, method: Method) -> Result<()> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Error::invalid("dt", format!("must be positive and finite, got {dt}")));
+        }
+        if self.stepper.as_ref().is_none_or(|s| s.method() != method) {
+            self.stepper = Some(Stepper::new(method, 6 * self.n)?);
+        }
+        self.stats = StepStats::default();
+        let gravity: DVec3 = self
+            .forces
+            .iter()
+            .map(|f| if let Force::Gravity { g } = f { *g } else { DVec3::ZERO })
+            .sum();
+        for s in 0..steps {
+            self.backup.copy_from_slice(&self.y);
+            let result = self.one_step(dt, gravity);
+            if let Err(e) = result {
+                self.y.copy_from_slice(&self.backup);
+                if let Some(st) = self.stepper.as_mut() {
+                    st.reset();
+                }
+                return Err(match e {
+                    Error::Diverged { index, reason, .. } => {
+                        Error::Diverged { step: s, index: index % self.n, reason }
+                    }
+                    other => other,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    fn one_step(&mut self, dt: f64, gravity: DVec3) -> Result<()> {
+        let n = self.n;
+        let stepper = self.stepper.as_mut().expect("stepper created in step");
+        let mut dynamics = Dynamics {
+            n,
+            forces: &self.forces,
+            mass: &self.mass,
+            inv_mass: &self.inv_mass,
+            alive: &self.alive,
+            cells: &mut self.cells,
+        };
+        stepper.step(&mut dynamics, self.time, &mut self.y, dt).map_err(|e| match e {
+            Error::Diverged { index, .. } => Error::Diverged {
+                step: 0,
+                index: (index % (3 * n)) / 3,
+                reason: "non-finite particle state".into(),
+            },
+            other => other,
+        })?;
+        self.collide(dt, gravity);
+        if let Some(i) = (0..n).find(|&i| {
+            self.y[3 * i..3 * i + 3]
+                .iter()
+                .chain(&self.y[3 * n + 3 * i..3 * n + 3 * i + 3])
+                .any(|v| !v.is_finite())
+        }) {
+            return Err(Error::Diverged {
+                step: 0,
+                index: i,
+                reason: "non-finite particle state".into(),
+            });
+        }
+        self.time += dt;
+        self.age_and_emit(dt);
+        Ok(())
+    }
+
+    fn collide(&mut self, dt: f64, gravity: DVec3) {
+        let n = self.n;
+        for i in (0..n).filter(|&i| self.alive[i] && self.inv_mass[i] > 0.0) {
+            for c in &self.colliders {
+                let x = DVec3::from_slice(&self.y[3 * i..3 * i + 3]);
+                let (d, normal, e, mu) = match *c {
+                    Collider::Plane { point, normal, restitution, friction } => {
+                        ((x - point).dot(normal), normal, restitution, friction)
+                    }
+                    Collider::Sphere { center, radius, inside, restitution, friction } => {
+                        let r = x - center;
+                        let len = r.length();
+                        let dir = if len > 0.0 { r / len } else { DVec3::Y };
+                        if inside {
+                            (radius - len, -dir, restitution, friction)
+                        } else {
+                            (len - radius, dir, restitution, friction)
+                        }
+                    }
+                };
+                if d >= 0.0 {
+                    continue;
+                }
+                self.stats.contacts += 1;
+                // Project onto the surface, and apply Coulomb friction to the tangential
+                // displacement of this step too (at most μ times the penetration), so that a
+                // particle held by static friction does not creep.
+                let mut x = x - d * normal;
+                let moved = x - DVec3::from_slice(&self.backup[3 * i..3 * i + 3]);
+                let moved_t = moved - moved.dot(normal) * normal;
+                let slip = moved_t.length();
+                if slip > 0.0 {
+                    x -= moved_t * (mu * -d / slip).min(1.0);
+                }
+                self.y[3 * i..3 * i + 3].copy_from_slice(&x.to_array());
+                let v = DVec3::from_slice(&self.y[3 * n + 3 * i..3 * n + 3 * i + 3]);
+                let vn = v.dot(normal);
+                if vn >= 0.0 {
+                    continue;
+                }
+                let resting = -vn <= 2.0 * gravity.dot(normal).abs() * dt;
+                let jn = -vn * (1.0 + if resting { 0.0 } else { e });
+                let vt = v - vn * normal;
+                let speed_t = vt.length();
+                let vt =
+                    if speed_t <= mu * jn { DVec3::ZERO } else { vt * (1.0 - mu * jn / speed_t) };
+                let v = (vn + jn) * normal + vt;
+                self.y[3 * n + 3 * i..3 * n + 3 * i + 3].copy_from_slice(&v.to_array());
+            }
+        }
+    }
+
+    fn age_and_emit(&mut self, dt: f64) {
+        let n = self.n;
+        for i in 0..n {
+            if self.alive[i] {
+                self.age[i] += dt;
+                if self.age[i] >= self.lifespan[i] {
+                    self.alive[i] = false;
+                    self.stats.expired += 1;
+                    self.y[3 * n + 3 * i..3 * n + 3 * i + 3].fill(0.0);
+                }
+            }
+        }
+        let mut cursor = 0;
+        for (emitter, accum, rng) in &mut self.emitters {
+            *accum += emitter.rate * dt;
+            while *accum >= 1.0 {
+                *accum -= 1.0;
+                while cursor < n && self.alive[cursor] {
+                    cursor += 1;
+                }
+                if cursor == n {
+                    self.stats.dropped += 1;
+                    continue;
+                }
+                let i = cursor;
+                let x = emitter.position + emitter.position_spread * uniform_in_ball(rng);
+                let v = emitter.velocity + emitter.velocity_spread * uniform_in_ball(rng);
+                self.y[3 * i..3 * i + 3].copy_from_slice(&x.to_array());
+                self.y[3 * n + 3 * i..3 * n + 3 * i + 3].copy_from_slice(&v.to_array());
+                self.alive[i] = true;
+                self.age[i] = 0.0;
+                self.lifespan[i] = emitter.lifespan;
+                self.mass[i] = emitter.mass;
+                self.inv_mass[i] = 1.0 / emitter.mass;
+                self.stats.emitted += 1;
+            }
+        }
+        if self.stats.emitted > 0 || self.stats.expired > 0 {
+            self.state_changed();
+        }
+    }
+}
+
+/// The particle equations of motion as an [`OdeSystem`] over `y = [x; v]`.
+struct Dynamics<'a> {
+    n: usize,
+    forces: &'a [Force],
+    mass: &'a [f64],
+    inv_mass: &'a [f64],
+    alive: &'a [bool],
+    cells: &'a mut Vec<(u64, u32)>,
+}
+
+fn cell_key(c: [i64; 3]) -> u64 {
+    let h = |v: i64| (v as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    h(c[0]) ^ h(c[1]).rotate_left(21) ^ h(c[2]).rotate_left(42)
+}
+
+impl OdeSystem for Dynamics<'_> {
+    fn dim(&self) -> usize {
+        6 * self.n
+    }
+
+    fn rhs(&mut self, _t: f64, y: &[f64], dydt: &mut [f64]) -> Result<()> {
+        let n = self.n;
+        let (x, v) = y.split_at(3 * n);
+        let (dx, f) = dydt.split_at_mut(3 * n);
+        dx.copy_from_slice(v);
+        f.fill(0.0);
+        let p = |i: usize| DVec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+        let vel = |i: usize| DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+        let add = |f: &mut [f64], i: usize, a: DVec3| {
+            f[3 * i] += a.x;
+            f[3 * i + 1] += a.y;
+            f[3 * i + 2] += a.z;
+        };
+        for force in self.forces {
+            match force {
+                Force::Gravity { g } => {
+                    (0..n).filter(|&i| self.alive[i]).for_each(|i| add(f, i, self.mass[i] * *g))
+                }
+                Force::Drag { linear, quadratic, wind } => {
+                    (0..n).filter(|&i| self.alive[i]).for_each(|i| {
+                        let u = vel(i) - *wind;
+                        add(f, i, -(*linear + quadratic * u.length()) * u)
+                    })
+                }
+                Force::Damping { rate } => (0..n)
+                    .filter(|&i| self.alive[i])
+                    .for_each(|i| add(f, i, -rate * self.mass[i] * vel(i))),
+                Force::Springs { pairs, rest, stiffness, damping } => {
+                    for (pair, l) in pairs.iter().zip(rest) {
+                        let (a, b) = (pair[0], pair[1]);
+                        let d = p(a) - p(b);
+                        let len = d.length();
+                        if len == 0.0 {
+                            continue;
+                        }
+                        let dir = d / len;
+                        let fa =
+                            -(stiffness * (len - l) + damping * (vel(a) - vel(b)).dot(dir)) * dir;
+                        add(f, a, fa);
+                        add(f, b, -fa);
+                    }
+                }
+                Force::Attractor { center, strength, softening } => {
+                    (0..n).filter(|&i| self.alive[i]).for_each(|i| {
+                        let r = *center - p(i);
+                        let s = (r.length_squared() + softening * softening).powf(1.5);
+                        add(f, i, strength * self.mass[i] / s * r)
+                    })
+                }
+                Force::Vortex { center, axis, strength, core } => {
+                    (0..n).filter(|&i| self.alive[i]).for_each(|i| {
+                        let r = p(i) - *center;
+                        let perp = r - r.dot(*axis) * *axis;
+                        add(
+                            f,
+                            i,
+                            strength * self.mass[i] / (perp.length() + core) * axis.cross(perp),
+                        )
+                    })
+                }
+                Force::Turbulence { strength, scale, seed } => {
+                    (0..n).filter(|&i| self.alive[i]).for_each(|i| {
+                        add(
+                            f,
+                            i,
+                            strength * self.mass[i] * forces::curl_noise(*seed, p(i) / *scale),
+                        )
+                    })
+                }
+                Force::NeighborRepulsion { radius, stiffness } => {
+                    let cell = |q: DVec3| {
+                        [
+                            (q.x / radius).floor() as i64,
+                            (q.y / radius).floor() as i64,
+                            (q.z / radius).floor() as i64,
+                        ]
+                    };
+                    self.cells.clear();
+                    self.cells.extend(
+                        (0..n).filter(|&i| self.alive[i]).map(|i| (cell_key(cell(p(i))), i as u32)),
+                    );
+                    self.cells.sort_unstable();
+                    for i in (0..n).filter(|&i| self.alive[i]) {
+                        let c = cell(p(i));
+                        for dz in -1..=1 {
+                            for dy in -1..=1 {
+                                for dx_ in -1..=1 {
+                                    let key = cell_key([c[0] + dx_, c[1] + dy, c[2] + dz]);
+                                    let start = self.cells.partition_point(|e| e.0 < key);
+                                    for &(k, j) in &self.cells[start..] {
+                                        if k != key {
+                                            break;
+                                        }
+                                        let j = j as usize;
+                                        if j <= i {
+                                            continue;
+                                        }
+                                        let d = p(i) - p(j);
+                                        let dist = d.length();
+                                        if dist < *radius && dist > 0.0 {
+                                            let fi = stiffness * (radius - dist) / dist * d;
+                                            add(f, i, fi);
+                                            add(f, j, -fi);
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                Force::NBodyGravity { constant, softening } => {
+                    let free = |i: usize| self.alive[i] && self.inv_mass[i] > 0.0;
+                    for i in (0..n).filter(|&i| free(i)) {
+                        for j in (i + 1..n).filter(|&j| free(j)) {
+                            let d = p(j) - p(i);
+                            let s = (d.length_squared() + softening * softening).powf(1.5);
+                            let fi = constant * self.mass[i] * self.mass[j] / s * d;
+                            add(f, i, fi);
+                            add(f, j, -fi);
+                        }
+                    }
+                }
+            }
+        }
+        for i in 0..n {
+            if self.alive[i] && self.inv_mass[i] > 0.0 {
+                f[3 * i..3 * i + 3].iter_mut().for_each(|a| *a *= self.inv_mass[i]);
+            } else {
+                // Pinned (infinite mass, where m g is infinite) and dead slots do not move.
+                f[3 * i..3 * i + 3].fill(0.0);
+                dx[3 * i..3 * i + 3].fill(0.0);
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,269 @@
+//! Particle systems: physics against analytic answers, conservation, the spatial hash against
+//! brute force, emitters, failures.
+
+use glam::DVec3;
+use kinema::ode::Method;
+use kinema::particles::{curl_noise, Collider, Emitter, Force, ParticleSystem};
+
+const G: DVec3 = DVec3::new(0.0, -9.81, 0.0);
+
+fn one(x: DVec3, v: DVec3) -> ParticleSystem {
+    ParticleSystem::new(&[x], &[v], &[1.0], 1).unwrap()
+}
+
+fn pos(s: &ParticleSystem, i: usize) -> DVec3 {
+    DVec3::from_slice(&s.positions()[3 * i..])
+}
+
+fn vel(s: &ParticleSystem, i: usize) -> DVec3 {
+    DVec3::from_slice(&s.velocities()[3 * i..])
+}
+
+#[test]
+fn quadratic_drag_converges_to_terminal_velocity() {
+    // m v' = m g - k |v| v: terminal speed sqrt(m g / k).
+    let mut s = one(DVec3::ZERO, DVec3::new(0.0, 0.0, 0.0));
+    s.add_force(Force::Gravity { g: G }).unwrap();
+    s.add_force(Force::Drag { linear: 0.0, quadratic: 0.1, wind: DVec3::ZERO }).unwrap();
+    s.step(0.01, 2000, Method::Rk4).unwrap();
+    assert!((vel(&s, 0).y + (9.81f64 / 0.1).sqrt()).abs() < 1e-9);
+    // The fall distance has a closed form: y(t) = -(v_t²/g) ln cosh(g t / v_t).
+    let vt = (9.81f64 / 0.1).sqrt();
+    let mut s = one(DVec3::ZERO, DVec3::ZERO);
+    s.add_force(Force::Gravity { g: G }).unwrap();
+    s.add_force(Force::Drag { linear: 0.0, quadratic: 0.1, wind: DVec3::ZERO }).unwrap();
+    s.step(0.001, 2000, Method::Rk4).unwrap();
+    let exact = -(vt * vt / 9.81) * (9.81 * 2.0 / vt).cosh().ln();
+    assert!((pos(&s, 0).y - exact).abs() < 1e-9, "{} vs {exact}", pos(&s, 0).y);
+}
+
+#[test]
+fn bouncing_ball_apex_heights_follow_restitution() {
+    let e = 0.8;
+    let mut s = one(DVec3::new(0.0, 1.0, 0.0), DVec3::ZERO);
+    s.add_force(Force::Gravity { g: G }).unwrap();
+    s.add_collider(Collider::Plane {
+        point: DVec3::ZERO,
+        normal: DVec3::Y,
+        restitution: e,
+        friction: 0.0,
+    })
+    .unwrap();
+    let mut apexes = Vec::new();
+    let mut prev_vy = 0.0;
+    for _ in 0..200_000 {
+        s.step(1e-5, 1, Method::SymplecticEuler).unwrap();
+        let vy = vel(&s, 0).y;
+        if prev_vy > 0.0 && vy <= 0.0 {
+            apexes.push(pos(&s, 0).y);
+        }
+        prev_vy = vy;
+        if apexes.len() == 3 {
+            break;
+        }
+    }
+    for (k, h) in apexes.iter().enumerate() {
+        let expected = e.powi(2 * (k as i32 + 1));
+        assert!((h - expected).abs() < 0.01 * expected, "apex {k}: {h} vs {expected}");
+    }
+}
+
+#[test]
+fn incline_sticks_or_slides_as_coulomb_says() {
+    let mu = 0.5;
+    for (deg, slides) in [(20.0f64, false), (35.0, true)] {
+        let th = deg.to_radians();
+        let normal = DVec3::new(-th.sin(), th.cos(), 0.0);
+        let mut s = one(DVec3::ZERO, DVec3::ZERO);
+        s.add_force(Force::Gravity { g: G }).unwrap();
+        s.add_collider(Collider::Plane {
+            point: DVec3::ZERO,
+            normal,
+            restitution: 0.5,
+            friction: mu,
+        })
+        .unwrap();
+        s.step(1e-3, 2000, Method::SymplecticEuler).unwrap();
+        let travelled = pos(&s, 0).length();
+        if slides {
+            // s = ½ a t², a = g (sin θ - μ cos θ).
+            let a = 9.81 * (th.sin() - mu * th.cos());
+            assert!((travelled - 0.5 * a * 4.0).abs() < 0.01 * 0.5 * a * 4.0, "{travelled}");
+        } else {
+            assert!(travelled < 1e-9, "{deg}°: moved {travelled}");
+        }
+    }
+}
+
+#[test]
+fn resting_particles_do_not_jitter() {
+    let xs: Vec<DVec3> = (0..10).map(|i| DVec3::new(i as f64, 0.0, 0.0)).collect();
+    let mut s = ParticleSystem::new(&xs, &vec![DVec3::ZERO; 10], &[1.0; 10], 10).unwrap();
+    s.add_force(Force::Gravity { g: G }).unwrap();
+    s.add_collider(Collider::Plane {
+        point: DVec3::ZERO,
+        normal: DVec3::Y,
+        restitution: 0.9,
+        friction: 0.3,
+    })
+    .unwrap();
+    for _ in 0..600 {
+        s.step(1.0 / 60.0, 1, Method::SymplecticEuler).unwrap();
+        for i in 0..10 {
+            assert!(pos(&s, i).y.abs() < 1e-12 && pos(&s, i).y >= 0.0, "{}", pos(&s, i).y);
+        }
+    }
+    assert!(s.kinetic_energy() == 0.0);
+}
+
+#[test]
+fn internal_forces_conserve_momentum() {
+    let n = 60;
+    let xs: Vec<DVec3> = (0..n)
+        .map(|i| DVec3::new((i % 4) as f64 * 0.3, (i / 4 % 4) as f64 * 0.3, (i / 16) as f64 * 0.3))
+        .collect();
+    let vs: Vec<DVec3> = (0..n)
+        .map(|i| DVec3::new((i as f64).sin(), (2.0 * i as f64).cos(), 0.1 * i as f64 - 3.0))
+        .collect();
+    let masses: Vec<f64> = (0..n).map(|i| 1.0 + (i % 3) as f64).collect();
+    let mut s = ParticleSystem::new(&xs, &vs, &masses, n).unwrap();
+    let pairs: Vec<[usize; 2]> = (0..n - 1).map(|i| [i, i + 1]).collect();
+    s.add_force(Force::Springs {
+        rest: vec![0.25; pairs.len()],
+        pairs,
+        stiffness: 50.0,
+        damping: 0.5,
+    })
+    .unwrap();
+    s.add_force(Force::NeighborRepulsion { radius: 0.4, stiffness: 100.0 }).unwrap();
+    s.add_force(Force::NBodyGravity { constant: 0.01, softening: 0.1 }).unwrap();
+    let momentum = |s: &ParticleSystem| (0..n).map(|i| masses[i] * vel(s, i)).sum::<DVec3>();
+    let p0 = momentum(&s);
+    s.step(1e-3, 500, Method::VelocityVerlet).unwrap();
+    assert!((momentum(&s) - p0).length() < 1e-10 * p0.length().max(1.0));
+}
+
+#[test]
+fn spatial_hash_matches_brute_force() {
+    let n = 300;
+    let mut state = 12345u64;
+    let mut rnd = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 3.0 - 1.5
+    };
+    let xs: Vec<DVec3> = (0..n).map(|_| DVec3::new(rnd(), rnd(), rnd())).collect();
+    let (radius, k) = (0.35, 10.0);
+    let mut s = ParticleSystem::new(&xs, &vec![DVec3::ZERO; n], &vec![1.0; n], n).unwrap();
+    s.add_force(Force::NeighborRepulsion { radius, stiffness: k }).unwrap();
+    let h = 1e-4;
+    s.step(h, 1, Method::ExplicitEuler).unwrap(); // v₁ = h a(x₀)
+    for i in 0..n {
+        let mut f = DVec3::ZERO;
+        for j in 0..n {
+            let d = xs[i] - xs[j];
+            let dist = d.length();
+            if j != i && dist < radius {
+                f += k * (radius - dist) / dist * d;
+            }
+        }
+        assert!((vel(&s, i) - h * f).length() < 1e-12, "particle {i}");
+    }
+}
+
+#[test]
+fn curl_noise_is_divergence_free() {
+    let eps = 1e-5;
+    for k in 0..50 {
+        let p = DVec3::new(0.37 * k as f64, 1.3 - 0.11 * k as f64, 0.05 * (k * k) as f64);
+        let d = |e: DVec3| (curl_noise(7, p + e) - curl_noise(7, p - e)) / (2.0 * eps);
+        let div = d(DVec3::X * eps).x + d(DVec3::Y * eps).y + d(DVec3::Z * eps).z;
+        assert!(div.abs() < 1e-6, "{div}");
+        assert!(curl_noise(7, p).length() > 0.0 || k == 0);
+    }
+}
+
+#[test]
+fn emitters_recycle_dead_slots() {
+    let mut s = ParticleSystem::new(&[], &[], &[], 40).unwrap();
+    s.add_emitter(Emitter {
+        rate: 100.0,
+        position: DVec3::ZERO,
+        position_spread: 0.1,
+        velocity: DVec3::Y,
+        velocity_spread: 0.5,
+        lifespan: 0.3,
+        mass: 0.01,
+        seed: 1,
+    })
+    .unwrap();
+    let mut emitted = 0;
+    for _ in 0..100 {
+        s.step(0.01, 1, Method::SymplecticEuler).unwrap();
+        emitted += s.stats.emitted;
+        let alive = s.alive().iter().filter(|a| **a).count();
+        assert!(alive <= 31, "{alive}");
+        assert!(s.ages().iter().zip(s.alive()).all(|(a, l)| !*l || *a <= 0.3 + 1e-12));
+    }
+    assert!((99..=101).contains(&emitted), "{emitted}");
+    // A pool too small drops emissions and says so.
+    let mut s = ParticleSystem::new(&[], &[], &[], 5).unwrap();
+    s.add_emitter(Emitter {
+        rate: 1000.0,
+        position: DVec3::ZERO,
+        position_spread: 0.0,
+        velocity: DVec3::ZERO,
+        velocity_spread: 0.0,
+        lifespan: 1.0,
+        mass: 1.0,
+        seed: 2,
+    })
+    .unwrap();
+    s.step(0.01, 1, Method::SymplecticEuler).unwrap();
+    assert_eq!((s.stats.emitted, s.stats.dropped), (5, 5));
+}
+
+#[test]
+fn pinned_particles_stay_and_failures_roll_back() {
+    let mut s =
+        ParticleSystem::new(&[DVec3::ZERO, DVec3::X], &[DVec3::ZERO; 2], &[f64::INFINITY, 1.0], 2)
+            .unwrap();
+    s.add_force(Force::Gravity { g: G }).unwrap();
+    s.add_force(Force::Springs {
+        pairs: vec![[0, 1]],
+        rest: vec![1.0],
+        stiffness: 100.0,
+        damping: 1.0,
+    })
+    .unwrap();
+    s.step(1e-3, 1000, Method::VelocityVerlet).unwrap();
+    assert_eq!(pos(&s, 0), DVec3::ZERO);
+    assert!(pos(&s, 1).y < -0.05);
+
+    let mut s = one(DVec3::ZERO, DVec3::new(1e300, 0.0, 0.0));
+    s.add_force(Force::Drag { linear: 0.0, quadratic: 1e10, wind: DVec3::ZERO }).unwrap();
+    let before = s.velocities().to_vec();
+    let err = s.step(0.1, 3, Method::ExplicitEuler).unwrap_err();
+    assert!(matches!(err, kinema::Error::Diverged { step: 0, index: 0, .. }), "{err}");
+    assert_eq!(s.velocities(), &before[..]);
+
+    assert!(ParticleSystem::new(&[DVec3::ZERO], &[DVec3::ZERO], &[-1.0], 1).is_err());
+    assert!(ParticleSystem::new(&[DVec3::NAN], &[DVec3::ZERO], &[1.0], 1).is_err());
+    let mut s = one(DVec3::ZERO, DVec3::ZERO);
+    assert!(s
+        .add_force(Force::Springs {
+            pairs: vec![[0, 3]],
+            rest: vec![1.0],
+            stiffness: 1.0,
+            damping: 0.0
+        })
+        .is_err());
+    assert!(s
+        .add_collider(Collider::Plane {
+            point: DVec3::ZERO,
+            normal: DVec3::Y,
+            restitution: 1.5,
+            friction: 0.0
+        })
+        .is_err());
+    assert!(s.step(-1.0, 1, Method::Rk4).is_err());
+}
