@@ -8,6 +8,7 @@ use pyo3::prelude::*;
 mod array;
 mod error;
 mod ode;
+mod particles;
 mod rigid;
 mod rotation;
 
@@ -20,5 +21,6 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     rotation::register(m)?;
     rigid::register(m)?;
     ode::register(m)?;
+    particles::register(m)?;
     Ok(())
 }

@@ -1,0 +1,330 @@
+"""Particle systems: forces, colliders and emitters on a fixed-capacity struct of arrays.
+
+Build a :class:`ParticleSystem`, ``add`` what the scene needs (nothing else is computed) and
+``step`` it with any fixed-step method of :mod:`kinema.ode` (default ``symplectic_euler``).
+``positions`` and ``velocities`` are read-only numpy views of the Rust state, updated in place
+by every step (no copy); write through :meth:`ParticleSystem.set_state`.
+
+Forces: :class:`Gravity`, :class:`Drag` (linear and quadratic ``½ρC_dA|u|u``, with wind),
+:class:`Damping`, :class:`Springs` (Hooke + dampers), :class:`Attractor` (softened inverse
+square; negative strength repels), :class:`Vortex`, :class:`Turbulence` (curl noise, Bridson
+et al. 2007), :class:`NeighborRepulsion` (spatial hash grid, never all pairs),
+:class:`NBodyGravity` (all pairs). Colliders: :class:`Plane`, :class:`Sphere` (inside or
+outside) with restitution and Coulomb friction, resting contact without jitter.
+:class:`Emitter` recycles dead slots. Not implemented yet: force fields given as Python
+callables.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from kinema import _kinema
+from kinema._array import as_batch, as_scalars
+
+__all__ = [
+    "Attractor",
+    "Damping",
+    "Drag",
+    "Emitter",
+    "Gravity",
+    "NBodyGravity",
+    "NeighborRepulsion",
+    "ParticleSystem",
+    "Plane",
+    "Sphere",
+    "Springs",
+    "Turbulence",
+    "Vortex",
+]
+
+
+def _v(value: Any, name: str) -> list[float]:
+    arr, single = as_batch(value, name, (3,))
+    if not single:
+        raise ValueError(f"{name}: expected one 3-vector, got shape {np.shape(value)}")
+    return arr[0].tolist()
+
+
+@dataclass(frozen=True)
+class Gravity:
+    """Uniform gravity ``f = m g`` (m/s²); default ``(0, -9.81, 0)``."""
+
+    g: Any = (0.0, -9.81, 0.0)
+
+
+@dataclass(frozen=True)
+class Drag:
+    """Air drag ``f = -linear u - quadratic |u| u`` with ``u = v - wind``.
+
+    ``quadratic = ½ ρ C_d A`` (kg/m), ``linear`` in kg/s, ``wind`` in m/s.
+    """
+
+    quadratic: float = 0.0
+    linear: float = 0.0
+    wind: Any = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Damping:
+    """Velocity damping ``f = -rate m v`` (rate in 1/s)."""
+
+    rate: float
+
+
+@dataclass(frozen=True)
+class Springs:
+    """Damped springs between particle ``pairs`` ``(M, 2)``.
+
+    ``f_i = -[k (|d| - L) + c (v_i - v_j)·d̂] d̂``; ``rest`` lengths ``(M,)`` default to the
+    current distances.
+    """
+
+    pairs: Any
+    stiffness: float
+    damping: float = 0.0
+    rest: Any = None
+
+
+@dataclass(frozen=True)
+class Attractor:
+    """``f = strength m (c - x) / (|c - x|² + softening²)^{3/2}``; negative strength repels."""
+
+    center: Any
+    strength: float
+    softening: float = 0.1
+
+
+@dataclass(frozen=True)
+class Vortex:
+    """Swirl about ``axis`` through ``center``: ``f = strength m (â × r⊥) / (|r⊥| + core)``."""
+
+    center: Any
+    strength: float
+    axis: Any = (0.0, 1.0, 0.0)
+    core: float = 0.1
+
+
+@dataclass(frozen=True)
+class Turbulence:
+    """Divergence-free curl-noise force ``strength m curl ψ(x / scale)``."""
+
+    strength: float
+    scale: float = 1.0
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class NeighborRepulsion:
+    """Soft repulsion ``k (r - d) d̂`` between particles closer than ``radius`` (hash grid)."""
+
+    radius: float
+    stiffness: float
+
+
+@dataclass(frozen=True)
+class NBodyGravity:
+    """Newtonian gravity between every pair of free particles, softened (O(N²))."""
+
+    constant: float = 6.674e-11
+    softening: float = 0.0
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Collider: particles stay on the side of the plane ``normal`` points to."""
+
+    point: Any = (0.0, 0.0, 0.0)
+    normal: Any = (0.0, 1.0, 0.0)
+    restitution: float = 0.5
+    friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """Collider: particles stay outside the sphere (inside with ``inside=True``)."""
+
+    center: Any
+    radius: float
+    inside: bool = False
+    restitution: float = 0.5
+    friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class Emitter:
+    """Emits ``rate`` particles/s from a ball of ``position_spread`` around ``position`` with
+    velocities ``velocity`` ± a ball of ``velocity_spread``; they live ``lifespan`` seconds."""
+
+    rate: float
+    position: Any = (0.0, 0.0, 0.0)
+    velocity: Any = (0.0, 0.0, 0.0)
+    position_spread: float = 0.0
+    velocity_spread: float = 0.0
+    lifespan: float = math.inf
+    mass: float = 1.0
+    seed: int = field(default=0)
+
+
+class ParticleSystem:
+    """Particles with positions ``(N, 3)`` (m), velocities ``(N, 3)`` (m/s, default 0) and
+    masses (kg; a scalar or ``(N,)``; ``inf`` pins a particle), with room for ``capacity``
+    particles in all (default N; emitters fill dead slots)."""
+
+    def __init__(
+        self, positions: Any, velocities: Any = None, masses: Any = 1.0, capacity: int | None = None
+    ) -> None:
+        x, _ = as_batch(positions, "positions", (3,))
+        v, _ = as_batch(np.zeros_like(x) if velocities is None else velocities, "velocities", (3,))
+        m, single = as_scalars(masses, "masses")
+        if single:
+            m = np.full((len(x), 1), m[0, 0])
+        cap = len(x) if capacity is None else int(capacity)
+        self._sys = _kinema.Particles(x, v, m, cap)
+
+    def add(self, item: Any) -> None:
+        """Add a force, a collider or an emitter."""
+        s = self._sys
+        if isinstance(item, Gravity):
+            s.add_force("gravity", _v(item.g, "g"))
+        elif isinstance(item, Drag):
+            s.add_force("drag", [float(item.linear), float(item.quadratic), *_v(item.wind, "wind")])
+        elif isinstance(item, Damping):
+            s.add_force("damping", [float(item.rate)])
+        elif isinstance(item, Springs):
+            pairs, _ = as_batch(item.pairs, "pairs", (2,))
+            if item.rest is None:
+                x = np.asarray(self.positions)
+                idx = pairs.astype(np.int64)
+                if (idx < 0).any() or (idx >= len(x)).any():
+                    raise ValueError(f"pairs: indices must lie in [0, {len(x)})")
+                rest = np.linalg.norm(x[idx[:, 0]] - x[idx[:, 1]], axis=1)
+            else:
+                rest = np.asarray(item.rest, dtype=np.float64).ravel()
+            s.add_force(
+                "springs",
+                [float(item.stiffness), float(item.damping)],
+                pairs,
+                np.ascontiguousarray(rest.reshape(-1, 1)),
+            )
+        elif isinstance(item, Attractor):
+            s.add_force(
+                "attractor",
+                [*_v(item.center, "center"), float(item.strength), float(item.softening)],
+            )
+        elif isinstance(item, Vortex):
+            s.add_force(
+                "vortex",
+                [
+                    *_v(item.center, "center"),
+                    *_v(item.axis, "axis"),
+                    float(item.strength),
+                    float(item.core),
+                ],
+            )
+        elif isinstance(item, Turbulence):
+            s.add_force(
+                "turbulence", [float(item.strength), float(item.scale)], seed=int(item.seed)
+            )
+        elif isinstance(item, NeighborRepulsion):
+            s.add_force("neighbor_repulsion", [float(item.radius), float(item.stiffness)])
+        elif isinstance(item, NBodyGravity):
+            s.add_force("nbody_gravity", [float(item.constant), float(item.softening)])
+        elif isinstance(item, Plane):
+            s.add_collider(
+                "plane",
+                [
+                    *_v(item.point, "point"),
+                    *_v(item.normal, "normal"),
+                    float(item.restitution),
+                    float(item.friction),
+                ],
+            )
+        elif isinstance(item, Sphere):
+            s.add_collider(
+                "sphere",
+                [
+                    *_v(item.center, "center"),
+                    float(item.radius),
+                    float(bool(item.inside)),
+                    float(item.restitution),
+                    float(item.friction),
+                ],
+            )
+        elif isinstance(item, Emitter):
+            s.add_emitter(
+                [
+                    float(item.rate),
+                    *_v(item.position, "position"),
+                    float(item.position_spread),
+                    *_v(item.velocity, "velocity"),
+                    float(item.velocity_spread),
+                    float(item.lifespan),
+                    float(item.mass),
+                ],
+                int(item.seed),
+            )
+        else:
+            raise ValueError(
+                f"item: expected a force, collider or emitter of kinema.particles, got {item!r}"
+            )
+
+    def step(self, dt: float, steps: int = 1, method: str = "symplectic_euler") -> None:
+        """Advance ``steps`` steps of ``dt`` seconds; on divergence raise
+        ``kinema.SimulationError`` (step and particle named) and keep the last good state."""
+        if not isinstance(steps, (int, np.integer)) or steps < 0:
+            raise ValueError(f"steps: expected a non-negative integer, got {steps!r}")
+        self._sys.step(float(dt), int(steps), method)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Read-only view ``(capacity, 3)`` of the positions (m)."""
+        return self._sys.positions
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """Read-only view ``(capacity, 3)`` of the velocities (m/s)."""
+        return self._sys.velocities
+
+    @property
+    def alive(self) -> np.ndarray:
+        """Which slots hold live particles, bool ``(capacity,)``."""
+        return self._sys.alive()[:, 0] != 0.0
+
+    @property
+    def ages(self) -> np.ndarray:
+        """Age of each slot (s), ``(capacity,)``."""
+        return self._sys.ages()[:, 0]
+
+    @property
+    def masses(self) -> np.ndarray:
+        """Mass of each slot (kg, inf when pinned), ``(capacity,)``."""
+        return self._sys.masses()[:, 0]
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._sys.time
+
+    @property
+    def stats(self) -> dict[str, int]:
+        """Counters of the last ``step`` call: emitted, dropped, expired, contacts."""
+        return self._sys.stats()
+
+    def set_state(self, positions: Any, velocities: Any) -> None:
+        """Overwrite all positions and velocities ``(capacity, 3)``."""
+        x, _ = as_batch(positions, "positions", (3,))
+        v, _ = as_batch(velocities, "velocities", (3,))
+        self._sys.set_state(x, v)
+
+    def kinetic_energy(self) -> float:
+        """Kinetic energy of the live, unpinned particles (J)."""
+        return self._sys.kinetic_energy()
+
+    def potential_energy(self) -> float:
+        """Potential energy of gravity, springs, attractors and n-body gravity (J)."""
+        return self._sys.potential_energy()

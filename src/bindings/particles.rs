@@ -1,0 +1,297 @@
+//! `kinema.particles`: a compiled particle system whose state numpy views without a copy.
+
+use super::array::{compute, rows};
+use super::error::detached;
+use crate::error::Error;
+use crate::ode::Method;
+use crate::particles::{Collider, Emitter, Force, ParticleSystem};
+use glam::DVec3;
+use numpy::ndarray::ArrayView2;
+use numpy::{PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+fn v3(p: &[f64], k: usize) -> DVec3 {
+    DVec3::new(p[k], p[k + 1], p[k + 2])
+}
+
+fn params(p: &[f64], count: usize, what: &str) -> PyResult<()> {
+    if p.len() == count {
+        Ok(())
+    } else {
+        Err(Error::invalid(what, format!("expected {count} parameters, got {}", p.len())).into())
+    }
+}
+
+/// A fixed-capacity particle system; see `kinema.particles.ParticleSystem` for the API.
+#[pyclass(module = "kinema._kinema")]
+pub struct Particles {
+    system: ParticleSystem,
+}
+
+impl Particles {
+    /// A read-only numpy view `(capacity, 3)` of positions or velocities owned by `slf`.
+    #[allow(unsafe_code)]
+    fn view<'py>(slf: &Bound<'py, Self>, velocities: bool) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let this = slf.borrow();
+        let data = if velocities { this.system.velocities() } else { this.system.positions() };
+        let view = ArrayView2::from_shape((this.system.capacity(), 3), data)
+            .map_err(|e| Error::invalid("state", e.to_string()))?;
+        // SAFETY: the buffer belongs to `slf`, which the array keeps alive as its base; the
+        // system's state buffer has a fixed capacity and is never reallocated, only written in
+        // place by `step` and `set_state`, so the pointer stays valid for the array's lifetime.
+        let array = unsafe { PyArray2::borrow_from_array(&view, slf.clone().into_any()) };
+        drop(this);
+        array.readwrite().make_nonwriteable();
+        Ok(array)
+    }
+}
+
+#[pymethods]
+impl Particles {
+    /// `positions` (N, 3) m, `velocities` (N, 3) m/s, `masses` (N, 1) kg (inf pins), and room
+    /// for `capacity` particles in all.
+    #[new]
+    fn new(
+        positions: PyReadonlyArrayDyn<'_, f64>,
+        velocities: PyReadonlyArrayDyn<'_, f64>,
+        masses: PyReadonlyArrayDyn<'_, f64>,
+        capacity: usize,
+    ) -> PyResult<Self> {
+        let x: Vec<DVec3> = rows::<3>(&positions, "positions", &[3])?
+            .iter()
+            .map(|p| DVec3::from_array(*p))
+            .collect();
+        let v: Vec<DVec3> = rows::<3>(&velocities, "velocities", &[3])?
+            .iter()
+            .map(|p| DVec3::from_array(*p))
+            .collect();
+        let m: Vec<f64> = rows::<1>(&masses, "masses", &[1])?.iter().map(|p| p[0]).collect();
+        Ok(Particles { system: ParticleSystem::new(&x, &v, &m, capacity)? })
+    }
+
+    /// Add a force by kind with its parameters (see `kinema.particles` for each layout).
+    #[pyo3(signature = (kind, p, pairs=None, rest=None, seed=0))]
+    fn add_force(
+        &mut self,
+        kind: &str,
+        p: Vec<f64>,
+        pairs: Option<PyReadonlyArrayDyn<'_, f64>>,
+        rest: Option<PyReadonlyArrayDyn<'_, f64>>,
+        seed: u64,
+    ) -> PyResult<()> {
+        let force = match kind {
+            "gravity" => {
+                params(&p, 3, "gravity")?;
+                Force::Gravity { g: v3(&p, 0) }
+            }
+            "drag" => {
+                params(&p, 5, "drag")?;
+                Force::Drag { linear: p[0], quadratic: p[1], wind: v3(&p, 2) }
+            }
+            "damping" => {
+                params(&p, 1, "damping")?;
+                Force::Damping { rate: p[0] }
+            }
+            "springs" => {
+                params(&p, 2, "springs")?;
+                let (Some(pairs), Some(rest)) = (pairs, rest) else {
+                    return Err(
+                        Error::invalid("pairs", "springs need pairs and rest lengths").into()
+                    );
+                };
+                let pr = rows::<2>(&pairs, "pairs", &[2])?;
+                let mut ij = Vec::with_capacity(pr.len());
+                for (k, q) in pr.iter().enumerate() {
+                    if q.iter().any(|x| x.fract() != 0.0 || *x < 0.0 || !x.is_finite()) {
+                        return Err(Error::InvalidInput {
+                            arg: "pairs".into(),
+                            index: Some(k),
+                            reason: "indices must be non-negative integers".into(),
+                        }
+                        .into());
+                    }
+                    ij.push([q[0] as usize, q[1] as usize]);
+                }
+                let rest = rows::<1>(&rest, "rest", &[1])?.iter().map(|r| r[0]).collect();
+                Force::Springs { pairs: ij, rest, stiffness: p[0], damping: p[1] }
+            }
+            "attractor" => {
+                params(&p, 5, "attractor")?;
+                Force::Attractor { center: v3(&p, 0), strength: p[3], softening: p[4] }
+            }
+            "vortex" => {
+                params(&p, 8, "vortex")?;
+                Force::Vortex { center: v3(&p, 0), axis: v3(&p, 3), strength: p[6], core: p[7] }
+            }
+            "turbulence" => {
+                params(&p, 2, "turbulence")?;
+                Force::Turbulence { strength: p[0], scale: p[1], seed }
+            }
+            "neighbor_repulsion" => {
+                params(&p, 2, "neighbor_repulsion")?;
+                Force::NeighborRepulsion { radius: p[0], stiffness: p[1] }
+            }
+            "nbody_gravity" => {
+                params(&p, 2, "nbody_gravity")?;
+                Force::NBodyGravity { constant: p[0], softening: p[1] }
+            }
+            other => return Err(Error::invalid("force", format!("unknown force {other:?}")).into()),
+        };
+        Ok(self.system.add_force(force)?)
+    }
+
+    /// Add a collider: `plane` with (point 3, normal 3, restitution, friction) or `sphere`
+    /// with (center 3, radius, inside 0/1, restitution, friction).
+    fn add_collider(&mut self, kind: &str, p: Vec<f64>) -> PyResult<()> {
+        let c = match kind {
+            "plane" => {
+                params(&p, 8, "plane")?;
+                Collider::Plane {
+                    point: v3(&p, 0),
+                    normal: v3(&p, 3),
+                    restitution: p[6],
+                    friction: p[7],
+                }
+            }
+            "sphere" => {
+                params(&p, 7, "sphere")?;
+                Collider::Sphere {
+                    center: v3(&p, 0),
+                    radius: p[3],
+                    inside: p[4] != 0.0,
+                    restitution: p[5],
+                    friction: p[6],
+                }
+            }
+            other => {
+                return Err(Error::invalid("collider", format!("unknown collider {other:?}")).into())
+            }
+        };
+        Ok(self.system.add_collider(c)?)
+    }
+
+    /// Add an emitter: (rate, position 3, position_spread, velocity 3, velocity_spread,
+    /// lifespan, mass) and a seed.
+    fn add_emitter(&mut self, p: Vec<f64>, seed: u64) -> PyResult<()> {
+        params(&p, 11, "emitter")?;
+        Ok(self.system.add_emitter(Emitter {
+            rate: p[0],
+            position: v3(&p, 1),
+            position_spread: p[4],
+            velocity: v3(&p, 5),
+            velocity_spread: p[8],
+            lifespan: p[9],
+            mass: p[10],
+            seed,
+        })?)
+    }
+
+    /// Advance `steps` steps of `dt` seconds with `method` (GIL released).
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: usize, method: &str) -> PyResult<()> {
+        let method = Method::parse(method)?;
+        let system = &mut self.system;
+        detached(py, || system.step(dt, steps, method))
+    }
+
+    /// Read-only view (capacity, 3) of the positions (m), updated in place by `step`.
+    #[getter]
+    fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        Self::view(slf, false)
+    }
+
+    /// Read-only view (capacity, 3) of the velocities (m/s), updated in place by `step`.
+    #[getter]
+    fn velocities<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        Self::view(slf, true)
+    }
+
+    /// Overwrite positions and velocities (capacity, 3) of every slot.
+    fn set_state(
+        &mut self,
+        positions: PyReadonlyArrayDyn<'_, f64>,
+        velocities: PyReadonlyArrayDyn<'_, f64>,
+    ) -> PyResult<()> {
+        let n = self.system.capacity();
+        let x = rows::<3>(&positions, "positions", &[3])?;
+        let v = rows::<3>(&velocities, "velocities", &[3])?;
+        if x.len() != n || v.len() != n {
+            return Err(Error::invalid(
+                "positions",
+                format!("expected {n} rows (the capacity), got {} and {}", x.len(), v.len()),
+            )
+            .into());
+        }
+        if let Some(i) = x.iter().chain(v).position(|r| r.iter().any(|c| !c.is_finite())) {
+            return Err(Error::InvalidInput {
+                arg: if i < n { "positions".into() } else { "velocities".into() },
+                index: Some(i % n),
+                reason: "contains NaN or infinity".into(),
+            }
+            .into());
+        }
+        let y = self.system.state_mut();
+        y[..3 * n].copy_from_slice(x.as_flattened());
+        y[3 * n..].copy_from_slice(v.as_flattened());
+        self.system.state_changed();
+        Ok(())
+    }
+
+    /// Live flags (capacity, 1) as 0.0 / 1.0.
+    fn alive<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let a = self.system.alive();
+        compute::<1>(py, a.len(), &[1], |out| {
+            out.iter_mut().zip(a).for_each(|(o, l)| o[0] = f64::from(u8::from(*l)));
+            Ok(())
+        })
+    }
+
+    /// Ages (capacity, 1) in seconds.
+    fn ages<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let a = self.system.ages();
+        compute::<1>(py, a.len(), &[1], |out| {
+            out.iter_mut().zip(a).for_each(|(o, v)| o[0] = *v);
+            Ok(())
+        })
+    }
+
+    /// Masses (capacity, 1) in kg (inf for pinned).
+    fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let a = self.system.masses();
+        compute::<1>(py, a.len(), &[1], |out| {
+            out.iter_mut().zip(a).for_each(|(o, v)| o[0] = *v);
+            Ok(())
+        })
+    }
+
+    /// Kinetic energy of the live particles (J).
+    fn kinetic_energy(&self) -> f64 {
+        self.system.kinetic_energy()
+    }
+
+    /// Potential energy of the conservative forces (J).
+    fn potential_energy(&self) -> f64 {
+        self.system.potential_energy()
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.system.time()
+    }
+
+    /// Counters of the last `step` call.
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.system.stats;
+        let d = PyDict::new(py);
+        d.set_item("emitted", s.emitted)?;
+        d.set_item("dropped", s.dropped)?;
+        d.set_item("expired", s.expired)?;
+        d.set_item("contacts", s.contacts)?;
+        Ok(d)
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Particles>()
+}

@@ -1,0 +1,126 @@
+"""kinema.particles through Python: physics against scipy, zero-copy views, bad input."""
+
+from __future__ import annotations
+
+import gc
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import kinema
+from kinema.particles import (
+    Attractor,
+    Damping,
+    Drag,
+    Emitter,
+    Gravity,
+    NeighborRepulsion,
+    ParticleSystem,
+    Plane,
+    Sphere,
+    Springs,
+    Turbulence,
+    Vortex,
+)
+
+
+def test_projectile_with_quadratic_drag_matches_scipy():
+    k, m = 0.05, 0.5
+    ps = ParticleSystem([[0.0, 0.0, 0.0]], [[20.0, 15.0, 0.0]], masses=m)
+    ps.add(Gravity())
+    ps.add(Drag(quadratic=k))
+    ps.step(1e-3, 2000, method="rk4")
+
+    def f(t, y):
+        v = y[3:]
+        return np.concatenate([v, [0.0, -9.81, 0.0] - k / m * np.linalg.norm(v) * v])
+
+    ref = solve_ivp(f, (0, 2), [0, 0, 0, 20, 15, 0], method="DOP853", rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(ps.positions[0], ref.y[:3, -1], atol=1e-9)
+    np.testing.assert_allclose(ps.velocities[0], ref.y[3:, -1], atol=1e-9)
+
+
+def test_state_views_are_zero_copy_read_only_and_outlive_the_system():
+    ps = ParticleSystem(np.zeros((4, 3)), masses=[1, 2, 3, 4])
+    ps.add(Gravity())
+    view = ps.positions
+    assert np.shares_memory(view, ps.positions)
+    ps.step(0.1)
+    assert view[0, 1] < 0.0  # updated in place, no copy
+    with pytest.raises(ValueError, match="read-only"):
+        view[0, 0] = 1.0
+    del ps
+    gc.collect()
+    assert view.shape == (4, 3) and np.isfinite(view).all()
+
+
+def test_springs_conserve_momentum_and_energy_is_reported():
+    rng = np.random.default_rng(0)
+    x = rng.uniform(-1, 1, (20, 3))
+    v = rng.normal(size=(20, 3))
+    m = rng.uniform(0.5, 2.0, 20)
+    ps = ParticleSystem(x, v, m)
+    pairs = np.array([[i, i + 1] for i in range(19)])
+    ps.add(Springs(pairs, stiffness=30.0))
+    ps.add(NeighborRepulsion(radius=0.5, stiffness=20.0))
+    p0 = (m[:, None] * ps.velocities).sum(axis=0)
+    e0 = ps.kinetic_energy() + ps.potential_energy()
+    assert ps.potential_energy() == pytest.approx(0.0)  # rest lengths from the initial state
+    ps.step(1e-4, 2000, method="velocity_verlet")
+    np.testing.assert_allclose((m[:, None] * ps.velocities).sum(axis=0), p0, atol=1e-10)
+    assert (
+        ps.kinetic_energy() + ps.potential_energy() < 1.1 * e0 + 1.0
+    )  # repulsion energy is not reported
+
+
+def test_ground_bounce_and_rest():
+    ps = ParticleSystem([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    ps.add(Gravity())
+    ps.add(Plane(restitution=0.5, friction=0.2))
+    ps.step(1 / 240, 240 * 4)
+    assert np.all(np.abs(ps.positions[:, 1]) < 1e-12)
+    assert ps.kinetic_energy() == 0.0
+
+
+def test_fountain_with_emitter_vortex_turbulence_and_sphere():
+    ps = ParticleSystem(np.zeros((0, 3)), capacity=500)
+    ps.add(Emitter(rate=400, velocity=[0, 6, 0], velocity_spread=1.0, lifespan=1.0, seed=3))
+    ps.add(Gravity())
+    ps.add(Vortex(center=[0, 0, 0], strength=2.0))
+    ps.add(Turbulence(strength=1.0, scale=0.5))
+    ps.add(Damping(0.1))
+    ps.add(Attractor(center=[0, 3, 0], strength=0.5))
+    ps.add(Sphere(center=[0, 0, 0], radius=5.0, inside=True, restitution=0.3))
+    ps.add(Plane())
+    for _ in range(120):
+        ps.step(1 / 120)
+    alive = ps.alive
+    assert 350 < alive.sum() <= 401
+    assert np.all(np.linalg.norm(ps.positions[alive], axis=1) <= 5.0 + 1e-12)
+    assert np.all(ps.positions[alive, 1] >= 0.0)
+    assert np.all(ps.ages[alive] <= 1.0)
+
+
+def test_bad_input_names_the_argument_and_failures_roll_back():
+    with pytest.raises(ValueError, match=r"masses\[1\]"):
+        ParticleSystem(np.zeros((2, 3)), masses=[1.0, -1.0])
+    with pytest.raises(ValueError, match=r"positions\[0\]"):
+        ParticleSystem([[np.nan, 0, 0]])
+    with pytest.raises(ValueError, match="positions: expected shape"):
+        ParticleSystem(np.zeros((2, 2)))
+    ps = ParticleSystem(np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="pairs"):
+        ps.add(Springs([[0, 5]], stiffness=1.0))
+    with pytest.raises(ValueError, match="restitution"):
+        ps.add(Plane(restitution=2.0))
+    with pytest.raises(ValueError, match="item"):
+        ps.add("gravity")
+    with pytest.raises(ValueError, match="method"):
+        ps.step(0.1, method="rk45")
+    boom = ParticleSystem([[0.0, 0.0, 0.0]], [[1e300, 0.0, 0.0]])
+    boom.add(Drag(quadratic=1e10))
+    before = boom.velocities.copy()
+    with pytest.raises(kinema.SimulationError, match="step 0, element 0"):
+        boom.step(0.1, 3, method="explicit_euler")
+    np.testing.assert_array_equal(boom.velocities, before)
