@@ -24,6 +24,10 @@ pub use forces::{curl_noise, noise_with_gradient, Force};
 use crate::error::{Error, Result};
 use crate::ode::{Method, OdeSystem, Stepper};
 use glam::DVec3;
+use rayon::prelude::*;
+
+/// Particles per parallel chunk.
+const CHUNK: usize = 4096;
 
 /// A surface particles collide with.
 #[derive(Clone, Debug, PartialEq)]
@@ -402,9 +406,25 @@ impl ParticleSystem {
             .iter()
             .map(|f| if let Force::Gravity { g } = f { *g } else { DVec3::ZERO })
             .sum();
+        let pairwise = self.forces.iter().any(|f| {
+            matches!(
+                f,
+                Force::Springs { .. }
+                    | Force::NeighborRepulsion { .. }
+                    | Force::NBodyGravity { .. }
+            )
+        });
+        let fused = method == Method::SymplecticEuler && !pairwise;
         for s in 0..steps {
-            self.backup.copy_from_slice(&self.y);
-            let result = self.one_step(dt, gravity);
+            self.backup
+                .par_chunks_mut(6 * CHUNK)
+                .zip(self.y.par_chunks(6 * CHUNK))
+                .for_each(|(b, y)| b.copy_from_slice(y));
+            let result = if fused {
+                self.fused_symplectic_step(dt, gravity)
+            } else {
+                self.one_step(dt, gravity)
+            };
             if let Err(e) = result {
                 self.y.copy_from_slice(&self.backup);
                 if let Some(st) = self.stepper.as_mut() {
@@ -417,6 +437,8 @@ impl ParticleSystem {
                     other => other,
                 });
             }
+            self.time += dt;
+            self.age_and_emit(dt);
         }
         Ok(())
     }
@@ -440,74 +462,101 @@ impl ParticleSystem {
             },
             other => other,
         })?;
+        // The integrator checked the state; projection and impulses keep finite values finite.
         self.collide(dt, gravity);
-        if let Some(i) = (0..n).find(|&i| {
-            self.y[3 * i..3 * i + 3]
-                .iter()
-                .chain(&self.y[3 * n + 3 * i..3 * n + 3 * i + 3])
-                .any(|v| !v.is_finite())
-        }) {
-            return Err(Error::Diverged {
-                step: 0,
-                index: i,
-                reason: "non-finite particle state".into(),
-            });
-        }
-        self.time += dt;
-        self.age_and_emit(dt);
         Ok(())
     }
 
     fn collide(&mut self, dt: f64, gravity: DVec3) {
-        let n = self.n;
-        for i in (0..n).filter(|&i| self.alive[i] && self.inv_mass[i] > 0.0) {
-            for c in &self.colliders {
-                let x = DVec3::from_slice(&self.y[3 * i..3 * i + 3]);
-                let (d, normal, e, mu) = match *c {
-                    Collider::Plane { point, normal, restitution, friction } => {
-                        ((x - point).dot(normal), normal, restitution, friction)
-                    }
-                    Collider::Sphere { center, radius, inside, restitution, friction } => {
-                        let r = x - center;
-                        let len = r.length();
-                        let dir = if len > 0.0 { r / len } else { DVec3::Y };
-                        if inside {
-                            (radius - len, -dir, restitution, friction)
-                        } else {
-                            (len - radius, dir, restitution, friction)
-                        }
-                    }
-                };
-                if d >= 0.0 {
-                    continue;
-                }
-                self.stats.contacts += 1;
-                // Project onto the surface, and apply Coulomb friction to the tangential
-                // displacement of this step too (at most μ times the penetration), so that a
-                // particle held by static friction does not creep.
-                let mut x = x - d * normal;
-                let moved = x - DVec3::from_slice(&self.backup[3 * i..3 * i + 3]);
-                let moved_t = moved - moved.dot(normal) * normal;
-                let slip = moved_t.length();
-                if slip > 0.0 {
-                    x -= moved_t * (mu * -d / slip).min(1.0);
-                }
-                self.y[3 * i..3 * i + 3].copy_from_slice(&x.to_array());
-                let v = DVec3::from_slice(&self.y[3 * n + 3 * i..3 * n + 3 * i + 3]);
-                let vn = v.dot(normal);
-                if vn >= 0.0 {
-                    continue;
-                }
-                let resting = -vn <= 2.0 * gravity.dot(normal).abs() * dt;
-                let jn = -vn * (1.0 + if resting { 0.0 } else { e });
-                let vt = v - vn * normal;
-                let speed_t = vt.length();
-                let vt =
-                    if speed_t <= mu * jn { DVec3::ZERO } else { vt * (1.0 - mu * jn / speed_t) };
-                let v = (vn + jn) * normal + vt;
-                self.y[3 * n + 3 * i..3 * n + 3 * i + 3].copy_from_slice(&v.to_array());
-            }
+        if self.colliders.is_empty() {
+            return;
         }
+        let n = self.n;
+        let (colliders, alive, inv_mass, backup) =
+            (&self.colliders, &self.alive, &self.inv_mass, &self.backup);
+        let (xs, vs) = self.y.split_at_mut(3 * n);
+        self.stats.contacts += xs
+            .par_chunks_mut(3 * CHUNK)
+            .zip(vs.par_chunks_mut(3 * CHUNK))
+            .enumerate()
+            .map(|(c, (xc, vc))| {
+                let mut contacts = 0;
+                for k in 0..xc.len() / 3 {
+                    let i = c * CHUNK + k;
+                    if !alive[i] || inv_mass[i] == 0.0 {
+                        continue;
+                    }
+                    let prev = DVec3::from_slice(&backup[3 * i..3 * i + 3]);
+                    let (x, v) = (DVec3::from_slice(&xc[3 * k..]), DVec3::from_slice(&vc[3 * k..]));
+                    let (x, v, hits) = collide_one(colliders, x, v, prev, dt, gravity);
+                    if hits > 0 {
+                        xc[3 * k..3 * k + 3].copy_from_slice(&x.to_array());
+                        vc[3 * k..3 * k + 3].copy_from_slice(&v.to_array());
+                        contacts += hits;
+                    }
+                }
+                contacts
+            })
+            .sum::<usize>();
+    }
+
+    /// Symplectic Euler fused with the collision response in one parallel pass over the
+    /// particles, for systems without forces between particles (the common emitter case).
+    /// The caller keeps a copy of the state to restore if the pass produces a non-finite
+    /// value. The arithmetic is that of the general path, so results are bitwise identical.
+    fn fused_symplectic_step(&mut self, dt: f64, gravity: DVec3) -> Result<()> {
+        let n = self.n;
+        let (forces, colliders, alive, mass, inv_mass) =
+            (&self.forces, &self.colliders, &self.alive, &self.mass, &self.inv_mass);
+        let (xs, vs) = self.y.split_at_mut(3 * n);
+        let (contacts, bad) = xs
+            .par_chunks_mut(3 * CHUNK)
+            .zip(vs.par_chunks_mut(3 * CHUNK))
+            .enumerate()
+            .map(|(c, (xc, vc))| {
+                let (mut contacts, mut bad) = (0, None);
+                for k in 0..xc.len() / 3 {
+                    let i = c * CHUNK + k;
+                    if !alive[i] || inv_mass[i] == 0.0 {
+                        continue;
+                    }
+                    let (x, v) = (DVec3::from_slice(&xc[3 * k..]), DVec3::from_slice(&vc[3 * k..]));
+                    let a = particle_force(forces, x, v, mass[i]) * inv_mass[i];
+                    let v1 = v + dt * a;
+                    let x1 = x + dt * v1;
+                    let (x1, v1, hits) = if colliders.is_empty() {
+                        (x1, v1, 0)
+                    } else {
+                        collide_one(colliders, x1, v1, x, dt, gravity)
+                    };
+                    if bad.is_none() && !(x1.is_finite() && v1.is_finite()) {
+                        bad = Some(i);
+                    }
+                    xc[3 * k..3 * k + 3].copy_from_slice(&x1.to_array());
+                    vc[3 * k..3 * k + 3].copy_from_slice(&v1.to_array());
+                    contacts += hits;
+                }
+                (contacts, bad)
+            })
+            .reduce(
+                || (0, None),
+                |a, b| {
+                    let first_bad = match (a.1, b.1) {
+                        (Some(x), Some(y)) => Some(x.min(y)),
+                        (x, y) => x.or(y),
+                    };
+                    (a.0 + b.0, first_bad)
+                },
+            );
+        if let Some(index) = bad {
+            return Err(Error::Diverged {
+                step: 0,
+                index,
+                reason: "non-finite particle state".into(),
+            });
+        }
+        self.stats.contacts += contacts;
+        Ok(())
     }
 
     fn age_and_emit(&mut self, dt: f64) {
@@ -553,6 +602,93 @@ impl ParticleSystem {
     }
 }
 
+/// The sum of the forces of `forces` that act on one particle alone (gravity, drag, damping,
+/// attractor, vortex, turbulence), in the order they were added.
+fn particle_force(forces: &[Force], x: DVec3, v: DVec3, m: f64) -> DVec3 {
+    let mut acc = DVec3::ZERO;
+    for force in forces {
+        acc += match force {
+            Force::Gravity { g } => m * *g,
+            Force::Drag { linear, quadratic, wind } => {
+                let u = v - *wind;
+                -(*linear + quadratic * u.length()) * u
+            }
+            Force::Damping { rate } => -rate * m * v,
+            Force::Attractor { center, strength, softening } => {
+                let r = *center - x;
+                strength * m / (r.length_squared() + softening * softening).powf(1.5) * r
+            }
+            Force::Vortex { center, axis, strength, core } => {
+                let r = x - *center;
+                let perp = r - r.dot(*axis) * *axis;
+                strength * m / (perp.length() + core) * axis.cross(perp)
+            }
+            Force::Turbulence { strength, scale, seed } => {
+                strength * m * forces::curl_noise(*seed, x / *scale)
+            }
+            Force::Springs { .. }
+            | Force::NeighborRepulsion { .. }
+            | Force::NBodyGravity { .. } => DVec3::ZERO,
+        };
+    }
+    acc
+}
+
+/// Resolve the contacts of one particle at `x` with velocity `v` that was at `prev` before the
+/// step; returns the new position, velocity and the number of contacts.
+fn collide_one(
+    colliders: &[Collider],
+    mut x: DVec3,
+    mut v: DVec3,
+    prev: DVec3,
+    dt: f64,
+    gravity: DVec3,
+) -> (DVec3, DVec3, usize) {
+    let mut contacts = 0;
+    for collider in colliders {
+        let (d, normal, e, mu) = match *collider {
+            Collider::Plane { point, normal, restitution, friction } => {
+                ((x - point).dot(normal), normal, restitution, friction)
+            }
+            Collider::Sphere { center, radius, inside, restitution, friction } => {
+                let r = x - center;
+                let len = r.length();
+                let dir = if len > 0.0 { r / len } else { DVec3::Y };
+                if inside {
+                    (radius - len, -dir, restitution, friction)
+                } else {
+                    (len - radius, dir, restitution, friction)
+                }
+            }
+        };
+        if d >= 0.0 {
+            continue;
+        }
+        contacts += 1;
+        // Project onto the surface, and apply Coulomb friction to the tangential displacement
+        // of this step too (at most μ times the penetration), so that a particle held by
+        // static friction does not creep.
+        x -= d * normal;
+        let moved = x - prev;
+        let moved_t = moved - moved.dot(normal) * normal;
+        let slip = moved_t.length();
+        if slip > 0.0 {
+            x -= moved_t * (mu * -d / slip).min(1.0);
+        }
+        let vn = v.dot(normal);
+        if vn >= 0.0 {
+            continue;
+        }
+        let resting = -vn <= 2.0 * gravity.dot(normal).abs() * dt;
+        let jn = -vn * (1.0 + if resting { 0.0 } else { e });
+        let vt = v - vn * normal;
+        let speed_t = vt.length();
+        let vt = if speed_t <= mu * jn { DVec3::ZERO } else { vt * (1.0 - mu * jn / speed_t) };
+        v = (vn + jn) * normal + vt;
+    }
+    (x, v, contacts)
+}
+
 /// The particle equations of motion as an [`OdeSystem`] over `y = [x; v]`.
 struct Dynamics<'a> {
     n: usize,
@@ -577,8 +713,6 @@ impl OdeSystem for Dynamics<'_> {
         let n = self.n;
         let (x, v) = y.split_at(3 * n);
         let (dx, f) = dydt.split_at_mut(3 * n);
-        dx.copy_from_slice(v);
-        f.fill(0.0);
         let p = |i: usize| DVec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
         let vel = |i: usize| DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
         let add = |f: &mut [f64], i: usize, a: DVec3| {
@@ -586,20 +720,26 @@ impl OdeSystem for Dynamics<'_> {
             f[3 * i + 1] += a.y;
             f[3 * i + 2] += a.z;
         };
+        let (all_forces, mass, alive) = (self.forces, self.mass, self.alive);
+        // Pass 1, parallel over particles: x' = v and every force acting on one particle alone
+        // (each particle's sum in the order the forces were added, whatever the threads).
+        dx.par_chunks_mut(3 * CHUNK).zip(f.par_chunks_mut(3 * CHUNK)).enumerate().for_each(
+            |(c, (dxc, fc))| {
+                for k in 0..dxc.len() / 3 {
+                    let i = c * CHUNK + k;
+                    dxc[3 * k..3 * k + 3].copy_from_slice(&v[3 * i..3 * i + 3]);
+                    let acc = if alive[i] {
+                        particle_force(all_forces, p(i), vel(i), mass[i])
+                    } else {
+                        DVec3::ZERO
+                    };
+                    fc[3 * k..3 * k + 3].copy_from_slice(&acc.to_array());
+                }
+            },
+        );
+        // Pass 2, sequential in a fixed order: forces between particles.
         for force in self.forces {
             match force {
-                Force::Gravity { g } => {
-                    (0..n).filter(|&i| self.alive[i]).for_each(|i| add(f, i, self.mass[i] * *g))
-                }
-                Force::Drag { linear, quadratic, wind } => {
-                    (0..n).filter(|&i| self.alive[i]).for_each(|i| {
-                        let u = vel(i) - *wind;
-                        add(f, i, -(*linear + quadratic * u.length()) * u)
-                    })
-                }
-                Force::Damping { rate } => (0..n)
-                    .filter(|&i| self.alive[i])
-                    .for_each(|i| add(f, i, -rate * self.mass[i] * vel(i))),
                 Force::Springs { pairs, rest, stiffness, damping } => {
                     for (pair, l) in pairs.iter().zip(rest) {
                         let (a, b) = (pair[0], pair[1]);
@@ -614,33 +754,6 @@ impl OdeSystem for Dynamics<'_> {
                         add(f, a, fa);
                         add(f, b, -fa);
                     }
-                }
-                Force::Attractor { center, strength, softening } => {
-                    (0..n).filter(|&i| self.alive[i]).for_each(|i| {
-                        let r = *center - p(i);
-                        let s = (r.length_squared() + softening * softening).powf(1.5);
-                        add(f, i, strength * self.mass[i] / s * r)
-                    })
-                }
-                Force::Vortex { center, axis, strength, core } => {
-                    (0..n).filter(|&i| self.alive[i]).for_each(|i| {
-                        let r = p(i) - *center;
-                        let perp = r - r.dot(*axis) * *axis;
-                        add(
-                            f,
-                            i,
-                            strength * self.mass[i] / (perp.length() + core) * axis.cross(perp),
-                        )
-                    })
-                }
-                Force::Turbulence { strength, scale, seed } => {
-                    (0..n).filter(|&i| self.alive[i]).for_each(|i| {
-                        add(
-                            f,
-                            i,
-                            strength * self.mass[i] * forces::curl_noise(*seed, p(i) / *scale),
-                        )
-                    })
                 }
                 Force::NeighborRepulsion { radius, stiffness } => {
                     let cell = |q: DVec3| {
@@ -695,17 +808,24 @@ impl OdeSystem for Dynamics<'_> {
                         }
                     }
                 }
+                _ => {}
             }
         }
-        for i in 0..n {
-            if self.alive[i] && self.inv_mass[i] > 0.0 {
-                f[3 * i..3 * i + 3].iter_mut().for_each(|a| *a *= self.inv_mass[i]);
-            } else {
-                // Pinned (infinite mass, where m g is infinite) and dead slots do not move.
-                f[3 * i..3 * i + 3].fill(0.0);
-                dx[3 * i..3 * i + 3].fill(0.0);
-            }
-        }
+        // Pass 3, parallel: accelerations; pinned (where m g is infinite) and dead slots stay put.
+        let inv_mass = self.inv_mass;
+        dx.par_chunks_mut(3 * CHUNK).zip(f.par_chunks_mut(3 * CHUNK)).enumerate().for_each(
+            |(c, (dxc, fc))| {
+                for k in 0..dxc.len() / 3 {
+                    let i = c * CHUNK + k;
+                    if alive[i] && inv_mass[i] > 0.0 {
+                        fc[3 * k..3 * k + 3].iter_mut().for_each(|a| *a *= inv_mass[i]);
+                    } else {
+                        fc[3 * k..3 * k + 3].fill(0.0);
+                        dxc[3 * k..3 * k + 3].fill(0.0);
+                    }
+                }
+            },
+        );
         Ok(())
     }
 }

@@ -6,6 +6,7 @@ provides ``run(out_dir, quick) -> dict``.
 
 DEMOS: dict[str, str] = {
     "rotations": "gimbal lock of Euler angles against quaternion slerp",
+    "particles": "a fountain with an emitter, a vortex, turbulence and a ground plane",
     "integrators": "stability regions and a work-precision diagram of the ODE methods",
     "rigid": "the tumbling T-handle and the drift of each rotation integrator",
 }
