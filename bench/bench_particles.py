@@ -79,7 +79,9 @@ def main() -> None:
     print("| implementation | ms / step | steps / s | speed-up | GB/s touched |")
     print("|---|---:|---:|---:|---:|")
     for name, t in [("kinema (Rust)", t_kinema), ("numpy (vectorised)", t_numpy)]:
-        print(f"| {name} | {1e3 * t:.2f} | {1 / t:.1f} | {t_numpy / t:.1f}x | {floor / t / 1e9:.2f} |")
+        print(
+            f"| {name} | {1e3 * t:.2f} | {1 / t:.1f} | {t_numpy / t:.1f}x | {floor / t / 1e9:.2f} |"
+        )
 
 
 if __name__ == "__main__":
