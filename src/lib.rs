@@ -7,6 +7,7 @@
 
 pub mod batch;
 pub mod error;
+pub mod linalg;
 pub mod ode;
 pub mod particles;
 pub mod rigid;
