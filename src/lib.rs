@@ -6,6 +6,7 @@
 //! batches as slices of fixed-size rows, and one [`Error`] type.
 
 pub mod batch;
+pub mod constraints;
 pub mod error;
 pub mod linalg;
 pub mod ode;

@@ -39,12 +39,18 @@ impl SparseCholesky {
     /// # Errors
     /// An invalid pattern (faer's checks) or out of memory.
     pub fn new(n: usize, col_ptr: Vec<usize>, row_idx: Vec<usize>) -> Result<Self> {
-        if col_ptr.len() != n + 1 || col_ptr[n] != row_idx.len() || row_idx.iter().any(|&r| r >= n) {
+        if col_ptr.len() != n + 1 || col_ptr[n] != row_idx.len() || row_idx.iter().any(|&r| r >= n)
+        {
             return Err(Error::invalid("pattern", "is not a valid compressed-column pattern"));
         }
         let pattern = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let symbolic = factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, Default::default())
-            .map_err(|e| Error::SolverFailed { reason: format!("symbolic Cholesky: {e:?}") })?;
+        let symbolic = factorize_symbolic_cholesky(
+            pattern,
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            Default::default(),
+        )
+        .map_err(|e| Error::SolverFailed { reason: format!("symbolic Cholesky: {e:?}") })?;
         let req = symbolic
             .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
             .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
@@ -62,7 +68,13 @@ impl SparseCholesky {
     /// # Errors
     /// [`Error::SolverFailed`] when the matrix is not numerically positive definite.
     pub fn factorize(&mut self, values: &[f64]) -> Result<()> {
-        let pattern = SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx);
+        let pattern = SymbolicSparseColMatRef::new_checked(
+            self.n,
+            self.n,
+            &self.col_ptr,
+            None,
+            &self.row_idx,
+        );
         let a = SparseColMatRef::new(pattern, values);
         self.symbolic
             .factorize_numeric_llt::<f64>(
@@ -74,7 +86,9 @@ impl SparseCholesky {
                 MemStack::new(&mut self.buffer),
                 Default::default(),
             )
-            .map_err(|e| Error::SolverFailed { reason: format!("Cholesky factorisation: {e:?} (matrix not positive definite)") })?;
+            .map_err(|e| Error::SolverFailed {
+                reason: format!("Cholesky factorisation: {e:?} (matrix not positive definite)"),
+            })?;
         Ok(())
     }
 
@@ -148,7 +162,9 @@ pub fn conjugate_gradient(
             p[i] = z[i] + beta * p[i];
         }
     }
-    Err(Error::SolverFailed { reason: format!("conjugate gradient did not converge in {max_iters} iterations") })
+    Err(Error::SolverFailed {
+        reason: format!("conjugate gradient did not converge in {max_iters} iterations"),
+    })
 }
 
 #[cfg(test)]
@@ -177,7 +193,9 @@ mod tests {
         let x_true: Vec<f64> = (0..n).map(|i| (i as f64 * 0.1).sin()).collect();
         let apply = |x: &[f64], out: &mut [f64]| {
             for i in 0..n {
-                out[i] = 2.01 * x[i] - if i > 0 { x[i - 1] } else { 0.0 } - if i + 1 < n { x[i + 1] } else { 0.0 };
+                out[i] = 2.01 * x[i]
+                    - if i > 0 { x[i - 1] } else { 0.0 }
+                    - if i + 1 < n { x[i + 1] } else { 0.0 };
             }
         };
         let mut b = vec![0.0; n];
@@ -189,7 +207,16 @@ mod tests {
         assert!(x.iter().zip(&x_true).all(|(a, b)| (a - b).abs() < 1e-12));
         let mut x = vec![0.0; n];
         let mut work = Default::default();
-        let iters = conjugate_gradient(&mut |x, o| apply(x, o), &b, &vec![2.01; n], &mut x, 1e-13, 1000, &mut work).unwrap();
+        let iters = conjugate_gradient(
+            &mut |x, o| apply(x, o),
+            &b,
+            &vec![2.01; n],
+            &mut x,
+            1e-13,
+            1000,
+            &mut work,
+        )
+        .unwrap();
         assert!(iters > 0 && x.iter().zip(&x_true).all(|(a, b)| (a - b).abs() < 1e-10));
         // An indefinite matrix is reported, not a panic.
         let mut neg = val.clone();

@@ -226,6 +226,20 @@ impl ParticleSystem {
         &mut self.y
     }
 
+    /// The free (unconstrained) equations of motion, the state and the inverse masses, for
+    /// systems that step the particles themselves (constraints).
+    pub(crate) fn parts(&mut self) -> (Dynamics<'_>, &mut [f64], &[f64], &mut f64) {
+        let dynamics = Dynamics {
+            n: self.n,
+            forces: &self.forces,
+            mass: &self.mass,
+            inv_mass: &self.inv_mass,
+            alive: &self.alive,
+            cells: &mut self.cells,
+        };
+        (dynamics, &mut self.y, &self.inv_mass, &mut self.time)
+    }
+
     /// Forget integrator history after the state was changed from outside.
     pub fn state_changed(&mut self) {
         if let Some(s) = self.stepper.as_mut() {
@@ -690,7 +704,7 @@ fn collide_one(
 }
 
 /// The particle equations of motion as an [`OdeSystem`] over `y = [x; v]`.
-struct Dynamics<'a> {
+pub(crate) struct Dynamics<'a> {
     n: usize,
     forces: &'a [Force],
     mass: &'a [f64],
