@@ -6,6 +6,7 @@
 use pyo3::prelude::*;
 
 mod array;
+mod constraints;
 mod error;
 mod ode;
 mod particles;
@@ -22,5 +23,6 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     rigid::register(m)?;
     ode::register(m)?;
     particles::register(m)?;
+    constraints::register(m)?;
     Ok(())
 }

@@ -26,7 +26,7 @@ fn params(p: &[f64], count: usize, what: &str) -> PyResult<()> {
 /// A fixed-capacity particle system; see `kinema.particles.ParticleSystem` for the API.
 #[pyclass(module = "kinema._kinema")]
 pub struct Particles {
-    system: ParticleSystem,
+    pub(crate) system: ParticleSystem,
 }
 
 impl Particles {
