@@ -8,5 +8,6 @@ DEMOS: dict[str, str] = {
     "rotations": "gimbal lock of Euler angles against quaternion slerp",
     "particles": "a fountain with an emitter, a vortex, turbulence and a ground plane",
     "integrators": "stability regions and a work-precision diagram of the ODE methods",
+    "constraints": "a bead on a wire with and without drift feedback, and a rope of rods",
     "rigid": "the tumbling T-handle and the drift of each rotation integrator",
 }
