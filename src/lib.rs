@@ -5,6 +5,7 @@
 //! `ARCHITECTURE.md`: SI units, +Y up, scalar-first `(w, x, y, z)` quaternions, `f64` everywhere,
 //! batches as slices of fixed-size rows, and one [`Error`] type.
 
+pub mod anim;
 pub mod batch;
 pub mod constraints;
 pub mod error;

@@ -24,7 +24,13 @@ impl Constrained {
         let solver = match solver {
             "cholesky" => ConstraintSolver::Cholesky,
             "cg" => ConstraintSolver::ConjugateGradient,
-            other => return Err(Error::invalid("solver", format!("{other:?} is not 'cholesky' or 'cg'")).into()),
+            other => {
+                return Err(Error::invalid(
+                    "solver",
+                    format!("{other:?} is not 'cholesky' or 'cg'"),
+                )
+                .into())
+            }
         };
         Ok(Constrained { particles, system: ConstrainedSystem::new(ks, kd, solver)? })
     }
@@ -36,7 +42,8 @@ impl Constrained {
             if p.len() == k {
                 Ok(())
             } else {
-                Err(Error::invalid(kind, format!("expected {k} parameters, got {}", p.len())).into())
+                Err(Error::invalid(kind, format!("expected {k} parameters, got {}", p.len()))
+                    .into())
             }
         };
         let v = |k: usize| DVec3::new(p[k], p[k + 1], p[k + 2]);
@@ -57,7 +64,11 @@ impl Constrained {
                 need(3)?;
                 Constraint::Fixed { i, point: v(0) }
             }
-            other => return Err(Error::invalid("constraint", format!("unknown constraint {other:?}")).into()),
+            other => {
+                return Err(
+                    Error::invalid("constraint", format!("unknown constraint {other:?}")).into()
+                )
+            }
         };
         let particles = self.particles.bind(py).borrow();
         Ok(self.system.add(&particles.system, c)?)

@@ -1,0 +1,265 @@
+//! Keyframe tracks and subdivision curves: interpolation, continuity, derivatives,
+//! extrapolation, limits of subdivision, bad input.
+
+use kinema::anim::{subdivide, Extrapolation, Interpolation, Scheme, Track};
+
+const T: [f64; 6] = [0.0, 0.5, 1.5, 2.0, 3.2, 4.0];
+const V: [f64; 6] = [1.0, -0.5, 2.0, 0.3, 0.8, -1.0];
+
+fn track(i: Interpolation) -> Track {
+    Track::new(&T, &V, 1, i, Extrapolation::Hold).unwrap()
+}
+
+fn at(tr: &Track, t: f64, order: usize) -> f64 {
+    let mut o = [0.0];
+    tr.eval(t, order, &mut o);
+    o[0]
+}
+
+fn interpolating() -> Vec<(&'static str, Interpolation)> {
+    vec![
+        ("step", Interpolation::Step),
+        ("linear", Interpolation::Linear),
+        ("polynomial", Interpolation::Polynomial),
+        ("natural", Interpolation::NaturalCubic),
+        ("clamped", Interpolation::ClampedCubic { start: vec![0.3], end: vec![-0.2] }),
+        ("hermite", Interpolation::Hermite { tangents: vec![0.1, 0.2, -0.3, 0.4, 0.0, 1.0] }),
+        ("cardinal", Interpolation::Cardinal { tension: 0.3 }),
+        ("kb", Interpolation::KochanekBartels { tension: 0.2, continuity: -0.4, bias: 0.3 }),
+        (
+            "bezier",
+            Interpolation::Bezier { handles: (0..10).map(|k| (k as f64 * 0.7).sin()).collect() },
+        ),
+    ]
+}
+
+#[test]
+fn interpolating_schemes_pass_through_their_keys() {
+    for (name, scheme) in interpolating() {
+        let tr = track(scheme);
+        for (t, v) in T.iter().zip(V) {
+            assert!((at(&tr, *t, 0) - v).abs() < 1e-12, "{name} at {t}");
+        }
+    }
+    // The B-spline approximates: it misses interior keys.
+    let b = track(Interpolation::BSpline);
+    assert!((at(&b, T[2], 0) - V[2]).abs() > 0.1);
+}
+
+/// Jump of the `order`-th derivative across key k.
+fn jump(tr: &Track, k: usize, order: usize) -> f64 {
+    let e = 1e-7;
+    (at(tr, T[k] + e, order) - at(tr, T[k] - e, order)).abs()
+}
+
+#[test]
+fn continuity_at_the_joins_is_what_each_scheme_promises() {
+    for (name, scheme, c1, c2) in [
+        ("natural", Interpolation::NaturalCubic, true, true),
+        ("clamped", Interpolation::ClampedCubic { start: vec![0.0], end: vec![0.0] }, true, true),
+        ("catmull-rom", Interpolation::Cardinal { tension: 0.0 }, true, false),
+        (
+            "kb continuity 0",
+            Interpolation::KochanekBartels { tension: 0.3, continuity: 0.0, bias: 0.4 },
+            true,
+            false,
+        ),
+        (
+            "kb continuity 0.5",
+            Interpolation::KochanekBartels { tension: 0.0, continuity: 0.5, bias: 0.0 },
+            false,
+            false,
+        ),
+        // Linear: kinks at the keys; its second derivative is zero on both sides.
+        ("linear", Interpolation::Linear, false, true),
+    ] {
+        let tr = track(scheme);
+        for k in 1..T.len() - 1 {
+            assert!(jump(&tr, k, 0) < 1e-5, "{name} C0 at {k}");
+            assert_eq!(jump(&tr, k, 1) < 1e-5, c1, "{name} C1 at {k}: {}", jump(&tr, k, 1));
+            assert_eq!(jump(&tr, k, 2) < 1e-4, c2, "{name} C2 at {k}: {}", jump(&tr, k, 2));
+        }
+    }
+    // The uniform B-spline is C2 on equally spaced keys.
+    let b = Track::new(
+        &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0],
+        &V,
+        1,
+        Interpolation::BSpline,
+        Extrapolation::Hold,
+    )
+    .unwrap();
+    for k in 1..5 {
+        let e = 1e-7;
+        let kt = k as f64;
+        for order in 0..3 {
+            assert!(
+                (at(&b, kt + e, order) - at(&b, kt - e, order)).abs() < 1e-4,
+                "bspline C{order} at {k}"
+            );
+        }
+    }
+    let natural = track(Interpolation::NaturalCubic);
+    assert!(at(&natural, 0.0, 2).abs() < 1e-12 && at(&natural, 4.0, 2).abs() < 1e-12);
+    let clamped = track(Interpolation::ClampedCubic { start: vec![0.3], end: vec![-0.2] });
+    assert!(
+        (at(&clamped, 0.0, 1) - 0.3).abs() < 1e-12 && (at(&clamped, 4.0, 1) + 0.2).abs() < 1e-12
+    );
+}
+
+#[test]
+fn derivatives_match_finite_differences() {
+    for (name, scheme) in interpolating().into_iter().chain([("bspline", Interpolation::BSpline)]) {
+        if name == "step" {
+            continue;
+        }
+        let tr = track(scheme);
+        for t in [0.2, 0.9, 1.7, 2.5, 3.9] {
+            let e = 1e-6;
+            let d1 = (at(&tr, t + e, 0) - at(&tr, t - e, 0)) / (2.0 * e);
+            let d2 = (at(&tr, t + e, 1) - at(&tr, t - e, 1)) / (2.0 * e);
+            assert!((at(&tr, t, 1) - d1).abs() < 1e-6 * (1.0 + d1.abs()), "{name} d1 at {t}");
+            assert!((at(&tr, t, 2) - d2).abs() < 1e-5 * (1.0 + d2.abs()), "{name} d2 at {t}");
+        }
+    }
+}
+
+#[test]
+fn polynomial_reproduces_a_cubic_and_catmull_rom_a_line() {
+    let f = |t: f64| 2.0 - t + 0.5 * t * t - 0.25 * t * t * t;
+    let v: Vec<f64> = T.iter().map(|&t| f(t)).collect();
+    let tr = Track::new(&T, &v, 1, Interpolation::Polynomial, Extrapolation::Hold).unwrap();
+    for t in [0.3, 1.1, 2.7, 3.5] {
+        assert!((at(&tr, t, 0) - f(t)).abs() < 1e-12);
+    }
+    let line: Vec<f64> = T.iter().map(|&t| 3.0 * t - 1.0).collect();
+    let tr =
+        Track::new(&T, &line, 1, Interpolation::Cardinal { tension: 0.0 }, Extrapolation::Hold)
+            .unwrap();
+    for t in [0.3, 1.1, 2.7, 3.5] {
+        assert!((at(&tr, t, 0) - (3.0 * t - 1.0)).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn extrapolation_modes_and_small_tracks() {
+    let mk = |e| Track::new(&T, &V, 1, Interpolation::NaturalCubic, e).unwrap();
+    let hold = mk(Extrapolation::Hold);
+    assert_eq!(at(&hold, -1.0, 0), V[0]);
+    assert_eq!(at(&hold, 9.0, 1), 0.0);
+    let lin = mk(Extrapolation::Linear);
+    let slope = at(&lin, 4.0, 1);
+    assert!((at(&lin, 5.0, 0) - (V[5] + slope)).abs() < 1e-12);
+    let cyc = mk(Extrapolation::Cycle);
+    assert!((at(&cyc, 4.0 + 1.7, 0) - at(&cyc, 1.7, 0)).abs() < 1e-12);
+    assert!((at(&cyc, -4.0 + 0.9, 0) - at(&cyc, 0.9, 0)).abs() < 1e-12);
+    let one =
+        Track::new(&[1.0], &[5.0], 1, Interpolation::NaturalCubic, Extrapolation::Linear).unwrap();
+    assert_eq!((at(&one, -3.0, 0), at(&one, 7.0, 1)), (5.0, 0.0));
+    let two =
+        Track::new(&[0.0, 1.0], &[0.0, 2.0], 1, Interpolation::NaturalCubic, Extrapolation::Hold)
+            .unwrap();
+    assert!((at(&two, 0.25, 0) - 0.5).abs() < 1e-15);
+    // Keys 1e-9 apart stay finite and interpolating.
+    let close = Track::new(
+        &[0.0, 1e-9, 1.0],
+        &[0.0, 1e-9, 1.0],
+        1,
+        Interpolation::NaturalCubic,
+        Extrapolation::Hold,
+    )
+    .unwrap();
+    assert!(at(&close, 0.5e-9, 0).is_finite() && (at(&close, 1e-9, 0) - 1e-9).abs() < 1e-18);
+}
+
+#[test]
+fn bad_keys_are_named() {
+    let e = Track::new(&[0.0, 2.0, 1.0], &[0.0; 3], 1, Interpolation::Linear, Extrapolation::Hold)
+        .unwrap_err();
+    assert!(e.to_string().contains("times[1] = 2 and times[2] = 1"), "{e}");
+    let e = Track::new(&[0.0, 1.0, 1.0], &[0.0; 3], 1, Interpolation::Linear, Extrapolation::Hold)
+        .unwrap_err();
+    assert!(e.to_string().contains("strictly increasing"));
+    assert!(Track::new(
+        &[0.0, 1.0],
+        &[0.0, f64::NAN],
+        1,
+        Interpolation::Linear,
+        Extrapolation::Hold
+    )
+    .is_err());
+    assert!(Track::new(&[], &[], 1, Interpolation::Linear, Extrapolation::Hold).is_err());
+    assert!(Track::new(
+        &[0.0, 1.0],
+        &[0.0, 1.0],
+        1,
+        Interpolation::Hermite { tangents: vec![1.0] },
+        Extrapolation::Hold
+    )
+    .is_err());
+    let tr = track(Interpolation::Linear);
+    let mut out = [0.0; 2];
+    assert!(tr.eval_many(&[0.0, f64::NAN], 0, &mut out).is_err());
+}
+
+fn dist(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt()
+}
+
+#[test]
+fn subdivision_limits() {
+    let square = [0.0, 0.0, 1.0, 0.0, 1.3, 1.0, -0.2, 0.8];
+    // Cubic B-spline subdivision: vertex i converges to (p_{i-1} + 4 p_i + p_{i+1}) / 6.
+    let mut errors = Vec::new();
+    for k in 1..6 {
+        let r = subdivide(&square, 2, Scheme::BSpline, k, true).unwrap();
+        let i = 1;
+        let limit = [
+            (square[0] + 4.0 * square[2] + square[4]) / 6.0,
+            (square[1] + 4.0 * square[3] + square[5]) / 6.0,
+        ];
+        let j = i << k;
+        errors.push(dist(&r[2 * j..2 * j + 2], &limit));
+    }
+    for w in errors.windows(2) {
+        assert!(w[1] < w[0] / 3.5, "{errors:?}"); // ~4x per round
+    }
+    // Chaikin converges to the closed quadratic B-spline of the polygon:
+    // C(u) = (1-u)²/2 p_i + (1 + 2u - 2u²)/2 p_{i+1} + u²/2 p_{i+2}.
+    let curve: Vec<[f64; 2]> = (0..4)
+        .flat_map(|i| {
+            (0..8000).map(move |s| {
+                let u = s as f64 / 8000.0;
+                let w = [(1.0 - u).powi(2) / 2.0, (1.0 + 2.0 * u - 2.0 * u * u) / 2.0, u * u / 2.0];
+                let p = |j: usize| [square[2 * ((i + j) % 4)], square[2 * ((i + j) % 4) + 1]];
+                [0, 1].map(|c| w[0] * p(0)[c] + w[1] * p(1)[c] + w[2] * p(2)[c])
+            })
+        })
+        .collect();
+    let gaps: Vec<f64> = (1..5)
+        .map(|k| {
+            let r = subdivide(&square, 2, Scheme::Chaikin, k, true).unwrap();
+            r.chunks(2)
+                .map(|p| curve.iter().map(|c| dist(p, c)).fold(f64::INFINITY, f64::min))
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    for w in gaps.windows(2) {
+        assert!(w[1] < w[0] / 3.0, "{gaps:?}"); // ~4x per round
+    }
+    // The 4-point scheme interpolates: the original points stay at indices i 2^k.
+    for closed in [true, false] {
+        let r = subdivide(&square, 2, Scheme::FourPoint, 3, closed).unwrap();
+        for i in 0..4 {
+            assert_eq!(&r[2 * (i << 3)..2 * (i << 3) + 2], &square[2 * i..2 * i + 2]);
+        }
+    }
+    // Open curves keep their end points.
+    for scheme in [Scheme::Chaikin, Scheme::BSpline, Scheme::FourPoint] {
+        let r = subdivide(&square, 2, scheme, 4, false).unwrap();
+        assert_eq!(&r[..2], &square[..2]);
+        assert_eq!(&r[r.len() - 2..], &square[6..]);
+    }
+    assert!(subdivide(&square[..2], 2, Scheme::Chaikin, 1, false).is_err());
+    assert!(subdivide(&[0.0, f64::NAN, 1.0, 1.0], 2, Scheme::Chaikin, 1, false).is_err());
+}
