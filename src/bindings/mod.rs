@@ -5,6 +5,7 @@
 
 use pyo3::prelude::*;
 
+mod anim;
 mod array;
 mod constraints;
 mod error;
@@ -24,5 +25,6 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     ode::register(m)?;
     particles::register(m)?;
     constraints::register(m)?;
+    anim::register(m)?;
     Ok(())
 }

@@ -1,0 +1,130 @@
+//! `kinema.anim`: compiled keyframe tracks and subdivision.
+
+use super::array::rows;
+use crate::anim::{subdivide, Extrapolation, Interpolation, Scheme, Track};
+use crate::error::Error;
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+
+fn matrix<'a>(arr: &'a PyReadonlyArrayDyn<'_, f64>, arg: &str) -> PyResult<(&'a [f64], usize)> {
+    let shape = arr.shape();
+    if shape.len() != 2 {
+        return Err(Error::Shape {
+            arg: arg.into(),
+            expected: "(N, D)".into(),
+            got: shape.to_vec(),
+        }
+        .into());
+    }
+    let flat =
+        arr.as_slice().map_err(|_| PyErr::from(Error::invalid(arg, "must be contiguous")))?;
+    Ok((flat, shape[1]))
+}
+
+/// A keyframed channel; see `kinema.anim.Track` for the documented API.
+#[pyclass(module = "kinema._kinema", frozen)]
+pub struct KeyTrack {
+    track: Track,
+}
+
+#[pymethods]
+impl KeyTrack {
+    /// `times` (N, 1), `values` (N, D), the scheme's name and its parameters.
+    #[new]
+    #[pyo3(signature = (times, values, interpolation, extrapolate, params, extra=None))]
+    fn new(
+        times: PyReadonlyArrayDyn<'_, f64>,
+        values: PyReadonlyArrayDyn<'_, f64>,
+        interpolation: &str,
+        extrapolate: &str,
+        params: Vec<f64>,
+        extra: Option<PyReadonlyArrayDyn<'_, f64>>,
+    ) -> PyResult<Self> {
+        let t: Vec<f64> = rows::<1>(&times, "times", &[1])?.iter().map(|r| r[0]).collect();
+        let (v, dim) = matrix(&values, "values")?;
+        let extra = match &extra {
+            Some(e) => Some(matrix(e, "tangents")?.0.to_vec()),
+            None => None,
+        };
+        let need_extra = |name: &str| {
+            extra.clone().ok_or_else(|| {
+                PyErr::from(Error::invalid(name, "is required for this interpolation"))
+            })
+        };
+        let p = |k: usize| params.get(k).copied().unwrap_or(0.0);
+        let interp = match interpolation {
+            "step" => Interpolation::Step,
+            "linear" => Interpolation::Linear,
+            "polynomial" => Interpolation::Polynomial,
+            "natural_cubic" => Interpolation::NaturalCubic,
+            "clamped_cubic" => {
+                let e = extra.clone().unwrap_or_else(|| vec![0.0; 2 * dim]);
+                if e.len() != 2 * dim {
+                    return Err(Error::invalid(
+                        "end_tangents",
+                        format!("expected 2 x {dim} values, got {}", e.len()),
+                    )
+                    .into());
+                }
+                Interpolation::ClampedCubic { start: e[..dim].to_vec(), end: e[dim..].to_vec() }
+            }
+            "hermite" => Interpolation::Hermite { tangents: need_extra("tangents")? },
+            "catmull_rom" => Interpolation::Cardinal { tension: 0.0 },
+            "cardinal" => Interpolation::Cardinal { tension: p(0) },
+            "kochanek_bartels" => {
+                Interpolation::KochanekBartels { tension: p(0), continuity: p(1), bias: p(2) }
+            }
+            "bezier" => Interpolation::Bezier { handles: need_extra("handles")? },
+            "bspline" => Interpolation::BSpline,
+            other => {
+                return Err(Error::invalid(
+                    "interpolation",
+                    format!("{other:?} is not a known interpolation"),
+                )
+                .into())
+            }
+        };
+        Ok(KeyTrack { track: Track::new(&t, v, dim, interp, Extrapolation::parse(extrapolate)?)? })
+    }
+
+    /// Values (order 0) or time derivatives (order 1, 2) at times `t` (M, 1): (M, D).
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        t: PyReadonlyArrayDyn<'py, f64>,
+        order: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let ts = rows::<1>(&t, "t", &[1])?.as_flattened();
+        let dim = self.track.dim();
+        let mut out = vec![0.0; ts.len() * dim];
+        let track = &self.track;
+        super::error::detached(py, || track.eval_many(ts, order, &mut out))?;
+        PyArray1::from_vec(py, out).reshape([ts.len(), dim])
+    }
+
+    /// Channel width D.
+    #[getter]
+    fn dim(&self) -> usize {
+        self.track.dim()
+    }
+}
+
+/// Subdivide the polygon `points` (N, D) by `scheme` `iterations` times; (M, D).
+#[pyfunction]
+fn anim_subdivide<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArrayDyn<'py, f64>,
+    scheme: &str,
+    iterations: usize,
+    closed: bool,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let (p, dim) = matrix(&points, "points")?;
+    let out = subdivide(p, dim, Scheme::parse(scheme)?, iterations, closed)?;
+    let m = out.len() / dim;
+    PyArray1::from_vec(py, out).reshape([m, dim])
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<KeyTrack>()?;
+    m.add_function(wrap_pyfunction!(anim_subdivide, m)?)
+}

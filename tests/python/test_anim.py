@@ -1,0 +1,113 @@
+"""kinema.anim against scipy.interpolate, plus keys, extremes and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.interpolate import CubicHermiteSpline, CubicSpline
+
+from kinema.anim import Track, subdivide
+
+T = np.array([0.0, 0.4, 1.1, 1.5, 2.9, 3.0, 4.2])
+V = np.array([[0.0, 1.0], [1.0, -1.0], [0.5, 2.0], [-0.3, 0.0], [2.0, 1.0], [2.1, 1.5], [0.0, 0.0]])
+S = np.linspace(-0.0, 4.2, 997)
+
+
+def test_natural_and_clamped_cubic_agree_with_scipy():
+    nat = Track(T, V, "natural_cubic")
+    ref = CubicSpline(T, V, bc_type="natural")
+    for n in range(3):
+        got = nat(S) if n == 0 else nat.derivative(n)(S)
+        np.testing.assert_allclose(got, ref(S, n), atol=1e-12 * (1 + np.abs(ref(S, n)).max()))
+    ends = np.array([[0.5, -1.0], [2.0, 0.3]])
+    cl = Track(T, V, "clamped_cubic", end_tangents=ends)
+    ref = CubicSpline(T, V, bc_type=((1, ends[0]), (1, ends[1])))
+    np.testing.assert_allclose(cl(S), ref(S), atol=1e-12)
+    np.testing.assert_allclose(
+        Track(T, V, "clamped_cubic")(S), CubicSpline(T, V, bc_type="clamped")(S), atol=1e-12
+    )
+
+
+def test_hermite_agrees_with_scipy():
+    m = np.sin(np.arange(14.0)).reshape(7, 2)
+    tr = Track(T, V, "hermite", tangents=m)
+    ref = CubicHermiteSpline(T, V, m)
+    np.testing.assert_allclose(tr(S), ref(S), atol=1e-12)
+    np.testing.assert_allclose(tr.derivative()(S), ref(S, 1), atol=1e-11)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {"interpolation": "step"},
+        {"interpolation": "linear"},
+        {"interpolation": "polynomial"},
+        {"interpolation": "catmull_rom"},
+        {"interpolation": "cardinal", "tension": 0.5},
+        {"interpolation": "kochanek_bartels", "tension": 0.2, "continuity": 0.3, "bias": -0.4},
+        {"interpolation": "bezier", "handles": np.ones((6, 2, 2))},
+    ],
+)
+def test_interpolating_schemes_hit_their_keys(kw):
+    tr = Track(T, V, **kw)
+    np.testing.assert_allclose(tr(T), V, atol=1e-12)
+
+
+def test_scalar_channels_shapes_and_extrapolation():
+    tr = Track([0.0, 1.0, 2.0], [0.0, 1.0, 0.0], "catmull_rom", "cycle")
+    assert isinstance(tr(0.5), float)
+    assert tr(np.zeros((2, 3))).shape == (2, 3)
+    assert tr(2.5) == pytest.approx(tr(0.5))
+    lin = Track([0.0, 1.0], [0.0, 2.0], "linear", "linear")
+    assert lin(3.0) == pytest.approx(6.0)
+    assert Track([1.0], [7.0])(5.0) == 7.0
+
+
+def test_million_keys_and_close_keys():
+    t = np.linspace(0, 1, 1_000_001)
+    tr = Track(t, np.sin(t), "natural_cubic")
+    s = np.random.default_rng(0).uniform(0, 1, 1000)
+    np.testing.assert_allclose(tr(s), np.sin(s), atol=1e-12)
+    close = Track([0.0, 1e-9, 1.0], [0.0, 1e-9, 1.0], "natural_cubic")
+    assert np.isfinite(close(np.linspace(0, 1, 11))).all()
+
+
+def test_bad_input_names_the_problem():
+    with pytest.raises(
+        ValueError, match=r"times\[1\] = 2.0 and times\[2\] = 1.0|times\[1\] = 2 and times\[2\] = 1"
+    ):
+        Track([0.0, 2.0, 1.0], [0.0, 1.0, 2.0])
+    with pytest.raises(ValueError, match="strictly increasing"):
+        Track([0.0, 1.0, 1.0], [0.0, 1.0, 2.0])
+    with pytest.raises(ValueError, match=r"values\[1\]"):
+        Track([0.0, 1.0], [0.0, np.nan])
+    with pytest.raises(ValueError, match="interpolation"):
+        Track([0.0, 1.0], [0.0, 1.0], "akima")
+    with pytest.raises(ValueError, match="tangents"):
+        Track([0.0, 1.0], [0.0, 1.0], "hermite")
+    with pytest.raises(ValueError, match=r"t\[1\]"):
+        Track([0.0, 1.0], [0.0, 1.0])([0.5, np.nan])
+    with pytest.warns(RuntimeWarning, match="Runge"):
+        Track(np.arange(12.0), np.zeros(12), "polynomial")
+
+
+def test_subdivision_shapes_and_interpolation():
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    assert subdivide(square, "chaikin", 2, closed=True).shape == (16, 2)
+    four = subdivide(square, "four_point", 2, closed=True)
+    np.testing.assert_array_equal(four[::4], square)
+    with pytest.raises(ValueError, match="scheme"):
+        subdivide(square, "loop")
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.lists(st.floats(-10, 10), min_size=3, max_size=12),
+    st.sampled_from(["natural_cubic", "catmull_rom", "linear"]),
+)
+def test_property_interpolation_hits_keys(values, scheme):
+    t = np.cumsum(np.linspace(0.5, 1.5, len(values)))
+    tr = Track(t, values, scheme)
+    np.testing.assert_allclose(tr(t), values, atol=1e-9 * (1 + np.abs(values).max()))
