@@ -9,5 +9,6 @@ DEMOS: dict[str, str] = {
     "particles": "a fountain with an emitter, a vortex, turbulence and a ground plane",
     "integrators": "stability regions and a work-precision diagram of the ODE methods",
     "constraints": "a bead on a wire with and without drift feedback, and a rope of rods",
+    "keyframes": "a bouncing ball and a camera path under several interpolation schemes",
     "rigid": "the tumbling T-handle and the drift of each rotation integrator",
 }
