@@ -185,16 +185,13 @@ class Rotation:
         the first carries the combined rotation, and a :class:`GimbalLockWarning` is issued.
         No valid input gives NaN.
         """
-        out = _kinema.quat_to_euler(_check_seq(seq), self._quat)
-        locked = out[:, 3] != 0.0
-        if locked.any():
+        angles, locked = _kinema.quat_to_euler(_check_seq(seq), self._quat)
+        if locked:
             warnings.warn(
-                f"gimbal lock in {int(locked.sum())} of {len(locked)} rotations "
-                f"(sequence {seq!r}): third angle set to 0",
+                f"gimbal lock in {locked} of {len(angles)} rotations (sequence {seq!r}): third angle set to 0",
                 GimbalLockWarning,
                 stacklevel=2,
             )
-        angles = np.ascontiguousarray(out[:, :3])
         return self._out(np.rad2deg(angles) if degrees else angles)
 
     # ------------------------------------------------------------------ algebra

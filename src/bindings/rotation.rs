@@ -133,22 +133,27 @@ fn euler_to_quat<'py>(
     compute(py, input.len(), &[4], |out| map(input, out, |a| Ok(wxyz(seq.to_quat(a)?))))
 }
 
-/// Euler angles (N, 3) in sequence `seq` of quaternions (N, 4), plus a fourth column that is
-/// 1.0 where the decomposition is gimbal-locked (third angle set to 0) and 0.0 elsewhere.
+/// Euler angles (N, 3) in sequence `seq` of quaternions (N, 4), and how many of them are
+/// gimbal-locked (third angle set to 0).
 #[pyfunction]
 fn quat_to_euler<'py>(
     py: Python<'py>,
     seq: &str,
     quat: PyReadonlyArrayDyn<'py, f64>,
-) -> PyResult<Array<'py>> {
+) -> PyResult<(Array<'py>, usize)> {
     let seq = EulerSequence::parse(seq)?;
     let input = rows::<4>(&quat, "quat", &[4])?;
-    compute(py, input.len(), &[4], |out| {
+    let locked = std::sync::atomic::AtomicUsize::new(0);
+    let angles = compute(py, input.len(), &[3], |out| {
         map(input, out, |r| {
-            let ([a, b, c], locked) = seq.from_quat(q(r)?);
-            Ok([a, b, c, f64::from(u8::from(locked))])
+            let (angles, lock) = seq.from_quat(q(r)?);
+            if lock {
+                locked.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
+            Ok(angles)
         })
-    })
+    })?;
+    Ok((angles, locked.into_inner()))
 }
 
 /// Whether Euler angles (N, 3) in `seq` are within `atol` of gimbal lock: (N, 1) of 0.0/1.0.
