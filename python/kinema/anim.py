@@ -15,8 +15,11 @@ shape ``(N-1, 2, D)``), ``"bspline"`` (uniform cubic, approximating). Extrapolat
 ``subdivide(points, scheme, iterations, closed)``: Chaikin, cubic B-spline and 4-point
 subdivision.
 
-Not implemented yet: orientation tracks (slerp, squad, rotation spline), ``Clip``, easing
-and arc-length reparameterisation (see docs/anim.md).
+``RotationTrack(times, rotations, interpolation="slerp" | "squad")`` interpolates
+orientations on the shorter arcs and gives their angular velocity.
+
+Not implemented yet: the C2 rotation spline, ``Clip``, easing and arc-length
+reparameterisation (see docs/anim.md).
 """
 
 from __future__ import annotations
@@ -27,8 +30,9 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
+from kinema.rotation import Rotation
 
-__all__ = ["Track", "subdivide"]
+__all__ = ["RotationTrack", "Track", "subdivide"]
 
 INTERPOLATIONS = (
     "step",
@@ -142,3 +146,33 @@ def subdivide(
     if not isinstance(iterations, (int, np.integer)) or iterations < 0:
         raise ValueError(f"iterations: expected a non-negative integer, got {iterations!r}")
     return _kinema.anim_subdivide(np.ascontiguousarray(p), scheme, int(iterations), bool(closed))
+
+
+class RotationTrack:
+    """Keyframed orientations: ``rotations`` (a stack of N :class:`kinema.Rotation`) at
+    strictly increasing ``times`` ``(N,)``; ``interpolation`` is ``"slerp"`` (constant angular
+    velocity per segment) or ``"squad"`` (Shoemake's spherical quadrangles, C1 for equally
+    spaced keys). Keys are held outside the time range."""
+
+    def __init__(self, times: Any, rotations: Rotation, interpolation: str = "slerp") -> None:
+        t = _float(times, "times")
+        if t.ndim != 1:
+            raise ValueError(f"times: expected shape (N,), got {t.shape}")
+        if not isinstance(rotations, Rotation) or rotations.single:
+            raise ValueError("rotations: expected a stack of kinema.Rotation")
+        q = rotations.as_quat()
+        self._track = _kinema.KeyRotationTrack(
+            np.ascontiguousarray(t.reshape(-1, 1)), q, interpolation
+        )
+
+    def __call__(self, t: Any) -> Rotation:
+        """The orientation(s) at time ``t`` (a single Rotation for a scalar ``t``)."""
+        tt = _float(t, "t")
+        q = self._track.eval(np.ascontiguousarray(tt.reshape(-1, 1)))
+        return Rotation.from_quat(q[0] if tt.ndim == 0 else q)
+
+    def angular_velocity(self, t: Any) -> np.ndarray:
+        """Angular velocity (rad/s, world frame), ``(3,)`` or ``t.shape + (3,)``."""
+        tt = _float(t, "t")
+        w = self._track.angular_velocity(np.ascontiguousarray(tt.reshape(-1, 1)))
+        return w[0] if tt.ndim == 0 else w.reshape(*tt.shape, 3)

@@ -19,8 +19,10 @@
 //! | uniform cubic B-spline | C2 | no (keys are control points) |
 //! | Lagrange polynomial | C∞ | yes (one polynomial; oscillates for many keys, Runge) |
 
+mod rotation_track;
 mod subdivide;
 mod track;
 
+pub use rotation_track::{RotationInterpolation, RotationTrack};
 pub use subdivide::{subdivide, Scheme};
 pub use track::{Extrapolation, Interpolation, Track};

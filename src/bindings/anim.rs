@@ -1,7 +1,10 @@
 //! `kinema.anim`: compiled keyframe tracks and subdivision.
 
+use super::array::compute;
 use super::array::rows;
-use crate::anim::{subdivide, Extrapolation, Interpolation, Scheme, Track};
+use crate::anim::{
+    subdivide, Extrapolation, Interpolation, RotationInterpolation, RotationTrack, Scheme, Track,
+};
 use crate::error::Error;
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -124,7 +127,73 @@ fn anim_subdivide<'py>(
     PyArray1::from_vec(py, out).reshape([m, dim])
 }
 
+/// A keyframed orientation; see `kinema.anim.RotationTrack` for the documented API.
+#[pyclass(module = "kinema._kinema", frozen)]
+pub struct KeyRotationTrack {
+    track: RotationTrack,
+}
+
+#[pymethods]
+impl KeyRotationTrack {
+    /// `times` (N, 1), `quats` (N, 4) scalar-first, `interpolation` slerp | squad.
+    #[new]
+    fn new(
+        times: PyReadonlyArrayDyn<'_, f64>,
+        quats: PyReadonlyArrayDyn<'_, f64>,
+        interpolation: &str,
+    ) -> PyResult<Self> {
+        let t: Vec<f64> = rows::<1>(&times, "times", &[1])?.iter().map(|r| r[0]).collect();
+        let q = rows::<4>(&quats, "rotations", &[4])?;
+        let mode = match interpolation {
+            "slerp" => RotationInterpolation::Slerp,
+            "squad" => RotationInterpolation::Squad,
+            other => {
+                return Err(Error::invalid(
+                    "interpolation",
+                    format!("{other:?} is not slerp or squad"),
+                )
+                .into())
+            }
+        };
+        Ok(KeyRotationTrack { track: RotationTrack::new(&t, q, mode)? })
+    }
+
+    /// Orientations (M, 4) at times `t` (M, 1).
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        t: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
+        let ts = rows::<1>(&t, "t", &[1])?.as_flattened();
+        let track = &self.track;
+        compute(py, ts.len(), &[4], |out| track.eval_many(ts, out))
+    }
+
+    /// Angular velocities (M, 3), rad/s in the world frame, at times `t` (M, 1).
+    fn angular_velocity<'py>(
+        &self,
+        py: Python<'py>,
+        t: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
+        let ts = rows::<1>(&t, "t", &[1])?.as_flattened();
+        if let Some(i) = ts.iter().position(|x| !x.is_finite()) {
+            return Err(Error::InvalidInput {
+                arg: "t".into(),
+                index: Some(i),
+                reason: "is NaN or infinite".into(),
+            }
+            .into());
+        }
+        let track = &self.track;
+        compute(py, ts.len(), &[3], |out| {
+            out.iter_mut().zip(ts).for_each(|(o, &t)| *o = track.angular_velocity(t).to_array());
+            Ok(())
+        })
+    }
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<KeyTrack>()?;
+    m.add_class::<KeyRotationTrack>()?;
     m.add_function(wrap_pyfunction!(anim_subdivide, m)?)
 }

@@ -111,3 +111,36 @@ def test_property_interpolation_hits_keys(values, scheme):
     t = np.cumsum(np.linspace(0.5, 1.5, len(values)))
     tr = Track(t, values, scheme)
     np.testing.assert_allclose(tr(t), values, atol=1e-9 * (1 + np.abs(values).max()))
+
+
+def test_rotation_track_slerp_matches_scipy_and_squad_is_smooth():
+    from scipy.spatial.transform import Rotation as R
+    from scipy.spatial.transform import Slerp
+
+    from kinema import Rotation
+    from kinema.anim import RotationTrack
+
+    times = np.array([0.0, 0.7, 1.5, 2.0, 3.1])
+    keys = Rotation.random(5, seed=5)
+    s = np.linspace(0, 3.1, 401)
+    ours = RotationTrack(times, keys, "slerp")(s)
+    ref = Slerp(times, R.from_quat(keys.as_quat(), scalar_first=True))(s)
+    np.testing.assert_allclose(ours.as_matrix(), ref.as_matrix(), atol=1e-12)
+    tr = RotationTrack(times, keys, "slerp")
+    w = tr.angular_velocity(0.3)
+    expected = (keys[1] * keys[0].inv()).as_rotvec() / 0.7
+    np.testing.assert_allclose(w, expected, atol=1e-12)
+
+    uniform = np.arange(5.0)
+    sq = RotationTrack(uniform, keys, "squad")
+    assert np.all((sq(uniform) * keys.inv()).magnitude() < 1e-12)  # passes through its keys
+    q = sq(np.linspace(0, 4, 101)).as_quat()
+    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-15)
+    # C1: the angular velocity is continuous across interior keys (slerp's jumps).
+    for k in (1.0, 2.0, 3.0):
+        jump_squad = np.linalg.norm(sq.angular_velocity(k + 1e-4) - sq.angular_velocity(k - 1e-4))
+        sl = RotationTrack(uniform, keys, "slerp")
+        jump_slerp = np.linalg.norm(sl.angular_velocity(k + 1e-4) - sl.angular_velocity(k - 1e-4))
+        assert jump_squad < 1e-2 < jump_slerp
+    with pytest.raises(ValueError, match="interpolation"):
+        RotationTrack(times, keys, "spline")
