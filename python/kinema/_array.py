@@ -42,3 +42,11 @@ def as_scalars(value: object, name: str) -> tuple[np.ndarray, bool]:
     if arr.ndim == 1:
         return np.ascontiguousarray(arr.reshape(-1, 1)), False
     raise ValueError(f"{name}: expected a scalar or shape (N,), got {arr.shape}")
+
+
+def as_vector3(value: object, name: str) -> list[float]:
+    """One 3-vector as a list of floats, or ValueError naming ``name`` (any other shape)."""
+    arr, single = as_batch(value, name, (3,))
+    if not single:
+        raise ValueError(f"{name}: expected one 3-vector, got shape {arr.shape}")
+    return arr[0].tolist()

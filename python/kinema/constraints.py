@@ -26,16 +26,10 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
+from kinema._array import as_vector3
 from kinema.particles import ParticleSystem
 
 __all__ = ["ConstrainedSystem", "Distance", "Fixed", "OnPlane", "OnSphere"]
-
-
-def _v(value: Any, name: str) -> list[float]:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape != (3,):
-        raise ValueError(f"{name}: expected a 3-vector, got shape {arr.shape}")
-    return arr.tolist()
 
 
 @dataclass(frozen=True)
@@ -106,21 +100,21 @@ class ConstrainedSystem:
                 "on_sphere",
                 int(constraint.i),
                 0,
-                [*_v(constraint.center, "center"), float(constraint.radius)],
+                [*as_vector3(constraint.center, "center"), float(constraint.radius)],
             )
         elif isinstance(constraint, OnPlane):
             self._sys.add(
                 "on_plane",
                 int(constraint.i),
                 0,
-                [*_v(constraint.point, "point"), *_v(constraint.normal, "normal")],
+                [*as_vector3(constraint.point, "point"), *as_vector3(constraint.normal, "normal")],
             )
         elif isinstance(constraint, Fixed):
             i = int(constraint.i)
             if constraint.point is None and not 0 <= i < len(x):
                 raise ValueError(f"i: particle index must lie in [0, {len(x)})")
             point = x[i] if constraint.point is None else constraint.point
-            self._sys.add("fixed", i, 0, _v(point, "point"))
+            self._sys.add("fixed", i, 0, as_vector3(point, "point"))
         else:
             raise ValueError(
                 f"constraint: expected Distance, OnSphere, OnPlane or Fixed, got {constraint!r}"

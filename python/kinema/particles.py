@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch, as_scalars
+from kinema._array import as_batch, as_scalars, as_vector3
 
 __all__ = [
     "Attractor",
@@ -41,13 +41,6 @@ __all__ = [
     "Turbulence",
     "Vortex",
 ]
-
-
-def _v(value: Any, name: str) -> list[float]:
-    arr, single = as_batch(value, name, (3,))
-    if not single:
-        raise ValueError(f"{name}: expected one 3-vector, got shape {np.shape(value)}")
-    return arr[0].tolist()
 
 
 @dataclass(frozen=True)
@@ -190,9 +183,11 @@ class ParticleSystem:
         """Add a force, a collider or an emitter."""
         s = self._sys
         if isinstance(item, Gravity):
-            s.add_force("gravity", _v(item.g, "g"))
+            s.add_force("gravity", as_vector3(item.g, "g"))
         elif isinstance(item, Drag):
-            s.add_force("drag", [float(item.linear), float(item.quadratic), *_v(item.wind, "wind")])
+            s.add_force(
+                "drag", [float(item.linear), float(item.quadratic), *as_vector3(item.wind, "wind")]
+            )
         elif isinstance(item, Damping):
             s.add_force("damping", [float(item.rate)])
         elif isinstance(item, Springs):
@@ -214,14 +209,14 @@ class ParticleSystem:
         elif isinstance(item, Attractor):
             s.add_force(
                 "attractor",
-                [*_v(item.center, "center"), float(item.strength), float(item.softening)],
+                [*as_vector3(item.center, "center"), float(item.strength), float(item.softening)],
             )
         elif isinstance(item, Vortex):
             s.add_force(
                 "vortex",
                 [
-                    *_v(item.center, "center"),
-                    *_v(item.axis, "axis"),
+                    *as_vector3(item.center, "center"),
+                    *as_vector3(item.axis, "axis"),
                     float(item.strength),
                     float(item.core),
                 ],
@@ -238,8 +233,8 @@ class ParticleSystem:
             s.add_collider(
                 "plane",
                 [
-                    *_v(item.point, "point"),
-                    *_v(item.normal, "normal"),
+                    *as_vector3(item.point, "point"),
+                    *as_vector3(item.normal, "normal"),
                     float(item.restitution),
                     float(item.friction),
                 ],
@@ -248,7 +243,7 @@ class ParticleSystem:
             s.add_collider(
                 "sphere",
                 [
-                    *_v(item.center, "center"),
+                    *as_vector3(item.center, "center"),
                     float(item.radius),
                     float(bool(item.inside)),
                     float(item.restitution),
@@ -259,9 +254,9 @@ class ParticleSystem:
             s.add_emitter(
                 [
                     float(item.rate),
-                    *_v(item.position, "position"),
+                    *as_vector3(item.position, "position"),
                     float(item.position_spread),
-                    *_v(item.velocity, "velocity"),
+                    *as_vector3(item.velocity, "velocity"),
                     float(item.velocity_spread),
                     float(item.lifespan),
                     float(item.mass),

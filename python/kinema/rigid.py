@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch
+from kinema._array import as_batch, as_vector3
 from kinema.rotation import Rotation
 
 __all__ = ["Body", "Box", "Capsule", "Cylinder", "Mesh", "Sphere", "World"]
@@ -107,13 +107,6 @@ class Body:
         return np.array(self._world.center_of_mass(self._index))
 
 
-def _vec(value: Any, name: str) -> list[float]:
-    arr, single = as_batch(value, name, (3,))
-    if not single:
-        raise ValueError(f"{name}: expected one 3-vector, got shape {np.shape(value)}")
-    return arr[0].tolist()
-
-
 class World:
     """Free rigid bodies in a uniform gravity field, stepped with one clock.
 
@@ -122,7 +115,7 @@ class World:
     """
 
     def __init__(self, gravity: Any = (0.0, -9.81, 0.0), integrator: str = "splitting") -> None:
-        self._world = _kinema.RigidWorld(_vec(gravity, "gravity"), integrator)
+        self._world = _kinema.RigidWorld(as_vector3(gravity, "gravity"), integrator)
 
     def add_body(
         self,
@@ -147,7 +140,7 @@ class World:
         if isinstance(shape, Sphere):
             kind, dims = "sphere", [float(shape.radius)]
         elif isinstance(shape, Box):
-            kind, dims = "box", _vec(shape.half_extents, "half_extents")
+            kind, dims = "box", as_vector3(shape.half_extents, "half_extents")
         elif isinstance(shape, Capsule):
             kind, dims = "capsule", [float(shape.radius), float(shape.height)]
         elif isinstance(shape, Cylinder):
@@ -170,10 +163,10 @@ class World:
             tris,
             density,
             mass,
-            _vec(position, "position"),
+            as_vector3(position, "position"),
             rot.as_quat().tolist(),
-            _vec(velocity, "velocity"),
-            _vec(angular_velocity, "angular_velocity"),
+            as_vector3(velocity, "velocity"),
+            as_vector3(angular_velocity, "angular_velocity"),
             bool(fixed),
         )
 
@@ -200,7 +193,7 @@ class World:
         if point is None:
             com = self.bodies[body].center_of_mass
             point = Rotation.from_quat(self.orientations[body]).apply(com) + self.positions[body]
-        self._world.apply_force(int(body), _vec(force, "force"), _vec(point, "point"))
+        self._world.apply_force(int(body), as_vector3(force, "force"), as_vector3(point, "point"))
 
     @property
     def positions(self) -> np.ndarray:

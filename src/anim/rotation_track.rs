@@ -47,24 +47,7 @@ impl RotationTrack {
                 "need one rotation per key time and at least one key",
             ));
         }
-        if let Some(i) = times.iter().position(|t| !t.is_finite()) {
-            return Err(Error::InvalidInput {
-                arg: "times".into(),
-                index: Some(i),
-                reason: "is NaN or infinite".into(),
-            });
-        }
-        if let Some(k) = times.windows(2).position(|w| w[1] <= w[0]) {
-            return Err(Error::invalid(
-                "times",
-                format!(
-                    "must be strictly increasing: times[{k}] = {} and times[{}] = {}",
-                    times[k],
-                    k + 1,
-                    times[k + 1]
-                ),
-            ));
-        }
+        super::track::check_times(times)?;
         let mut keys = Vec::with_capacity(quats.len());
         for (i, q) in quats.iter().enumerate() {
             let mut q = quat_from_wxyz(q).map_err(|e| e.at(i))?;

@@ -145,6 +145,30 @@ fn spline_slopes(t: &[f64], p: &[f64], ends: Option<(f64, f64)>) -> Vec<f64> {
     m
 }
 
+/// Key times must be finite and strictly increasing; the error names the first bad index
+/// (or pair of indices).
+pub(crate) fn check_times(times: &[f64]) -> Result<()> {
+    if let Some(i) = times.iter().position(|t| !t.is_finite()) {
+        return Err(Error::InvalidInput {
+            arg: "times".into(),
+            index: Some(i),
+            reason: "is NaN or infinite".into(),
+        });
+    }
+    if let Some(k) = times.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(Error::invalid(
+            "times",
+            format!(
+                "must be strictly increasing: times[{k}] = {} and times[{}] = {}",
+                times[k],
+                k + 1,
+                times[k + 1]
+            ),
+        ));
+    }
+    Ok(())
+}
+
 impl Track {
     /// A track through `values` (`n x dim`, row-major) at strictly increasing `times` (s).
     ///
@@ -169,24 +193,7 @@ impl Track {
                 format!("expected {n} x {dim} values, got {}", values.len()),
             ));
         }
-        if let Some(i) = times.iter().position(|t| !t.is_finite()) {
-            return Err(Error::InvalidInput {
-                arg: "times".into(),
-                index: Some(i),
-                reason: "is NaN or infinite".into(),
-            });
-        }
-        if let Some(k) = times.windows(2).position(|w| w[1] <= w[0]) {
-            return Err(Error::invalid(
-                "times",
-                format!(
-                    "must be strictly increasing: times[{k}] = {} and times[{}] = {}",
-                    times[k],
-                    k + 1,
-                    times[k + 1]
-                ),
-            ));
-        }
+        check_times(times)?;
         if let Some(i) = values.iter().position(|v| !v.is_finite()) {
             return Err(Error::InvalidInput {
                 arg: "values".into(),

@@ -260,17 +260,8 @@ impl ConstrainedSystem {
     pub fn constraint_forces(&mut self, particles: &mut ParticleSystem) -> Result<Vec<DVec3>> {
         let n = particles.capacity();
         self.prepare(n)?;
-        let (free, y, inv_mass, time) = particles.parts();
-        let inv_mass = inv_mass.to_vec();
-        let mut system = Constrained {
-            free,
-            constraints: &self.constraints,
-            inv_mass: &inv_mass,
-            ks: self.ks,
-            kd: self.kd,
-            solver: self.solver,
-            work: &mut self.work,
-        };
+        let (mut system, y, time) =
+            assemble(&self.constraints, self.ks, self.kd, self.solver, &mut self.work, particles);
         let mut dydt = vec![0.0; 6 * n];
         system.rhs(*time, y, &mut dydt)?;
         let mut forces = vec![DVec3::ZERO; n];
@@ -316,18 +307,9 @@ impl ConstrainedSystem {
         }
         let n = particles.capacity();
         self.prepare(n)?;
-        let (free, y, inv_mass, time) = particles.parts();
-        let inv_mass = inv_mass.to_vec();
         let mut next = vec![0.0; 6 * n];
-        let mut system = Constrained {
-            free,
-            constraints: &self.constraints,
-            inv_mass: &inv_mass,
-            ks: 0.0,
-            kd: 0.0,
-            solver: self.solver,
-            work: &mut self.work,
-        };
+        let (mut system, y, time) =
+            assemble(&self.constraints, 0.0, 0.0, self.solver, &mut self.work, particles);
         for s in 0..steps {
             // next = [v; a_free]; v* = v + h a_free.
             system.free.rhs(*time, y, &mut next)?;
@@ -347,7 +329,7 @@ impl ConstrainedSystem {
             let w = &mut *system.work;
             for (r, row) in w.rows.iter().enumerate() {
                 for &(p, g) in &row.blocks[..row.count] {
-                    let dv = inv_mass[p] * w.lambda[r] * g;
+                    let dv = system.inv_mass[p] * w.lambda[r] * g;
                     for k in 0..3 {
                         next[3 * n + 3 * p + k] += dv[k];
                     }
@@ -372,7 +354,7 @@ impl ConstrainedSystem {
                 let w = &mut *system.work;
                 for (r, row) in w.rows.iter().enumerate() {
                     for &(p, g) in &row.blocks[..row.count] {
-                        let dx = inv_mass[p] * w.lambda[r] * g;
+                        let dx = system.inv_mass[p] * w.lambda[r] * g;
                         for k in 0..3 {
                             next[3 * p + k] += dx[k];
                         }
@@ -410,17 +392,8 @@ impl ConstrainedSystem {
         }
         self.prepare(n)?;
         let stepper = self.stepper.as_mut().expect("created above");
-        let (free, y, inv_mass, time) = particles.parts();
-        let inv_mass = inv_mass.to_vec();
-        let mut system = Constrained {
-            free,
-            constraints: &self.constraints,
-            inv_mass: &inv_mass,
-            ks: self.ks,
-            kd: self.kd,
-            solver: self.solver,
-            work: &mut self.work,
-        };
+        let (mut system, y, time) =
+            assemble(&self.constraints, self.ks, self.kd, self.solver, &mut self.work, particles);
         for s in 0..steps {
             stepper.step(&mut system, *time, y, dt).map_err(|e| match e {
                 Error::Diverged { index, reason, .. } => {
@@ -476,6 +449,19 @@ impl ConstrainedSystem {
         self.work.chol = Some(SparseCholesky::new(m, col_ptr, row_idx)?);
         Ok(())
     }
+}
+
+/// The constrained equations of motion over `particles`, with the particle state and clock.
+fn assemble<'a>(
+    constraints: &'a [Constraint],
+    ks: f64,
+    kd: f64,
+    solver: ConstraintSolver,
+    work: &'a mut Work,
+    particles: &'a mut ParticleSystem,
+) -> (Constrained<'a>, &'a mut [f64], &'a mut f64) {
+    let (free, y, inv_mass, time) = particles.parts();
+    (Constrained { free, constraints, inv_mass, ks, kd, solver, work }, y, time)
 }
 
 /// Evaluate every constraint row at `y = [x; v]`.
