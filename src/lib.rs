@@ -10,6 +10,7 @@ pub mod batch;
 pub mod constraints;
 pub mod error;
 pub mod linalg;
+pub mod mocap;
 pub mod ode;
 pub mod particles;
 pub mod rigid;

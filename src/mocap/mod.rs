@@ -1,0 +1,189 @@
+//! Acclaim ASF/AMC motion capture: parsing into a typed [`Skeleton`] and [`Motion`], and
+//! forward kinematics of whole motions.
+//!
+//! The format (Acclaim, "ASF/AMC file format specification", 1994, and its CMU reading in the
+//! Graphics Lab viewer): every bone has a rest `direction` (unit vector, global axes), a
+//! `length`, and an `axis` (three angles and an order such as `XYZ`) that gives its local frame
+//! `C` relative to the global axes; `C` is the extrinsic rotation about the global axes in the
+//! order written (`XYZ`: first about x, then y, then z — kinema's lower-case sequence `xyz`).
+//! A frame of the AMC gives each bone's `dof` values; the rotation `M` they make is composed
+//! the same way, in the order the `dof` line lists them. The bone's global orientation is
+//!
+//! `R_bone = R_parent · C · M · C⁻¹`
+//!
+//! and its tip is at `p_parent_tip + length · R_bone · direction`. The root's translation and
+//! rotation come from the AMC in the root's `order`, its rotation order from the root `axis`.
+//!
+//! Lengths and root translations stay in the file's units (`Skeleton::length_unit` keeps the
+//! `:units length` value as read); [`Skeleton::metres_per_unit`] documents the CMU reading
+//! (1 unit = 1/length_unit inches) without ever applying it silently.
+
+mod parse;
+
+pub use parse::{parse_amc, parse_asf};
+
+use crate::error::{Error, Result};
+use crate::rotation::EulerSequence;
+use glam::{DQuat, DVec3};
+use rayon::prelude::*;
+
+/// One bone of an Acclaim skeleton, as read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Bone {
+    /// Bone name.
+    pub name: String,
+    /// Index of the parent joint in [`Skeleton::bones`] (`None`: attached to the root).
+    pub parent: Option<usize>,
+    /// Rest direction (unit vector, global axes).
+    pub direction: DVec3,
+    /// Length (file units).
+    pub length: f64,
+    /// Local frame `C` relative to the global axes.
+    pub axis: DQuat,
+    /// Degrees of freedom in file order: (axis 0/1/2, is_translation). `l` (length) dofs are
+    /// read and ignored in the pose.
+    pub dofs: Vec<Dof>,
+    /// Limits per dof (lower, upper), in radians for rotations, as read.
+    pub limits: Vec<(f64, f64)>,
+}
+
+/// A degree of freedom of a bone or of the root.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Dof {
+    /// Rotation about axis 0 (x), 1 (y) or 2 (z).
+    Rotation(usize),
+    /// Translation along axis 0, 1 or 2.
+    Translation(usize),
+    /// Bone length change (`l`), read and ignored.
+    Length,
+}
+
+/// An Acclaim skeleton: the root and a tree of bones, in file order (parents first).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skeleton {
+    /// Name from `:name`.
+    pub name: String,
+    /// `:units length` as read (CMU files: 0.45).
+    pub length_unit: f64,
+    /// Angles in degrees (`:units angle deg`) rather than radians.
+    pub degrees: bool,
+    /// Root dofs in the order of `:root order`.
+    pub root_order: Vec<Dof>,
+    /// Rotation order of the root (`:root axis`).
+    pub root_axis: EulerSequence,
+    /// Root rest position and orientation (file units, radians).
+    pub root_position: DVec3,
+    /// Root rest orientation.
+    pub root_orientation: DQuat,
+    /// Bones, parents before children.
+    pub bones: Vec<Bone>,
+}
+
+/// A motion: per frame, the dof values of the root and of every bone (radians, file units).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Motion {
+    /// Values per frame: root values (in `root_order`) then each bone's dofs in order.
+    pub values: Vec<f64>,
+    /// Values per frame.
+    pub stride: usize,
+    /// Number of frames.
+    pub frames: usize,
+}
+
+impl Skeleton {
+    /// Joint names: `"root"` then the bones in order.
+    pub fn joint_names(&self) -> Vec<String> {
+        std::iter::once("root".to_string())
+            .chain(self.bones.iter().map(|b| b.name.clone()))
+            .collect()
+    }
+
+    /// Metres per file unit under the CMU reading of `:units length` (1 unit = 1/length
+    /// inches; 0.45 gives 0.05644 m). Real files disagree with the 1995 text, so this is never
+    /// applied automatically.
+    pub fn metres_per_unit(&self) -> f64 {
+        0.0254 / self.length_unit
+    }
+
+    /// Values per frame of a motion of this skeleton.
+    pub fn stride(&self) -> usize {
+        self.root_order.len() + self.bones.iter().map(|b| b.dofs.len()).sum::<usize>()
+    }
+
+    /// Forward kinematics of every frame: positions `(frames, 1 + bones, 3)` of the root and
+    /// of every bone's tip (file units) and orientations `(frames, 1 + bones, 4)` (`w, x, y, z`,
+    /// global), in parallel over frames.
+    ///
+    /// # Errors
+    /// A motion made for another skeleton (wrong stride).
+    pub fn forward_kinematics(
+        &self,
+        motion: &Motion,
+        positions: &mut [[f64; 3]],
+        orientations: &mut [[f64; 4]],
+    ) -> Result<()> {
+        let joints = 1 + self.bones.len();
+        if motion.stride != self.stride() {
+            return Err(Error::invalid(
+                "motion",
+                format!(
+                    "has {} values per frame, the skeleton needs {}",
+                    motion.stride,
+                    self.stride()
+                ),
+            ));
+        }
+        if positions.len() != motion.frames * joints || orientations.len() != motion.frames * joints
+        {
+            return Err(Error::invalid("out", "needs frames x joints rows"));
+        }
+        positions
+            .par_chunks_mut(joints)
+            .zip(orientations.par_chunks_mut(joints))
+            .enumerate()
+            .for_each(|(f, (pos, ori))| {
+                let frame = &motion.values[f * motion.stride..(f + 1) * motion.stride];
+                self.pose(frame, pos, ori);
+            });
+        Ok(())
+    }
+
+    /// FK of one frame of values into `pos`/`ori` (`1 + bones` rows each).
+    fn pose(&self, frame: &[f64], pos: &mut [[f64; 3]], ori: &mut [[f64; 4]]) {
+        let mut k = 0;
+        let mut t = self.root_position;
+        let mut angles = [0.0; 3];
+        for dof in &self.root_order {
+            match *dof {
+                Dof::Translation(a) => t[a] = frame[k],
+                Dof::Rotation(a) => angles[a] = frame[k],
+                Dof::Length => {}
+            }
+            k += 1;
+        }
+        let [i, j, l] = self.root_axis.axes;
+        let m = self.root_axis.to_quat(&[angles[i], angles[j], angles[l]]).expect("finite angles");
+        let root_rot = (self.root_orientation * m).normalize();
+        pos[0] = t.to_array();
+        ori[0] = crate::rotation::quat_to_wxyz(root_rot);
+        for (b, bone) in self.bones.iter().enumerate() {
+            let mut m = DQuat::IDENTITY;
+            for dof in &bone.dofs {
+                if let Dof::Rotation(a) = *dof {
+                    let (s, c) = (0.5 * frame[k]).sin_cos();
+                    let e = DVec3::AXES[a] * s;
+                    m = DQuat::from_xyzw(e.x, e.y, e.z, c) * m;
+                }
+                k += 1;
+            }
+            // Parents come first, so their rows are already final.
+            let parent = bone.parent.map_or(0, |p| p + 1);
+            let [w, x, y, z] = ori[parent];
+            let r =
+                (DQuat::from_xyzw(x, y, z, w) * bone.axis * m * bone.axis.conjugate()).normalize();
+            ori[b + 1] = crate::rotation::quat_to_wxyz(r);
+            pos[b + 1] =
+                (DVec3::from_array(pos[parent]) + bone.length * (r * bone.direction)).to_array();
+        }
+    }
+}

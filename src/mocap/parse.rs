@@ -1,0 +1,421 @@
+//! ASF and AMC readers: text in, typed [`Skeleton`] / [`Motion`] out, or an error with the
+//! file, the line and what was expected. Tolerant of what real files contain: comments,
+//! blank lines, CRLF, tabs, limits spread over several lines, bones without dofs, AMC headers
+//! such as `:FULLY-SPECIFIED` and `:DEGREES`.
+
+use super::{Bone, Dof, Motion, Skeleton};
+use crate::error::{Error, Result};
+use crate::rotation::EulerSequence;
+use glam::{DQuat, DVec3};
+use std::collections::HashMap;
+
+fn err(file: &str, line: usize, expected: impl Into<String>) -> Error {
+    Error::Parse { file: file.to_string(), line, expected: expected.into() }
+}
+
+/// Lines without comments and surrounding blanks, with their 1-based numbers.
+fn lines(text: &str) -> Vec<(usize, &str)> {
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.split('#').next().unwrap_or("").trim()))
+        .filter(|(_, l)| !l.is_empty())
+        .collect()
+}
+
+fn number(file: &str, line: usize, tok: &str) -> Result<f64> {
+    tok.parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| err(file, line, format!("a finite number, found {tok:?}")))
+}
+
+fn dof(file: &str, line: usize, tok: &str) -> Result<Dof> {
+    Ok(match tok.to_ascii_lowercase().as_str() {
+        "rx" => Dof::Rotation(0),
+        "ry" => Dof::Rotation(1),
+        "rz" => Dof::Rotation(2),
+        "tx" => Dof::Translation(0),
+        "ty" => Dof::Translation(1),
+        "tz" => Dof::Translation(2),
+        "l" => Dof::Length,
+        _ => {
+            return Err(err(file, line, format!("a dof among rx ry rz tx ty tz l, found {tok:?}")))
+        }
+    })
+}
+
+/// Extrinsic rotation about the global axes in the written order (`XYZ`: x first).
+fn axis_rotation(file: &str, line: usize, angles: [f64; 3], order: &str) -> Result<DQuat> {
+    let seq = EulerSequence::parse(&order.to_ascii_lowercase())
+        .map_err(|_| err(file, line, format!("an axis order such as XYZ, found {order:?}")))?;
+    if seq.is_proper() {
+        return Err(err(file, line, format!("an order of three different axes, found {order:?}")));
+    }
+    let a = seq.axes.map(|i| angles[i]);
+    seq.to_quat(&a).map_err(|_| err(file, line, "finite axis angles"))
+}
+
+/// Parse an Acclaim skeleton file; `file` names it in errors.
+///
+/// # Errors
+/// [`Error::Parse`] with the line and what was expected: unknown sections or keywords,
+/// malformed numbers, limits that do not match the dofs, unknown or repeated bone names, bones
+/// missing from or cyclic in the hierarchy.
+pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
+    let mut sk = Skeleton {
+        name: String::new(),
+        length_unit: 1.0,
+        degrees: true,
+        root_order: Vec::new(),
+        root_axis: EulerSequence::parse("xyz")?,
+        root_position: DVec3::ZERO,
+        root_orientation: DQuat::IDENTITY,
+        bones: Vec::new(),
+    };
+    let lines = lines(text);
+    let mut section = "";
+    let mut raw_root_orientation = ([0.0; 3], 0usize);
+    let mut bones: Vec<(Bone, [f64; 3], String, usize)> = Vec::new(); // bone, axis angles, order, line
+    let mut current: Option<(Bone, [f64; 3], String, usize)> = None;
+    let mut pending_limits: Option<(usize, Vec<f64>)> = None;
+    let mut children: Vec<(usize, String, Vec<String>)> = Vec::new();
+    let mut seen_hierarchy = false;
+    for &(ln, line) in &lines {
+        let toks: Vec<&str> = line.split_whitespace().collect();
+        if let Some(name) = toks[0].strip_prefix(':') {
+            section = match name {
+                "version" | "documentation" => "skip",
+                "name" => {
+                    sk.name = toks[1..].join(" ");
+                    "skip"
+                }
+                "units" => "units",
+                "root" => "root",
+                "bonedata" => "bonedata",
+                "hierarchy" => {
+                    seen_hierarchy = true;
+                    "hierarchy"
+                }
+                "skin" => "skip",
+                _ => {
+                    return Err(err(
+                        file,
+                        ln,
+                        format!(
+                            "a known section (:units, :root, :bonedata, :hierarchy...), found {}",
+                            toks[0]
+                        ),
+                    ))
+                }
+            };
+            continue;
+        }
+        match section {
+            "skip" => {}
+            "units" => match toks[0] {
+                "length" => sk.length_unit = number(file, ln, toks.get(1).copied().unwrap_or(""))?,
+                "angle" => sk.degrees = toks.get(1).is_some_and(|u| u.starts_with("deg")),
+                _ => {} // mass and vendor extras
+            },
+            "root" => match toks[0] {
+                "order" => {
+                    sk.root_order =
+                        toks[1..].iter().map(|t| dof(file, ln, t)).collect::<Result<_>>()?
+                }
+                "axis" => {
+                    let order = toks.get(1).copied().unwrap_or("");
+                    sk.root_axis =
+                        EulerSequence::parse(&order.to_ascii_lowercase()).map_err(|_| {
+                            err(file, ln, format!("a root axis order such as XYZ, found {order:?}"))
+                        })?;
+                }
+                "position" | "orientation" => {
+                    if toks.len() != 4 {
+                        return Err(err(file, ln, format!("three numbers after {}", toks[0])));
+                    }
+                    let v = [
+                        number(file, ln, toks[1])?,
+                        number(file, ln, toks[2])?,
+                        number(file, ln, toks[3])?,
+                    ];
+                    if toks[0] == "position" {
+                        sk.root_position = DVec3::from_array(v);
+                    } else {
+                        raw_root_orientation = (v, ln);
+                    }
+                }
+                _ => {
+                    return Err(err(
+                        file,
+                        ln,
+                        format!(
+                            "order, axis, position or orientation in :root, found {:?}",
+                            toks[0]
+                        ),
+                    ))
+                }
+            },
+            "bonedata" => {
+                if let Some((n, vals)) = pending_limits.as_mut() {
+                    if toks[0].starts_with('(') {
+                        for t in line.replace(['(', ')'], " ").split_whitespace() {
+                            vals.push(number(file, ln, t)?);
+                        }
+                        if vals.len() >= 2 * *n {
+                            let (_, vals) = pending_limits.take().expect("checked");
+                            let bone = &mut current.as_mut().expect("inside a bone").0;
+                            bone.limits = vals.chunks(2).map(|c| (c[0], c[1])).collect();
+                        }
+                        continue;
+                    }
+                    return Err(err(file, ln, format!("{} limits (lo hi), one per dof", n)));
+                }
+                match toks[0] {
+                    "begin" => {
+                        let bone = Bone {
+                            name: String::new(),
+                            parent: None,
+                            direction: DVec3::ZERO,
+                            length: 0.0,
+                            axis: DQuat::IDENTITY,
+                            dofs: vec![],
+                            limits: vec![],
+                        };
+                        current = Some((bone, [0.0; 3], "XYZ".into(), ln));
+                    }
+                    "end" => {
+                        let b = current.take().ok_or_else(|| err(file, ln, "begin before end"))?;
+                        if b.0.name.is_empty() {
+                            return Err(err(file, ln, "a name in every bone"));
+                        }
+                        bones.push(b);
+                    }
+                    key => {
+                        let (bone, angles, order, _) = current
+                            .as_mut()
+                            .ok_or_else(|| err(file, ln, "begin before bone data"))?;
+                        match key {
+                            "id" => {}
+                            "name" => bone.name = toks.get(1).ok_or_else(|| err(file, ln, "a bone name"))?.to_string(),
+                            "direction" => {
+                                if toks.len() != 4 {
+                                    return Err(err(file, ln, "three numbers after direction"));
+                                }
+                                bone.direction = DVec3::new(number(file, ln, toks[1])?, number(file, ln, toks[2])?, number(file, ln, toks[3])?);
+                            }
+                            "length" => bone.length = number(file, ln, toks.get(1).copied().unwrap_or(""))?,
+                            "axis" => {
+                                if toks.len() != 5 {
+                                    return Err(err(file, ln, "three angles and an order after axis"));
+                                }
+                                *angles = [number(file, ln, toks[1])?, number(file, ln, toks[2])?, number(file, ln, toks[3])?];
+                                *order = toks[4].to_string();
+                            }
+                            "dof" => bone.dofs = toks[1..].iter().map(|t| dof(file, ln, t)).collect::<Result<_>>()?,
+                            "limits" => {
+                                let n = bone.dofs.len();
+                                let mut vals = Vec::new();
+                                for t in line["limits".len()..].replace(['(', ')'], " ").split_whitespace() {
+                                    vals.push(number(file, ln, t)?);
+                                }
+                                if vals.len() >= 2 * n {
+                                    bone.limits = vals.chunks(2).map(|c| (c[0], c[1])).collect();
+                                } else {
+                                    pending_limits = Some((n, vals));
+                                }
+                            }
+                            "bodymass" | "cofmass" => {}
+                            other => return Err(err(file, ln, format!("a bone keyword (id, name, direction, length, axis, dof, limits), found {other:?}"))),
+                        }
+                    }
+                }
+            }
+            "hierarchy" => match toks[0] {
+                "begin" | "end" => {}
+                parent => children.push((
+                    ln,
+                    parent.to_string(),
+                    toks[1..].iter().map(|s| s.to_string()).collect(),
+                )),
+            },
+            _ => return Err(err(file, ln, "a section header such as :units before data")),
+        }
+    }
+    if current.is_some() || pending_limits.is_some() {
+        return Err(err(
+            file,
+            lines.last().map_or(1, |l| l.0),
+            "end of the last bone (file truncated?)",
+        ));
+    }
+    if !seen_hierarchy {
+        return Err(err(
+            file,
+            lines.last().map_or(1, |l| l.0),
+            "a :hierarchy section (file truncated?)",
+        ));
+    }
+    let scale = if sk.degrees { std::f64::consts::PI / 180.0 } else { 1.0 };
+    let (o, oln) = raw_root_orientation;
+    sk.root_orientation = {
+        let [i, j, k] = sk.root_axis.axes;
+        let q = sk
+            .root_axis
+            .to_quat(&[o[i] * scale, o[j] * scale, o[k] * scale])
+            .map_err(|_| err(file, oln, "a finite root orientation"))?;
+        // The root axis order applies extrinsically like the bones' axes.
+        let _ = (i, j, k);
+        q
+    };
+    // Index bones by name, then order them parents first from the hierarchy.
+    let mut index: HashMap<String, usize> = HashMap::new();
+    for (k, b) in bones.iter().enumerate() {
+        if index.insert(b.0.name.clone(), k).is_some() {
+            return Err(err(file, b.3, format!("a unique bone name, {:?} is repeated", b.0.name)));
+        }
+    }
+    let mut parent_of: Vec<Option<Option<usize>>> = vec![None; bones.len()]; // Some(None) = root
+    for (ln, parent, kids) in &children {
+        let p = if parent == "root" {
+            None
+        } else {
+            Some(
+                *index
+                    .get(parent)
+                    .ok_or_else(|| err(file, *ln, format!("a known bone, found {parent:?}")))?,
+            )
+        };
+        for kid in kids {
+            let c = *index
+                .get(kid)
+                .ok_or_else(|| err(file, *ln, format!("a known bone, found {kid:?}")))?;
+            if parent_of[c].is_some() {
+                return Err(err(file, *ln, format!("one parent per bone, {kid:?} has two")));
+            }
+            parent_of[c] = Some(p);
+        }
+    }
+    let mut order: Vec<usize> = Vec::with_capacity(bones.len());
+    let mut placed = vec![false; bones.len()];
+    let mut frontier: Vec<Option<usize>> = vec![None];
+    while let Some(p) = frontier.pop() {
+        for c in 0..bones.len() {
+            if !placed[c] && parent_of[c] == Some(p) {
+                placed[c] = true;
+                order.push(c);
+                frontier.insert(0, Some(c));
+            }
+        }
+    }
+    if let Some(c) = (0..bones.len()).find(|&c| !placed[c]) {
+        let why = if parent_of[c].is_none() {
+            "is missing from :hierarchy"
+        } else {
+            "is in a cycle of the hierarchy"
+        };
+        return Err(err(
+            file,
+            bones[c].3,
+            format!("a tree of bones under root; {:?} {why}", bones[c].0.name),
+        ));
+    }
+    let new_index: HashMap<usize, usize> =
+        order.iter().enumerate().map(|(new, &old)| (old, new)).collect();
+    for &old in &order {
+        let (mut bone, angles, ord, ln) = bones[old].clone();
+        bone.parent = parent_of[old].flatten().map(|p| new_index[&p]);
+        let len = bone.direction.length();
+        if len.is_nan() || len <= 0.0 {
+            return Err(err(file, ln, format!("a non-zero direction for bone {:?}", bone.name)));
+        }
+        bone.direction /= len;
+        bone.axis = axis_rotation(file, ln, angles.map(|a| a * scale), &ord)?;
+        if !bone.limits.is_empty() && bone.limits.len() != bone.dofs.len() {
+            return Err(err(file, ln, format!("one limit per dof for bone {:?}", bone.name)));
+        }
+        for (l, d) in bone.limits.iter_mut().zip(&bone.dofs) {
+            if matches!(d, Dof::Rotation(_)) {
+                *l = (l.0 * scale, l.1 * scale);
+            }
+        }
+        sk.bones.push(bone);
+    }
+    Ok(sk)
+}
+
+/// Parse an AMC motion for `skeleton`; `file` names it in errors. Rotations are converted to
+/// radians when the skeleton's angles are in degrees.
+///
+/// # Errors
+/// [`Error::Parse`]: an unknown bone, a wrong number of values, a bad number, a frame that
+/// misses a bone with dofs, no frames.
+pub fn parse_amc(text: &str, file: &str, skeleton: &Skeleton) -> Result<Motion> {
+    let stride = skeleton.stride();
+    let mut offsets: HashMap<&str, (usize, &[Dof])> = HashMap::new();
+    offsets.insert("root", (0, &skeleton.root_order));
+    let mut k = skeleton.root_order.len();
+    for b in &skeleton.bones {
+        offsets.insert(&b.name, (k, &b.dofs));
+        k += b.dofs.len();
+    }
+    let scale = if skeleton.degrees { std::f64::consts::PI / 180.0 } else { 1.0 };
+    let mut values: Vec<f64> = Vec::new();
+    let mut frames = 0usize;
+    let mut filled: Vec<bool> = Vec::new();
+    let check_complete = |filled: &[bool], frame: usize, ln: usize| -> Result<()> {
+        if let Some(missing) =
+            offsets.iter().find(|(_, (off, dofs))| !dofs.is_empty() && !filled[*off])
+        {
+            return Err(err(file, ln, format!("values for {:?} in frame {frame}", missing.0)));
+        }
+        Ok(())
+    };
+    let all = lines(text);
+    let mut last_line = 1;
+    for &(ln, line) in &all {
+        last_line = ln;
+        if line.starts_with(':') {
+            continue;
+        }
+        let toks: Vec<&str> = line.split_whitespace().collect();
+        if toks.len() == 1 && toks[0].parse::<u64>().is_ok() {
+            if frames > 0 {
+                check_complete(&filled, frames, ln)?;
+            }
+            frames += 1;
+            values.resize(frames * stride, 0.0);
+            filled = vec![false; stride.max(1)];
+            continue;
+        }
+        if frames == 0 {
+            return Err(err(
+                file,
+                ln,
+                format!("a frame number before bone values, found {:?}", toks[0]),
+            ));
+        }
+        let (off, dofs) = *offsets
+            .get(toks[0])
+            .ok_or_else(|| err(file, ln, format!("a bone of the skeleton, found {:?}", toks[0])))?;
+        if toks.len() - 1 != dofs.len() {
+            return Err(err(
+                file,
+                ln,
+                format!("{} values for {:?}, found {}", dofs.len(), toks[0], toks.len() - 1),
+            ));
+        }
+        let base = (frames - 1) * stride + off;
+        for (i, (t, d)) in toks[1..].iter().zip(dofs).enumerate() {
+            let v = number(file, ln, t)?;
+            values[base + i] = if matches!(d, Dof::Rotation(_)) { v * scale } else { v };
+        }
+        if !dofs.is_empty() {
+            filled[off] = true;
+        }
+    }
+    if frames == 0 {
+        return Err(err(file, last_line, "at least one frame"));
+    }
+    check_complete(&filled, frames, last_line)?;
+    Ok(Motion { values, stride, frames })
+}
