@@ -9,6 +9,7 @@ mod anim;
 mod array;
 mod constraints;
 mod error;
+mod mocap;
 mod ode;
 mod particles;
 mod rigid;
@@ -26,5 +27,6 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     particles::register(m)?;
     constraints::register(m)?;
     anim::register(m)?;
+    mocap::register(m)?;
     Ok(())
 }

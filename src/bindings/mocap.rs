@@ -1,0 +1,98 @@
+//! `kinema.mocap`: Acclaim skeletons and motions.
+
+use crate::mocap::{parse_amc, parse_asf, Motion, Skeleton};
+use numpy::{PyArray1, PyArray3, PyArrayMethods};
+use pyo3::prelude::*;
+
+type Array3<'py> = Bound<'py, PyArray3<f64>>;
+
+/// An Acclaim skeleton; see `kinema.mocap.read_asf`.
+#[pyclass(module = "kinema._kinema", name = "AsfSkeleton", frozen)]
+pub struct PySkeleton {
+    skeleton: Skeleton,
+}
+
+/// An Acclaim motion for one skeleton; see `kinema.mocap.read_amc`.
+#[pyclass(module = "kinema._kinema", name = "AmcMotion", frozen)]
+pub struct PyMotion {
+    motion: Motion,
+}
+
+#[pymethods]
+impl PySkeleton {
+    /// Joint names: "root" then the bones, parents first.
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        self.skeleton.joint_names()
+    }
+
+    /// `:units length` as read.
+    #[getter]
+    fn length_unit(&self) -> f64 {
+        self.skeleton.length_unit
+    }
+
+    /// Metres per file unit under the CMU reading (never applied automatically).
+    #[getter]
+    fn metres_per_unit(&self) -> f64 {
+        self.skeleton.metres_per_unit()
+    }
+
+    /// Bone lengths in file units, in joint order after the root.
+    #[getter]
+    fn bone_lengths(&self) -> Vec<f64> {
+        self.skeleton.bones.iter().map(|b| b.length).collect()
+    }
+
+    /// Parent joint index of every joint (-1 for the root).
+    #[getter]
+    fn parents(&self) -> Vec<i64> {
+        std::iter::once(-1)
+            .chain(self.skeleton.bones.iter().map(|b| b.parent.map_or(0, |p| p as i64 + 1)))
+            .collect()
+    }
+
+    /// Positions (F, J, 3) in file units and orientations (F, J, 4) of every joint.
+    fn forward_kinematics<'py>(
+        &self,
+        py: Python<'py>,
+        motion: &PyMotion,
+    ) -> PyResult<(Array3<'py>, Array3<'py>)> {
+        let (f, j) = (motion.motion.frames, 1 + self.skeleton.bones.len());
+        let mut pos = vec![[0.0; 3]; f * j];
+        let mut ori = vec![[0.0; 4]; f * j];
+        let sk = &self.skeleton;
+        super::error::detached(py, || sk.forward_kinematics(&motion.motion, &mut pos, &mut ori))?;
+        let pos = PyArray1::from_vec(py, pos.into_flattened()).reshape([f, j, 3])?;
+        let ori = PyArray1::from_vec(py, ori.into_flattened()).reshape([f, j, 4])?;
+        Ok((pos, ori))
+    }
+}
+
+#[pymethods]
+impl PyMotion {
+    /// Number of frames.
+    #[getter]
+    fn frames(&self) -> usize {
+        self.motion.frames
+    }
+}
+
+/// Parse ASF text; `file` names it in errors (kinema.ParseError with the line).
+#[pyfunction]
+fn mocap_parse_asf(text: &str, file: &str) -> PyResult<PySkeleton> {
+    Ok(PySkeleton { skeleton: parse_asf(text, file)? })
+}
+
+/// Parse AMC text for `skeleton`.
+#[pyfunction]
+fn mocap_parse_amc(text: &str, file: &str, skeleton: &PySkeleton) -> PyResult<PyMotion> {
+    Ok(PyMotion { motion: parse_amc(text, file, &skeleton.skeleton)? })
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySkeleton>()?;
+    m.add_class::<PyMotion>()?;
+    m.add_function(wrap_pyfunction!(mocap_parse_asf, m)?)?;
+    m.add_function(wrap_pyfunction!(mocap_parse_amc, m)?)
+}

@@ -1,0 +1,42 @@
+"""kinema.mocap on the CMU files in ../shared/data/mocap."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import kinema
+from kinema import mocap
+
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
+
+
+@pytest.fixture(scope="module")
+def walk():
+    assert DATA.is_dir(), f"motion-capture data expected at {DATA}"
+    sk = mocap.read_asf(DATA / "07-walk.asf")
+    return sk, mocap.read_amc(DATA / "07_05-walk.amc", sk)
+
+
+def test_forward_kinematics_of_a_walk(walk):
+    sk, motion = walk
+    pos, ori = sk.forward_kinematics(motion)
+    assert motion.frames == 517
+    assert pos.shape == (517, 31, 3) and ori.shape == (517, 31, 4)
+    assert sk.joint_names[0] == "root" and "ltoes" in sk.joint_names
+    assert mocap.bone_length_error(sk, pos) < 1e-12
+    np.testing.assert_allclose(np.linalg.norm(ori, axis=2), 1.0, atol=1e-14)
+    assert sk.length_unit == 0.45
+    assert sk.metres_per_unit == pytest.approx(0.0254 / 0.45)
+
+
+def test_parse_errors_carry_file_and_line(tmp_path, walk):
+    sk, _ = walk
+    bad = tmp_path / "bad.amc"
+    bad.write_text("1\nroot 0 0 0 0 0 0\nlfemur 1 2\n")
+    with pytest.raises(kinema.ParseError, match=r"bad.amc:3: expected 3 values for \"lfemur\""):
+        mocap.read_amc(bad, sk)
+    with pytest.raises(ValueError, match="skeleton"):
+        mocap.read_amc(bad, None)
