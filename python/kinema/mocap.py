@@ -7,7 +7,9 @@ silently) and orientations ``(frames, joints, 4)`` (``w, x, y, z``). Conventions
 ``C`` from ``axis``, ``R = R_parent C M C⁻¹``) are in ``kinema::mocap``'s docs and
 docs/mocap.md. Malformed files raise :class:`kinema.ParseError` with the file and line.
 
-Not implemented yet: ASF/AMC writing, BVH, inverse kinematics and motion editing.
+``write_asf`` / ``write_amc`` write them back (read → write → read is the identity).
+
+Not implemented yet: BVH, inverse kinematics and motion editing.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import numpy as np
 
 from kinema import _kinema
 
-__all__ = ["Skeleton", "bone_length_error", "read_amc", "read_asf"]
+__all__ = ["Skeleton", "bone_length_error", "read_amc", "read_asf", "write_amc", "write_asf"]
 
 Skeleton = _kinema.AsfSkeleton
 """An Acclaim skeleton (joint_names, parents, bone_lengths, length_unit, metres_per_unit,
@@ -50,3 +52,15 @@ def bone_length_error(skeleton: Any, positions: np.ndarray) -> float:
     d = np.linalg.norm(positions[:, 1:] - positions[:, parents], axis=2)
     lengths = np.asarray(skeleton.bone_lengths)
     return float(np.max(np.abs(d - lengths) / np.maximum(lengths, 1.0)))
+
+
+def write_asf(skeleton: Any, path: str | os.PathLike[str]) -> None:
+    """Write ``skeleton`` as an ASF file."""
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(_kinema.mocap_write_asf(skeleton))
+
+
+def write_amc(skeleton: Any, motion: Any, path: str | os.PathLike[str]) -> None:
+    """Write ``motion`` (of ``skeleton``) as an AMC file."""
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(_kinema.mocap_write_amc(skeleton, motion))

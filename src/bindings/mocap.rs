@@ -1,6 +1,6 @@
 //! `kinema.mocap`: Acclaim skeletons and motions.
 
-use crate::mocap::{parse_amc, parse_asf, Motion, Skeleton};
+use crate::mocap::{parse_amc, parse_asf, write_amc, write_asf, Motion, Skeleton};
 use numpy::{PyArray1, PyArray3, PyArrayMethods};
 use pyo3::prelude::*;
 
@@ -90,7 +90,21 @@ fn mocap_parse_amc(text: &str, file: &str, skeleton: &PySkeleton) -> PyResult<Py
     Ok(PyMotion { motion: parse_amc(text, file, &skeleton.skeleton)? })
 }
 
+/// The skeleton as ASF text.
+#[pyfunction]
+fn mocap_write_asf(skeleton: &PySkeleton) -> String {
+    write_asf(&skeleton.skeleton)
+}
+
+/// The motion as AMC text for `skeleton`.
+#[pyfunction]
+fn mocap_write_amc(skeleton: &PySkeleton, motion: &PyMotion) -> PyResult<String> {
+    Ok(write_amc(&skeleton.skeleton, &motion.motion)?)
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(mocap_write_asf, m)?)?;
+    m.add_function(wrap_pyfunction!(mocap_write_amc, m)?)?;
     m.add_class::<PySkeleton>()?;
     m.add_class::<PyMotion>()?;
     m.add_function(wrap_pyfunction!(mocap_parse_asf, m)?)?;

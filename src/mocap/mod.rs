@@ -19,8 +19,10 @@
 //! (1 unit = 1/length_unit inches) without ever applying it silently.
 
 mod parse;
+mod write;
 
 pub use parse::{parse_amc, parse_asf};
+pub use write::{write_amc, write_asf};
 
 use crate::error::{Error, Result};
 use crate::rotation::EulerSequence;
@@ -40,6 +42,8 @@ pub struct Bone {
     pub length: f64,
     /// Local frame `C` relative to the global axes.
     pub axis: DQuat,
+    /// The `axis` angles as written (file angle units) and their order, e.g. `"XYZ"`.
+    pub axis_as_read: ([f64; 3], String),
     /// Degrees of freedom in file order: (axis 0/1/2, is_translation). `l` (length) dofs are
     /// read and ignored in the pose.
     pub dofs: Vec<Dof>,
@@ -75,6 +79,8 @@ pub struct Skeleton {
     pub root_position: DVec3,
     /// Root rest orientation.
     pub root_orientation: DQuat,
+    /// The root `orientation` angles as written (file angle units).
+    pub root_orientation_as_read: [f64; 3],
     /// Bones, parents before children.
     pub bones: Vec<Bone>,
 }

@@ -70,6 +70,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
         root_axis: EulerSequence::parse("xyz")?,
         root_position: DVec3::ZERO,
         root_orientation: DQuat::IDENTITY,
+        root_orientation_as_read: [0.0; 3],
         bones: Vec::new(),
     };
     let lines = lines(text);
@@ -178,6 +179,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                             direction: DVec3::ZERO,
                             length: 0.0,
                             axis: DQuat::IDENTITY,
+                            axis_as_read: ([0.0; 3], String::new()),
                             dofs: vec![],
                             limits: vec![],
                         };
@@ -257,6 +259,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
     }
     let scale = if sk.degrees { std::f64::consts::PI / 180.0 } else { 1.0 };
     let (o, oln) = raw_root_orientation;
+    sk.root_orientation_as_read = o;
     sk.root_orientation = {
         let [i, j, k] = sk.root_axis.axes;
         let q = sk
@@ -330,6 +333,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
         }
         bone.direction /= len;
         bone.axis = axis_rotation(file, ln, angles.map(|a| a * scale), &ord)?;
+        bone.axis_as_read = (angles, ord.clone());
         if !bone.limits.is_empty() && bone.limits.len() != bone.dofs.len() {
             return Err(err(file, ln, format!("one limit per dof for bone {:?}", bone.name)));
         }

@@ -40,3 +40,15 @@ def test_parse_errors_carry_file_and_line(tmp_path, walk):
         mocap.read_amc(bad, sk)
     with pytest.raises(ValueError, match="skeleton"):
         mocap.read_amc(bad, None)
+
+
+def test_read_write_read(tmp_path, walk):
+    sk, motion = walk
+    mocap.write_asf(sk, tmp_path / "w.asf")
+    mocap.write_amc(sk, motion, tmp_path / "w.amc")
+    sk2 = mocap.read_asf(tmp_path / "w.asf")
+    m2 = mocap.read_amc(tmp_path / "w.amc", sk2)
+    p1, _ = sk.forward_kinematics(motion)
+    p2, _ = sk2.forward_kinematics(m2)
+    np.testing.assert_allclose(p1, p2, atol=1e-10)
+    assert sk2.joint_names == sk.joint_names
