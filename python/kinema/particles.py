@@ -11,14 +11,14 @@ square; negative strength repels), :class:`Vortex`, :class:`Turbulence` (curl no
 et al. 2007), :class:`NeighborRepulsion` (spatial hash grid, never all pairs),
 :class:`NBodyGravity` (all pairs). Colliders: :class:`Plane`, :class:`Sphere` (inside or
 outside) with restitution and Coulomb friction, resting contact without jitter.
-:class:`Emitter` recycles dead slots. Not implemented yet: force fields given as Python
-callables.
+:class:`Emitter` recycles dead slots. :class:`Field` adds any Python callable on the batch of
+particles, evaluated once per step (held constant within the step).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -31,6 +31,7 @@ __all__ = [
     "Damping",
     "Drag",
     "Emitter",
+    "Field",
     "Gravity",
     "NBodyGravity",
     "NeighborRepulsion",
@@ -128,6 +129,15 @@ class NBodyGravity:
 
 
 @dataclass(frozen=True)
+class Field:
+    """A force field given as a Python callable ``force(t, positions, velocities) -> (N, 3)``
+    on all slots at once (N; dead slots may get anything, they do not move). Evaluated once per
+    step and held constant within the step, so a stiff field needs small steps."""
+
+    force: Any
+
+
+@dataclass(frozen=True)
 class Plane:
     """Collider: particles stay on the side of the plane ``normal`` points to."""
 
@@ -160,7 +170,7 @@ class Emitter:
     velocity_spread: float = 0.0
     lifespan: float = math.inf
     mass: float = 1.0
-    seed: int = field(default=0)
+    seed: int = 0
 
 
 class ParticleSystem:
@@ -178,6 +188,7 @@ class ParticleSystem:
             m = np.full((len(x), 1), m[0, 0])
         cap = len(x) if capacity is None else int(capacity)
         self._sys = _kinema.Particles(x, v, m, cap)
+        self._fields: list[Field] = []
 
     def add(self, item: Any) -> None:
         """Add a force, a collider or an emitter."""
@@ -229,6 +240,10 @@ class ParticleSystem:
             s.add_force("neighbor_repulsion", [float(item.radius), float(item.stiffness)])
         elif isinstance(item, NBodyGravity):
             s.add_force("nbody_gravity", [float(item.constant), float(item.softening)])
+        elif isinstance(item, Field):
+            if not callable(item.force):
+                raise ValueError("force: expected a callable force(t, positions, velocities)")
+            self._fields.append(item)
         elif isinstance(item, Plane):
             s.add_collider(
                 "plane",
@@ -273,7 +288,21 @@ class ParticleSystem:
         ``kinema.SimulationError`` (step and particle named) and keep the last good state."""
         if not isinstance(steps, (int, np.integer)) or steps < 0:
             raise ValueError(f"steps: expected a non-negative integer, got {steps!r}")
-        self._sys.step(float(dt), int(steps), method)
+        if not self._fields:
+            self._sys.step(float(dt), int(steps), method)
+            return
+        for _ in range(int(steps)):
+            x, v = self.positions, self.velocities
+            total = np.zeros_like(x)
+            for source in self._fields:
+                f = np.asarray(source.force(self.time, x, v), dtype=np.float64)
+                if f.shape != x.shape:
+                    raise ValueError(
+                        f"force: the field returned shape {f.shape}, expected {x.shape}"
+                    )
+                total += f
+            self._sys.set_external_forces(np.ascontiguousarray(total))
+            self._sys.step(float(dt), 1, method)
 
     @property
     def positions(self) -> np.ndarray:

@@ -237,6 +237,12 @@ impl Particles {
         Ok(())
     }
 
+    /// Forces (capacity, 3) in N acting in the following steps (an empty array removes them).
+    fn set_external_forces(&mut self, forces: PyReadonlyArrayDyn<'_, f64>) -> PyResult<()> {
+        let f = rows::<3>(&forces, "forces", &[3])?;
+        Ok(self.system.set_external_forces(f.as_flattened())?)
+    }
+
     /// Live flags (capacity, 1) as 0.0 / 1.0.
     fn alive<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let a = self.system.alive();

@@ -107,6 +107,8 @@ pub struct ParticleSystem {
     colliders: Vec<Collider>,
     emitters: Vec<(Emitter, f64, u64)>,
     cells: Vec<(u64, u32)>,
+    /// Forces set from outside for the next steps (N, 3 per slot), empty when unused.
+    external: Vec<f64>,
     stepper: Option<Stepper>,
     time: f64,
     /// Counters of the last step call.
@@ -195,6 +197,7 @@ impl ParticleSystem {
             colliders: Vec::new(),
             emitters: Vec::new(),
             cells: Vec::with_capacity(n),
+            external: Vec::new(),
             stepper: None,
             time: 0.0,
             stats: StepStats::default(),
@@ -235,9 +238,35 @@ impl ParticleSystem {
             mass: &self.mass,
             inv_mass: &self.inv_mass,
             alive: &self.alive,
+            external: &self.external,
             cells: &mut self.cells,
         };
         (dynamics, &mut self.y, &self.inv_mass, &mut self.time)
+    }
+
+    /// Set forces (N, world frame; `3 capacity` values) that act in the following steps, held
+    /// constant within each step, for force fields computed outside (e.g. Python callables);
+    /// an empty slice removes them.
+    ///
+    /// # Errors
+    /// A wrong length or non-finite values (named by slot).
+    pub fn set_external_forces(&mut self, forces: &[f64]) -> Result<()> {
+        if !forces.is_empty() && forces.len() != 3 * self.n {
+            return Err(Error::invalid(
+                "forces",
+                format!("expected {} values (capacity x 3), got {}", 3 * self.n, forces.len()),
+            ));
+        }
+        if let Some(i) = forces.iter().position(|f| !f.is_finite()) {
+            return Err(Error::InvalidInput {
+                arg: "forces".into(),
+                index: Some(i / 3),
+                reason: "contains NaN or infinity".into(),
+            });
+        }
+        self.external.clear();
+        self.external.extend_from_slice(forces);
+        Ok(())
     }
 
     /// Forget integrator history after the state was changed from outside.
@@ -466,6 +495,7 @@ impl ParticleSystem {
             mass: &self.mass,
             inv_mass: &self.inv_mass,
             alive: &self.alive,
+            external: &self.external,
             cells: &mut self.cells,
         };
         stepper.step(&mut dynamics, self.time, &mut self.y, dt).map_err(|e| match e {
@@ -520,8 +550,14 @@ impl ParticleSystem {
     /// value. The arithmetic is that of the general path, so results are bitwise identical.
     fn fused_symplectic_step(&mut self, dt: f64, gravity: DVec3) -> Result<()> {
         let n = self.n;
-        let (forces, colliders, alive, mass, inv_mass) =
-            (&self.forces, &self.colliders, &self.alive, &self.mass, &self.inv_mass);
+        let (forces, colliders, alive, mass, inv_mass, external) = (
+            &self.forces,
+            &self.colliders,
+            &self.alive,
+            &self.mass,
+            &self.inv_mass,
+            &self.external,
+        );
         let (xs, vs) = self.y.split_at_mut(3 * n);
         let (contacts, bad) = xs
             .par_chunks_mut(3 * CHUNK)
@@ -535,7 +571,8 @@ impl ParticleSystem {
                         continue;
                     }
                     let (x, v) = (DVec3::from_slice(&xc[3 * k..]), DVec3::from_slice(&vc[3 * k..]));
-                    let a = particle_force(forces, x, v, mass[i]) * inv_mass[i];
+                    let a = (particle_force(forces, x, v, mass[i]) + external_force(external, i))
+                        * inv_mass[i];
                     let v1 = v + dt * a;
                     let x1 = x + dt * v1;
                     let (x1, v1, hits) = if colliders.is_empty() {
@@ -703,6 +740,15 @@ fn collide_one(
     (x, v, contacts)
 }
 
+/// The externally set force on slot `i` (zero when none is set).
+fn external_force(external: &[f64], i: usize) -> DVec3 {
+    if external.is_empty() {
+        DVec3::ZERO
+    } else {
+        DVec3::from_slice(&external[3 * i..3 * i + 3])
+    }
+}
+
 /// The particle equations of motion as an [`OdeSystem`] over `y = [x; v]`.
 pub(crate) struct Dynamics<'a> {
     n: usize,
@@ -710,6 +756,7 @@ pub(crate) struct Dynamics<'a> {
     mass: &'a [f64],
     inv_mass: &'a [f64],
     alive: &'a [bool],
+    external: &'a [f64],
     cells: &'a mut Vec<(u64, u32)>,
 }
 
@@ -734,7 +781,8 @@ impl OdeSystem for Dynamics<'_> {
             f[3 * i + 1] += a.y;
             f[3 * i + 2] += a.z;
         };
-        let (all_forces, mass, alive) = (self.forces, self.mass, self.alive);
+        let (all_forces, mass, alive, external) =
+            (self.forces, self.mass, self.alive, self.external);
         // Pass 1, parallel over particles: x' = v and every force acting on one particle alone
         // (each particle's sum in the order the forces were added, whatever the threads).
         dx.par_chunks_mut(3 * CHUNK).zip(f.par_chunks_mut(3 * CHUNK)).enumerate().for_each(
@@ -744,6 +792,7 @@ impl OdeSystem for Dynamics<'_> {
                     dxc[3 * k..3 * k + 3].copy_from_slice(&v[3 * i..3 * i + 3]);
                     let acc = if alive[i] {
                         particle_force(all_forces, p(i), vel(i), mass[i])
+                            + external_force(external, i)
                     } else {
                         DVec3::ZERO
                     };

@@ -14,6 +14,7 @@ from kinema.particles import (
     Damping,
     Drag,
     Emitter,
+    Field,
     Gravity,
     NeighborRepulsion,
     ParticleSystem,
@@ -124,3 +125,23 @@ def test_bad_input_names_the_argument_and_failures_roll_back():
     with pytest.raises(kinema.SimulationError, match="step 0, element 0"):
         boom.step(0.1, 3, method="explicit_euler")
     np.testing.assert_array_equal(boom.velocities, before)
+
+
+def test_python_field_acts_like_the_builtin_force():
+    x0, v0 = [[0.0, 0.0, 0.0], [1.0, 2.0, 0.0]], [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+    a = ParticleSystem(x0, v0, masses=[1.0, 2.0])
+    a.add(Gravity())
+    b = ParticleSystem(x0, v0, masses=[1.0, 2.0])
+    b.add(Field(lambda t, x, v: np.array([[0, -9.81, 0], [0, -2 * 9.81, 0]])))
+    a.step(0.01, 50)
+    b.step(0.01, 50)
+    np.testing.assert_allclose(a.positions, b.positions, atol=1e-12)
+    assert b.time == pytest.approx(0.5)
+    c = ParticleSystem(x0, v0)
+    c.add(Field(lambda t, x, v: np.zeros((3, 3))))
+    with pytest.raises(ValueError, match="shape"):
+        c.step(0.01)
+    d = ParticleSystem(x0, v0)
+    d.add(Field(lambda t, x, v: np.full((2, 3), np.nan)))
+    with pytest.raises(ValueError, match="forces"):
+        d.step(0.01)
