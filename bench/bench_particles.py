@@ -1,6 +1,7 @@
 """Particles: N particles under gravity and quadratic drag above a ground plane with
 restitution and friction, stepped with symplectic Euler; kinema against the same update
-written with vectorised numpy (float64), in one process. Prints steps per second and the ratio.
+written with vectorised numpy (float64), and as Taichi and Warp CPU kernels (float64) when
+they are installed, in one process. Prints steps per second and the ratios.
 
 Run: python bench/bench_particles.py [--n 1000000] [--steps 20]
 """
@@ -47,6 +48,111 @@ def numpy_step(x: np.ndarray, v: np.ndarray) -> None:
         v[hit] = vh
 
 
+def taichi_runner(x0: np.ndarray, v0: np.ndarray):
+    """The same step as a Taichi kernel on the CPU in float64, or None if Taichi is missing."""
+    try:
+        import taichi as ti
+    except ImportError:
+        return None
+    ti.init(arch=ti.cpu, default_fp=ti.f64, log_level=ti.ERROR)
+    n = len(x0)
+    x = ti.Vector.field(3, dtype=ti.f64, shape=n)
+    v = ti.Vector.field(3, dtype=ti.f64, shape=n)
+    x.from_numpy(x0)
+    v.from_numpy(v0)
+
+    @ti.kernel
+    def step():
+        for i in x:
+            vi = v[i]
+            vi += DT * (ti.Vector([0.0, -9.81, 0.0]) - K * vi.norm() * vi)
+            prev = x[i]
+            xi = prev + DT * vi
+            if xi[1] < 0.0:
+                depth = -xi[1]
+                xi[1] = 0.0
+                moved = xi - prev
+                moved[1] = 0.0
+                slip = moved.norm()
+                if slip > 0.0:
+                    xi -= moved * ti.min(MU * depth / slip, 1.0)
+                vn = vi[1]
+                if vn < 0.0:
+                    e = E
+                    if -vn <= 2.0 * 9.81 * DT:
+                        e = 0.0
+                    jn = -vn * (1.0 + e)
+                    vt = ti.Vector([vi[0], 0.0, vi[2]])
+                    st = vt.norm()
+                    if st <= MU * jn:
+                        vt = ti.Vector([0.0, 0.0, 0.0])
+                    else:
+                        vt = vt * (1.0 - MU * jn / st)
+                    vi = vt + ti.Vector([0.0, vn + jn, 0.0])
+            x[i] = xi
+            v[i] = vi
+
+    def run(steps: int) -> None:
+        for _ in range(steps):
+            step()
+        ti.sync()
+
+    return run
+
+
+def warp_runner(x0: np.ndarray, v0: np.ndarray):
+    """The same step as a Warp kernel on the CPU in float64, or None if Warp is missing."""
+    try:
+        import warp as wp
+    except ImportError:
+        return None
+    wp.config.quiet = True
+    wp.init()
+    f64 = wp.float64
+
+    @wp.kernel
+    def step(x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d)):
+        i = wp.tid()
+        dt, k, e, mu = f64(DT), f64(K), f64(E), f64(MU)
+        zero = f64(0.0)
+        vi = v[i]
+        vi = vi + dt * (wp.vec3d(zero, f64(-9.81), zero) - k * wp.length(vi) * vi)
+        prev = x[i]
+        xi = prev + dt * vi
+        if xi[1] < zero:
+            depth = -xi[1]
+            xi = wp.vec3d(xi[0], zero, xi[2])
+            moved = wp.vec3d(xi[0] - prev[0], zero, xi[2] - prev[2])
+            slip = wp.length(moved)
+            if slip > zero:
+                xi = xi - moved * wp.min(mu * depth / slip, f64(1.0))
+            vn = vi[1]
+            if vn < zero:
+                ee = e
+                if -vn <= f64(2.0) * f64(9.81) * dt:
+                    ee = zero
+                jn = -vn * (f64(1.0) + ee)
+                vt = wp.vec3d(vi[0], zero, vi[2])
+                st = wp.length(vt)
+                if st <= mu * jn:
+                    vt = wp.vec3d(zero, zero, zero)
+                else:
+                    vt = vt * (f64(1.0) - mu * jn / st)
+                vi = vt + wp.vec3d(zero, vn + jn, zero)
+        x[i] = xi
+        v[i] = vi
+
+    x = wp.array(x0, dtype=wp.vec3d, device="cpu")
+    v = wp.array(v0, dtype=wp.vec3d, device="cpu")
+
+    def run(steps: int) -> None:
+        for _ in range(steps):
+            wp.launch(step, dim=len(x0), inputs=[x, v], device="cpu")
+        wp.synchronize()
+
+    return run
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--n", type=int, default=1_000_000)
@@ -73,14 +179,25 @@ def main() -> None:
         numpy_step(x, v)
     t_numpy = (time.perf_counter() - start) / steps
 
+    timings = [("kinema (Rust)", t_kinema), ("numpy (vectorised)", t_numpy)]
+    for name, make in [("Taichi (CPU, f64)", taichi_runner), ("Warp (CPU, f64)", warp_runner)]:
+        run = make(x0.copy(), v0.copy())
+        if run is None:
+            print(f"{name}: not installed")
+            continue
+        run(1)  # compile
+        start = time.perf_counter()
+        run(steps)
+        timings.append((name, (time.perf_counter() - start) / steps))
+
     # Bytes a step must touch at least: read and write x and v (48 B per particle each way).
     floor = 2 * 48 * n
     print(f"N = {n}, {steps} steps, {os.cpu_count()} threads available\n")
-    print("| implementation | ms / step | steps / s | speed-up | GB/s touched |")
+    print("| implementation | ms / step | steps / s | kinema speed-up | GB/s touched |")
     print("|---|---:|---:|---:|---:|")
-    for name, t in [("kinema (Rust)", t_kinema), ("numpy (vectorised)", t_numpy)]:
+    for name, t in timings:
         print(
-            f"| {name} | {1e3 * t:.2f} | {1 / t:.1f} | {t_numpy / t:.1f}x | {floor / t / 1e9:.2f} |"
+            f"| {name} | {1e3 * t:.2f} | {1 / t:.1f} | {t / t_kinema:.2f}x | {floor / t / 1e9:.2f} |"
         )
 
 
