@@ -18,12 +18,14 @@ subdivision.
 ``RotationTrack(times, rotations, interpolation="slerp" | "squad")`` interpolates
 orientations on the shorter arcs and gives their angular velocity.
 
-Not implemented yet: the C2 rotation spline, ``Clip``, easing and arc-length
-reparameterisation (see docs/anim.md).
+``reparameterize_by_arc_length(track)`` gives the curve at constant speed.
+
+Not implemented yet: the C2 rotation spline, ``Clip`` and easing (see docs/anim.md).
 """
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from typing import Any
 
@@ -32,7 +34,7 @@ import numpy as np
 from kinema import _kinema
 from kinema.rotation import Rotation
 
-__all__ = ["RotationTrack", "Track", "subdivide"]
+__all__ = ["ArcLengthCurve", "RotationTrack", "Track", "reparameterize_by_arc_length", "subdivide"]
 
 INTERPOLATIONS = (
     "step",
@@ -114,6 +116,7 @@ class Track:
             None if extra is None else np.ascontiguousarray(extra),
         )
         self._order = 0
+        self._times = t.copy()
 
     def __call__(self, t: Any) -> Any:
         """Evaluate at time ``t`` (scalar or array); shape ``t.shape`` for scalar channels,
@@ -130,7 +133,12 @@ class Track:
         if n not in (1, 2) or self._order + n > 2:
             raise ValueError(f"n: derivatives up to order 2 are available, got {self._order + n}")
         d = object.__new__(Track)
-        d._track, d._scalar, d._order = self._track, self._scalar, self._order + n
+        d._track, d._scalar, d._order, d._times = (
+            self._track,
+            self._scalar,
+            self._order + n,
+            self._times,
+        )
         return d
 
 
@@ -176,3 +184,80 @@ class RotationTrack:
         tt = _float(t, "t")
         w = self._track.angular_velocity(np.ascontiguousarray(tt.reshape(-1, 1)))
         return w[0] if tt.ndim == 0 else w.reshape(*tt.shape, 3)
+
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
+
+
+class ArcLengthCurve:
+    """A track reparameterised by arc length: ``curve(s)`` is the point at distance ``s`` along
+    the track (0 ≤ s ≤ ``length``), so sampling ``s`` uniformly moves at constant speed.
+
+    Built by :func:`reparameterize_by_arc_length`; ``time_at(s)`` gives the track time.
+    """
+
+    def __init__(self, track: Track, t: np.ndarray, s: np.ndarray) -> None:
+        self._track, self._t, self._s = track, t, s
+        self._speed = track.derivative(1)
+        self.length = float(s[-1])
+
+    def _partial(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """∫_a^b |x'(t)| dt by 8-point Gauss–Legendre (a, b within one table interval)."""
+        mid, half = (a + b) / 2, (b - a) / 2
+        nodes = mid[:, None] + half[:, None] * _GL_X[None, :]
+        speed = (
+            np.abs(self._speed(nodes))
+            if self._track._scalar
+            else np.linalg.norm(self._speed(nodes), axis=-1)
+        )
+        return half * (speed @ _GL_W)
+
+    def time_at(self, s: Any) -> np.ndarray:
+        """Track times at arc lengths ``s`` (clamped to [0, length]), by Newton's method on
+        ``S(t) = s`` within the table interval (converged to 1e-12 of the length)."""
+        ss = np.clip(_float(s, "s"), 0.0, self.length)
+        flat = ss.ravel()
+        j = np.clip(np.searchsorted(self._s, flat, side="right") - 1, 0, len(self._t) - 2)
+        t0, s0, t1 = self._t[j], self._s[j], self._t[j + 1]
+        t = t0 + (t1 - t0) * np.where(
+            self._s[j + 1] > s0, (flat - s0) / np.maximum(self._s[j + 1] - s0, 1e-300), 0.0
+        )
+        for _ in range(30):
+            f = s0 + self._partial(t0, t) - flat
+            speed = (
+                np.abs(self._speed(t))
+                if self._track._scalar
+                else np.linalg.norm(self._speed(t), axis=-1)
+            )
+            step = np.where(speed > 0, f / np.maximum(speed, 1e-300), 0.0)
+            t = np.clip(t - step, t0, t1)
+            if np.all(np.abs(f) <= 1e-12 * max(self.length, 1e-300)):
+                break
+        return t.reshape(ss.shape)
+
+    def __call__(self, s: Any) -> Any:
+        return self._track(self.time_at(s))
+
+
+def reparameterize_by_arc_length(track: Track, tol: float = 1e-10) -> ArcLengthCurve:
+    """Tabulate the arc length of ``track`` (over its key range) with 8-point Gauss–Legendre on
+    subintervals, halving them until the total changes by less than ``tol`` times the length,
+    and return the curve parameterised by arc length (Parent, *Computer Animation*, §3.2)."""
+    if not isinstance(track, Track) or track._order != 0:
+        raise ValueError("track: expected a kinema.anim.Track (not a derivative)")
+    keys = track._times
+    if len(keys) < 2:
+        raise ValueError("track: needs at least two keys to have a length")
+    curve = ArcLengthCurve(track, keys, np.zeros(len(keys)))
+    total, per_segment = np.inf, 1
+    while True:
+        t = np.concatenate(
+            [np.linspace(a, b, per_segment + 1)[:-1] for a, b in itertools.pairwise(keys)]
+            + [keys[-1:]]
+        )
+        pieces = curve._partial(t[:-1], t[1:])
+        new_total = float(pieces.sum())
+        if abs(new_total - total) <= tol * max(new_total, 1e-300) or per_segment >= 4096:
+            break
+        total, per_segment = new_total, per_segment * 2
+    return ArcLengthCurve(track, t, np.concatenate([[0.0], np.cumsum(pieces)]))

@@ -144,3 +144,38 @@ def test_rotation_track_slerp_matches_scipy_and_squad_is_smooth():
         assert jump_squad < 1e-2 < jump_slerp
     with pytest.raises(ValueError, match="interpolation"):
         RotationTrack(times, keys, "spline")
+
+
+def test_arc_length_reparameterisation_moves_at_constant_speed():
+    from kinema.anim import reparameterize_by_arc_length
+
+    t = np.array([0.0, 0.3, 1.4, 2.0, 3.5])
+    pts = np.array([[0, 0], [1, 2], [3, 2.5], [4, 0], [6, 1]], dtype=float)
+    curve = reparameterize_by_arc_length(Track(t, pts, "catmull_rom"))
+    s = np.linspace(0, curve.length, 2001)
+    p = curve(s)
+    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    # Equal arc-length steps: chords of equal arcs agree up to the curvature term κ²h²/24.
+    np.testing.assert_allclose(step, curve.length / 2000, rtol=2e-4)
+    # Independent oracle: scipy's adaptive quadrature of the speed up to time_at(s) gives s.
+    from scipy.integrate import quad
+
+    speed = Track(t, pts, "catmull_rom").derivative()
+    for target in [0.1, 1.7, 4.2, curve.length * 0.9]:
+        tt = float(curve.time_at(target))
+        knots = [k for k in t if k < tt]
+        total = sum(
+            quad(lambda x: np.linalg.norm(speed(x)), a, b, epsabs=1e-13, epsrel=1e-13)[0]
+            for a, b in zip(knots, [*knots[1:], tt], strict=True)
+        )
+        assert total == pytest.approx(target, abs=1e-9)
+    np.testing.assert_allclose(p[0], pts[0], atol=1e-12)
+    np.testing.assert_allclose(p[-1], pts[-1], atol=1e-9)
+    # A straight line's length is exact.
+    line = reparameterize_by_arc_length(
+        Track([0.0, 1.0, 5.0], [[0, 0, 0], [1, 1, 1], [2, 2, 2]], "linear")
+    )
+    assert line.length == pytest.approx(2 * np.sqrt(3), rel=1e-12)
+    np.testing.assert_allclose(line(np.sqrt(3)), [1, 1, 1], atol=1e-10)
+    with pytest.raises(ValueError, match="track"):
+        reparameterize_by_arc_length(Track([0.0], [1.0]))
