@@ -18,9 +18,10 @@ subdivision.
 ``RotationTrack(times, rotations, interpolation="slerp" | "squad")`` interpolates
 orientations on the shorter arcs and gives their angular velocity.
 
-``reparameterize_by_arc_length(track)`` gives the curve at constant speed.
+``reparameterize_by_arc_length(track)`` gives the curve at constant speed, ``ease`` the timing
+curves, ``Clip`` samples named channels together at a frame rate.
 
-Not implemented yet: the C2 rotation spline, ``Clip`` and easing (see docs/anim.md).
+Not implemented yet: the C2 rotation spline and per-key interpolation modes (see docs/anim.md).
 """
 
 from __future__ import annotations
@@ -34,7 +35,15 @@ import numpy as np
 from kinema import _kinema
 from kinema.rotation import Rotation
 
-__all__ = ["ArcLengthCurve", "RotationTrack", "Track", "reparameterize_by_arc_length", "subdivide"]
+__all__ = [
+    "ArcLengthCurve",
+    "Clip",
+    "RotationTrack",
+    "Track",
+    "ease",
+    "reparameterize_by_arc_length",
+    "subdivide",
+]
 
 INTERPOLATIONS = (
     "step",
@@ -172,6 +181,7 @@ class RotationTrack:
         self._track = _kinema.KeyRotationTrack(
             np.ascontiguousarray(t.reshape(-1, 1)), q, interpolation
         )
+        self._times = t.copy()
 
     def __call__(self, t: Any) -> Rotation:
         """The orientation(s) at time ``t`` (a single Rotation for a scalar ``t``)."""
@@ -261,3 +271,60 @@ def reparameterize_by_arc_length(track: Track, tol: float = 1e-10) -> ArcLengthC
             break
         total, per_segment = new_total, per_segment * 2
     return ArcLengthCurve(track, t, np.concatenate([[0.0], np.cumsum(pieces)]))
+
+
+EASINGS = ("linear", "ease_in", "ease_out", "ease_in_out", "smoothstep")
+
+
+def ease(u: Any, kind: str = "ease_in_out") -> Any:
+    """Timing curve on ``u`` in [0, 1] (clamped), with ``ease(0) = 0`` and ``ease(1) = 1``:
+    ``"linear"``; ``"ease_in"`` (``u²``, starts at rest); ``"ease_out"`` (``1 - (1-u)²``, ends at
+    rest); ``"ease_in_out"`` (sinusoidal, ``(1 - cos πu)/2``, rests at both ends, Parent §3.2.2);
+    ``"smoothstep"`` (``3u² - 2u³``). Combine with :func:`reparameterize_by_arc_length` to move
+    along a path with a speed profile: ``curve(ease(u) * curve.length)``."""
+    x = np.clip(_float(u, "u"), 0.0, 1.0)
+    if kind == "linear":
+        y = x
+    elif kind == "ease_in":
+        y = x * x
+    elif kind == "ease_out":
+        y = 1.0 - (1.0 - x) ** 2
+    elif kind == "ease_in_out":
+        y = (1.0 - np.cos(np.pi * x)) / 2.0
+    elif kind == "smoothstep":
+        y = x * x * (3.0 - 2.0 * x)
+    else:
+        raise ValueError(f"kind: {kind!r} is not one of {', '.join(EASINGS)}")
+    return float(y) if np.ndim(y) == 0 else y
+
+
+class Clip:
+    """Named channels animated together: ``Clip({"position": track, "opacity": track, ...})``.
+
+    ``duration`` spans the earliest to the latest key of all channels; ``sample(fps)`` evaluates
+    every channel on one frame grid and returns ``(times, {name: array})``.
+    """
+
+    def __init__(self, channels: dict[str, Track | RotationTrack]) -> None:
+        if not channels or not all(
+            isinstance(c, (Track, RotationTrack)) for c in channels.values()
+        ):
+            raise ValueError("channels: expected a non-empty dict of Track or RotationTrack")
+        self.channels = dict(channels)
+        times = [c._times for c in self.channels.values()]
+        self.start = float(min(t[0] for t in times))
+        self.end = float(max(t[-1] for t in times))
+
+    @property
+    def duration(self) -> float:
+        """Seconds from the first key to the last."""
+        return self.end - self.start
+
+    def sample(self, fps: float) -> tuple[np.ndarray, dict[str, Any]]:
+        """Frame times at ``fps`` frames per second (covering start to end) and each channel's
+        values there (rotation channels as ``kinema.Rotation`` stacks)."""
+        if not (float(fps) > 0 and np.isfinite(fps)):
+            raise ValueError(f"fps: expected a positive number, got {fps!r}")
+        frames = int(np.floor(self.duration * fps + 1e-9)) + 1
+        t = self.start + np.arange(frames) / float(fps)
+        return t, {name: channel(t) for name, channel in self.channels.items()}

@@ -179,3 +179,37 @@ def test_arc_length_reparameterisation_moves_at_constant_speed():
     np.testing.assert_allclose(line(np.sqrt(3)), [1, 1, 1], atol=1e-10)
     with pytest.raises(ValueError, match="track"):
         reparameterize_by_arc_length(Track([0.0], [1.0]))
+
+
+def test_easing_and_clips():
+    from kinema import Rotation
+    from kinema.anim import Clip, RotationTrack, ease, reparameterize_by_arc_length
+
+    u = np.linspace(0, 1, 11)
+    for kind in ["linear", "ease_in", "ease_out", "ease_in_out", "smoothstep"]:
+        y = ease(u, kind)
+        assert y[0] == 0.0 and y[-1] == pytest.approx(1.0) and np.all(np.diff(y) >= 0)
+    # Ease-in starts at rest, ease-out ends at rest, ease-in-out does both.
+    d = 1e-6
+    assert ease(d, "ease_in") / d < 1e-5 and (1 - ease(1 - d, "ease_out")) / d < 1e-5
+    assert ease(d, "ease_in_out") / d < 1e-5 and (1 - ease(1 - d, "ease_in_out")) / d < 1e-5
+    with pytest.raises(ValueError, match="kind"):
+        ease(0.5, "bounce")
+    # Moving along a path with a speed profile: distance covered follows the easing curve.
+    path = reparameterize_by_arc_length(
+        Track([0.0, 1.0, 2.0], [[0, 0], [1, 1], [3, 1]], "catmull_rom")
+    )
+    assert ease(0.5, "smoothstep") * path.length == pytest.approx(path.length / 2)
+
+    clip = Clip(
+        {
+            "opacity": Track([0.0, 2.0], [0.0, 1.0], "linear"),
+            "turn": RotationTrack([0.5, 1.5], Rotation.random(2, seed=0)),
+        }
+    )
+    assert clip.duration == 2.0
+    t, values = clip.sample(24)
+    assert len(t) == 49 and values["opacity"].shape == (49,) and len(values["turn"]) == 49
+    np.testing.assert_allclose(values["opacity"], t / 2.0, atol=1e-15)
+    with pytest.raises(ValueError, match="channels"):
+        Clip({})
