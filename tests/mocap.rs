@@ -217,3 +217,14 @@ fn read_write_read_is_the_identity_on_every_cmu_clip() {
         assert!(worst < 1e-14, "{amc}: {worst}");
     }
 }
+
+#[test]
+fn limits_are_checked_per_frame() {
+    let asf = ONE_BONE.replace("AXIS", "0 0 0").replace("DOF", "rz");
+    let sk = parse_asf(&asf, "one.asf").unwrap();
+    let m = parse_amc("1\nroot 0 0 0 0 0 0\narm 90\n2\nroot 0 0 0 0 0 0\narm 200\n", "l.amc", &sk)
+        .unwrap();
+    assert_eq!(sk.within_limits(&m).unwrap(), vec![true, false]);
+    assert_eq!(m.slice(1, 2).unwrap().frames, 1);
+    assert!(m.slice(1, 1).is_err());
+}

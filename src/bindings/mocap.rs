@@ -52,6 +52,11 @@ impl PySkeleton {
             .collect()
     }
 
+    /// Per frame, whether every dof is within the ASF limits.
+    fn within_limits(&self, motion: &PyMotion) -> PyResult<Vec<bool>> {
+        Ok(self.skeleton.within_limits(&motion.motion)?)
+    }
+
     /// Positions (F, J, 3) in file units and orientations (F, J, 4) of every joint.
     fn forward_kinematics<'py>(
         &self,
@@ -75,6 +80,17 @@ impl PyMotion {
     #[getter]
     fn frames(&self) -> usize {
         self.motion.frames
+    }
+
+    /// Frames start..end as a new motion.
+    fn slice(&self, start: usize, end: usize) -> PyResult<PyMotion> {
+        Ok(PyMotion { motion: self.motion.slice(start, end)? })
+    }
+
+    /// All dof values (F, values per frame): root dofs then each bone's, radians / file units.
+    fn values<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        PyArray1::from_vec(py, self.motion.values.clone())
+            .reshape([self.motion.frames, self.motion.stride])
     }
 }
 

@@ -96,7 +96,53 @@ pub struct Motion {
     pub frames: usize,
 }
 
+impl Motion {
+    /// Frames `start..end` as a new motion.
+    ///
+    /// # Errors
+    /// An empty or out-of-range span.
+    pub fn slice(&self, start: usize, end: usize) -> Result<Motion> {
+        if start >= end || end > self.frames {
+            return Err(Error::invalid(
+                "frames",
+                format!("need 0 <= start < end <= {}, got {start}..{end}", self.frames),
+            ));
+        }
+        Ok(Motion {
+            values: self.values[start * self.stride..end * self.stride].to_vec(),
+            stride: self.stride,
+            frames: end - start,
+        })
+    }
+}
+
 impl Skeleton {
+    /// Whether each frame of `motion` keeps every bone's dofs within the ASF limits (to
+    /// `1e-9`; bones without limits are unconstrained).
+    ///
+    /// # Errors
+    /// A motion made for another skeleton.
+    pub fn within_limits(&self, motion: &Motion) -> Result<Vec<bool>> {
+        if motion.stride != self.stride() {
+            return Err(Error::invalid("motion", "was not made for this skeleton"));
+        }
+        Ok((0..motion.frames)
+            .map(|f| {
+                let row = &motion.values[f * motion.stride..(f + 1) * motion.stride];
+                let mut k = self.root_order.len();
+                self.bones.iter().all(|b| {
+                    let ok = b
+                        .limits
+                        .iter()
+                        .zip(&row[k..k + b.dofs.len()])
+                        .all(|(l, v)| *v >= l.0 - 1e-9 && *v <= l.1 + 1e-9);
+                    k += b.dofs.len();
+                    ok
+                })
+            })
+            .collect())
+    }
+
     /// Joint names: `"root"` then the bones in order.
     pub fn joint_names(&self) -> Vec<String> {
         std::iter::once("root".to_string())

@@ -52,3 +52,19 @@ def test_read_write_read(tmp_path, walk):
     p2, _ = sk2.forward_kinematics(m2)
     np.testing.assert_allclose(p1, p2, atol=1e-10)
     assert sk2.joint_names == sk.joint_names
+
+
+def test_slices_values_and_limits(walk):
+    sk, motion = walk
+    part = motion.slice(10, 20)
+    assert part.frames == 10
+    np.testing.assert_array_equal(part.values(), motion.values()[10:20])
+    p_all, _ = sk.forward_kinematics(motion)
+    p_part, _ = sk.forward_kinematics(part)
+    np.testing.assert_array_equal(p_part, p_all[10:20])
+    ok = np.array(sk.within_limits(motion))
+    # CMU captures are not bound by their ASF limits (frame 100 has lowerneck at -20.4° against
+    # a limit of -20°); the check must see that.
+    assert ok.shape == (517,) and not ok.all()
+    with pytest.raises(ValueError, match="start < end"):
+        motion.slice(5, 5)
