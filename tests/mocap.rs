@@ -228,3 +228,37 @@ fn limits_are_checked_per_frame() {
     assert_eq!(m.slice(1, 2).unwrap().frames, 1);
     assert!(m.slice(1, 1).is_err());
 }
+
+#[test]
+fn resampling_keeps_the_motion() {
+    let sk = parse_asf(&read("07-walk.asf"), "07-walk.asf").unwrap();
+    let m = parse_amc(&read("07_05-walk.amc"), "07_05-walk.amc", &sk).unwrap();
+    // Same rate: the identity on FK (slerp at s = 0 returns the key rotation).
+    let same = sk.resample(&m, 120.0, 120.0).unwrap();
+    assert_eq!(same.frames, m.frames);
+    let (p0, _) = fk(&sk, &m);
+    let (p1, _) = fk(&sk, &same);
+    assert!(p0.iter().zip(&p1).all(|(a, b)| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9)));
+    // Down to 30 Hz: every 4th frame, same poses.
+    let slow = sk.resample(&m, 120.0, 30.0).unwrap();
+    assert_eq!(slow.frames, (m.frames - 1) / 4 + 1);
+    let (p2, _) = fk(&sk, &slow);
+    let joints = 1 + sk.bones.len();
+    for f in 0..slow.frames {
+        for j in 0..joints {
+            let (a, b) = (p2[f * joints + j], p0[4 * f * joints + j]);
+            assert!(a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9), "frame {f} joint {j}");
+        }
+    }
+    // Up to 240 Hz: bone lengths still hold in the new in-between frames.
+    let fast = sk.resample(&m, 120.0, 240.0).unwrap();
+    assert_eq!(fast.frames, 2 * (m.frames - 1) + 1);
+    let (p3, _) = fk(&sk, &fast);
+    for (b, bone) in sk.bones.iter().enumerate() {
+        let parent = bone.parent.map_or(0, |q| q + 1);
+        let (a, c) = (p3[joints + parent], p3[joints + b + 1]);
+        let d = ((a[0] - c[0]).powi(2) + (a[1] - c[1]).powi(2) + (a[2] - c[2]).powi(2)).sqrt();
+        assert!((d - bone.length).abs() < 1e-9);
+    }
+    assert!(sk.resample(&m, 0.0, 30.0).is_err());
+}

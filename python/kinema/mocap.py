@@ -8,6 +8,9 @@ silently) and orientations ``(frames, joints, 4)`` (``w, x, y, z``). Conventions
 docs/mocap.md. Malformed files raise :class:`kinema.ParseError` with the file and line.
 
 ``write_asf`` / ``write_amc`` write them back (read → write → read is the identity).
+``skeleton.resample(motion, from_rate, to_rate)`` changes the frame rate (slerp for three-dof
+rotations; CMU clips are captured at 120 Hz, which the files do not store);
+``skeleton.within_limits(motion)`` checks the ASF limits per frame; ``motion.slice(a, b)``.
 
 Not implemented yet: BVH, inverse kinematics and motion editing.
 """

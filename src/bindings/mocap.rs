@@ -52,6 +52,11 @@ impl PySkeleton {
             .collect()
     }
 
+    /// `motion` sampled at `from_rate` Hz resampled at `to_rate` Hz (slerp for 3-dof rotations).
+    fn resample(&self, motion: &PyMotion, from_rate: f64, to_rate: f64) -> PyResult<PyMotion> {
+        Ok(PyMotion { motion: self.skeleton.resample(&motion.motion, from_rate, to_rate)? })
+    }
+
     /// Per frame, whether every dof is within the ASF limits.
     fn within_limits(&self, motion: &PyMotion) -> PyResult<Vec<bool>> {
         Ok(self.skeleton.within_limits(&motion.motion)?)
