@@ -4,8 +4,16 @@ Subjects live in submodules (``kinema.rotation`` so far); the most used names ar
 re-exported here. See README.md and ARCHITECTURE.md.
 """
 
-from kinema._kinema import ParseError, SimulationError, __version__
+import os as _os
+
+from kinema._kinema import ParseError, SimulationError, __version__, num_threads, set_num_threads
 from kinema.rotation import GimbalLockWarning, Rotation, Transform, slerp
+
+if _os.environ.get("KINEMA_NUM_THREADS"):
+    try:
+        set_num_threads(int(_os.environ["KINEMA_NUM_THREADS"]))
+    except ValueError as _e:
+        raise ValueError(f"KINEMA_NUM_THREADS: {_e}") from None
 
 __all__ = [
     "GimbalLockWarning",
@@ -14,5 +22,7 @@ __all__ = [
     "SimulationError",
     "Transform",
     "__version__",
+    "num_threads",
+    "set_num_threads",
     "slerp",
 ]

@@ -36,7 +36,7 @@ def _info() -> None:
     print(f"kinema {kinema.__version__}")
     print(f"python {platform.python_version()} on {platform.machine()} {platform.system()}")
     print(f"numpy {numpy.__version__}")
-    print(f"cpu threads available: {os.cpu_count()}")
+    print(f"cpu threads available: {os.cpu_count()}, used by kinema: {kinema.num_threads()}")
     print(f"demos: {', '.join(DEMOS)}")
 
 

@@ -15,11 +15,31 @@ mod particles;
 mod rigid;
 mod rotation;
 
+/// Size the thread pool used by every parallel kernel (must come before the first parallel
+/// call; results are the same for any thread count).
+#[pyfunction]
+fn set_num_threads(n: usize) -> PyResult<()> {
+    if n == 0 {
+        return Err(crate::Error::invalid("n", "the thread count must be at least 1").into());
+    }
+    rayon::ThreadPoolBuilder::new().num_threads(n).build_global().map_err(|_| {
+        crate::Error::invalid("n", "the thread pool is already running; set the count before the first parallel call (or use KINEMA_NUM_THREADS)").into()
+    })
+}
+
+/// Threads of the pool used by the parallel kernels.
+#[pyfunction]
+fn num_threads() -> usize {
+    rayon::current_num_threads()
+}
+
 /// The compiled core of kinema. Use it through the `kinema` package, which checks and
 /// converts arguments and adds the Python-side API.
 #[pymodule]
 fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_function(wrap_pyfunction!(set_num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(num_threads, m)?)?;
     error::register(m)?;
     rotation::register(m)?;
     rigid::register(m)?;

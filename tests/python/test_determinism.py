@@ -1,5 +1,5 @@
 """The same inputs give bitwise the same results with 1 and with 2 threads (CONVENTIONS:
-determinism). Each run is a fresh process so the thread pool is sized by RAYON_NUM_THREADS."""
+determinism). Each run is a fresh process so the thread pool is sized by KINEMA_NUM_THREADS."""
 
 from __future__ import annotations
 
@@ -48,8 +48,10 @@ np.savez(sys.argv[1], **out)
 
 
 def run(threads: int, path: Path) -> dict[str, np.ndarray]:
-    env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
-    subprocess.run([sys.executable, "-c", SCRIPT, str(path)], env=env, check=True, timeout=300)
+    env = dict(os.environ, KINEMA_NUM_THREADS=str(threads))
+    subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(path), str(threads)], env=env, check=True, timeout=300
+    )
     with np.load(path) as data:
         return {k: data[k] for k in data.files}
 
@@ -59,3 +61,11 @@ def test_one_and_two_threads_agree_bitwise(tmp_path: Path):
     assert one.keys() == two.keys()
     for key in one:
         assert np.array_equal(one[key], two[key]), key
+
+
+def test_bad_thread_counts(tmp_path: Path):
+    env = dict(os.environ, KINEMA_NUM_THREADS="0")
+    result = subprocess.run(
+        [sys.executable, "-c", "import kinema"], env=env, capture_output=True, text=True
+    )
+    assert result.returncode != 0 and "KINEMA_NUM_THREADS" in result.stderr
