@@ -18,14 +18,15 @@ pub fn quat_from_rotvec(v: &[f64; 3]) -> Result<DQuat> {
     let v = DVec3::from_array(*v);
     let theta = v.length();
     let half = 0.5 * theta;
+    let (sin, cos) = half.sin_cos();
     // sin(θ/2)/θ; the series error at θ = 1e-3 is below θ⁶/322560 ≈ 3e-24.
     let k = if theta < 1e-3 {
         let t2 = theta * theta;
         0.5 - t2 / 48.0 + t2 * t2 / 3840.0
     } else {
-        half.sin() / theta
+        sin / theta
     };
-    Ok(DQuat::from_xyzw(k * v.x, k * v.y, k * v.z, half.cos()))
+    Ok(DQuat::from_xyzw(k * v.x, k * v.y, k * v.z, cos))
 }
 
 /// Rotation vector of unit quaternion `q`, with angle in `[0, pi]`.
