@@ -8,6 +8,7 @@ import os as _os
 
 from kinema._kinema import ParseError, SimulationError, __version__, num_threads, set_num_threads
 from kinema.rotation import GimbalLockWarning, Rotation, Transform, slerp
+from kinema.scene import Scene
 
 if _os.environ.get("KINEMA_NUM_THREADS"):
     try:
@@ -19,6 +20,7 @@ __all__ = [
     "GimbalLockWarning",
     "ParseError",
     "Rotation",
+    "Scene",
     "SimulationError",
     "Transform",
     "__version__",

@@ -173,6 +173,25 @@ class Emitter:
     seed: int = 0
 
 
+def _collider(c: Plane | Sphere) -> tuple[str, list[float]]:
+    if isinstance(c, Plane):
+        return "plane", [
+            *as_vector3(c.point, "point"),
+            *as_vector3(c.normal, "normal"),
+            float(c.restitution),
+            float(c.friction),
+        ]
+    if isinstance(c, Sphere):
+        return "sphere", [
+            *as_vector3(c.center, "center"),
+            float(c.radius),
+            float(bool(c.inside)),
+            float(c.restitution),
+            float(c.friction),
+        ]
+    raise ValueError(f"collider: expected kinema.particles.Plane or Sphere, got {c!r}")
+
+
 class ParticleSystem:
     """Particles with positions ``(N, 3)`` (m), velocities ``(N, 3)`` (m/s, default 0) and
     masses (kg; a scalar or ``(N,)``; ``inf`` pins a particle), with room for ``capacity``
@@ -189,9 +208,12 @@ class ParticleSystem:
         cap = len(x) if capacity is None else int(capacity)
         self._sys = _kinema.Particles(x, v, m, cap)
         self._fields: list[Field] = []
+        self._colliders = 0
+        self._stiffest = 0.0  # largest k (1/m_i + 1/m_j) of any spring, 1/s²
 
     def add(self, item: Any) -> None:
-        """Add a force, a collider or an emitter."""
+        """Add a force, a collider or an emitter (colliders are numbered in the order added,
+        for :meth:`set_collider`)."""
         s = self._sys
         if isinstance(item, Gravity):
             s.add_force("gravity", as_vector3(item.g, "g"))
@@ -211,6 +233,11 @@ class ParticleSystem:
                 rest = np.linalg.norm(x[idx[:, 0]] - x[idx[:, 1]], axis=1)
             else:
                 rest = np.asarray(item.rest, dtype=np.float64).ravel()
+            inv_m = 1.0 / self.masses
+            idx = pairs.astype(np.int64)
+            if len(idx) and (idx >= 0).all() and (idx < len(inv_m)).all():
+                reduced = inv_m[idx[:, 0]] + inv_m[idx[:, 1]]
+                self._stiffest = max(self._stiffest, float(item.stiffness) * float(reduced.max()))
             s.add_force(
                 "springs",
                 [float(item.stiffness), float(item.damping)],
@@ -244,27 +271,9 @@ class ParticleSystem:
             if not callable(item.force):
                 raise ValueError("force: expected a callable force(t, positions, velocities)")
             self._fields.append(item)
-        elif isinstance(item, Plane):
-            s.add_collider(
-                "plane",
-                [
-                    *as_vector3(item.point, "point"),
-                    *as_vector3(item.normal, "normal"),
-                    float(item.restitution),
-                    float(item.friction),
-                ],
-            )
-        elif isinstance(item, Sphere):
-            s.add_collider(
-                "sphere",
-                [
-                    *as_vector3(item.center, "center"),
-                    float(item.radius),
-                    float(bool(item.inside)),
-                    float(item.restitution),
-                    float(item.friction),
-                ],
-            )
+        elif isinstance(item, (Plane, Sphere)):
+            s.add_collider(*_collider(item))
+            self._colliders += 1
         elif isinstance(item, Emitter):
             s.add_emitter(
                 [
@@ -282,6 +291,17 @@ class ParticleSystem:
             raise ValueError(
                 f"item: expected a force, collider or emitter of kinema.particles, got {item!r}"
             )
+
+    def set_collider(self, index: int, collider: Plane | Sphere) -> None:
+        """Replace collider ``index`` (move it between steps)."""
+        self._sys.set_collider(int(index), *_collider(collider))
+
+    @property
+    def stiffest_spring(self) -> float:
+        """``max k (1/m_i + 1/m_j)`` (1/s²) over the springs added, the square of the fastest
+        spring's angular frequency (0 without springs); ``kinema.Scene`` checks explicit steps
+        against it."""
+        return self._stiffest
 
     def step(self, dt: float, steps: int = 1, method: str = "symplectic_euler") -> None:
         """Advance ``steps`` steps of ``dt`` seconds; on divergence raise

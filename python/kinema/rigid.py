@@ -129,6 +129,7 @@ class World:
         self._world = _kinema.RigidWorld(
             as_vector3(gravity, "gravity"), integrator, bool(collisions)
         )
+        self._shapes: list[Shape] = []
 
     def add_body(
         self,
@@ -173,7 +174,7 @@ class World:
         rot = Rotation.identity() if orientation is None else orientation
         if not isinstance(rot, Rotation) or not rot.single:
             raise ValueError("orientation: expected a single kinema.Rotation")
-        return self._world.add_body(
+        index = self._world.add_body(
             kind,
             dims,
             verts,
@@ -188,6 +189,8 @@ class World:
             float(restitution),
             float(friction),
         )
+        self._shapes.append(shape)
+        return int(index)
 
     def add_ground(
         self, height: float = 0.0, *, restitution: float = 0.0, friction: float = 0.5
@@ -196,6 +199,11 @@ class World:
         ``restitution`` and Coulomb ``friction``. Bodies then collide with it (sequential
         impulses; see docs/rigid.md)."""
         self._world.add_plane([0.0, 1.0, 0.0], float(height), float(restitution), float(friction))
+
+    @property
+    def shapes(self) -> list[Shape]:
+        """The shape of each body, in the order added."""
+        return list(self._shapes)
 
     @property
     def bodies(self) -> list[Body]:

@@ -13,7 +13,7 @@ use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 
 /// How an orientation track interpolates between keys.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RotationInterpolation {
     /// Great-arc interpolation per segment: constant angular velocity, C0 at keys.
     Slerp,
@@ -45,7 +45,7 @@ impl RotationInterpolation {
 }
 
 /// A keyframed orientation (keys held outside the key range).
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct RotationTrack {
     times: Vec<f64>,
     keys: Vec<DQuat>,

@@ -5,7 +5,7 @@
 use crate::error::{Error, Result};
 
 /// A subdivision rule.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Scheme {
     /// `q = 3/4 p_i + 1/4 p_{i+1}`, `r = 1/4 p_i + 3/4 p_{i+1}`; limit: quadratic B-spline.
     Chaikin,

@@ -4,7 +4,7 @@ use crate::error::{Error, Result};
 use rayon::prelude::*;
 
 /// How a track interpolates between its keys (see the table in the module docs).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub enum Interpolation {
     /// Hold each key's value until the next key.
     Step,
@@ -56,7 +56,7 @@ pub enum Interpolation {
 }
 
 /// What a track does outside `[t_first, t_last]`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Extrapolation {
     /// Keep the end values (derivatives 0).
     Hold,
@@ -85,7 +85,7 @@ impl Extrapolation {
 }
 
 /// A keyframed channel of `dim` values per key, ready to evaluate.
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Track {
     times: Vec<f64>,
     dim: usize,

@@ -2,10 +2,12 @@
 
 use super::array::compute;
 use super::array::rows;
+use super::error::{detached, reduce, Reduced};
 use crate::anim::{
     subdivide, Extrapolation, Interpolation, RotationInterpolation, RotationTrack, Scheme, Track,
 };
 use crate::error::Error;
+use crate::snapshot::Snapshot;
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
@@ -32,6 +34,20 @@ pub struct KeyTrack {
 
 #[pymethods]
 impl KeyTrack {
+    /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let this = slf.borrow();
+        let inner = &this.track;
+        let bytes = detached(slf.py(), || inner.to_snapshot())?;
+        reduce(slf.as_any(), bytes, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { track: Track::from_snapshot(data)? })
+    }
+
     /// `times` (N, 1), `values` (N, D), the scheme's name (or one per segment) and its
     /// parameters.
     #[new]
@@ -144,6 +160,20 @@ pub struct KeyRotationTrack {
 
 #[pymethods]
 impl KeyRotationTrack {
+    /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let this = slf.borrow();
+        let inner = &this.track;
+        let bytes = detached(slf.py(), || inner.to_snapshot())?;
+        reduce(slf.as_any(), bytes, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { track: RotationTrack::from_snapshot(data)? })
+    }
+
     /// `times` (N, 1), `quats` (N, 4) scalar-first, `interpolation` slerp | squad | spline,
     /// `shortest` one flag per segment (empty: shorter arcs everywhere).
     #[new]

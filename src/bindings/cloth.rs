@@ -3,12 +3,14 @@
 
 use super::array::{compute, rows};
 use super::error::detached;
+use super::error::{reduce, Reduced};
 use crate::cloth::{
     parse_obj, write_obj, Cloth, Collider, Material, Mesh, Model, Shape, SolveOptions, Solver,
     Triangulation, VertexConstraint,
 };
 use crate::error::Error;
 use crate::ode::Method;
+use crate::snapshot::Snapshot;
 use glam::DVec3;
 use numpy::ndarray::ArrayView2;
 use numpy::{PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
@@ -81,6 +83,20 @@ impl ClothCore {
 
 #[pymethods]
 impl ClothCore {
+    /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let this = slf.borrow();
+        let inner = &this.cloth;
+        let bytes = detached(slf.py(), || inner.to_snapshot())?;
+        reduce(slf.as_any(), bytes, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { cloth: Cloth::from_snapshot(data)? })
+    }
+
     /// A cloth from `vertices` (N, 3) m and `triangles` (M, 3) indices (as float64), with
     /// optional per-corner `uv` (M, 6) m, model `"baraff_witkin"` or `"mass_spring"` and
     /// material `[density, stretch, shear, bend, damping, air_damping]`, `gravity` (3,).

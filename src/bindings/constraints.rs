@@ -3,6 +3,7 @@
 
 use super::anim::KeyTrack;
 use super::error::detached;
+use super::error::{reduce, Reduced};
 use super::particles::Particles;
 use crate::constraints::{
     ConstrainedSystem, Constraint, ConstraintFunction, ConstraintSolver, Curve, ReducedBead,
@@ -10,6 +11,7 @@ use crate::constraints::{
 };
 use crate::error::Error;
 use crate::ode::Method;
+use crate::snapshot::Snapshot;
 use glam::DVec3;
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
@@ -132,6 +134,21 @@ impl Constrained {
 
 #[pymethods]
 impl Constrained {
+    /// Pickle support: the particles and the constraints as a snapshot (refused, with a
+    /// `ValueError`, when a constraint is a Python function).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let this = slf.borrow();
+        let bytes = this.system.to_snapshot()?;
+        reduce(slf.as_any(), bytes, vec![this.particles.bind(slf.py()).clone().into_any()])
+    }
+
+    /// The system stored by `__reduce__`, on `particles`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8], particles: Py<Particles>) -> PyResult<Self> {
+        let system = ConstrainedSystem::from_snapshot(data)?;
+        Ok(Constrained { particles, system, error: Arc::default() })
+    }
+
     /// Constraints on `particles`: `formulation` `"multipliers"` with feedback gains `ks`
     /// (1/s²), `kd` (1/s) and a solver (`"cholesky"` or `"cg"`), or `"penalty"` with
     /// `stiffness` (N/m) and `damping` (N s/m).

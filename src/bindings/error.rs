@@ -5,6 +5,8 @@ use crate::error::Error;
 use pyo3::create_exception;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyTuple};
+use std::sync::{Arc, RwLock};
 
 create_exception!(
     _kinema,
@@ -30,13 +32,55 @@ impl From<Error> for PyErr {
     }
 }
 
-/// Run `f` with the GIL released and turn its error into the matching Python exception.
+/// The pool chosen by `set_num_threads`, or `None` for rayon's global pool.
+static POOL: RwLock<Option<Arc<rayon::ThreadPool>>> = RwLock::new(None);
+
+/// Run the parallel kernels of every later call on a pool of `n` threads.
+pub fn set_pool(n: usize) -> PyResult<()> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .map_err(|e| PyRuntimeError::new_err(format!("cannot start {n} threads: {e}")))?;
+    *POOL.write().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(pool));
+    Ok(())
+}
+
+/// Threads of the pool the kernels run on.
+pub fn num_threads() -> usize {
+    match &*POOL.read().unwrap_or_else(|e| e.into_inner()) {
+        Some(pool) => pool.current_num_threads(),
+        None => rayon::current_num_threads(),
+    }
+}
+
+/// Run `f` with the GIL released, on the chosen thread pool, and turn its error into the
+/// matching Python exception.
 pub fn detached<T, F>(py: Python<'_>, f: F) -> PyResult<T>
 where
     T: Send,
     F: FnOnce() -> Result<T, Error> + Send,
 {
-    py.detach(f).map_err(PyErr::from)
+    let pool = POOL.read().unwrap_or_else(|e| e.into_inner()).clone();
+    py.detach(move || match pool {
+        Some(pool) => pool.install(f),
+        None => f(),
+    })
+    .map_err(PyErr::from)
+}
+
+/// What `__reduce__` returns: the class's `_from_snapshot` and its arguments.
+pub type Reduced<'py> = (Bound<'py, PyAny>, Bound<'py, PyTuple>);
+
+/// The pickle recipe `(cls._from_snapshot, (snapshot bytes, *extra))` of a compiled object.
+pub fn reduce<'py>(
+    slf: &Bound<'py, PyAny>,
+    snapshot: Vec<u8>,
+    extra: Vec<Bound<'py, PyAny>>,
+) -> PyResult<Reduced<'py>> {
+    let py = slf.py();
+    let mut args = vec![PyBytes::new(py, &snapshot).into_any()];
+    args.extend(extra);
+    Ok((slf.get_type().getattr("_from_snapshot")?, PyTuple::new(py, args)?))
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

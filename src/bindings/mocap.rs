@@ -1,10 +1,12 @@
 //! `kinema.mocap`: Acclaim skeletons, BVH hierarchies and their motions.
 
+use super::error::{detached, reduce, Reduced};
 use crate::error::Error;
 use crate::mocap::{
     parse_amc, parse_asf, parse_bvh, write_amc, write_asf, write_bvh, BvhSkeleton, Dof, Edit,
     Motion, Skeleton,
 };
+use crate::snapshot::Snapshot;
 use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArray3, PyArrayLike1, PyArrayMethods};
 use pyo3::prelude::*;
 
@@ -35,6 +37,20 @@ pub(super) fn pose_values<'a>(
 
 #[pymethods]
 impl PySkeleton {
+    /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let this = slf.borrow();
+        let inner = &this.skeleton;
+        let bytes = detached(slf.py(), || inner.to_snapshot())?;
+        reduce(slf.as_any(), bytes, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { skeleton: Skeleton::from_snapshot(data)? })
+    }
+
     /// Joint names: "root" then the bones, parents first.
     #[getter]
     fn joint_names(&self) -> Vec<String> {
@@ -129,6 +145,20 @@ impl PySkeleton {
 
 #[pymethods]
 impl PyMotion {
+    /// Pickle support: the skeleton and the motion as a snapshot.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let this = slf.borrow();
+        let inner = &this.motion;
+        let bytes = detached(slf.py(), || inner.to_snapshot())?;
+        reduce(slf.as_any(), bytes, vec![this.skeleton.bind(slf.py()).clone().into_any()])
+    }
+
+    /// The motion stored by `__reduce__`, for `skeleton`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8], skeleton: Py<PyAny>) -> PyResult<Self> {
+        Ok(Self { motion: Motion::from_snapshot(data)?, skeleton })
+    }
+
     /// Frame `i` as a pose: its values (root dofs then each bone's), radians / file units.
     fn pose<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let m = &self.motion;
@@ -289,6 +319,20 @@ pub struct PyBvhSkeleton {
 
 #[pymethods]
 impl PyBvhSkeleton {
+    /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let this = slf.borrow();
+        let inner = &this.skeleton;
+        let bytes = detached(slf.py(), || inner.to_snapshot())?;
+        reduce(slf.as_any(), bytes, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { skeleton: BvhSkeleton::from_snapshot(data)? })
+    }
+
     /// Joint names in file order (depth first, parents first).
     #[getter]
     fn joint_names(&self) -> Vec<String> {

@@ -17,22 +17,20 @@ mod particles;
 mod rigid;
 mod rotation;
 
-/// Size the thread pool used by every parallel kernel (must come before the first parallel
-/// call; results are the same for any thread count).
+/// Use `n` threads in every parallel kernel from now on (any time, as often as wanted;
+/// results are bitwise the same for any thread count).
 #[pyfunction]
 fn set_num_threads(n: usize) -> PyResult<()> {
     if n == 0 {
         return Err(crate::Error::invalid("n", "the thread count must be at least 1").into());
     }
-    rayon::ThreadPoolBuilder::new().num_threads(n).build_global().map_err(|_| {
-        crate::Error::invalid("n", "the thread pool is already running; set the count before the first parallel call (or use KINEMA_NUM_THREADS)").into()
-    })
+    error::set_pool(n)
 }
 
-/// Threads of the pool used by the parallel kernels.
+/// Threads used by the parallel kernels.
 #[pyfunction]
 fn num_threads() -> usize {
-    rayon::current_num_threads()
+    error::num_threads()
 }
 
 /// The compiled core of kinema. Use it through the `kinema` package, which checks and

@@ -2,9 +2,11 @@
 
 use super::array::{compute, rows};
 use super::error::detached;
+use super::error::{reduce, Reduced};
 use crate::error::Error;
 use crate::ode::Method;
 use crate::particles::{Collider, Emitter, Force, ParticleSystem};
+use crate::snapshot::Snapshot;
 use glam::DVec3;
 use numpy::ndarray::ArrayView2;
 use numpy::{PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
@@ -21,6 +23,30 @@ fn params(p: &[f64], count: usize, what: &str) -> PyResult<()> {
     } else {
         Err(Error::invalid(what, format!("expected {count} parameters, got {}", p.len())).into())
     }
+}
+
+/// A collider from its kind and parameters: `plane` (point 3, normal 3, restitution,
+/// friction) or `sphere` (centre 3, radius, inside, restitution, friction).
+fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
+    Ok(match kind {
+        "plane" => {
+            params(p, 8, "plane")?;
+            Collider::Plane { point: v3(p, 0), normal: v3(p, 3), restitution: p[6], friction: p[7] }
+        }
+        "sphere" => {
+            params(p, 7, "sphere")?;
+            Collider::Sphere {
+                center: v3(p, 0),
+                radius: p[3],
+                inside: p[4] != 0.0,
+                restitution: p[5],
+                friction: p[6],
+            }
+        }
+        other => {
+            return Err(Error::invalid("collider", format!("unknown collider {other:?}")).into())
+        }
+    })
 }
 
 /// A fixed-capacity particle system; see `kinema.particles.ParticleSystem` for the API.
@@ -49,6 +75,20 @@ impl Particles {
 
 #[pymethods]
 impl Particles {
+    /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let this = slf.borrow();
+        let inner = &this.system;
+        let bytes = detached(slf.py(), || inner.to_snapshot())?;
+        reduce(slf.as_any(), bytes, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { system: ParticleSystem::from_snapshot(data)? })
+    }
+
     /// `positions` (N, 3) m, `velocities` (N, 3) m/s, `masses` (N, 1) kg (inf pins), and room
     /// for `capacity` particles in all.
     #[new]
@@ -144,31 +184,12 @@ impl Particles {
     /// Add a collider: `plane` with (point 3, normal 3, restitution, friction) or `sphere`
     /// with (center 3, radius, inside 0/1, restitution, friction).
     fn add_collider(&mut self, kind: &str, p: Vec<f64>) -> PyResult<()> {
-        let c = match kind {
-            "plane" => {
-                params(&p, 8, "plane")?;
-                Collider::Plane {
-                    point: v3(&p, 0),
-                    normal: v3(&p, 3),
-                    restitution: p[6],
-                    friction: p[7],
-                }
-            }
-            "sphere" => {
-                params(&p, 7, "sphere")?;
-                Collider::Sphere {
-                    center: v3(&p, 0),
-                    radius: p[3],
-                    inside: p[4] != 0.0,
-                    restitution: p[5],
-                    friction: p[6],
-                }
-            }
-            other => {
-                return Err(Error::invalid("collider", format!("unknown collider {other:?}")).into())
-            }
-        };
-        Ok(self.system.add_collider(c)?)
+        Ok(self.system.add_collider(collider(kind, &p)?)?)
+    }
+
+    /// Replace collider `index` by one given as in `add_collider`.
+    fn set_collider(&mut self, index: usize, kind: &str, p: Vec<f64>) -> PyResult<()> {
+        Ok(self.system.set_collider(index, collider(kind, &p)?)?)
     }
 
     /// Add an emitter: (rate, position 3, position_spread, velocity 3, velocity_spread,

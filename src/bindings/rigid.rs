@@ -2,8 +2,10 @@
 
 use super::array::compute;
 use super::error::detached;
+use super::error::{reduce, Reduced};
 use crate::error::Error;
 use crate::rigid::{BodyDesc, RotationIntegrator, Shape, World};
+use crate::snapshot::Snapshot;
 use glam::{DQuat, DVec3};
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
@@ -22,6 +24,20 @@ pub struct RigidWorld {
 
 #[pymethods]
 impl RigidWorld {
+    /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let this = slf.borrow();
+        let inner = &this.world;
+        let bytes = detached(slf.py(), || inner.to_snapshot())?;
+        reduce(slf.as_any(), bytes, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { world: World::from_snapshot(data)? })
+    }
+
     /// An empty world with gravity (m/s², world frame), a rotation integrator name and
     /// whether bodies collide with each other.
     #[new]

@@ -7,7 +7,7 @@
 use glam::{DMat3, DVec3};
 
 /// Block compressed sparse rows of the upper triangle, 3x3 blocks.
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct BlockMatrix {
     /// Start of each block row in `cols` / `blocks` (length `n + 1`).
     pub row_ptr: Vec<usize>,

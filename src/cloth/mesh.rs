@@ -6,7 +6,7 @@ use crate::error::{Error, Result};
 use std::collections::HashMap;
 
 /// How each quad of a grid is split into two triangles.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Triangulation {
     /// Every quad split along the same diagonal (from its lower-left to its upper-right corner).
     Regular,
@@ -18,7 +18,7 @@ pub enum Triangulation {
 ///
 /// `uv[t][c]` are the material coordinates (m) of corner `c` of triangle `t`; per-corner
 /// storage lets a seam give one vertex different coordinates in different triangles.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct Mesh {
     /// Vertex positions (m).
     pub positions: Vec<[f64; 3]>,
@@ -203,7 +203,7 @@ impl Mesh {
 }
 
 /// Edges and bending hinges of a triangle mesh.
-#[derive(Clone, Debug, Default)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, Default)]
 pub struct Topology {
     /// Every edge once, as `(min, max)` vertex indices, in order of first appearance.
     pub edges: Vec<[usize; 2]>,

@@ -46,7 +46,7 @@ use model::{Accumulator, Hinge, Spring, Triangle};
 use std::time::Instant;
 
 /// The material model.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Model {
     /// Baraff–Witkin triangle conditions (stretch, shear) and dihedral-angle bending.
     BaraffWitkin,
@@ -56,7 +56,7 @@ pub enum Model {
 }
 
 /// Material parameters.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct Material {
     /// Areal density (kg/m²).
     pub density: f64,
@@ -89,7 +89,7 @@ impl Default for Material {
 }
 
 /// The linear solver of the implicit step.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Solver {
     /// Modified preconditioned conjugate gradient with the filter (Baraff & Witkin §5.3).
     Pcg,
@@ -98,7 +98,7 @@ pub enum Solver {
 }
 
 /// The surface of a collider.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub enum Shape {
     /// Free side: where `(x - point)·normal > 0`.
     Plane {
@@ -126,7 +126,7 @@ pub enum Shape {
 }
 
 /// A kinematic collider: a shape moving at a constant velocity, with Coulomb friction.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct Collider {
     /// The shape at the cloth's current time.
     pub shape: Shape,
@@ -202,7 +202,7 @@ fn distance(shape: &Shape, p: DVec3) -> (f64, DVec3) {
 }
 
 /// What a vertex's contact did in the last step.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 enum ContactState {
     /// Not in contact.
     Free,
@@ -213,7 +213,7 @@ enum ContactState {
 }
 
 /// A user constraint on one vertex.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub enum VertexConstraint {
     /// Held at a position (m).
     Pinned(DVec3),
@@ -226,7 +226,7 @@ pub enum VertexConstraint {
 }
 
 /// Numbers of the last step.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, Default, PartialEq)]
 pub struct StepStats {
     /// Conjugate-gradient iterations (0 for Cholesky and explicit steps).
     pub iterations: usize,
@@ -248,7 +248,7 @@ pub struct StepStats {
 }
 
 /// Options of an implicit step.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct SolveOptions {
     /// The linear solver.
     pub solver: Solver,
@@ -284,7 +284,7 @@ struct CholeskyState {
 }
 
 /// Work vectors, allocated once.
-#[derive(Default)]
+#[derive(serde::Serialize, serde::Deserialize, Default)]
 struct Scratch {
     f: Vec<DVec3>,
     ku: Vec<DVec3>,
@@ -315,6 +315,7 @@ struct Scratch {
 }
 
 /// A piece of cloth.
+#[derive(serde::Serialize, serde::Deserialize)]
 pub struct Cloth {
     triangles: Vec<[usize; 3]>,
     model: Model,
@@ -336,6 +337,7 @@ pub struct Cloth {
     contact: Vec<ContactState>,
     stats: StepStats,
     scratch: Scratch,
+    #[serde(skip)] // rebuilt on the next Cholesky solve (same pattern, same factor)
     cholesky: Option<CholeskyState>,
     stepper: Option<Stepper>,
 }

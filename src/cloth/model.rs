@@ -28,7 +28,7 @@ use super::bsr::LOWER;
 use glam::{DMat3, DVec3};
 
 /// A Baraff–Witkin triangle: stretch and shear conditions.
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Triangle {
     /// Vertex indices.
     pub verts: [usize; 3],
@@ -73,7 +73,7 @@ impl Triangle {
 }
 
 /// A bending hinge: the dihedral angle across an interior edge.
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Hinge {
     /// `[a, b, p, q]`: edge `(a, b)`, opposite vertices `p`, `q`.
     pub verts: [usize; 4],
@@ -86,7 +86,7 @@ pub struct Hinge {
 }
 
 /// A spring with a damper between two vertices.
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Spring {
     /// Vertex indices.
     pub verts: [usize; 2],

@@ -14,7 +14,7 @@ use std::f64::consts::TAU;
 const CLOSEST_ITERATIONS: usize = 50;
 
 /// A parametric curve `x(u)` in world space (m).
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub enum Curve {
     /// The straight line `x(u) = point + u direction` (`u` in metres along the unit
     /// direction; the line is unbounded).

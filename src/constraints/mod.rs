@@ -67,7 +67,7 @@ pub trait ConstraintFunction: Send + Sync + std::fmt::Debug {
 }
 
 /// A holonomic constraint on particles.
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub enum Constraint {
     /// `|x_i - x_j| - length = 0` (a rod).
     Distance {
@@ -122,6 +122,7 @@ pub enum Constraint {
     /// `J̇ q̇ = d/dε [∇C(x + ε q̇)] q̇` is taken by central differences with
     /// `ε |q̇|_max = ∛(machine ε) · max(1, |x|_max)` (error ~1e-11 relative, two extra gradient
     /// evaluations per row evaluation).
+    #[serde(skip)] // holds a user function: a system with one cannot be saved
     Custom {
         /// The particles the function reads, in order.
         particles: Vec<usize>,
@@ -153,7 +154,7 @@ impl Constraint {
 }
 
 /// How the constraints act.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub enum Formulation {
     /// Lagrange multipliers (Witkin) with the drift feedback `ks`, `kd`.
     Multipliers,
@@ -169,7 +170,7 @@ pub enum Formulation {
 
 /// One row of `J` (its particle blocks are `Rows::blocks[start..start + count]`), with `C`,
 /// `Ċ = J q̇` and `J̇ q̇`.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, Default)]
 struct Row {
     start: usize,
     count: usize,
@@ -179,7 +180,7 @@ struct Row {
 }
 
 /// The evaluated rows of `J` and their particle blocks.
-#[derive(Debug, Default)]
+#[derive(serde::Serialize, serde::Deserialize, Debug, Default)]
 struct Rows {
     rows: Vec<Row>,
     blocks: Vec<(usize, DVec3)>,
@@ -215,7 +216,7 @@ impl Rows {
 }
 
 /// Which linear solver computes the multipliers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ConstraintSolver {
     /// faer sparse Cholesky (pattern analysed once).
     Cholesky,
@@ -224,6 +225,7 @@ pub enum ConstraintSolver {
 }
 
 /// Constraints on the particles of a [`ParticleSystem`], stepped with the system's forces.
+#[derive(serde::Serialize, serde::Deserialize)]
 pub struct ConstrainedSystem {
     constraints: Vec<Constraint>,
     /// Feedback stiffness `k_s` on the drift `C` (1/s²), multiplier formulation.
@@ -237,7 +239,7 @@ pub struct ConstrainedSystem {
 }
 
 /// Workspaces of the multiplier solve, sized when the constraints change.
-#[derive(Default)]
+#[derive(serde::Serialize, serde::Deserialize, Default)]
 struct Work {
     rows: Rows,
     /// Per constraint: the tracked curve parameter and frame reference axis (curves only).
@@ -249,6 +251,7 @@ struct Work {
     diag: Vec<f64>,
     scratch: Vec<f64>,
     cg: [Vec<f64>; 4],
+    #[serde(skip)] // rebuilt by `prepare` (same pattern, same factor)
     chol: Option<SparseCholesky>,
     values: Vec<f64>,
     /// (value index, row r, row s, particle) per contribution w_p J_rp · J_sp.

@@ -41,7 +41,7 @@ use rayon::prelude::*;
 use std::fmt::Write;
 
 /// One joint of a BVH hierarchy, as read.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct BvhJoint {
     /// Joint name (inner whitespace collapsed to single spaces).
     pub name: String,
@@ -57,7 +57,7 @@ pub struct BvhJoint {
 }
 
 /// A BVH hierarchy and the sampling of its motion.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct BvhSkeleton {
     /// Joints in file order: depth first, every parent before its children.
     pub joints: Vec<BvhJoint>,

@@ -37,7 +37,7 @@ use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 
 /// One bone of an Acclaim skeleton, as read.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct Bone {
     /// Bone name.
     pub name: String,
@@ -59,7 +59,7 @@ pub struct Bone {
 }
 
 /// A degree of freedom of a bone or of the root.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Dof {
     /// Rotation about axis 0 (x), 1 (y) or 2 (z).
     Rotation(usize),
@@ -70,7 +70,7 @@ pub enum Dof {
 }
 
 /// An Acclaim skeleton: the root and a tree of bones, in file order (parents first).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct Skeleton {
     /// Name from `:name`.
     pub name: String,
@@ -93,7 +93,7 @@ pub struct Skeleton {
 }
 
 /// A motion: per frame, the dof values of the root and of every bone (radians, file units).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct Motion {
     /// Values per frame: root values (in `root_order`) then each bone's dofs in order.
     pub values: Vec<f64>,

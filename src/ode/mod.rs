@@ -44,7 +44,7 @@ pub trait OdeSystem {
 }
 
 /// A fixed-step integration method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Method {
     /// Forward Euler, order 1, `R(z) = 1 + z`.
     ExplicitEuler,

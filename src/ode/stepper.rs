@@ -13,7 +13,7 @@ use nalgebra::DMatrix;
 /// solve their equations by simplified Newton iterations with the Jacobian (analytic, or by
 /// forward differences) evaluated once per step and a dense LU factorisation with partial
 /// pivoting, in place.
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Stepper {
     method: Method,
     n: usize,

@@ -5,7 +5,7 @@ use crate::error::{Error, Result};
 use glam::DVec3;
 
 /// A force acting on the particles of a [`super::ParticleSystem`].
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub enum Force {
     /// Uniform field `f = m g` (N); potential `-m g·x`.
     Gravity {

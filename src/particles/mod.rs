@@ -30,7 +30,7 @@ use rayon::prelude::*;
 const CHUNK: usize = 4096;
 
 /// A surface particles collide with.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub enum Collider {
     /// The half-space above the plane through `point` with unit `normal` is free.
     Plane {
@@ -59,7 +59,7 @@ pub enum Collider {
 }
 
 /// Emits particles at a rate into dead slots.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct Emitter {
     /// Particles per second.
     pub rate: f64,
@@ -80,7 +80,7 @@ pub struct Emitter {
 }
 
 /// Counters of the last call to [`ParticleSystem::step`].
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, Default, PartialEq)]
 pub struct StepStats {
     /// Particles emitted.
     pub emitted: usize,
@@ -93,7 +93,7 @@ pub struct StepStats {
 }
 
 /// A fixed-capacity particle system.
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct ParticleSystem {
     n: usize,
     y: Vec<f64>,
@@ -312,6 +312,29 @@ impl ParticleSystem {
     /// Non-finite or out-of-range parameters (restitution outside [0, 1], negative friction,
     /// zero normal, non-positive radius).
     pub fn add_collider(&mut self, collider: Collider) -> Result<()> {
+        let c = Self::checked(collider)?;
+        self.colliders.push(c);
+        Ok(())
+    }
+
+    /// Replace collider `index` (move a collider between steps, e.g. one that follows an
+    /// animated or rigid body).
+    ///
+    /// # Errors
+    /// `index` out of range, or the errors of [`ParticleSystem::add_collider`].
+    pub fn set_collider(&mut self, index: usize, collider: Collider) -> Result<()> {
+        if index >= self.colliders.len() {
+            return Err(Error::invalid(
+                "index",
+                format!("no collider {index}: there are {}", self.colliders.len()),
+            ));
+        }
+        self.colliders[index] = Self::checked(collider)?;
+        Ok(())
+    }
+
+    /// The collider, validated, with its plane normal made unit.
+    fn checked(collider: Collider) -> Result<Collider> {
         let (e, mu) = match &collider {
             Collider::Plane { point, normal, restitution, friction } => {
                 if !(point.is_finite() && normal.is_finite() && normal.length() > 0.0) {
@@ -338,13 +361,12 @@ impl ParticleSystem {
         if !(mu.is_finite() && mu >= 0.0) {
             return Err(Error::invalid("friction", format!("must be finite and >= 0, got {mu}")));
         }
-        self.colliders.push(match collider {
+        Ok(match collider {
             Collider::Plane { point, normal, restitution, friction } => {
                 Collider::Plane { point, normal: normal.normalize(), restitution, friction }
             }
             c => c,
-        });
-        Ok(())
+        })
     }
 
     /// Add an emitter.

@@ -30,7 +30,7 @@ use super::mass::Shape;
 use glam::{DQuat, DVec3};
 
 /// A static plane `n · x = offset` with its surface material.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct Plane {
     /// Unit normal, pointing out of the solid side.
     pub normal: DVec3,
@@ -49,7 +49,7 @@ pub const BAUMGARTE: f64 = 0.2;
 
 /// One contact point of body `a` against a plane (`b` none) or against body `b`, with its
 /// accumulated impulses.
-#[derive(Clone, Copy, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug)]
 pub(crate) struct Contact {
     /// Body, plane or other body, and feature: the same key in consecutive steps is the
     /// same contact.
@@ -275,7 +275,7 @@ pub(crate) fn correct_positions(
 }
 
 /// A shape placed in the world, as the narrow phase sees it.
-#[derive(Clone, Copy, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug)]
 pub(crate) enum Placed {
     Sphere {
         c: DVec3,

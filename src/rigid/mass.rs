@@ -16,7 +16,7 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 
 /// A solid shape in its body frame (metres).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub enum Shape {
     /// Ball of the given radius centred at the origin.
     Sphere {
@@ -52,7 +52,7 @@ pub enum Shape {
 }
 
 /// Mass, centre of mass and inertia tensor of a rigid body.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct MassProperties {
     /// Mass (kg).
     pub mass: f64,

@@ -11,7 +11,7 @@ use nalgebra::{Matrix3, SymmetricEigen};
 /// All methods treat applied torques as impulses `h τ` and gravity as a uniform field (no
 /// torque about the centre of mass); the translational part is the exact update for a
 /// constant force over the step.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RotationIntegrator {
     /// Forward Euler on `Π̇ = Π × ω` and `q̇ = ½ q ω` (then renormalised). First order; the
     /// kinetic energy and `|L|` grow every step. Shown for comparison only.
@@ -55,7 +55,7 @@ impl RotationIntegrator {
 }
 
 /// Everything needed to add one body to a [`World`].
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct BodyDesc {
     /// The body's shape in its own frame.
     pub shape: Shape,
@@ -86,7 +86,7 @@ type Scratch = (Vec<DVec3>, Vec<DVec3>, Vec<DQuat>, Vec<DVec3>);
 
 /// Rigid bodies in a uniform gravity field, with contacts against static planes, as a struct
 /// of arrays (index = body id).
-#[derive(Clone, Debug)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct World {
     /// Gravitational acceleration (m/s²), default `(0, -9.81, 0)`.
     pub gravity: DVec3,

@@ -34,7 +34,7 @@ use std::f64::consts::{FRAC_PI_2, PI};
 pub const GIMBAL_LOCK_TOL: f64 = 1e-14;
 
 /// A parsed Euler-angle sequence such as `"XYZ"` (intrinsic) or `"zxz"` (extrinsic).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub struct EulerSequence {
     /// Axis indices (0 = x, 1 = y, 2 = z) in the order written.
     pub axes: [usize; 3],

@@ -1,0 +1,574 @@
+"""Scenes: one clock for any mix of systems, with coupling, recording, checkpoints.
+
+A :class:`Scene` steps what was added to it (particle systems, constrained particles, cloth,
+rigid worlds) with one clock: every frame of ``dt`` seconds is ``substeps`` steps of
+``dt / substeps``. Kinematic objects (an :class:`AnimatedSphere` on a keyframed path, a
+motion-captured :class:`Character` whose bones are capsules) and the spheres and capsules of
+rigid worlds are colliders for every cloth and particle system in the scene (one-way: cloth and
+particles do not push back). A scene models only what it was given: without colliders *and*
+something to collide, no collider code runs; an empty scene only counts frames.
+
+Checkpoints (:meth:`Scene.save`, :meth:`Scene.load`) hold the whole model and state — down to
+integrator history, contact warm starts and emitters' random numbers — so a resumed run is
+bit-for-bit the run that never stopped. The file is written atomically (a temporary file
+renamed over the old one) and carries a magic number, a format version, its length and a
+SHA-256 checksum, so a damaged, truncated or foreign file is refused with
+:class:`CheckpointError`. The payload is a Python pickle: load only checkpoints you trust, as
+with any pickle.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import math
+import os
+import pickle
+import signal
+import struct
+import threading
+import time
+import warnings
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinema import cloth as _cloth
+from kinema import ode as _ode
+from kinema import particles as _particles
+from kinema import rigid as _rigid
+from kinema._array import as_vector3
+from kinema.constraints import ConstrainedSystem
+
+__all__ = [
+    "FORMAT_VERSION",
+    "AnimatedSphere",
+    "Character",
+    "CheckpointError",
+    "Scene",
+    "StabilityWarning",
+]
+
+FORMAT_VERSION = 1
+"""Version of the checkpoint format written by :meth:`Scene.save`."""
+
+_MAGIC = b"KINEMA-SCENE\r\n\x1a\n"  # 16 bytes; the line ends catch text-mode mangling
+_HEADER = struct.Struct("<16sIQ32s")  # magic, version, payload length, SHA-256 of payload
+
+
+class CheckpointError(ValueError):
+    """A file is not a readable kinema checkpoint (foreign, truncated, damaged, other version)."""
+
+
+class StabilityWarning(UserWarning):
+    """An explicit integrator's step is beyond its stability limit for the scene's stiffest
+    spring (see :func:`kinema.ode.max_stable_dt`)."""
+
+
+# Shapes exchanged between collider sources and receivers:
+# ("sphere", center, radius, velocity, friction) or ("capsule", a, b, radius, velocity, friction).
+_Shape = tuple[Any, ...]
+
+
+@dataclass
+class AnimatedSphere:
+    """A kinematic sphere of ``radius`` (m) whose centre follows ``center``: a
+    :class:`kinema.anim.Track` of 3 channels or any callable ``t -> (3,)`` (m, seconds).
+    Cloth and particles collide with it (Coulomb ``friction`` for cloth)."""
+
+    radius: float
+    center: Any
+    friction: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.radius) and self.radius > 0):
+            raise ValueError(f"radius: must be positive and finite, got {self.radius}")
+        if not callable(self.center):
+            raise ValueError("center: expected a kinema.anim.Track or a callable t -> (3,)")
+
+    def position(self, t: float) -> np.ndarray:
+        """Centre at time ``t`` (s), ``(3,)`` m."""
+        c = np.asarray(self.center(t), dtype=np.float64).reshape(-1)
+        if c.shape != (3,) or not np.isfinite(c).all():
+            raise ValueError(f"center: must give 3 finite values at t = {t}, got {c}")
+        return c
+
+    def _shapes(self, t: float) -> list[_Shape]:
+        return [("sphere", self.position(t), float(self.radius), self.friction)]
+
+
+@dataclass
+class Character:
+    """A motion-captured character as kinematic capsules: one of ``radius`` (m) around every
+    bone (joint to parent joint) of ``skeleton`` played by ``motion`` (Acclaim or BVH, from
+    :mod:`kinema.mocap`) at its frame rate, looping after its last frame when ``loop``.
+
+    Joint positions are the skeleton's forward kinematics times ``scale`` (file units to m;
+    e.g. ``0.0254 / 0.45`` for CMU files) plus ``offset`` (m), linearly interpolated between
+    frames. Cloth and particles collide with the capsules."""
+
+    skeleton: Any
+    motion: Any
+    radius: float = 0.05
+    scale: float = 1.0
+    offset: Any = (0.0, 0.0, 0.0)
+    loop: bool = True
+    friction: float = 0.5
+    _joints: np.ndarray = field(init=False, repr=False)
+    _bones: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.radius) and self.radius > 0):
+            raise ValueError(f"radius: must be positive and finite, got {self.radius}")
+        if not (math.isfinite(self.scale) and self.scale > 0):
+            raise ValueError(f"scale: must be positive and finite, got {self.scale}")
+        positions, _ = self.skeleton.forward_kinematics(self.motion)
+        offset = np.asarray(as_vector3(self.offset, "offset"))
+        self._joints = np.asarray(positions, dtype=np.float64) * self.scale + offset
+        parents = np.asarray(self.skeleton.parents)
+        self._bones = np.array([(p, j) for j, p in enumerate(parents) if p >= 0], dtype=np.int64)
+
+    def joints(self, t: float) -> np.ndarray:
+        """Joint positions at time ``t`` (s), ``(J, 3)`` m."""
+        frames = len(self._joints)
+        u = t * float(self.motion.frame_rate)
+        if self.loop:
+            u = u % max(frames - 1, 1)
+        u = min(max(u, 0.0), frames - 1.0)
+        i = min(int(u), frames - 2) if frames > 1 else 0
+        w = u - i if frames > 1 else 0.0
+        j0 = self._joints[i]
+        return j0 if frames == 1 else (1.0 - w) * j0 + w * self._joints[i + 1]
+
+    def _shapes(self, t: float) -> list[_Shape]:
+        j = self.joints(t)
+        r = float(self.radius)
+        return [("capsule", j[a], j[b], r, self.friction) for a, b in self._bones]
+
+
+def _rigid_shapes(world: _rigid.World) -> list[_Shape]:
+    """The spheres and capsules of a rigid world at its current pose (boxes, cylinders and
+    meshes are not mirrored: cloth and particles have no such colliders yet)."""
+    from kinema.rotation import Rotation
+
+    shapes: list[_Shape] = []
+    x = world.positions
+    q = world.orientations
+    for i, s in enumerate(world.shapes):
+        if isinstance(s, _rigid.Sphere):
+            shapes.append(("sphere", x[i], float(s.radius), 0.5))
+        elif isinstance(s, _rigid.Capsule):
+            axis = Rotation.from_quat(q[i]).apply([0.0, 0.5 * float(s.height), 0.0])
+            shapes.append(("capsule", x[i] - axis, x[i] + axis, float(s.radius), 0.5))
+    return shapes
+
+
+class _Entry:
+    """A system in a scene: how to step it and whether it receives colliders."""
+
+    __slots__ = ("colliders", "obj", "options", "receives")
+
+    def __init__(self, obj: Any, options: dict[str, Any]) -> None:
+        self.obj = obj
+        self.options = options
+        self.receives = isinstance(obj, (_cloth.Cloth, _particles.ParticleSystem))
+        self.colliders: list[int] = []  # indices of the scene's colliders in obj
+
+
+class Scene:
+    """A simulation: systems and kinematic objects stepped together with one clock.
+
+    ``dt`` is the frame interval (s); each frame is ``substeps`` steps of ``dt / substeps``.
+    """
+
+    def __init__(self, dt: float = 1.0 / 60.0, substeps: int = 1) -> None:
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt: must be positive and finite, got {dt}")
+        if int(substeps) != substeps or substeps < 1:
+            raise ValueError(f"substeps: must be an integer >= 1, got {substeps}")
+        self._dt = float(dt)
+        self._substeps = int(substeps)
+        self._h = self._dt / self._substeps
+        self._entries: list[_Entry] = []
+        self._kinematic: list[AnimatedSphere | Character] = []
+        self._steps = 0  # steps taken; time is steps * h, exactly as the systems count it
+        self._recorders: dict[str, Callable[[], Any] | None] = {}
+        self._records: dict[str, list[Any]] = {}
+        self._previous: list[_Shape] | None = None
+        self.interrupted = False
+
+    # ------------------------------------------------------------------ composition
+    def add(self, item: Any, **options: Any) -> Any:
+        """Add a system or a kinematic object and return it.
+
+        Systems: :class:`kinema.particles.ParticleSystem`, :class:`kinema.cloth.Cloth`,
+        :class:`kinema.rigid.World`, :class:`kinema.constraints.ConstrainedSystem` (which steps
+        its particles: do not add those too). ``options`` are passed to the system's ``step``
+        every step, e.g. ``method="rk4"`` or ``integrator="bdf2", solver="cholesky"``.
+        Kinematic objects: :class:`AnimatedSphere`, :class:`Character` (no options)."""
+        if any(e.obj is item for e in self._entries) or any(k is item for k in self._kinematic):
+            raise ValueError("item: already in the scene")
+        if isinstance(item, (AnimatedSphere, Character)):
+            if options:
+                raise ValueError(f"options: a kinematic object takes none, got {sorted(options)}")
+            self._kinematic.append(item)
+            return item
+        if isinstance(item, ConstrainedSystem):
+            if any(e.obj is item._particles for e in self._entries):
+                raise ValueError("item: its particle system is already in the scene")
+        elif isinstance(item, _particles.ParticleSystem):
+            if any(
+                isinstance(e.obj, ConstrainedSystem) and e.obj._particles is item
+                for e in self._entries
+            ):
+                raise ValueError("item: it is stepped by a constrained system in the scene")
+        elif not isinstance(item, (_cloth.Cloth, _rigid.World)):
+            raise ValueError(
+                "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, "
+                f"AnimatedSphere or Character, got {type(item).__name__}"
+            )
+        self._entries.append(_Entry(item, dict(options)))
+        return item
+
+    @property
+    def systems(self) -> list[Any]:
+        """What was added (systems and kinematic objects), in order of kind then addition."""
+        return [e.obj for e in self._entries] + list(self._kinematic)
+
+    @property
+    def dt(self) -> float:
+        """Frame interval (s)."""
+        return self._dt
+
+    @property
+    def substeps(self) -> int:
+        """Steps per frame."""
+        return self._substeps
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._steps * self._h
+
+    @property
+    def frame(self) -> int:
+        """Frames completed (a run interrupted inside a frame counts the frame as started)."""
+        return self._steps // self._substeps
+
+    # ------------------------------------------------------------------ stepping
+    def _sources(self, t: float) -> list[_Shape]:
+        shapes: list[_Shape] = []
+        for e in self._entries:
+            if isinstance(e.obj, _rigid.World):
+                shapes += _rigid_shapes(e.obj)
+        for k in self._kinematic:
+            shapes += k._shapes(t)
+        return shapes
+
+    def _couple(self, receivers: list[_Entry], t: float) -> None:
+        """Move every receiver's copy of the colliders to their pose at ``t``, with the
+        velocity of their motion over the step."""
+        shapes = self._sources(t)
+        previous = self._previous
+        if previous is None or len(previous) != len(shapes):
+            previous = shapes
+        h = self._h
+        for e in receivers:
+            is_cloth = isinstance(e.obj, _cloth.Cloth)
+            for k, (s, p) in enumerate(zip(shapes, previous, strict=True)):
+                if s[0] == "sphere":
+                    v = (s[1] - p[1]) / h
+                    c: Any = (
+                        _cloth.Sphere(s[1], s[2], friction=s[3], velocity=v)
+                        if is_cloth
+                        else _particles.Sphere(s[1], s[2])
+                    )
+                elif is_cloth:
+                    v = 0.5 * ((s[1] - p[1]) + (s[2] - p[2])) / h
+                    c = _cloth.Capsule(s[1], s[2], s[3], friction=s[4], velocity=v)
+                else:  # particles have no capsule collider: a sphere at each end
+                    c = _particles.Sphere(s[1], s[3])
+                if k < len(e.colliders):
+                    e.obj.set_collider(e.colliders[k], c)
+                elif is_cloth:
+                    e.colliders.append(e.obj.add_collider(c))
+                else:
+                    e.obj.add(c)
+                    e.colliders.append(e.obj._colliders - 1)
+        self._previous = shapes
+
+    def _step(self) -> None:
+        """One step of ``dt / substeps`` for everything, in a fixed order: rigid worlds, then
+        colliders moved to the end of the step, then the other systems in the order added."""
+        h = self._h
+        receivers = []
+        for e in self._entries:
+            if isinstance(e.obj, _rigid.World):
+                e.obj.step(h, **e.options)
+            elif e.receives:
+                receivers.append(e)
+        if receivers and (
+            self._kinematic or any(isinstance(e.obj, _rigid.World) for e in self._entries)
+        ):
+            self._couple(receivers, (self._steps + 1) * h)
+        for e in self._entries:
+            if not isinstance(e.obj, _rigid.World):
+                e.obj.step(h, **e.options)
+        self._steps += 1
+
+    def step(self, frames: int = 1) -> None:
+        """Advance ``frames`` frames (no progress bar, no Ctrl-C handling; see :meth:`run`)."""
+        frames = _count(frames, "frames")
+        if not self._entries:
+            self._steps += frames * self._substeps
+            for _ in range(frames):
+                self._collect()
+            return
+        for _ in range(frames):
+            for _ in range(self._substeps):
+                self._step()
+            self._collect()
+
+    def run(
+        self,
+        duration: float | None = None,
+        *,
+        frames: int | None = None,
+        progress: bool = True,
+    ) -> int:
+        """Run ``duration`` seconds or ``frames`` frames; return the frames completed.
+
+        With ``progress`` a bar shows frames, simulated time and steps per second. Ctrl-C
+        stops the run cleanly after the step in progress: the state is the last completed step,
+        ``scene.interrupted`` is set, and the run returns. Before the run a
+        :class:`StabilityWarning` is issued for an explicit integrator whose step is beyond
+        its stability limit on the stiffest spring of a particle system."""
+        if (duration is None) == (frames is None):
+            raise ValueError("duration: give either duration (s) or frames, not both")
+        if duration is not None:
+            if not (math.isfinite(duration) and duration >= 0):
+                raise ValueError(f"duration: must be finite and >= 0, got {duration}")
+            frames = round(duration / self._dt)
+        n = _count(frames, "frames")
+        self._check_stability()
+        self.interrupted = False
+        bar = _progress(n) if progress else None
+        start, done = time.perf_counter(), 0
+        with _sigint_flag() as stop:
+            for _ in range(n):
+                for _ in range(self._substeps):
+                    self._step_or_count()
+                    if stop():
+                        break
+                if stop():
+                    self.interrupted = True
+                    break
+                self._collect()
+                done += 1
+                if bar is not None:
+                    rate = done * self._substeps / max(time.perf_counter() - start, 1e-9)
+                    bar.set_postfix(
+                        t=f"{self.time:.3f} s", steps_per_s=f"{rate:.0f}", refresh=False
+                    )
+                    bar.update(1)
+        if bar is not None:
+            bar.close()
+        return done
+
+    def _step_or_count(self) -> None:
+        if self._entries:
+            self._step()
+        else:
+            self._steps += 1
+
+    def _check_stability(self) -> None:
+        for e in self._entries:
+            if not isinstance(e.obj, _particles.ParticleSystem):
+                continue
+            method = e.options.get("method", "symplectic_euler")
+            w2 = e.obj.stiffest_spring
+            if (
+                w2 <= 0
+                or method not in _ode.METHODS
+                or method in ("implicit_euler", "trapezoidal", "bdf2")
+            ):
+                continue
+            limit = _ode.max_stable_dt(method, [1j * math.sqrt(w2)])
+            if self._h > limit:
+                warnings.warn(
+                    f"step {self._h:.3g} s is beyond {method}'s stability limit {limit:.3g} s "
+                    f"for the stiffest spring (ω = {math.sqrt(w2):.3g} rad/s): raise substeps to "
+                    f"at least {math.ceil(self._dt / limit) if limit > 0 else 'inf'} or use an "
+                    "implicit method",
+                    StabilityWarning,
+                    stacklevel=3,
+                )
+
+    # ------------------------------------------------------------------ diagnostics
+    def diagnostics(self) -> dict[str, float]:
+        """Numbers describing the current state, keyed ``"<index>.<name>"`` by system index
+        in :attr:`systems`: energies (J), momenta (kg m/s), constraint violation (m, m/s),
+        solver iterations. Also ``"time"`` (s)."""
+        out: dict[str, float] = {"time": self.time}
+        for i, e in enumerate(self._entries):
+            o = e.obj
+            if isinstance(o, _particles.ParticleSystem):
+                out[f"{i}.kinetic_energy"] = o.kinetic_energy()
+                out[f"{i}.potential_energy"] = o.potential_energy()
+            elif isinstance(o, ConstrainedSystem):
+                p = o._particles
+                out[f"{i}.kinetic_energy"] = p.kinetic_energy()
+                out[f"{i}.potential_energy"] = p.potential_energy()
+                pos, vel = o.violation()
+                out[f"{i}.violation"] = pos
+                out[f"{i}.velocity_violation"] = vel
+                out[f"{i}.iterations"] = float(o.iterations)
+            elif isinstance(o, _cloth.Cloth):
+                energy = o.energy()
+                for k, v in energy.items():
+                    out[f"{i}.{k}_energy"] = v
+                out[f"{i}.iterations"] = float(o.stats["iterations"])
+            elif isinstance(o, _rigid.World):
+                out[f"{i}.kinetic_energy"] = o.kinetic_energy()
+                for name, vec in (
+                    ("linear_momentum", o.linear_momentum()),
+                    ("angular_momentum", o.angular_momentum()),
+                ):
+                    out[f"{i}.{name}"] = float(np.linalg.norm(vec))
+        return out
+
+    def record(self, name: str, quantity: Callable[[], Any] | None = None) -> None:
+        """Collect ``quantity()`` (any array-like) after every frame under ``name``; without
+        ``quantity``, ``name`` is a key of :meth:`diagnostics`. Read them from
+        :attr:`records`."""
+        if quantity is not None and not callable(quantity):
+            raise ValueError("quantity: expected a callable returning an array-like")
+        if quantity is None and name not in self.diagnostics():
+            raise ValueError(f"name: {name!r} is not one of {sorted(self.diagnostics())}")
+        self._recorders[name] = quantity
+        self._records.setdefault(name, [])
+
+    def _collect(self) -> None:
+        if not self._recorders:
+            return
+        diag = self.diagnostics() if None in self._recorders.values() else {}
+        for name, fn in self._recorders.items():
+            self._records[name].append(
+                np.array(diag[name] if fn is None else fn(), dtype=np.float64)
+            )
+
+    @property
+    def records(self) -> dict[str, np.ndarray]:
+        """Each recorded quantity stacked over frames: ``(frames, *shape)``."""
+        return {k: np.array(v) for k, v in self._records.items()}
+
+    # ------------------------------------------------------------------ checkpoints
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        # Recorders are functions (often lambdas): the data is kept, the functions are not;
+        # register them again after loading to go on recording.
+        state["_recorders"] = {k: None for k, v in self._recorders.items() if v is None}
+        return state
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write a checkpoint of the whole scene to ``path``, atomically: a crash part-way
+        leaves the previous file as it was. Raises ``ValueError`` if a system holds what
+        cannot be stored (a Python function as a constraint or a force field, a lambda)."""
+        try:
+            payload = pickle.dumps(self, protocol=pickle.HIGHEST_PROTOCOL)
+        except (pickle.PicklingError, TypeError, AttributeError, ValueError) as e:
+            raise ValueError(f"scene: cannot be saved: {e}") from e
+        header = _HEADER.pack(
+            _MAGIC, FORMAT_VERSION, len(payload), hashlib.sha256(payload).digest()
+        )
+        _write_atomic(Path(path), header, payload)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Scene:
+        """Read a checkpoint written by :meth:`save`; raise :class:`CheckpointError` if the file
+        is not one, is truncated or damaged, or has another format version."""
+        data = Path(path).read_bytes()
+        if len(data) < _HEADER.size or not data.startswith(_MAGIC):
+            raise CheckpointError(f"{path}: not a kinema scene checkpoint")
+        _, version, length, digest = _HEADER.unpack_from(data)
+        if version != FORMAT_VERSION:
+            raise CheckpointError(
+                f"{path}: checkpoint format version {version}; this kinema reads version {FORMAT_VERSION}"
+            )
+        payload = data[_HEADER.size :]
+        if len(payload) != length:
+            raise CheckpointError(
+                f"{path}: truncated or extended: {len(payload)} bytes of payload, header says {length}"
+            )
+        if hashlib.sha256(payload).digest() != digest:
+            raise CheckpointError(f"{path}: damaged: the checksum does not match")
+        try:
+            scene = pickle.loads(payload)
+        except Exception as e:
+            raise CheckpointError(f"{path}: cannot be read by this kinema: {e}") from e
+        if not isinstance(scene, cls):
+            raise CheckpointError(f"{path}: holds a {type(scene).__name__}, not a Scene")
+        return scene
+
+    def __repr__(self) -> str:
+        kinds = ", ".join(type(s).__name__ for s in self.systems) or "empty"
+        return f"Scene(dt={self._dt}, substeps={self._substeps}, time={self.time:.4g} s: {kinds})"
+
+
+def _count(n: Any, name: str) -> int:
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+        raise ValueError(f"{name}: expected a non-negative integer, got {n!r}")
+    return int(n)
+
+
+def _progress(total: int) -> Any:
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, unit="frame", dynamic_ncols=True, leave=False)
+
+
+@contextlib.contextmanager
+def _sigint_flag() -> Iterator[Callable[[], bool]]:
+    """Within the block, Ctrl-C sets a flag (read by the yielded function) instead of raising,
+    so a run stops between steps, never inside one. Off the main thread (where Python delivers
+    no signals) the flag stays down."""
+    hit = [False]
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        hit[0] = True
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: hit[0]
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _write_atomic(path: Path, *chunks: bytes) -> None:
+    """Write ``chunks`` to a temporary file next to ``path``, flush it to disk, then rename it
+    over ``path`` (atomic on POSIX and Windows), so readers see the old file or the new one."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as f:
+            for chunk in chunks:
+                f.write(chunk)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    if hasattr(os, "O_DIRECTORY"):
+        with contextlib.suppress(OSError):
+            fd = os.open(path.parent, os.O_DIRECTORY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
