@@ -1,4 +1,10 @@
-"""The ``kinema`` command line: ``kinema demo [NAME]``, ``kinema info``.
+"""The ``kinema`` command line.
+
+- ``kinema demo``: the showcase (one scene with cloth, particles, rigid bodies and a
+  motion-captured walk); ``kinema demo NAME`` one demo; ``kinema demo all`` every demo.
+- ``kinema run SCENE.toml``: run a scene file (see :mod:`kinema.scenefile`).
+- ``kinema bench``: the peer comparisons of ``bench/`` (quick sizes unless ``--full``).
+- ``kinema info``: versions, threads, build flags.
 
 Each demo is a module ``kinema.demos.<name>`` with a function
 ``run(out_dir: pathlib.Path, quick: bool) -> dict[str, object]`` that writes its pictures into
@@ -11,6 +17,7 @@ import argparse
 import importlib
 import os
 import platform
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -32,12 +39,88 @@ def _info() -> None:
     import numpy
 
     import kinema
+    from kinema import _kinema
 
     print(f"kinema {kinema.__version__}")
     print(f"python {platform.python_version()} on {platform.machine()} {platform.system()}")
     print(f"numpy {numpy.__version__}")
     print(f"cpu threads available: {os.cpu_count()}, used by kinema: {kinema.num_threads()}")
+    print("build: " + ", ".join(f"{k} {v}" for k, v in _kinema.build_info()))
     print(f"demos: {', '.join(DEMOS)}")
+
+
+def _run_scene(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from kinema import plot, scenefile
+    from kinema.scene import Scene
+
+    scene, output = scenefile.load(args.scene)
+    if args.resume is not None:
+        scene = Scene.load(args.resume)
+        print(f"resumed from {args.resume} at frame {scene.frame}, t = {scene.time:.4g} s")
+    frames = args.frames if args.frames is not None else max(output.frames - scene.frame, 0)
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+
+    def export(s: Scene) -> None:
+        s.export_obj(out / str(output.obj))
+
+    on_frame = export if output.obj else None
+    start = time.perf_counter()
+    steps0 = scene.frame * scene.substeps
+    if output.gif:
+        plot.render(scene, out / output.gif, frames, progress=args.progress, on_frame=on_frame)
+    else:
+        scene.run(frames=frames, progress=args.progress, on_frame=on_frame)
+    seconds = time.perf_counter() - start
+    written = []
+    if output.png:
+        ax = plot.scene(scene)
+        ax.figure.savefig(out / output.png, dpi=100)
+        written.append(output.png)
+    if output.record:
+        np.savez(out / "records.npz", **scene.records)  # type: ignore[arg-type]
+        written.append("records.npz")
+    if output.checkpoint:
+        scene.save(out / output.checkpoint)
+        written.append(output.checkpoint)
+    if output.gif:
+        written.append(output.gif)
+    if output.obj:
+        written.append(f"{output.obj}/*.obj")
+    steps = scene.frame * scene.substeps - steps0
+    state = "interrupted (Ctrl-C) at" if scene.interrupted else "ran to"
+    print(f"{scene!r}")
+    print(f"{state} frame {scene.frame}, t = {scene.time:.4g} s: {steps} steps in {seconds:.2f} s")
+    for key, value in scene.diagnostics().items():
+        print(f"  {key}: {value:.6g}")
+    if written:
+        print(f"wrote {', '.join(written)} in {out.resolve()}")
+    return 0
+
+
+def _bench(args: argparse.Namespace) -> int:
+    folder = args.dir or Path(__file__).resolve().parents[2] / "bench"
+    scripts = sorted(folder.glob("bench_*.py")) if folder.is_dir() else []
+    if not scripts:
+        print(
+            f"no benchmarks in {folder}: they live in bench/ of the source repository; "
+            "pass --dir PATH/TO/bench",
+            file=sys.stderr,
+        )
+        return 2
+    names = {p.stem.removeprefix("bench_"): p for p in scripts}
+    unknown = [n for n in args.names if n not in names]
+    if unknown:
+        print(f"unknown benchmarks {unknown}; choose from {sorted(names)}", file=sys.stderr)
+        return 2
+    failed = 0
+    for name in args.names or sorted(names):
+        print(f"== bench {name} ==", flush=True)
+        cmd = [sys.executable, str(names[name])] + ([] if args.full else ["--quick"])
+        failed += subprocess.run(cmd).returncode != 0
+    return 1 if failed else 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -45,17 +128,41 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="kinema", description="Physically based animation.")
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="run a demo: write pictures and print numbers")
-    demo.add_argument("name", nargs="?", choices=sorted(DEMOS), help="one demo (default: all)")
+    demo.add_argument(
+        "name",
+        nargs="?",
+        default="showcase",
+        choices=["all", *sorted(DEMOS)],
+        help="one demo (default: the showcase; 'all' runs every demo)",
+    )
     demo.add_argument("--out", type=Path, default=Path("kinema-out"), help="output folder")
     demo.add_argument("--quick", action="store_true", help="smaller, faster runs (for tests)")
-    sub.add_parser("info", help="versions, threads and available demos")
+    run = sub.add_parser("run", help="run a scene described in a TOML file")
+    run.add_argument("scene", type=Path, help="the scene file (see kinema.scenefile)")
+    run.add_argument("--out", type=Path, default=Path("kinema-out"), help="output folder")
+    run.add_argument("--frames", type=int, help="frames to run (default: the file's)")
+    run.add_argument("--resume", type=Path, help="continue from this checkpoint")
+    run.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    bench = sub.add_parser("bench", help="compare kinema with its peers (bench/*.py)")
+    bench.add_argument("names", nargs="*", help="benchmarks to run (default: all)")
+    bench.add_argument("--full", action="store_true", help="full sizes (default: quick)")
+    bench.add_argument("--dir", type=Path, help="the bench/ folder of a source checkout")
+    sub.add_parser("info", help="versions, threads, build flags and available demos")
     args = parser.parse_args(argv)
 
     if args.command == "info":
         _info()
         return 0
+    if args.command == "run":
+        try:
+            return _run_scene(args)
+        except (ValueError, OSError) as e:
+            print(f"kinema run: {e}", file=sys.stderr)
+            return 2
+    if args.command == "bench":
+        return _bench(args)
     args.out.mkdir(parents=True, exist_ok=True)
-    for name in [args.name] if args.name else list(DEMOS):
+    for name in list(DEMOS) if args.name == "all" else [args.name]:
         _run_demo(name, args.out, args.quick)
     print(f"pictures written to {args.out.resolve()}")
     return 0

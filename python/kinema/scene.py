@@ -338,8 +338,11 @@ class Scene:
         *,
         frames: int | None = None,
         progress: bool = True,
+        on_frame: Callable[[Scene], Any] | None = None,
     ) -> int:
         """Run ``duration`` seconds or ``frames`` frames; return the frames completed.
+
+        ``on_frame(scene)`` is called after every completed frame (to draw, export or check).
 
         With ``progress`` a bar shows frames, simulated time and steps per second. Ctrl-C
         stops the run cleanly after the step in progress: the state is the last completed step,
@@ -368,6 +371,8 @@ class Scene:
                     break
                 self._collect()
                 done += 1
+                if on_frame is not None:
+                    on_frame(self)
                 if bar is not None:
                     rate = done * self._substeps / max(time.perf_counter() - start, 1e-9)
                     bar.set_postfix(
@@ -464,6 +469,20 @@ class Scene:
     def records(self) -> dict[str, np.ndarray]:
         """Each recorded quantity stacked over frames: ``(frames, *shape)``."""
         return {k: np.array(v) for k, v in self._records.items()}
+
+    # ------------------------------------------------------------------ output
+    def export_obj(self, directory: str | os.PathLike[str], prefix: str = "frame") -> Path:
+        """Write the current frame's meshes (cloth, rigid bodies, animated spheres; one OBJ
+        object each, in metres) to ``directory/<prefix>_<frame:05d>.obj`` and return the path.
+        Call it from ``run(on_frame=...)`` for an OBJ sequence (Blender imports them as
+        a sequence)."""
+        from kinema import _geometry
+
+        folder = Path(directory)
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{prefix}_{self.frame:05d}.obj"
+        _geometry.write_obj(path, _geometry.of_scene(self).meshes)
+        return path
 
     # ------------------------------------------------------------------ checkpoints
     def __getstate__(self) -> dict[str, Any]:

@@ -33,6 +33,30 @@ fn num_threads() -> usize {
     error::num_threads()
 }
 
+/// How the compiled module was built: `profile` ("release" or "debug"), `target` (arch-os),
+/// `features` of the crate, `simd` (vector instruction sets enabled at compile time).
+#[pyfunction]
+fn build_info() -> Vec<(&'static str, String)> {
+    let profile = if cfg!(debug_assertions) { "debug" } else { "release" };
+    let simd: Vec<&str> = [
+        ("sse2", cfg!(target_feature = "sse2")),
+        ("avx", cfg!(target_feature = "avx")),
+        ("avx2", cfg!(target_feature = "avx2")),
+        ("fma", cfg!(target_feature = "fma")),
+        ("neon", cfg!(target_feature = "neon")),
+    ]
+    .iter()
+    .filter(|(_, on)| *on)
+    .map(|(name, _)| *name)
+    .collect();
+    vec![
+        ("profile", profile.to_string()),
+        ("target", format!("{}-{}", std::env::consts::ARCH, std::env::consts::OS)),
+        ("features", "python".to_string()),
+        ("simd", simd.join(" ")),
+    ]
+}
+
 /// The compiled core of kinema. Use it through the `kinema` package, which checks and
 /// converts arguments and adds the Python-side API.
 #[pymodule]
@@ -40,6 +64,7 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(num_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(build_info, m)?)?;
     error::register(m)?;
     rotation::register(m)?;
     rigid::register(m)?;

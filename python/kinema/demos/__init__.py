@@ -5,6 +5,7 @@ provides ``run(out_dir, quick) -> dict``.
 """
 
 DEMOS: dict[str, str] = {
+    "showcase": "one scene: cloth over a moving sphere, a fountain, a rigid stack, a mocap walk",
     "rotations": "gimbal lock of Euler angles against quaternion slerp",
     "particles": "a fountain with an emitter, a vortex, turbulence and a ground plane",
     "integrators": "stability regions and a work-precision diagram of the ODE methods",
