@@ -149,7 +149,8 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--write", action="store_true", help="update bench/RESULTS.md")
     parser.add_argument(
-        "--figure", default=str(Path(__file__).with_name("constraint_formulations.png"))
+        "--figure",
+        default=str(Path(__file__).parents[1] / "docs" / "images" / "constraint_formulations.png"),
     )
     args = parser.parse_args()
     problems = {"bead on a circle": bead, "double pendulum": double_pendulum}

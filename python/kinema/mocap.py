@@ -37,6 +37,7 @@ motion, {frame: pose})`` bends the motion smoothly through key poses (Witkin & P
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -44,6 +45,7 @@ import numpy as np
 from kinema import _kinema
 
 __all__ = [
+    "SAMPLE_DIR",
     "BvhSkeleton",
     "Skeleton",
     "blend",
@@ -58,6 +60,10 @@ __all__ = [
     "write_asf",
     "write_bvh",
 ]
+
+SAMPLE_DIR = Path(__file__).resolve().parent / "data"
+"""Sample motion shipped with kinema: ``07-walk.asf`` and ``07_05-walk.amc`` (CMU subject 7,
+slow walk, 120 Hz; see ``README.md`` in that folder for the source and licence)."""
 
 Skeleton = _kinema.AsfSkeleton
 """An Acclaim skeleton (joint_names, parents, bone_lengths, length_unit, metres_per_unit,

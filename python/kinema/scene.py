@@ -107,13 +107,14 @@ class Character:
     :mod:`kinema.mocap`) at its frame rate, looping after its last frame when ``loop``.
 
     Joint positions are the skeleton's forward kinematics times ``scale`` (file units to m;
-    e.g. ``0.0254 / 0.45`` for CMU files) plus ``offset`` (m), linearly interpolated between
-    frames. Cloth and particles collide with the capsules."""
+    default: the skeleton's ``metres_per_unit`` for Acclaim files, 1 for BVH) plus ``offset``
+    (m), linearly interpolated between frames. Cloth collides with the capsules, particles with
+    spheres at the joints (they have no capsule collider yet)."""
 
     skeleton: Any
     motion: Any
     radius: float = 0.05
-    scale: float = 1.0
+    scale: float | None = None
     offset: Any = (0.0, 0.0, 0.0)
     loop: bool = True
     friction: float = 0.5
@@ -123,6 +124,8 @@ class Character:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.radius) and self.radius > 0):
             raise ValueError(f"radius: must be positive and finite, got {self.radius}")
+        if self.scale is None:
+            self.scale = float(getattr(self.skeleton, "metres_per_unit", 1.0))
         if not (math.isfinite(self.scale) and self.scale > 0):
             raise ValueError(f"scale: must be positive and finite, got {self.scale}")
         positions, _ = self.skeleton.forward_kinematics(self.motion)

@@ -44,7 +44,6 @@ collider and shape of the Python API is available under its own name::
     [[character]]          # asf + amc, or bvh; paths relative to the TOML file
     asf = "07-walk.asf"
     amc = "07_05-walk.amc"
-    scale = 0.05644
     radius = 0.06
 
 Cloth also takes ``obj = "mesh.obj"`` (with the material keys) instead of ``grid``. Rigid

@@ -13,7 +13,6 @@ from kinema import anim, cloth, mocap, particles, plot, rigid
 from kinema.scene import AnimatedSphere, Character, Scene
 
 DATA = Path(__file__).resolve().parent.parent / "data"
-CMU_UNIT = 0.0254 / 0.45  # m per CMU ASF length unit (inches, scaled by the file's 0.45)
 
 
 def build(quick: bool) -> Scene:
@@ -59,7 +58,7 @@ def build(quick: bool) -> Scene:
 
     skel = mocap.read_asf(DATA / "07-walk.asf")
     walk = mocap.read_amc(DATA / "07_05-walk.amc", skel)
-    scene.add(Character(skel, walk, radius=0.06, scale=CMU_UNIT, offset=(0.9, 0.06, 0.0)))
+    scene.add(Character(skel, walk, radius=0.06, offset=(0.9, 0.06, 0.0)))
     return scene
 
 
