@@ -312,3 +312,42 @@ def test_main_objects_pickle(tmp_path: Path):
     assert m2.frame_rate == motion.frame_rate
     tf = kinema.Transform(kinema.Rotation.random(2, seed=1), [[1, 2, 3], [4, 5, 6]])
     assert np.array_equal(pickle.loads(pickle.dumps(tf)).as_matrix(), tf.as_matrix())
+
+
+def test_obj_sequence_and_pictures(tmp_path: Path):
+    from matplotlib.animation import FFMpegWriter
+
+    from kinema import plot
+
+    scene = mixed_scene(n_cloth=5, n_particles=10)
+    paths: list[Path] = []
+    scene.run(
+        frames=3, progress=False, on_frame=lambda s: paths.append(s.export_obj(tmp_path / "obj"))
+    )
+    assert [p.name for p in paths] == ["frame_00001.obj", "frame_00002.obj", "frame_00003.obj"]
+    lines = paths[-1].read_text().splitlines()
+    objects = [line.split()[1] for line in lines if line.startswith("o ")]
+    assert objects == ["cloth0", "body2_0", "body2_1", "body2_2", "body2_3", "sphere3"]
+    vertices = np.array(
+        [[float(v) for v in line.split()[1:]] for line in lines if line.startswith("v ")]
+    )
+    faces = np.array(
+        [[int(v) for v in line.split()[1:]] for line in lines if line.startswith("f ")]
+    )
+    assert faces.min() == 1 and faces.max() == len(vertices)
+    # The cloth's vertices come first, exactly as the cloth has them (to the 9 digits written).
+    np.testing.assert_allclose(vertices[:25], scene.systems[0].positions, rtol=1e-8, atol=1e-9)
+
+    ax = plot.scene(scene)
+    ax.figure.savefig(tmp_path / "frame.png")
+    assert (tmp_path / "frame.png").stat().st_size > 1000
+    assert plot.render(scene, tmp_path / "run.gif", frames=4, every=2) == 3
+    assert (tmp_path / "run.gif").stat().st_size > 1000 and scene.frame == 7
+    with pytest.raises(ValueError, match="path"):
+        plot.render(scene, tmp_path / "run.avi", frames=1)
+    if FFMpegWriter.isAvailable():
+        plot.render(scene, tmp_path / "run.mp4", frames=2)
+        assert (tmp_path / "run.mp4").stat().st_size > 1000
+    else:
+        with pytest.raises(RuntimeError, match="ffmpeg"):
+            plot.render(scene, tmp_path / "run.mp4", frames=1)
