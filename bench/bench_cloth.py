@@ -11,7 +11,9 @@ relative tolerance. Position Based Dynamics (pypbd, Bender et al.) runs the same
 default solver iterations when it is installed: a different method (constraint projection, no
 linear solve), what a user wanting speed over accuracy would pick instead.
 
-Run: python bench/bench_cloth.py [--sizes 32 64 128 256] [--steps 10]
+Run: python bench/bench_cloth.py [--quick] [--sizes 32 64 128 256] [--steps 10]
+(--quick: 16² and 32² grids, 3 steps, the solver trade on 24² for 10 steps, the explicit limit
+on an 8² cloth.)
 """
 
 from __future__ import annotations
@@ -20,11 +22,15 @@ import argparse
 import time
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 import kinema
 from kinema.cloth import Cloth
+
+try:
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+except ImportError:
+    sp = None
 
 MATERIAL = {"density": 0.1, "stretch": 1e3, "shear": 1e2, "bend": 1e-5, "damping": 1e-3}
 DT = 1.0 / 60.0
@@ -249,24 +255,32 @@ def explicit_limit(n: int, stretch: float) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--sizes", type=int, nargs="+", default=[32, 64, 128])
-    parser.add_argument("--steps", type=int, default=10)
+    parser.add_argument("--quick", action="store_true", help="small grids, few steps")
+    parser.add_argument(
+        "--sizes", type=int, nargs="+", help="default 32 64 128 (16 32 with --quick)"
+    )
+    parser.add_argument("--steps", type=int, help="default 10 (3 with --quick)")
     parser.add_argument(
         "--numpy-max", type=int, default=64, help="largest grid for the numpy reference"
     )
     args = parser.parse_args()
+    sizes = args.sizes or ([16, 32] if args.quick else [32, 64, 128])
+    base_steps = args.steps or (3 if args.quick else 10)
+    trade_n, trade_steps, explicit_n = (24, 10, 8) if args.quick else (48, 30, 16)
     kinema.set_num_threads(1)
+    if sp is None:
+        print("scipy: not installed, no numpy/scipy reference")
     print(
         "| grid | IE + PCG (ms) | CG its | IE + Cholesky (ms) | BDF2 + PCG (ms) | numpy/scipy (ms) | CG its"
         " | ratio numpy / kinema PCG | PBD, pypbd (ms) |"
     )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for n in args.sizes:
-        steps = max(2, args.steps if n <= 64 else args.steps // 3)
+    for n in sizes:
+        steps = max(2, base_steps if n <= 64 else base_steps // 3)
         t_pcg, it_pcg = time_kinema(n, steps, "implicit_euler", "pcg")
         t_chol, _ = time_kinema(n, steps, "implicit_euler", "cholesky")
         t_bdf2, _ = time_kinema(n, steps, "bdf2", "pcg")
-        if n <= args.numpy_max:
+        if sp is not None and n <= args.numpy_max:
             t_np, it_np = time_numpy(n, max(2, steps // 2))
             numpy_cells = f"{1e3 * t_np:.1f} | {it_np:.0f} | {t_np / t_pcg:.1f}x"
         else:
@@ -278,18 +292,22 @@ def main() -> None:
             f" | {pbd_cell} |"
         )
     print()
-    print("Solver trade on a 48² cloth, 30 steps (distance from the Cholesky result):")
+    print(
+        f"Solver trade on a {trade_n}² cloth, {trade_steps} steps (distance from the Cholesky result):"
+    )
     print("| solver | ms/step | max distance (m) |")
     print("|---|---:|---:|")
-    for name, elapsed, error in solver_trade(48, 30):
+    for name, elapsed, error in solver_trade(trade_n, trade_steps):
         print(f"| {name} | {1e3 * elapsed:.1f} | {error:.1e} |")
     print()
+    if args.quick:
+        print(f"Explicit integration on an {explicit_n}² cloth:")
     print(
         "| stretch (N/m) | implicit Euler step (s) | largest stable symplectic Euler step (s) | ratio |"
     )
     print("|---:|---:|---:|---:|")
     for stretch in (1e3, 1e6):
-        limit = explicit_limit(16, stretch)
+        limit = explicit_limit(explicit_n, stretch)
         print(f"| {stretch:.0e} | {1 / 30:.4f} | {limit:.2e} | {1 / 30 / limit:.0f}x |")
 
 

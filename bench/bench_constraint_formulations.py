@@ -8,8 +8,9 @@ dt = 10 µs, the cost per step, and the largest stable step (the largest dt on a
 factors √2 for which a 2 s run stays finite with |C| < 0.5 m). The energy is the particles'
 kinetic and gravitational energy; with penalty springs the energy they store is the error.
 
-Run: python bench/bench_constraint_formulations.py [--write] [--figure PATH]
-(--write replaces the table in bench/RESULTS.md.)
+Run: python bench/bench_constraint_formulations.py [--quick | --write] [--figure PATH]
+(--write replaces the table in bench/RESULTS.md; --quick times each run once instead of best of
+three and writes nothing, no figure either.)
 """
 
 from __future__ import annotations
@@ -117,7 +118,7 @@ def stable(make: Callable[[], Run]) -> float:
     return float("nan")
 
 
-def measure(make: Callable[[], Run], reference: np.ndarray) -> dict[str, object]:
+def measure(make: Callable[[], Run], reference: np.ndarray, repeat: int) -> dict[str, object]:
     run = make()
     e0 = run.energy()
     samples = round(T / DT) // 10
@@ -130,7 +131,7 @@ def measure(make: Callable[[], Run], reference: np.ndarray) -> dict[str, object]
         if (s + 1) * 10 == round(T_ERR / DT):
             error = float(np.abs(run.positions() - reference).max())
     cost = float("inf")
-    for _ in range(3):  # best of three against noise from other work on the machine
+    for _ in range(repeat):  # best of several against noise from other work on the machine
         timed = make()
         start = time.perf_counter()
         timed.step(DT, round(T / DT))
@@ -147,7 +148,9 @@ def measure(make: Callable[[], Run], reference: np.ndarray) -> dict[str, object]
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--write", action="store_true", help="update bench/RESULTS.md")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--quick", action="store_true", help="time once, write nothing")
+    mode.add_argument("--write", action="store_true", help="update bench/RESULTS.md")
     parser.add_argument(
         "--figure",
         default=str(Path(__file__).parents[1] / "docs" / "images" / "constraint_formulations.png"),
@@ -166,7 +169,9 @@ def main() -> None:
         reference = ref.positions()
         results[name] = {}
         for label, kind, k in FORMULATIONS:
-            r = measure(lambda make=make, kind=kind, k=k: make(kind, k), reference)
+            r = measure(
+                lambda make=make, kind=kind, k=k: make(kind, k), reference, 1 if args.quick else 3
+            )
             results[name][label] = r
             lines.append(
                 f"| {name} | {label} | {r['drift']:.1e} | {r['energy']:.1e} | {r['error']:.1e} "
@@ -176,7 +181,8 @@ def main() -> None:
     table = "\n".join(lines)
     print()
     print(table)
-    figure(results, Path(args.figure))
+    if not args.quick:
+        figure(results, Path(args.figure))
     if args.write:
         text = RESULTS.read_text()
         head, rest = text.split(BEGIN)

@@ -2,7 +2,8 @@
 particles), at dt = 1/60 s with the velocity-level projection through the sparse Cholesky, and
 one acceleration-level RK4 step through Cholesky and conjugate gradient for comparison.
 
-Run: python bench/bench_constraints.py [--sizes 1000 10000 100000]
+Run: python bench/bench_constraints.py [--quick] [--sizes 1000 10000 100000]
+(--quick: 1000 and 10000 particles.)
 """
 
 from __future__ import annotations
@@ -40,13 +41,17 @@ def timed(fn, repeat: int = 3) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000, 100000])
+    parser.add_argument("--quick", action="store_true", help="small sizes, for a fast check")
+    parser.add_argument(
+        "--sizes", type=int, nargs="+", help="default 1000 10000 100000 (1000 10000 with --quick)"
+    )
     args = parser.parse_args()
+    sizes = args.sizes or ([1000, 10000] if args.quick else [1000, 10000, 100000])
     print(
         "| particles | projection, Cholesky (ms/step) | per particle (µs) | RK4 step, Cholesky (ms) | RK4 step, CG (ms) |"
     )
     print("|---:|---:|---:|---:|---:|")
-    for n in args.sizes:
+    for n in sizes:
         _, cs = rope(n, "cholesky")
         cs.step(1 / 60, 1, method="projection")  # builds the pattern and the symbolic factorisation
         t_proj = timed(lambda cs=cs: cs.step(1 / 60, 5, method="projection")) / 5

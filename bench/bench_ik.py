@@ -7,11 +7,13 @@ limits), the same start (the middle of the joint ranges), tolerance 1e-4 m and a
 iterations (ikpy has no iteration cap; it runs scipy's least_squares to its own tolerance). Errors and limits are judged by kinema's FK of each returned pose. A second table
 gives kinema's error against the iteration budget per method (the speed/accuracy trade).
 
-Run: python bench/bench_ik.py   (ikpy and pybullet are optional: pip install ikpy pybullet)
+Run: python bench/bench_ik.py [--quick]   (ikpy and pybullet are optional: pip install ikpy pybullet)
+(--quick: 20 targets instead of 300; ikpy takes up to ~0.1 s a solve.)
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import tempfile
 import time
@@ -28,7 +30,6 @@ ARM = (
     [(-H, H)] * 3 + [(0.0, 2.6), (-H, H), (-0.8, 0.8), (-0.8, 0.8)],
 )
 CHAIN20 = ([0.05] * 20, ["z", "y"] * 10, [(-np.pi / 4, np.pi / 4)] * 20)
-TARGETS = 300
 MM = 1e-3
 
 
@@ -64,12 +65,12 @@ def urdf(lengths, dofs, limits) -> tuple[str, list[int]]:
     return '<robot name="chain">' + "".join(links + joints) + "</robot>", order
 
 
-def problem(spec, seed: int):
+def problem(spec, seed: int, count: int):
     lengths, dofs, limits = spec
     sk = ik.chain(lengths, dofs, limits)
     lo, hi = np.array(limits).T
     rng = np.random.default_rng(seed)
-    goals = lo + (hi - lo) * rng.random((TARGETS, len(lo)))
+    goals = lo + (hi - lo) * rng.random((count, len(lo)))
     tip = len(sk.joint_names) - 1
     targets = np.array([sk.forward_kinematics(g)[0][tip] for g in goals])
     return sk, (lo + hi) / 2, targets, lo, hi
@@ -203,9 +204,12 @@ def check_models(spec) -> None:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--quick", action="store_true", help="20 targets instead of 300")
+    count = 20 if parser.parse_args().quick else 300
     for name, spec in [("7-dof arm", ARM), ("20-joint chain", CHAIN20)]:
         check_models(spec)
-        sk, start, targets, lo, hi = problem(spec, seed=0)
+        sk, start, targets, lo, hi = problem(spec, seed=0, count=count)
         rows: list[tuple[str, dict]] = []
         for method in ["dls", "pseudo_inverse", "transpose", "ccd"]:
             rows.append(
@@ -226,7 +230,7 @@ def main() -> None:
                 continue
             rows.append((peer, judge(sk, lo, hi, targets, *out)))
         dls = rows[0][1]["rate"]
-        print(f"\n### {name} ({TARGETS} reachable targets, start: middle of the ranges)\n")
+        print(f"\n### {name} ({count} reachable targets, start: middle of the ranges)\n")
         print(
             "| solver | solves/s | kinema dls / solver | within 1 mm | median error (m) | limits violated |"
         )

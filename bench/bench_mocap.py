@@ -4,11 +4,13 @@ kinematics (the way the popular Python AMC readers do it), in one process. The t
 same joint positions (checked before timing), so the plain-Python code is also an independent
 oracle of kinema's reading of the format.
 
-Run: python bench/bench_mocap.py
+Run: python bench/bench_mocap.py [--quick]
+(--quick: kinema and the parse timed once instead of best of 3; the file is the same.)
 """
 
 from __future__ import annotations
 
+import argparse
 import time
 from pathlib import Path
 
@@ -109,7 +111,7 @@ def forward_kinematics(skel: dict, frame: dict[str, list[float]], names: list[st
     return np.array([out[n] for n in names])
 
 
-def best(fn, k: int = 3) -> float:
+def best(fn, k: int) -> float:
     out = float("inf")
     for _ in range(k):
         start = time.perf_counter()
@@ -119,6 +121,9 @@ def best(fn, k: int = 3) -> float:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--quick", action="store_true", help="time once instead of best of 3")
+    k = 1 if parser.parse_args().quick else 3
     asf, amc = DATA / "01.asf", DATA / "01_01.amc"
     asf_text, amc_text = asf.read_text(), amc.read_text()
     skel = mocap.read_asf(asf)
@@ -143,15 +148,15 @@ def main() -> None:
     rows = [
         (
             "parse 01_01.amc (2751 frames)",
-            best(lambda: mocap.read_amc(amc, skel)),
-            best(lambda: parse_amc(amc_text)),
+            best(lambda: mocap.read_amc(amc, skel), k),
+            best(lambda: parse_amc(amc_text), k),
         ),
         (
             "forward kinematics, all frames",
-            best(lambda: skel.forward_kinematics(motion)),
+            best(lambda: skel.forward_kinematics(motion), k),
             best(lambda: [forward_kinematics(py_skel, f, names) for f in py_frames], 1),
         ),
-        ("parse + forward kinematics", best(ours_all), best(py_all, 1)),
+        ("parse + forward kinematics", best(ours_all, k), best(py_all, 1)),
     ]
     print(f"{motion.frames} frames, {len(names)} joints; positions agree to 1e-9")
     print("| operation | kinema (ms) | plain Python (ms) | Python / kinema |")

@@ -3,7 +3,8 @@ restitution and friction, stepped with symplectic Euler; kinema against the same
 written with vectorised numpy (float64), and as Taichi and Warp CPU kernels (float64) when
 they are installed, in one process. Prints steps per second and the ratios.
 
-Run: python bench/bench_particles.py [--n 1000000] [--steps 20]
+Run: python bench/bench_particles.py [--quick] [--n 1000000] [--steps 20]
+(--quick: N = 10^5, 10 steps.)
 """
 
 from __future__ import annotations
@@ -155,10 +156,12 @@ def warp_runner(x0: np.ndarray, v0: np.ndarray):
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--n", type=int, default=1_000_000)
-    parser.add_argument("--steps", type=int, default=20)
+    parser.add_argument("--quick", action="store_true", help="small sizes, for a fast check")
+    parser.add_argument("--n", type=int, help="particles (default 10^6, 10^5 with --quick)")
+    parser.add_argument("--steps", type=int, help="steps timed (default 20, 10 with --quick)")
     args = parser.parse_args()
-    n, steps = args.n, args.steps
+    n = args.n or (100_000 if args.quick else 1_000_000)
+    steps = args.steps or (10 if args.quick else 20)
     rng = np.random.default_rng(0)
     x0 = rng.uniform([-10, 0, -10], [10, 5, 10], (n, 3))
     v0 = rng.normal(size=(n, 3))

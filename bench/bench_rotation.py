@@ -2,7 +2,8 @@
 when installed), timed in one process. Prints a markdown table of best-of-k wall times and the
 speed-up ratio (peer time / kinema time).
 
-Run: python bench/bench_rotation.py [--n 1000000] [--repeat 5]
+Run: python bench/bench_rotation.py [--quick] [--n 1000000] [--repeat 5]
+(--quick: N = 10^5, best of 3.)
 """
 
 from __future__ import annotations
@@ -14,13 +15,16 @@ import time
 from collections.abc import Callable
 
 import numpy as np
-from scipy import __version__ as scipy_version
-from scipy.spatial.transform import Rotation as R
-from scipy.spatial.transform import Slerp
 
 import kinema
 from kinema import Rotation, slerp
 
+try:
+    from scipy import __version__ as scipy_version
+    from scipy.spatial.transform import Rotation as R
+    from scipy.spatial.transform import Slerp
+except ImportError:
+    R = None
 try:
     import quaternion as npq  # numpy-quaternion
 except ImportError:
@@ -40,10 +44,15 @@ def best(fn: Callable[[], object], repeat: int) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--n", type=int, default=1_000_000)
-    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--quick", action="store_true", help="small sizes, for a fast check")
+    parser.add_argument("--n", type=int, help="rotations (default 10^6, 10^5 with --quick)")
+    parser.add_argument("--repeat", type=int, help="best of (default 5, 3 with --quick)")
     args = parser.parse_args()
-    n, k = args.n, args.repeat
+    n = args.n or (100_000 if args.quick else 1_000_000)
+    k = args.repeat or (3 if args.quick else 5)
+    if R is None:
+        print("scipy: not installed, nothing to compare with")
+        return
 
     rng = np.random.default_rng(0)
     q = rng.standard_normal((n, 4))
