@@ -503,3 +503,24 @@ fn bad_steps_leave_the_state_untouched() {
     assert!(cloth2.positions().iter().all(|p| p.is_finite()));
     assert_eq!(cloth.positions(), &start[..]);
 }
+
+#[test]
+fn fastest_mode_predicts_the_explicit_stability_limit() {
+    // Just below the limit predicted from the fastest mode the cloth swings boundedly, above it
+    // symplectic Euler diverges.
+    let mut cloth = hanging(6, Material { stretch: 1e4, ..Material::default() });
+    cloth.step(1e-4, 200, Method::SymplecticEuler, SolveOptions::default()).unwrap();
+    let (omega, c) = cloth.fastest_mode();
+    assert!(omega.is_finite() && omega > 0.0 && c > 0.0);
+    let limit = kinema::ode::max_stable_dt_oscillator(Method::SymplecticEuler, omega, c).unwrap();
+    let start = (cloth.positions().to_vec(), cloth.velocities().to_vec());
+    let stable = |h: f64| {
+        let mut c = hanging(6, Material { stretch: 1e4, ..Material::default() });
+        c.set_state(&start.0, &start.1).unwrap();
+        let steps = (0.5 / h).ceil() as usize;
+        c.step(h, steps, Method::SymplecticEuler, SolveOptions::default()).is_ok()
+            && c.positions().iter().all(|p| p.length() < 10.0)
+    };
+    assert!(stable(0.9 * limit), "unstable below the predicted limit {limit}");
+    assert!(!stable(1.3 * limit), "stable well above the predicted limit {limit}");
+}

@@ -1,7 +1,10 @@
 //! Integrators: observed convergence orders, stability limits against `max_stable_dt`,
 //! stiff problems, long-run energy behaviour, failures that leave the state unchanged.
 
-use kinema::ode::{max_stable_dt, solve_adaptive, stability_function, Method, OdeSystem, Stepper};
+use kinema::ode::{
+    max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function, Method, OdeSystem,
+    Stepper,
+};
 use kinema::Error;
 use nalgebra::{Complex, DMatrix};
 
@@ -253,4 +256,86 @@ fn failures_leave_the_state_unchanged() {
     assert!(stepper.step(&mut Cubic, 0.0, &mut y, -1.0).is_err());
     assert!(Stepper::new(Method::VelocityVerlet, 3).is_err());
     assert!(Method::parse("rk45").is_err());
+}
+
+#[test]
+fn symplectic_stability_accounts_for_damping() {
+    // x'' + c x' + ω² x = 0 with ω = 10, c = 4: eigenvalues -2 ± i √96. Step the actual
+    // integrator just below and above the predicted limit and watch the amplitude.
+    struct Damped;
+    impl OdeSystem for Damped {
+        fn dim(&self) -> usize {
+            2
+        }
+        fn rhs(&mut self, _t: f64, y: &[f64], dydt: &mut [f64]) -> kinema::Result<()> {
+            dydt[0] = y[1];
+            dydt[1] = -100.0 * y[0] - 4.0 * y[1];
+            Ok(())
+        }
+    }
+    let lambda = nalgebra::Complex::new(-2.0, 96f64.sqrt());
+    for method in [Method::SymplecticEuler, Method::VelocityVerlet] {
+        let limit = max_stable_dt(method, &[lambda, lambda.conj()]).unwrap();
+        let undamped = max_stable_dt(method, &[nalgebra::Complex::new(0.0, 10.0)]).unwrap();
+        assert!(limit < undamped, "{method:?}: damping lowers the limit ({limit} vs {undamped})");
+        let grows = |h: f64| {
+            let mut stepper = Stepper::new(method, 2).unwrap();
+            let mut y = [1.0, 0.0];
+            for _ in 0..2000 {
+                stepper.step(&mut Damped, 0.0, &mut y, h).unwrap();
+            }
+            y[0].abs() + y[1].abs() * h > 1.0
+        };
+        assert!(!grows(0.99 * limit), "{method:?} unstable below {limit}");
+        assert!(grows(1.01 * limit), "{method:?} stable above {limit}");
+    }
+}
+
+#[test]
+fn oscillator_limits_hold_for_overdamped_and_undamped_modes() {
+    // x'' + c x' + ω² x = 0 stepped by the real integrator just below and above the limit.
+    struct Mode(f64, f64);
+    impl OdeSystem for Mode {
+        fn dim(&self) -> usize {
+            2
+        }
+        fn rhs(&mut self, _t: f64, y: &[f64], dydt: &mut [f64]) -> kinema::Result<()> {
+            dydt[0] = y[1];
+            dydt[1] = -self.0 * self.0 * y[0] - self.1 * y[1];
+            Ok(())
+        }
+    }
+    for (omega, c) in [(10.0, 0.0), (10.0, 4.0), (10.0, 100.0), (1.0, 1000.0)] {
+        for method in [Method::SymplecticEuler, Method::VelocityVerlet, Method::Rk4, Method::Heun] {
+            let limit = max_stable_dt_oscillator(method, omega, c).unwrap();
+            if method == Method::Heun && c == 0.0 {
+                assert_eq!(limit, 0.0, "Heun never keeps an undamped oscillator bounded");
+                continue;
+            }
+            assert!(limit > 0.0 && limit.is_finite(), "{method:?} {omega} {c}: {limit}");
+            // Unstable: the amplitude over the last thousand steps dwarfs that of the first
+            // (near the limit a stable symplectic map swings wide but does not grow).
+            let grows = |h: f64| {
+                let mut stepper = Stepper::new(method, 2).unwrap();
+                let (mut y, mut first, mut last) = ([1.0, 1.0], 0.0_f64, 0.0_f64);
+                for k in 0..4000 {
+                    if stepper.step(&mut Mode(omega, c), 0.0, &mut y, h).is_err() {
+                        return true; // overflowed to infinity
+                    }
+                    let size = y[0].abs() + h * y[1].abs();
+                    if k < 1000 {
+                        first = first.max(size);
+                    } else if k >= 3000 {
+                        last = last.max(size);
+                    }
+                }
+                last > 10.0 * first
+            };
+            assert!(!grows(0.98 * limit), "{method:?} ω {omega} c {c}: unstable below {limit}");
+            assert!(grows(1.05 * limit), "{method:?} ω {omega} c {c}: stable above {limit}");
+        }
+    }
+    assert!(max_stable_dt_oscillator(Method::ImplicitEuler, 1e9, 0.0).unwrap().is_infinite());
+    assert!(max_stable_dt_oscillator(Method::Rk4, -1.0, 0.0).is_err());
+    assert!(max_stable_dt_oscillator(Method::Rk4, 1.0, f64::NAN).is_err());
 }

@@ -333,6 +333,21 @@ class Cloth:
         """Net force ``(N, 3)`` N on each vertex (gravity, elastic, damping; not constraints)."""
         return np.asarray(self._core.forces())
 
+    @property
+    def material(self) -> dict[str, float]:
+        """``density`` (kg/m²), ``stretch``, ``shear`` (N/m), ``bend`` (N m), ``damping`` (s),
+        ``air_damping`` (1/s), as given at construction."""
+        names = ("density", "stretch", "shear", "bend", "damping", "air_damping")
+        return dict(zip(names, self._core.material, strict=True))
+
+    def fastest_mode(self) -> tuple[float, float]:
+        """The fastest mode of small vibrations about the current shape: ``(ω, c)``, the highest
+        angular frequency (rad/s) and the highest damping rate (1/s), by power iteration. Its
+        eigenvalues ``(-c ± √(c² - 4ω²)) / 2`` must lie in an explicit integrator's stability
+        region (:func:`kinema.ode.max_stable_dt`); ``kinema.Scene`` checks that before a run."""
+        omega, c = self._core.fastest_mode()
+        return float(omega), float(c)
+
     def energy(self) -> dict[str, float]:
         """``kinetic``, ``potential`` (gravity, ``-Σ m g·x``) and ``elastic`` energy in J."""
         k, p, e = self._core.energy()

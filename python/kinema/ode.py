@@ -40,6 +40,7 @@ __all__ = [
     "Problem",
     "WorkPrecisionRow",
     "max_stable_dt",
+    "max_stable_dt_oscillator",
     "solve",
     "solve_second_order",
     "stability_function",
@@ -161,6 +162,18 @@ def max_stable_dt(method: str, eigenvalues: Any) -> float:
     return _kinema.ode_max_stable_dt(
         method, np.ascontiguousarray(np.stack([lam.real, lam.imag], axis=1))
     )
+
+
+def max_stable_dt_oscillator(method: str, omega: float, damping: float = 0.0) -> float:
+    """The largest stable step of ``method`` on the mode ``x'' + c x' + ω² x = 0`` (``omega``
+    rad/s, ``damping`` = ``c`` 1/s): a spring, or the fastest vibration of a cloth
+    (:meth:`kinema.cloth.Cloth.fastest_mode`). First-order methods are judged on the mode's two
+    eigenvalues (as :func:`max_stable_dt`); symplectic Euler and velocity Verlet on the spectral
+    radius of their amplification matrix on the mode, which for an overdamped mode depends on
+    both eigenvalues at once. ``inf`` for A-stable methods."""
+    if method not in METHODS:
+        raise ValueError(f"method: {method!r} is not one of {', '.join(METHODS)}")
+    return _kinema.ode_max_stable_dt_oscillator(method, float(omega), float(damping))
 
 
 # ----------------------------------------------------------------------------- problems

@@ -55,6 +55,7 @@ __all__ = [
 FORMAT_VERSION = 1
 """Version of the checkpoint format written by :meth:`Scene.save`."""
 
+_IMPLICIT = ("implicit_euler", "trapezoidal", "bdf2")  # A-stable: no step limit
 _MAGIC = b"KINEMA-SCENE\r\n\x1a\n"  # 16 bytes; the line ends catch text-mode mangling
 _HEADER = struct.Struct("<16sIQ32s")  # magic, version, payload length, SHA-256 of payload
 
@@ -351,7 +352,8 @@ class Scene:
         stops the run cleanly after the step in progress: the state is the last completed step,
         ``scene.interrupted`` is set, and the run returns. Before the run a
         :class:`StabilityWarning` is issued for an explicit integrator whose step is beyond
-        its stability limit on the stiffest spring of a particle system."""
+        its stability limit on the stiffest spring of a particle system or the fastest
+        vibration of a cloth (:meth:`kinema.cloth.Cloth.fastest_mode`)."""
         if (duration is None) == (frames is None):
             raise ValueError("duration: give either duration (s) or frames, not both")
         if duration is not None:
@@ -393,24 +395,34 @@ class Scene:
             self._steps += 1
 
     def _check_stability(self) -> None:
+        """Warn when an explicit method's step is beyond the stability limit of the fastest
+        mode: the stiffest particle spring (undamped), or the cloth's fastest vibration and
+        damping (:meth:`kinema.cloth.Cloth.fastest_mode`)."""
         for e in self._entries:
-            if not isinstance(e.obj, _particles.ParticleSystem):
+            if isinstance(e.obj, _particles.ParticleSystem):
+                method = e.options.get("method", "symplectic_euler")
+                if method in _IMPLICIT or method not in _ode.METHODS or e.obj.stiffest_spring <= 0:
+                    continue
+                omega, c, what = math.sqrt(e.obj.stiffest_spring), 0.0, "the stiffest spring"
+            elif isinstance(e.obj, _cloth.Cloth):
+                method = e.options.get("integrator", "implicit_euler")
+                if method in _IMPLICIT or method not in _ode.METHODS:
+                    continue
+                (omega, c), what = e.obj.fastest_mode(), "the cloth's fastest vibration"
+            else:
                 continue
-            method = e.options.get("method", "symplectic_euler")
-            w2 = e.obj.stiffest_spring
-            if (
-                w2 <= 0
-                or method not in _ode.METHODS
-                or method in ("implicit_euler", "trapezoidal", "bdf2")
-            ):
+            if omega <= 0:
                 continue
-            limit = _ode.max_stable_dt(method, [1j * math.sqrt(w2)])
+            limit = _ode.max_stable_dt_oscillator(method, omega, c)
             if self._h > limit:
+                fix = (
+                    f"raise substeps to at least {math.ceil(self._dt / limit)} or use an implicit method"
+                    if limit > 0
+                    else "no step is stable for it: use another method"
+                )
                 warnings.warn(
                     f"step {self._h:.3g} s is beyond {method}'s stability limit {limit:.3g} s "
-                    f"for the stiffest spring (ω = {math.sqrt(w2):.3g} rad/s): raise substeps to "
-                    f"at least {math.ceil(self._dt / limit) if limit > 0 else 'inf'} or use an "
-                    "implicit method",
+                    f"for {what} (ω = {omega:.3g} rad/s, damping {c:.3g} 1/s): {fix}",
                     StabilityWarning,
                     stacklevel=3,
                 )

@@ -328,6 +328,19 @@ impl ClothCore {
         })
     }
 
+    /// `[density, stretch, shear, bend, damping, air_damping]`, as given at construction.
+    #[getter]
+    fn material(&self) -> [f64; 6] {
+        let m = self.cloth.material();
+        [m.density, m.stretch, m.shear, m.bend, m.damping, m.air_damping]
+    }
+
+    /// The fastest mode `(ω rad/s, c 1/s)`, see `Cloth::fastest_mode`.
+    fn fastest_mode(&self, py: Python<'_>) -> PyResult<(f64, f64)> {
+        let cloth = &self.cloth;
+        detached(py, || Ok(cloth.fastest_mode()))
+    }
+
     /// (kinetic, potential, elastic) energy, J.
     fn energy(&self) -> (f64, f64, f64) {
         self.cloth.energy()

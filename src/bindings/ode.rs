@@ -2,7 +2,10 @@
 
 use super::array::{compute, rows};
 use crate::error::Error;
-use crate::ode::{max_stable_dt, solve_adaptive, stability_function, Method, OdeSystem, Stepper};
+use crate::ode::{
+    max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function, Method, OdeSystem,
+    Stepper,
+};
 use nalgebra::{Complex, DMatrix};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
@@ -177,6 +180,12 @@ fn ode_max_stable_dt(method: &str, eigenvalues: PyReadonlyArrayDyn<'_, f64>) -> 
     Ok(max_stable_dt(method, &eig)?)
 }
 
+/// The largest stable step of `method` on `x'' + damping x' + omega² x = 0`.
+#[pyfunction]
+fn ode_max_stable_dt_oscillator(method: &str, omega: f64, damping: f64) -> PyResult<f64> {
+    Ok(max_stable_dt_oscillator(Method::parse(method)?, omega, damping)?)
+}
+
 /// (name, order, implicit, second_order) of every fixed-step method.
 #[pyfunction]
 fn ode_methods() -> Vec<(&'static str, u32, bool, bool)> {
@@ -191,6 +200,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ode_solve_adaptive, m)?)?;
     m.add_function(wrap_pyfunction!(ode_stability_function, m)?)?;
     m.add_function(wrap_pyfunction!(ode_max_stable_dt, m)?)?;
+    m.add_function(wrap_pyfunction!(ode_max_stable_dt_oscillator, m)?)?;
     m.add_function(wrap_pyfunction!(ode_methods, m)?)?;
     Ok(())
 }

@@ -18,7 +18,7 @@ mod stability;
 mod stepper;
 
 pub use adaptive::{solve_adaptive, AdaptiveSolution};
-pub use stability::{max_stable_dt, stability_function};
+pub use stability::{max_stable_dt, max_stable_dt_oscillator, stability_function};
 pub use stepper::Stepper;
 
 use crate::error::{Error, Result};

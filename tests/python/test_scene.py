@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import kinema
+import kinema.ode
 from kinema import anim, cloth, constraints, mocap, particles, rigid
 from kinema.scene import AnimatedSphere, Character, CheckpointError, Scene, StabilityWarning
 
@@ -351,3 +352,27 @@ def test_obj_sequence_and_pictures(tmp_path: Path):
     else:
         with pytest.raises(RuntimeError, match="ffmpeg"):
             plot.render(scene, tmp_path / "run.mp4", frames=1)
+
+
+def test_stability_warning_for_explicit_cloth():
+    def sheet() -> cloth.Cloth:
+        c = cloth.Cloth.grid(6, 6, 0.5, 0.5, stretch=1e4)
+        c.pin([0, 5])
+        return c
+
+    omega, c = sheet().fastest_mode()
+    assert omega > 0 and c > 0
+    limit = kinema.ode.max_stable_dt_oscillator("symplectic_euler", omega, c)
+    coarse = Scene(dt=1 / 60)
+    coarse.add(sheet(), integrator="symplectic_euler")
+    with pytest.warns(StabilityWarning, match="cloth's fastest vibration"):
+        coarse._check_stability()
+    fine = Scene(dt=1 / 60, substeps=int(np.ceil(1 / 60 / (0.9 * limit))))
+    fine.add(sheet(), integrator="symplectic_euler")
+    implicit = Scene(dt=1 / 60)
+    implicit.add(sheet())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fine._check_stability()
+        implicit._check_stability()
+    fine.run(frames=2, progress=False)  # and the predicted substeps are indeed stable
