@@ -296,6 +296,7 @@ fn fused_symplectic_path_is_bitwise_the_general_path() {
             inside: false,
             restitution: 0.2,
             friction: 0.1,
+            velocity: DVec3::ZERO,
         })
         .unwrap();
         if pairwise {

@@ -9,7 +9,7 @@ Forces: :class:`Gravity`, :class:`Drag` (linear and quadratic ``½ρC_dA|u|u``, 
 :class:`Damping`, :class:`Springs` (Hooke + dampers), :class:`Attractor` (softened inverse
 square; negative strength repels), :class:`Vortex`, :class:`Turbulence` (curl noise, Bridson
 et al. 2007), :class:`NeighborRepulsion` (spatial hash grid, never all pairs),
-:class:`NBodyGravity` (all pairs). Colliders: :class:`Plane`, :class:`Sphere` (inside or
+:class:`NBodyGravity` (all pairs). Colliders: :class:`Plane`, :class:`Capsule`, :class:`Sphere` (inside or
 outside) with restitution and Coulomb friction, resting contact without jitter.
 :class:`Emitter` recycles dead slots. :class:`Field` adds any Python callable on the batch of
 particles, evaluated once per step (held constant within the step).
@@ -28,6 +28,7 @@ from kinema._array import as_batch, as_scalars, as_vector3
 
 __all__ = [
     "Attractor",
+    "Capsule",
     "Damping",
     "Drag",
     "Emitter",
@@ -149,13 +150,29 @@ class Plane:
 
 @dataclass(frozen=True)
 class Sphere:
-    """Collider: particles stay outside the sphere (inside with ``inside=True``)."""
+    """Collider: particles stay outside the sphere (inside with ``inside=True``). A moving
+    sphere gives its ``velocity`` (m/s): restitution and friction act on the particles'
+    velocity relative to it."""
 
     center: Any
     radius: float
     inside: bool = False
     restitution: float = 0.5
     friction: float = 0.0
+    velocity: Any = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """Collider: particles stay outside the points within ``radius`` (m) of the segment
+    ``a``–``b``; ``velocity`` (m/s) as for :class:`Sphere`."""
+
+    a: Any
+    b: Any
+    radius: float
+    restitution: float = 0.5
+    friction: float = 0.0
+    velocity: Any = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -173,7 +190,7 @@ class Emitter:
     seed: int = 0
 
 
-def _collider(c: Plane | Sphere) -> tuple[str, list[float]]:
+def _collider(c: Plane | Sphere | Capsule) -> tuple[str, list[float]]:
     if isinstance(c, Plane):
         return "plane", [
             *as_vector3(c.point, "point"),
@@ -188,8 +205,18 @@ def _collider(c: Plane | Sphere) -> tuple[str, list[float]]:
             float(bool(c.inside)),
             float(c.restitution),
             float(c.friction),
+            *as_vector3(c.velocity, "velocity"),
         ]
-    raise ValueError(f"collider: expected kinema.particles.Plane or Sphere, got {c!r}")
+    if isinstance(c, Capsule):
+        return "capsule", [
+            *as_vector3(c.a, "a"),
+            *as_vector3(c.b, "b"),
+            float(c.radius),
+            float(c.restitution),
+            float(c.friction),
+            *as_vector3(c.velocity, "velocity"),
+        ]
+    raise ValueError(f"collider: expected kinema.particles.Plane, Sphere or Capsule, got {c!r}")
 
 
 class ParticleSystem:
@@ -271,7 +298,7 @@ class ParticleSystem:
             if not callable(item.force):
                 raise ValueError("force: expected a callable force(t, positions, velocities)")
             self._fields.append(item)
-        elif isinstance(item, (Plane, Sphere)):
+        elif isinstance(item, (Plane, Sphere, Capsule)):
             s.add_collider(*_collider(item))
             self._colliders += 1
         elif isinstance(item, Emitter):
@@ -292,7 +319,7 @@ class ParticleSystem:
                 f"item: expected a force, collider or emitter of kinema.particles, got {item!r}"
             )
 
-    def set_collider(self, index: int, collider: Plane | Sphere) -> None:
+    def set_collider(self, index: int, collider: Plane | Sphere | Capsule) -> None:
         """Replace collider ``index`` (move it between steps)."""
         self._sys.set_collider(int(index), *_collider(collider))
 

@@ -109,8 +109,7 @@ class Character:
 
     Joint positions are the skeleton's forward kinematics times ``scale`` (file units to m;
     default: the skeleton's ``metres_per_unit`` for Acclaim files, 1 for BVH) plus ``offset``
-    (m), linearly interpolated between frames. Cloth collides with the capsules, particles with
-    spheres at the joints (they have no capsule collider yet)."""
+    (m), linearly interpolated between frames. Cloth and particles collide with the capsules."""
 
     skeleton: Any
     motion: Any
@@ -282,19 +281,14 @@ class Scene:
         h = self._h
         for e in receivers:
             is_cloth = isinstance(e.obj, _cloth.Cloth)
+            module: Any = _cloth if is_cloth else _particles
             for k, (s, p) in enumerate(zip(shapes, previous, strict=True)):
                 if s[0] == "sphere":
                     v = (s[1] - p[1]) / h
-                    c: Any = (
-                        _cloth.Sphere(s[1], s[2], friction=s[3], velocity=v)
-                        if is_cloth
-                        else _particles.Sphere(s[1], s[2])
-                    )
-                elif is_cloth:
+                    c: Any = module.Sphere(s[1], s[2], friction=s[3], velocity=v)
+                else:
                     v = 0.5 * ((s[1] - p[1]) + (s[2] - p[2])) / h
-                    c = _cloth.Capsule(s[1], s[2], s[3], friction=s[4], velocity=v)
-                else:  # particles have no capsule collider: a sphere at each end
-                    c = _particles.Sphere(s[1], s[3])
+                    c = module.Capsule(s[1], s[2], s[3], friction=s[4], velocity=v)
                 if k < len(e.colliders):
                     e.obj.set_collider(e.colliders[k], c)
                 elif is_cloth:

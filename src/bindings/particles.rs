@@ -26,7 +26,8 @@ fn params(p: &[f64], count: usize, what: &str) -> PyResult<()> {
 }
 
 /// A collider from its kind and parameters: `plane` (point 3, normal 3, restitution,
-/// friction) or `sphere` (centre 3, radius, inside, restitution, friction).
+/// friction), `sphere` (centre 3, radius, inside, restitution, friction, velocity 3) or
+/// `capsule` (a 3, b 3, radius, restitution, friction, velocity 3).
 fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
     Ok(match kind {
         "plane" => {
@@ -34,13 +35,25 @@ fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
             Collider::Plane { point: v3(p, 0), normal: v3(p, 3), restitution: p[6], friction: p[7] }
         }
         "sphere" => {
-            params(p, 7, "sphere")?;
+            params(p, 10, "sphere")?;
             Collider::Sphere {
                 center: v3(p, 0),
                 radius: p[3],
                 inside: p[4] != 0.0,
                 restitution: p[5],
                 friction: p[6],
+                velocity: v3(p, 7),
+            }
+        }
+        "capsule" => {
+            params(p, 12, "capsule")?;
+            Collider::Capsule {
+                a: v3(p, 0),
+                b: v3(p, 3),
+                radius: p[6],
+                restitution: p[7],
+                friction: p[8],
+                velocity: v3(p, 9),
             }
         }
         other => {

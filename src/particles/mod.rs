@@ -55,6 +55,24 @@ pub enum Collider {
         restitution: f64,
         /// Coulomb friction coefficient >= 0.
         friction: f64,
+        /// Velocity of the sphere (m/s): restitution and friction act on the particle's
+        /// velocity relative to it (a moving collider pushes and drags particles along).
+        velocity: DVec3,
+    },
+    /// A capsule, the points within `radius` of the segment `a`–`b`; particles stay outside.
+    Capsule {
+        /// One end of the axis (m).
+        a: DVec3,
+        /// The other end (m); may equal `a` (a sphere).
+        b: DVec3,
+        /// Radius (m) > 0.
+        radius: f64,
+        /// Coefficient of restitution in [0, 1].
+        restitution: f64,
+        /// Coulomb friction coefficient >= 0.
+        friction: f64,
+        /// Velocity of the capsule (m/s), as for a sphere.
+        velocity: DVec3,
     },
 }
 
@@ -345,12 +363,27 @@ impl ParticleSystem {
                 }
                 (*restitution, *friction)
             }
-            Collider::Sphere { center, radius, restitution, friction, .. } => {
+            Collider::Sphere { center, radius, restitution, friction, velocity, .. } => {
                 if !(center.is_finite() && radius.is_finite() && *radius > 0.0) {
                     return Err(Error::invalid(
                         "radius",
                         "sphere needs a finite centre and a positive radius",
                     ));
+                }
+                if !velocity.is_finite() {
+                    return Err(Error::invalid("velocity", "must be finite"));
+                }
+                (*restitution, *friction)
+            }
+            Collider::Capsule { a, b, radius, restitution, friction, velocity } => {
+                if !(a.is_finite() && b.is_finite() && radius.is_finite() && *radius > 0.0) {
+                    return Err(Error::invalid(
+                        "radius",
+                        "capsule needs finite ends and a positive radius",
+                    ));
+                }
+                if !velocity.is_finite() {
+                    return Err(Error::invalid("velocity", "must be finite"));
                 }
                 (*restitution, *friction)
             }
@@ -736,19 +769,31 @@ fn collide_one(
 ) -> (DVec3, DVec3, usize) {
     let mut contacts = 0;
     for collider in colliders {
-        let (d, normal, e, mu) = match *collider {
+        // Distance to the surface (negative inside the solid), the outward normal, the
+        // material, and the collider's velocity.
+        let outside = |p: DVec3, radius: f64| {
+            let r = x - p;
+            let len = r.length();
+            (len - radius, if len > 0.0 { r / len } else { DVec3::Y })
+        };
+        let (d, normal, e, mu, vc) = match *collider {
             Collider::Plane { point, normal, restitution, friction } => {
-                ((x - point).dot(normal), normal, restitution, friction)
+                ((x - point).dot(normal), normal, restitution, friction, DVec3::ZERO)
             }
-            Collider::Sphere { center, radius, inside, restitution, friction } => {
-                let r = x - center;
-                let len = r.length();
-                let dir = if len > 0.0 { r / len } else { DVec3::Y };
+            Collider::Sphere { center, radius, inside, restitution, friction, velocity } => {
+                let (d, n) = outside(center, radius);
                 if inside {
-                    (radius - len, -dir, restitution, friction)
+                    (-d, -n, restitution, friction, velocity)
                 } else {
-                    (len - radius, dir, restitution, friction)
+                    (d, n, restitution, friction, velocity)
                 }
+            }
+            Collider::Capsule { a, b, radius, restitution, friction, velocity } => {
+                let ab = b - a;
+                let len2 = ab.length_squared();
+                let t = if len2 > 0.0 { ((x - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+                let (d, n) = outside(a + t * ab, radius);
+                (d, n, restitution, friction, velocity)
             }
         };
         if d >= 0.0 {
@@ -756,25 +801,26 @@ fn collide_one(
         }
         contacts += 1;
         // Project onto the surface, and apply Coulomb friction to the tangential displacement
-        // of this step too (at most μ times the penetration), so that a particle held by
-        // static friction does not creep.
+        // of this step relative to the collider too (at most μ times the penetration), so that
+        // a particle held by static friction does not creep.
         x -= d * normal;
-        let moved = x - prev;
+        let moved = x - prev - vc * dt;
         let moved_t = moved - moved.dot(normal) * normal;
         let slip = moved_t.length();
         if slip > 0.0 {
             x -= moved_t * (mu * -d / slip).min(1.0);
         }
-        let vn = v.dot(normal);
+        let u = v - vc; // velocity relative to the collider
+        let vn = u.dot(normal);
         if vn >= 0.0 {
             continue;
         }
         let resting = -vn <= 2.0 * gravity.dot(normal).abs() * dt;
         let jn = -vn * (1.0 + if resting { 0.0 } else { e });
-        let vt = v - vn * normal;
+        let vt = u - vn * normal;
         let speed_t = vt.length();
         let vt = if speed_t <= mu * jn { DVec3::ZERO } else { vt * (1.0 - mu * jn / speed_t) };
-        v = (vn + jn) * normal + vt;
+        v = vc + (vn + jn) * normal + vt;
     }
     (x, v, contacts)
 }

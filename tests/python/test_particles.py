@@ -145,3 +145,29 @@ def test_python_field_acts_like_the_builtin_force():
     d.add(Field(lambda t, x, v: np.full((2, 3), np.nan)))
     with pytest.raises(ValueError, match="forces"):
         d.step(0.01)
+
+
+def test_capsule_and_moving_colliders():
+    from kinema.particles import Capsule
+
+    # A particle dropped on a horizontal capsule rests on its top, at radius above the axis.
+    ps = ParticleSystem([[0.3, 1.0, 0.0]])
+    ps.add(Gravity())
+    ps.add(Capsule([-1, 0, 0], [1, 0, 0], 0.2, restitution=0.0, friction=1.0))
+    ps.step(1e-3, 2000)
+    assert ps.positions[0] == pytest.approx([0.3, 0.2, 0.0], abs=1e-6)
+    # A sphere moving at 1 m/s into a resting particle (no gravity) sends it off at
+    # (1 + e) times the sphere's speed, as an elastic wall would.
+    ps = ParticleSystem([[0.5, 0.0, 0.0]])
+    ps.add(Sphere([0.0, 0.0, 0.0], 0.45, restitution=1.0))
+    for k in range(1, 200):
+        center = [k * 1e-3, 0.0, 0.0]  # where the sphere is at the end of this step
+        ps.set_collider(0, Sphere(center, 0.45, restitution=1.0, velocity=[1.0, 0.0, 0.0]))
+        ps.step(1e-3)
+        if ps.velocities[0, 0] > 0:
+            break
+    assert 45 <= k <= 60  # it met the particle after ~0.05 m
+    assert ps.velocities[0, 0] == pytest.approx(2.0, rel=1e-9)
+    assert ps.positions[0, 0] >= center[0] + 0.45 - 1e-12
+    with pytest.raises(ValueError, match="velocity"):
+        ps.set_collider(0, Sphere([0, 0, 0], 1.0, velocity=[np.nan, 0, 0]))
