@@ -17,6 +17,7 @@ pub mod ode;
 pub mod particles;
 pub mod rigid;
 pub mod rotation;
+pub mod sdf;
 pub mod snapshot;
 
 #[cfg(feature = "python")]

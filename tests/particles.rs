@@ -316,3 +316,40 @@ fn fused_symplectic_path_is_bitwise_the_general_path() {
     assert!(fused.2 > 0);
     assert_eq!(fused, general);
 }
+
+#[test]
+fn oriented_box_distance_matches_brute_force() {
+    use glam::DQuat;
+    use kinema::sdf::oriented_box;
+    let q = DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -0.7, 1.1);
+    let (c, h) = (DVec3::new(0.5, -0.2, 1.0), DVec3::new(0.3, 0.1, 0.6));
+    // The distance to a box is that to the nearest of a dense sample of its surface (outside),
+    // minus the distance to the nearest face (inside).
+    let mut surface = Vec::new();
+    let n = 40;
+    for axis in 0..3 {
+        for sign in [-1.0, 1.0] {
+            for i in 0..=n {
+                for j in 0..=n {
+                    let (u, v) = (i as f64 / n as f64 * 2.0 - 1.0, j as f64 / n as f64 * 2.0 - 1.0);
+                    let mut p = DVec3::ZERO;
+                    p[axis] = sign;
+                    p[(axis + 1) % 3] = u;
+                    p[(axis + 2) % 3] = v;
+                    surface.push(c + q * (p * h));
+                }
+            }
+        }
+    }
+    for k in 0..200 {
+        let t = k as f64;
+        let p = c + DVec3::new((1.7 * t).sin(), (2.3 * t).cos(), (0.9 * t).sin()) * 0.9;
+        let (d, normal) = oriented_box(c, q, h, p);
+        let nearest = surface.iter().map(|s| (*s - p).length()).fold(f64::INFINITY, f64::min);
+        assert!((d.abs() - nearest).abs() < 0.02, "{d} vs {nearest}");
+        assert!((normal.length() - 1.0).abs() < 1e-12);
+        // Moving along the normal by the distance lands on the surface.
+        let (on, _) = oriented_box(c, q, h, p - d * normal);
+        assert!(on.abs() < 1e-12, "{on}");
+    }
+}

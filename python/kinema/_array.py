@@ -50,3 +50,14 @@ def as_vector3(value: object, name: str) -> list[float]:
     if not single:
         raise ValueError(f"{name}: expected one 3-vector, got shape {arr.shape}")
     return arr[0].tolist()
+
+
+def as_orientation(value: object, name: str) -> list[float]:
+    """A single ``kinema.Rotation`` (or ``None``, the identity) as ``[w, x, y, z]``."""
+    from kinema.rotation import Rotation
+
+    if value is None:
+        return [1.0, 0.0, 0.0, 0.0]
+    if not isinstance(value, Rotation) or not value.single:
+        raise ValueError(f"{name}: expected a single kinema.Rotation, got {value!r}")
+    return [float(c) for c in value.as_quat()]

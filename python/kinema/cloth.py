@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch, as_vector3
+from kinema._array import as_batch, as_orientation, as_vector3
 
-__all__ = ["Capsule", "Cloth", "Plane", "Sphere"]
+__all__ = ["Box", "Capsule", "Cloth", "Plane", "Sphere"]
 
 MODELS = ("baraff_witkin", "mass_spring")
 
@@ -75,9 +75,28 @@ class Capsule:
         return "capsule", as_vector3(self.a, "a") + as_vector3(self.b, "b") + [float(self.radius)]
 
 
+@dataclass(frozen=True)
+class Box:
+    """A solid box of ``half_extents`` (m) centred at ``center``, turned by ``orientation`` (a
+    :class:`kinema.Rotation`, default none)."""
+
+    center: Any
+    half_extents: Any
+    orientation: Any = None
+    friction: float = 0.5
+    velocity: Any = (0.0, 0.0, 0.0)
+
+    def _params(self) -> tuple[str, list[float]]:
+        return "box", [
+            *as_vector3(self.center, "center"),
+            *as_orientation(self.orientation, "orientation"),
+            *as_vector3(self.half_extents, "half_extents"),
+        ]
+
+
 def _collider(c: Any) -> tuple[str, list[float]]:
-    if not isinstance(c, (Plane, Sphere, Capsule)):
-        raise TypeError(f"collider must be a Plane, Sphere or Capsule, got {type(c).__name__}")
+    if not isinstance(c, (Plane, Sphere, Capsule, Box)):
+        raise TypeError(f"collider must be a Plane, Sphere, Capsule or Box, got {type(c).__name__}")
     kind, p = c._params()
     return kind, p + as_vector3(c.velocity, "velocity") + [float(c.friction)]
 
@@ -249,11 +268,11 @@ class Cloth:
         """Remove the pins and constraints of ``indices``."""
         self._core.constrain(self._indices(indices), "free", [0.0, 0.0, 0.0])
 
-    def add_collider(self, collider: Plane | Sphere | Capsule) -> int:
+    def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> int:
         """Add a kinematic collider; returns its index (for :meth:`set_collider`)."""
         return int(self._core.add_collider(*_collider(collider)))
 
-    def set_collider(self, index: int, collider: Plane | Sphere | Capsule) -> None:
+    def set_collider(self, index: int, collider: Plane | Sphere | Capsule | Box) -> None:
         """Replace collider ``index`` (move it along any path between steps)."""
         self._core.set_collider(int(index), *_collider(collider))
 

@@ -9,7 +9,7 @@ Forces: :class:`Gravity`, :class:`Drag` (linear and quadratic ``½ρC_dA|u|u``, 
 :class:`Damping`, :class:`Springs` (Hooke + dampers), :class:`Attractor` (softened inverse
 square; negative strength repels), :class:`Vortex`, :class:`Turbulence` (curl noise, Bridson
 et al. 2007), :class:`NeighborRepulsion` (spatial hash grid, never all pairs),
-:class:`NBodyGravity` (all pairs). Colliders: :class:`Plane`, :class:`Capsule`, :class:`Sphere` (inside or
+:class:`NBodyGravity` (all pairs). Colliders: :class:`Plane`, :class:`Box`, :class:`Capsule`, :class:`Sphere` (inside or
 outside) with restitution and Coulomb friction, resting contact without jitter.
 :class:`Emitter` recycles dead slots. :class:`Field` adds any Python callable on the batch of
 particles, evaluated once per step (held constant within the step).
@@ -24,10 +24,11 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch, as_scalars, as_vector3
+from kinema._array import as_batch, as_orientation, as_scalars, as_vector3
 
 __all__ = [
     "Attractor",
+    "Box",
     "Capsule",
     "Damping",
     "Drag",
@@ -163,6 +164,20 @@ class Sphere:
 
 
 @dataclass(frozen=True)
+class Box:
+    """Collider: particles stay outside the box of ``half_extents`` (m) centred at ``center``,
+    turned by ``orientation`` (a :class:`kinema.Rotation`, default none); ``velocity`` (m/s)
+    as for :class:`Sphere`."""
+
+    center: Any
+    half_extents: Any
+    orientation: Any = None
+    restitution: float = 0.5
+    friction: float = 0.0
+    velocity: Any = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
 class Capsule:
     """Collider: particles stay outside the points within ``radius`` (m) of the segment
     ``a``–``b``; ``velocity`` (m/s) as for :class:`Sphere`."""
@@ -190,7 +205,7 @@ class Emitter:
     seed: int = 0
 
 
-def _collider(c: Plane | Sphere | Capsule) -> tuple[str, list[float]]:
+def _collider(c: Plane | Sphere | Capsule | Box) -> tuple[str, list[float]]:
     if isinstance(c, Plane):
         return "plane", [
             *as_vector3(c.point, "point"),
@@ -216,7 +231,18 @@ def _collider(c: Plane | Sphere | Capsule) -> tuple[str, list[float]]:
             float(c.friction),
             *as_vector3(c.velocity, "velocity"),
         ]
-    raise ValueError(f"collider: expected kinema.particles.Plane, Sphere or Capsule, got {c!r}")
+    if isinstance(c, Box):
+        return "box", [
+            *as_vector3(c.center, "center"),
+            *as_orientation(c.orientation, "orientation"),
+            *as_vector3(c.half_extents, "half_extents"),
+            float(c.restitution),
+            float(c.friction),
+            *as_vector3(c.velocity, "velocity"),
+        ]
+    raise ValueError(
+        f"collider: expected kinema.particles.Plane, Sphere, Capsule or Box, got {c!r}"
+    )
 
 
 class ParticleSystem:
@@ -298,7 +324,7 @@ class ParticleSystem:
             if not callable(item.force):
                 raise ValueError("force: expected a callable force(t, positions, velocities)")
             self._fields.append(item)
-        elif isinstance(item, (Plane, Sphere, Capsule)):
+        elif isinstance(item, (Plane, Sphere, Capsule, Box)):
             s.add_collider(*_collider(item))
             self._colliders += 1
         elif isinstance(item, Emitter):
@@ -319,7 +345,7 @@ class ParticleSystem:
                 f"item: expected a force, collider or emitter of kinema.particles, got {item!r}"
             )
 
-    def set_collider(self, index: int, collider: Plane | Sphere | Capsule) -> None:
+    def set_collider(self, index: int, collider: Plane | Sphere | Capsule | Box) -> None:
         """Replace collider ``index`` (move it between steps)."""
         self._sys.set_collider(int(index), *_collider(collider))
 

@@ -3,7 +3,7 @@
 A :class:`Scene` steps what was added to it (particle systems, constrained particles, cloth,
 rigid worlds) with one clock: every frame of ``dt`` seconds is ``substeps`` steps of
 ``dt / substeps``. Kinematic objects (an :class:`AnimatedSphere` on a keyframed path, a
-motion-captured :class:`Character` whose bones are capsules) and the spheres and capsules of
+motion-captured :class:`Character` whose bones are capsules) and the spheres, capsules and boxes of
 rigid worlds are colliders for every cloth and particle system in the scene (one-way: cloth and
 particles do not push back). A scene models only what it was given: without colliders *and*
 something to collide, no collider code runs; an empty scene only counts frames.
@@ -69,8 +69,8 @@ class StabilityWarning(UserWarning):
     spring (see :func:`kinema.ode.max_stable_dt`)."""
 
 
-# Shapes exchanged between collider sources and receivers:
-# ("sphere", center, radius, velocity, friction) or ("capsule", a, b, radius, velocity, friction).
+# Shapes exchanged between collider sources and receivers: ("sphere", center, radius,
+# friction), ("capsule", a, b, radius, friction) or ("box", center, rotation, half, friction).
 _Shape = tuple[Any, ...]
 
 
@@ -153,7 +153,7 @@ class Character:
 
 
 def _rigid_shapes(world: _rigid.World) -> list[_Shape]:
-    """The spheres and capsules of a rigid world at its current pose (boxes, cylinders and
+    """The spheres, capsules and boxes of a rigid world at its current pose (cylinders and
     meshes are not mirrored: cloth and particles have no such colliders yet)."""
     from kinema.rotation import Rotation
 
@@ -166,6 +166,8 @@ def _rigid_shapes(world: _rigid.World) -> list[_Shape]:
         elif isinstance(s, _rigid.Capsule):
             axis = Rotation.from_quat(q[i]).apply([0.0, 0.5 * float(s.height), 0.0])
             shapes.append(("capsule", x[i] - axis, x[i] + axis, float(s.radius), 0.5))
+        elif isinstance(s, _rigid.Box):
+            shapes.append(("box", x[i], Rotation.from_quat(q[i]), s.half_extents, 0.5))
     return shapes
 
 
@@ -286,6 +288,9 @@ class Scene:
                 if s[0] == "sphere":
                     v = (s[1] - p[1]) / h
                     c: Any = module.Sphere(s[1], s[2], friction=s[3], velocity=v)
+                elif s[0] == "box":
+                    v = (s[1] - p[1]) / h
+                    c = module.Box(s[1], s[3], orientation=s[2], friction=s[4], velocity=v)
                 else:
                     v = 0.5 * ((s[1] - p[1]) + (s[2] - p[2])) / h
                     c = module.Capsule(s[1], s[2], s[3], friction=s[4], velocity=v)

@@ -11,7 +11,7 @@ use crate::cloth::{
 use crate::error::Error;
 use crate::ode::Method;
 use crate::snapshot::Snapshot;
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 use numpy::ndarray::ArrayView2;
 use numpy::{PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
@@ -37,6 +37,7 @@ fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
         "plane" => 6,
         "sphere" => 4,
         "capsule" => 7,
+        "box" => 10,
         other => {
             return Err(Error::invalid("collider", format!("unknown collider {other:?}")).into())
         }
@@ -51,7 +52,12 @@ fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
     let shape = match kind {
         "plane" => Shape::Plane { point: v(0), normal: v(3) },
         "sphere" => Shape::Sphere { center: v(0), radius: p[3] },
-        _ => Shape::Capsule { a: v(0), b: v(3), radius: p[6] },
+        "capsule" => Shape::Capsule { a: v(0), b: v(3), radius: p[6] },
+        _ => Shape::Box {
+            center: v(0),
+            rotation: DQuat::from_xyzw(p[4], p[5], p[6], p[3]),
+            half: v(7),
+        },
     };
     Ok(Collider { shape, velocity: v(need), friction: p[need + 3] })
 }
@@ -229,7 +235,8 @@ impl ClothCore {
     }
 
     /// Add a collider of `kind` (`plane`: point, normal; `sphere`: center, radius; `capsule`:
-    /// a, b, radius) followed by velocity (3) and friction; returns its index.
+    /// a, b, radius; `box`: center, orientation w x y z, half extents) followed by velocity (3)
+    /// and friction; returns its index.
     fn add_collider(&mut self, kind: &str, p: Vec<f64>) -> PyResult<usize> {
         Ok(self.cloth.add_collider(collider(kind, &p)?)?)
     }

@@ -7,7 +7,7 @@ use crate::error::Error;
 use crate::ode::Method;
 use crate::particles::{Collider, Emitter, Force, ParticleSystem};
 use crate::snapshot::Snapshot;
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 use numpy::ndarray::ArrayView2;
 use numpy::{PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
@@ -27,7 +27,8 @@ fn params(p: &[f64], count: usize, what: &str) -> PyResult<()> {
 
 /// A collider from its kind and parameters: `plane` (point 3, normal 3, restitution,
 /// friction), `sphere` (centre 3, radius, inside, restitution, friction, velocity 3) or
-/// `capsule` (a 3, b 3, radius, restitution, friction, velocity 3).
+/// `capsule` (a 3, b 3, radius, restitution, friction, velocity 3) or `box` (centre 3,
+/// orientation w x y z, half extents 3, restitution, friction, velocity 3).
 fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
     Ok(match kind {
         "plane" => {
@@ -54,6 +55,17 @@ fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
                 restitution: p[7],
                 friction: p[8],
                 velocity: v3(p, 9),
+            }
+        }
+        "box" => {
+            params(p, 15, "box")?;
+            Collider::Box {
+                center: v3(p, 0),
+                rotation: DQuat::from_xyzw(p[4], p[5], p[6], p[3]),
+                half: v3(p, 7),
+                restitution: p[10],
+                friction: p[11],
+                velocity: v3(p, 12),
             }
         }
         other => {

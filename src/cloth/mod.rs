@@ -41,7 +41,8 @@ pub use model::dihedral_angle;
 use crate::error::{Error, Result};
 use crate::linalg::SparseCholesky;
 use crate::ode::{Method, OdeSystem, Stepper};
-use glam::{DMat3, DVec3};
+use crate::sdf;
+use glam::{DMat3, DQuat, DVec3};
 use model::{Accumulator, Hinge, Spring, Triangle};
 use std::time::Instant;
 
@@ -123,6 +124,15 @@ pub enum Shape {
         /// Radius (m).
         radius: f64,
     },
+    /// A solid box.
+    Box {
+        /// Centre (m).
+        center: DVec3,
+        /// Orientation (body → world, unit).
+        rotation: DQuat,
+        /// Half extents along the box's axes (m).
+        half: DVec3,
+    },
 }
 
 /// A kinematic collider: a shape moving at a constant velocity, with Coulomb friction.
@@ -149,11 +159,19 @@ impl Collider {
             Shape::Capsule { a, b, radius } => {
                 finite(a) && finite(b) && radius.is_finite() && radius > 0.0
             }
+            Shape::Box { center, rotation, half } => {
+                finite(center)
+                    && rotation.is_finite()
+                    && (rotation.length() - 1.0).abs() < 1e-9
+                    && finite(half)
+                    && half.min_element() > 0.0
+            }
         };
         if !ok {
             return Err(Error::invalid(
                 "collider",
-                "needs finite coordinates, a non-zero normal and a positive radius",
+                "needs finite coordinates, a non-zero normal, a positive radius or half extents \
+                 and a unit rotation",
             ));
         }
         if !finite(self.velocity) {
@@ -174,30 +192,20 @@ impl Collider {
             Shape::Plane { point, normal } => Shape::Plane { point: point + d, normal },
             Shape::Sphere { center, radius } => Shape::Sphere { center: center + d, radius },
             Shape::Capsule { a, b, radius } => Shape::Capsule { a: a + d, b: b + d, radius },
+            Shape::Box { center, rotation, half } => {
+                Shape::Box { center: center + d, rotation, half }
+            }
         }
     }
 }
 
 /// Signed distance from `p` to the surface of `shape` and the outward normal there.
 fn distance(shape: &Shape, p: DVec3) -> (f64, DVec3) {
-    let from_point = |c: DVec3, r: f64| {
-        let d = p - c;
-        let l = d.length();
-        let n = if l > 0.0 { d / l } else { DVec3::Y };
-        (l - r, n)
-    };
     match *shape {
         Shape::Plane { point, normal } => ((p - point).dot(normal), normal),
-        Shape::Sphere { center, radius } => from_point(center, radius),
-        Shape::Capsule { a, b, radius } => {
-            let ab = b - a;
-            let t = if ab.length_squared() > 0.0 {
-                ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            from_point(a + ab * t, radius)
-        }
+        Shape::Sphere { center, radius } => sdf::sphere(center, radius, p),
+        Shape::Capsule { a, b, radius } => sdf::capsule(a, b, radius, p),
+        Shape::Box { center, rotation, half } => sdf::oriented_box(center, rotation, half, p),
     }
 }
 

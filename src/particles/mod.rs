@@ -23,7 +23,8 @@ pub use forces::{curl_noise, noise_with_gradient, Force};
 
 use crate::error::{Error, Result};
 use crate::ode::{Method, OdeSystem, Stepper};
-use glam::DVec3;
+use crate::sdf;
+use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 
 /// Particles per parallel chunk.
@@ -72,6 +73,21 @@ pub enum Collider {
         /// Coulomb friction coefficient >= 0.
         friction: f64,
         /// Velocity of the capsule (m/s), as for a sphere.
+        velocity: DVec3,
+    },
+    /// A box; particles stay outside.
+    Box {
+        /// Centre (m).
+        center: DVec3,
+        /// Orientation (body → world, unit).
+        rotation: DQuat,
+        /// Half extents along the box's axes (m) > 0.
+        half: DVec3,
+        /// Coefficient of restitution in [0, 1].
+        restitution: f64,
+        /// Coulomb friction coefficient >= 0.
+        friction: f64,
+        /// Velocity of the box (m/s), as for a sphere.
         velocity: DVec3,
     },
 }
@@ -381,6 +397,21 @@ impl ParticleSystem {
                         "radius",
                         "capsule needs finite ends and a positive radius",
                     ));
+                }
+                if !velocity.is_finite() {
+                    return Err(Error::invalid("velocity", "must be finite"));
+                }
+                (*restitution, *friction)
+            }
+            Collider::Box { center, rotation, half, restitution, friction, velocity } => {
+                if !(center.is_finite() && half.is_finite() && half.min_element() > 0.0) {
+                    return Err(Error::invalid(
+                        "half_extents",
+                        "box needs a finite centre and positive half extents",
+                    ));
+                }
+                if !(rotation.is_finite() && (rotation.length() - 1.0).abs() < 1e-9) {
+                    return Err(Error::invalid("orientation", "must be a unit quaternion"));
                 }
                 if !velocity.is_finite() {
                     return Err(Error::invalid("velocity", "must be finite"));
@@ -771,17 +802,12 @@ fn collide_one(
     for collider in colliders {
         // Distance to the surface (negative inside the solid), the outward normal, the
         // material, and the collider's velocity.
-        let outside = |p: DVec3, radius: f64| {
-            let r = x - p;
-            let len = r.length();
-            (len - radius, if len > 0.0 { r / len } else { DVec3::Y })
-        };
         let (d, normal, e, mu, vc) = match *collider {
             Collider::Plane { point, normal, restitution, friction } => {
                 ((x - point).dot(normal), normal, restitution, friction, DVec3::ZERO)
             }
             Collider::Sphere { center, radius, inside, restitution, friction, velocity } => {
-                let (d, n) = outside(center, radius);
+                let (d, n) = sdf::sphere(center, radius, x);
                 if inside {
                     (-d, -n, restitution, friction, velocity)
                 } else {
@@ -789,10 +815,11 @@ fn collide_one(
                 }
             }
             Collider::Capsule { a, b, radius, restitution, friction, velocity } => {
-                let ab = b - a;
-                let len2 = ab.length_squared();
-                let t = if len2 > 0.0 { ((x - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
-                let (d, n) = outside(a + t * ab, radius);
+                let (d, n) = sdf::capsule(a, b, radius, x);
+                (d, n, restitution, friction, velocity)
+            }
+            Collider::Box { center, rotation, half, restitution, friction, velocity } => {
+                let (d, n) = sdf::oriented_box(center, rotation, half, x);
                 (d, n, restitution, friction, velocity)
             }
         };

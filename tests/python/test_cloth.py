@@ -203,3 +203,18 @@ def test_bad_arguments_leave_the_state_untouched() -> None:
     with pytest.raises(kinema.SimulationError):
         stiff.step(0.01, 500, integrator="explicit_euler")
     assert np.isfinite(stiff.positions).all()
+
+
+def test_box_collider_holds_the_cloth():
+    from kinema import Rotation
+    from kinema.cloth import Box
+
+    cloth = Cloth.grid(12, 12, 0.5, 0.5)
+    cloth.set_state(cloth.positions + np.array([0.0, 0.3, 0.0]))
+    cloth.add_collider(Box([0, 0, 0], [0.4, 0.1, 0.4], orientation=Rotation.from_rotvec([0.0, 0.3, 0.0])))
+    cloth.step(1 / 60, 60)
+    assert cloth.positions[:, 1].min() > 0.1 - 0.01  # on the top face, not through it
+    with pytest.raises(ValueError, match="orientation"):
+        cloth.add_collider(Box([0, 0, 0], [1, 1, 1], orientation=[1, 0, 0, 0]))
+    with pytest.raises(ValueError, match="collider"):
+        cloth.add_collider(Box([0, 0, 0], [1, -1, 1]))

@@ -376,3 +376,19 @@ def test_stability_warning_for_explicit_cloth():
         fine._check_stability()
         implicit._check_stability()
     fine.run(frames=2, progress=False)  # and the predicted substeps are indeed stable
+
+
+def test_rigid_boxes_are_colliders_for_cloth_and_particles():
+    scene = Scene(dt=1 / 60, substeps=2)
+    world = rigid.World(gravity=(0, 0, 0))
+    turned = kinema.Rotation.from_rotvec([0.0, 0.5, 0.0])
+    world.add_body(rigid.Box([0.3, 0.1, 0.3]), position=(0, 0.1, 0), orientation=turned, fixed=True)
+    scene.add(world)
+    c = scene.add(cloth.Cloth.grid(10, 10, 0.4, 0.4))
+    c.set_state(c.positions + np.array([0.0, 0.4, 0.0]))
+    ps = scene.add(particles.ParticleSystem([[0.1, 0.6, 0.05]]))
+    ps.add(particles.Gravity())
+    scene.run(duration=1.0, progress=False)
+    # Both rest on the box's top face (y = 0.2), neither fell through.
+    assert c.positions[:, 1].min() > 0.2 - 0.01
+    assert ps.positions[0, 1] == pytest.approx(0.2, abs=1e-6)
