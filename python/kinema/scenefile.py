@@ -47,8 +47,8 @@ collider and shape of the Python API is available under its own name::
     radius = 0.06
 
 Cloth also takes ``obj = "mesh.obj"`` (with the material keys) instead of ``grid``. Rigid
-bodies take every keyword of :meth:`kinema.rigid.World.add_body`, with ``orientation`` as a
-scalar-first quaternion. Mistakes are reported with their place, e.g. ``particles[0].items[1]``.
+bodies take every keyword of :meth:`kinema.rigid.World.add_body`; an ``orientation`` (of a
+body or a box collider) is a scalar-first quaternion. Mistakes are reported with their place, e.g. ``particles[0].items[1]``.
 """
 
 from __future__ import annotations
@@ -144,6 +144,8 @@ def _make(module: Any, spec: Any, where: str) -> Any:
     cls = getattr(module, str(name), None)
     if not isinstance(cls, type) or name.startswith("_"):
         raise ValueError(f"{where}.type: {name!r} is not a class of {module.__name__}")
+    if "orientation" in spec:  # a scalar-first quaternion in a file
+        spec["orientation"] = Rotation.from_quat(spec["orientation"])
     try:
         return cls(**spec)
     except TypeError as e:

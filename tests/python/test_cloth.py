@@ -211,7 +211,9 @@ def test_box_collider_holds_the_cloth():
 
     cloth = Cloth.grid(12, 12, 0.5, 0.5)
     cloth.set_state(cloth.positions + np.array([0.0, 0.3, 0.0]))
-    cloth.add_collider(Box([0, 0, 0], [0.4, 0.1, 0.4], orientation=Rotation.from_rotvec([0.0, 0.3, 0.0])))
+    cloth.add_collider(
+        Box([0, 0, 0], [0.4, 0.1, 0.4], orientation=Rotation.from_rotvec([0.0, 0.3, 0.0]))
+    )
     cloth.step(1 / 60, 60)
     assert cloth.positions[:, 1].min() > 0.1 - 0.01  # on the top face, not through it
     with pytest.raises(ValueError, match="orientation"):

@@ -120,3 +120,15 @@ def test_cli_demo_default_bench_and_info(tmp_path: Path):
     r = kinema("demo", "--quick", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "== demo showcase" in r.stdout and (tmp_path / "kinema-out" / "showcase.gif").exists()
+
+
+def test_box_collider_with_orientation_in_a_file(tmp_path: Path):
+    path = tmp_path / "box.toml"
+    path.write_text(
+        "[scene]\nframes = 2\n[[cloth]]\ngrid = { nx = 4, ny = 4 }\n"
+        "colliders = [{ type = 'Box', center = [0, -1, 0], half_extents = [1, 0.5, 1], "
+        "orientation = [0.9950041652780258, 0, 0.09983341664682815, 0] }]\n"
+    )
+    scene, _ = scenefile.load(path)
+    scene.run(frames=2, progress=False)
+    assert np.isfinite(scene.systems[0].positions).all()
