@@ -289,6 +289,13 @@ impl World {
         Ok(self.joints[j].violation(&State { x: &self.x, q: &self.q, v: &[], w: &[] }))
     }
 
+    /// [`World::joint_coordinate`] of every joint, in order.
+    pub fn joint_coordinates(&self) -> Vec<(f64, f64)> {
+        let w: Vec<DVec3> = (0..self.len()).map(|i| self.angular_velocity(i)).collect();
+        let s = State { x: &self.x, q: &self.q, v: &self.v, w: &w };
+        self.joints.iter().map(|j| j.coordinate(&s)).collect()
+    }
+
     /// Coordinate of joint `j` and its rate: a hinge's angle (rad, 0 at creation) and
     /// relative angular velocity about its axis (rad/s); a slider's displacement along its
     /// axis (m, 0 at creation) and velocity (m/s); zeros for ball and fixed joints.
