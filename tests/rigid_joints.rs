@@ -466,6 +466,12 @@ fn a_hinged_chain_falls_onto_the_ground_and_rests_connected() {
         let speed = (0..5).map(|i| w.velocity(i).length()).fold(0.0, f64::max);
         println!("{method:?}: drift {worst:.2e}, lowest centre {lowest:.4}, speed {speed:.2e}");
         let tol = if method == JointMethod::Penalty { 5e-2 } else { 5e-3 };
-        assert!(worst < tol && lowest > -0.5 && speed < 0.05, "{method:?}");
+        // Impulse joints share the contacts' sweeps and come to rest; Lagrange and XPBD
+        // joints alternate with them and keep a few mm/s (docs/rigid.md).
+        let rest = match method {
+            JointMethod::Lagrange | JointMethod::Xpbd => 1e-2,
+            _ => 1e-9,
+        };
+        assert!(worst < tol && lowest > -0.5 && speed < rest, "{method:?}");
     }
 }

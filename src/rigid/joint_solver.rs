@@ -89,7 +89,6 @@ fn add_force(j: &Joint, r: &Row, lambda: f64, force: &mut [DVec3], torque: &mut 
 /// motor row is a velocity servo `λ = m_eff (speed − Ċ)/h` clamped to its torque bound (with
 /// the row's own `m_eff`, a lower bound of the true effective inertia, so it never
 /// overshoots).
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn penalty(
     j: &Joint,
     rows: &[Row],
@@ -285,6 +284,56 @@ impl Multipliers {
         }
     }
 
+    /// Project the velocities onto the Lagrange joints, `J M⁻¹ Jᵀ μ = −J q̇`,
+    /// `q̇ += M⁻¹ Jᵀ μ`, over the equality rows and the active limits of `rows` (evaluated at
+    /// the start of the step). Used after the contacts have changed the velocities, so the
+    /// contacts and the joints agree within the step.
+    ///
+    /// # Errors
+    /// [`Error::SolverFailed`] when the factorisation fails.
+    pub fn project_velocities(
+        &mut self,
+        joints: &[Joint],
+        rows: &[Row],
+        m: &Mass<'_>,
+        q: &[DQuat],
+        v: &mut [DVec3],
+        w: &mut [DVec3],
+    ) -> Result<()> {
+        if self.map.is_empty() {
+            return Ok(());
+        }
+        for (k, &(g, ji)) in self.map.iter().enumerate() {
+            let r = &rows[g];
+            self.activity[k] = match r.kind {
+                RowKind::Equality => Activity::Active,
+                RowKind::Limit if r.c <= 0.0 && rate(&joints[ji], r, v, w) < 0.0 => {
+                    Activity::Active
+                }
+                _ => Activity::Off,
+            };
+        }
+        self.assemble(joints, rows, m, q);
+        for (k, &(g, ji)) in self.map.iter().enumerate() {
+            self.rhs[k] = if self.activity[k] == Activity::Active {
+                -rate(&joints[ji], &rows[g], v, w)
+            } else {
+                0.0
+            };
+        }
+        let Some(chol) = self.chol.as_mut() else { return Ok(()) };
+        chol.factorize(&self.values)?;
+        self.lambda.copy_from_slice(&self.rhs);
+        chol.solve_in_place(&mut self.lambda);
+        for (k, &(g, ji)) in self.map.iter().enumerate() {
+            let mu = self.lambda[k];
+            if self.activity[k] == Activity::Active && mu.is_finite() {
+                apply(m, &joints[ji], &rows[g], mu, q, v, w);
+            }
+        }
+        Ok(())
+    }
+
     /// Post-stabilisation (Cline & Pai 2003): one Newton step of the positions onto the
     /// Lagrange joints, `Δ = M⁻¹ Jᵀ μ` with `J M⁻¹ Jᵀ μ = −C`, over the equality rows and the
     /// violated limits evaluated at the end of the step (`rows`), added to `dx` (translations)
@@ -292,7 +341,6 @@ impl Multipliers {
     ///
     /// # Errors
     /// [`Error::SolverFailed`] when the factorisation fails.
-    #[allow(clippy::too_many_arguments)]
     pub fn project(
         &mut self,
         joints: &[Joint],
@@ -523,7 +571,6 @@ pub(crate) const MAX_CORRECTION: f64 = 0.2;
 /// ±[`MAX_CORRECTION`]), where `dx`, `dθ` are the
 /// corrections so far (translations and small world rotations per body). Velocities are left
 /// alone, so the pass adds no kinetic energy.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn correct_positions(
     j: &Joint,
     rows: &[Row],
@@ -551,7 +598,6 @@ pub(crate) fn correct_positions(
 /// `Δλ = −C / (J M⁻¹ Jᵀ)`, moving `x += M⁻¹ lᵀ Δλ` and turning `q ← normalise(q + ½ (φ, 0) q)`
 /// with `φ = I⁻¹ aᵀ Δλ`. The corrections are also added to `dx`, `dtheta`, from which the
 /// caller updates the velocities (`v += dx/h`, `ω += dθ/h`).
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn project(
     j: &Joint,
     m: &Mass<'_>,

@@ -83,6 +83,9 @@ pub struct BodyDesc {
     pub friction: f64,
 }
 
+/// Alternations of a Lagrange velocity projection and a contact sweep when both are present.
+const LAGRANGE_CONTACT_ROUNDS: usize = 4;
+
 /// Next-step state, committed only when the whole step succeeded.
 type Scratch = (Vec<DVec3>, Vec<DVec3>, Vec<DQuat>, Vec<DVec3>);
 
@@ -749,6 +752,21 @@ impl World {
                 }
             }
             contact::sweep(&mut self.contacts, &bodies, v, &mut self.omega);
+        }
+        if lagrange && !self.contacts.is_empty() {
+            // The contacts changed the velocities after the multipliers: alternate a velocity
+            // projection onto the Lagrange joints with contact sweeps so both hold.
+            for _ in 0..LAGRANGE_CONTACT_ROUNDS {
+                self.multipliers.project_velocities(
+                    &self.joints,
+                    &self.rows,
+                    &mass,
+                    q,
+                    v,
+                    &mut self.omega,
+                )?;
+                contact::sweep(&mut self.contacts, &bodies, v, &mut self.omega);
+            }
         }
         // Positions from the new velocities.
         contact::advance_gaps(&mut self.contacts, &bodies, h, v, &self.omega);
