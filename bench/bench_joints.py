@@ -6,7 +6,8 @@ horizontal (the pendulum is the chain's first link alone), links not colliding. 
 the largest anchor separation (drift, m), the largest tilt of a hinge axis (rad), the largest
 change of kinetic plus gravitational energy and its value at the end (J; a penalty joint's
 spring energy is left out, so its stretch shows up here; total energy scale: 1 J for the
-pendulum, 25 J for the chain), and the cost per step (best of three runs of the whole 10 s in
+pendulum, 25 J for the chain), the cost per step, and the largest step (on a grid of factors
+√2 from 0.1 s) for which 2 s keep the problem together (best of three runs of the whole 10 s in
 one call, so no Python overhead per step). XPBD takes ``World.xpbd_substeps`` (20) substeps
 per step, impulses ``World.joint_iterations`` (20) sweeps.
 
@@ -96,6 +97,27 @@ def measure(links: int, method: str, k: float, dt: float) -> dict[str, object]:
     }
 
 
+def stable(links: int, method: str, k: float) -> float:
+    """Largest dt = 0.1 · 2^(-j/2) for which 2 s run without error and without coming apart
+    (every joint's anchors within a link length, 0.4 m; an unstable run grows without
+    bound)."""
+    for j in range(30):
+        dt = 0.1 * 0.5 ** (j / 2)
+        w = chain(links, method, k)
+        try:
+            worst = 0.0
+            for _ in range(round(2.0 / dt)):
+                w.step(dt)
+                worst = max(worst, float(w.joint_violations[:, 0].max()))
+                if not worst < 0.4:
+                    break
+        except kinema.SimulationError:
+            continue
+        if worst < 0.4:
+            return dt
+    return float("nan")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--write", action="store_true", help="update bench/RESULTS.md")
@@ -104,16 +126,20 @@ def main() -> None:
     problems = {"hinge pendulum": 1, "chain of 5 hinges": 5}
     lines = [
         "| problem | formulation | dt | max drift (m) | max axis tilt (rad) "
-        "| max energy error (J) | energy change at 10 s (J) | µs per step |",
-        "|---|---|---|---:|---:|---:|---:|---:|",
+        "| max energy error (J) | energy change at 10 s (J) | µs per step "
+        "| largest dt holding together for 2 s (s) |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|",
     ]
     results: dict[str, dict[str, dict[str, object]]] = {}
     for name, links in problems.items():
+        stable_dt: dict[str, float] = {}
         for step_name, dt in STEPS.items():
             key = f"{name}, {step_name}"
             results[key] = {}
             for label, method, k in FORMULATIONS:
                 r = measure(links, method, k, dt)
+                if label not in stable_dt:
+                    stable_dt[label] = stable(links, method, k)
                 results[key][label] = r
                 if r["failed"]:
                     cells = "comes apart | – | – | – "
@@ -122,7 +148,10 @@ def main() -> None:
                         f"{r['drift']:.1e} | {r['tilt']:.1e} | {r['energy']:.1e} "
                         f"| {r['final']:+.1e} "
                     )
-                lines.append(f"| {name} | {label} | {step_name} | {cells}| {r['cost_us']:.1f} |")
+                lines.append(
+                    f"| {name} | {label} | {step_name} | {cells}| {r['cost_us']:.1f} "
+                    f"| {stable_dt[label]:.1e} |"
+                )
                 print(lines[-1], flush=True)
     table = "\n".join(lines)
     print()
