@@ -475,3 +475,28 @@ fn a_hinged_chain_falls_onto_the_ground_and_rests_connected() {
         assert!(worst < tol && lowest > -0.5 && speed < rest, "{method:?}");
     }
 }
+
+#[test]
+fn formulations_can_share_a_world() {
+    // A chain whose joints cycle through the four formulations, stepped at 1 ms for 5 s.
+    let mut w = World::new(G, RotationIntegrator::Splitting);
+    for i in 0..8 {
+        let shape = Shape::Box { half_extents: DVec3::new(0.2, 0.02, 0.02) };
+        w.add_body(&body(shape, 0.5, DVec3::new(0.2 + 0.4 * i as f64, 0.0, 0.0))).unwrap();
+        let b = if i == 0 { None } else { Some(i - 1) };
+        let anchor = DVec3::new(0.4 * i as f64, 0.0, 0.0);
+        w.add_joint(&joint(hinge(), METHODS[i % 4], i, b, anchor, DVec3::Z)).unwrap();
+    }
+    let mut worst = vec![0.0f64; 8];
+    for _ in 0..5000 {
+        w.step(1e-3, 1).unwrap();
+        for (j, x) in worst.iter_mut().enumerate() {
+            *x = x.max(w.joint_violation(j).unwrap().0);
+        }
+    }
+    println!("{worst:?}");
+    for (j, x) in worst.iter().enumerate() {
+        let tol = if METHODS[j % 4] == JointMethod::Penalty { 0.1 } else { 1e-3 };
+        assert!(*x < tol, "joint {j}: {x}");
+    }
+}
