@@ -1,7 +1,7 @@
 //! A world of free rigid bodies stepped with one clock.
 
 use super::contact::{self, Bodies, Contact, Placed, Plane};
-use super::joint::{Joint, JointDesc, JointMethod, Row, State, SLOTS};
+use super::joint::{Joint, JointDesc, JointKind, JointMethod, Row, State, SLOTS};
 use super::joint_solver::{self as js, Mass, Multipliers};
 use super::mass::Shape;
 use crate::error::{Error, Result};
@@ -82,6 +82,9 @@ pub struct BodyDesc {
     /// of its two surfaces').
     pub friction: f64,
 }
+
+/// Sweeps of the XPBD velocity pass over a hinge with limits or a motor.
+const XPBD_VELOCITY_SWEEPS: usize = 8;
 
 /// Alternations of a Lagrange velocity projection and a contact sweep when both are present.
 const LAGRANGE_CONTACT_ROUNDS: usize = 4;
@@ -879,43 +882,39 @@ impl World {
             v[i] += self.xpbd_dx[i] / h;
             self.omega[i] += self.xpbd_dtheta[i] / h;
         }
+        // Velocity pass of hinges with limits or a motor: a few sweeps over all their rows
+        // (equalities, limits as λ ≥ 0, the motor within its torque bound), so that a limit
+        // stops the whole body (not only its turning about the centre of mass) and a motor
+        // turns it about the hinge.
         let s = State { x, q, v: &[], w: &[] };
-        let mut motors = false;
         for (ji, j) in self.joints.iter().enumerate() {
-            if j.method == JointMethod::Xpbd
-                && matches!(j.kind, super::JointKind::Hinge { motor: Some(_), .. })
-            {
-                motors = true;
-                let slots = ji * SLOTS..(ji + 1) * SLOTS;
-                j.rows(&s, &mut self.rows[slots.clone()]);
-                js::effective_masses(
+            let driven = matches!(j.kind, JointKind::Hinge { limits: Some(_), .. })
+                || matches!(j.kind, JointKind::Hinge { motor: Some(_), .. });
+            if j.method != JointMethod::Xpbd || !driven {
+                continue;
+            }
+            let slots = ji * SLOTS..(ji + 1) * SLOTS;
+            j.rows(&s, &mut self.rows[slots.clone()]);
+            js::effective_masses(
+                j,
+                &self.rows[slots.clone()],
+                &mass,
+                q,
+                &mut self.row_mass[slots.clone()],
+            );
+            let mut impulse = [0.0; SLOTS];
+            for _ in 0..XPBD_VELOCITY_SWEEPS {
+                js::sweep(
                     j,
                     &self.rows[slots.clone()],
+                    &self.row_mass[slots.clone()],
+                    &mut impulse,
                     &mass,
                     q,
-                    &mut self.row_mass[slots],
+                    h,
+                    v,
+                    &mut self.omega,
                 );
-            }
-        }
-        if motors {
-            for (ji, j) in self.joints.iter().enumerate() {
-                if j.method == JointMethod::Xpbd
-                    && matches!(j.kind, super::JointKind::Hinge { motor: Some(_), .. })
-                {
-                    let k = ji * SLOTS + 7;
-                    let mut l = 0.0;
-                    js::sweep(
-                        j,
-                        &self.rows[k..k + 1],
-                        &self.row_mass[k..k + 1],
-                        std::slice::from_mut(&mut l),
-                        &mass,
-                        q,
-                        h,
-                        v,
-                        &mut self.omega,
-                    );
-                }
             }
         }
         for i in (0..n).filter(|&i| !self.fixed[i]) {
