@@ -74,15 +74,17 @@ pub enum JointMethod {
     /// sparse Cholesky factorisation (faer), with Baumgarte feedback `k_d = 1/h`, `k_s = β/h²`
     /// (the ½ makes the semi-implicit step second-order consistent), then one post-stabilising
     /// Newton projection of the positions with the same factorisation pattern (Cline & Pai
-    /// 2003), so long chains stay connected at large steps.
+    /// 2003), so long chains stay connected at large steps. With contacts in the world, a few
+    /// velocity projections onto the joints alternate with contact sweeps.
     Lagrange,
     /// Sequential impulses at the velocity level (Catto 2005; Bender et al. 2014, §4.4), warm
     /// started, then a nonlinear Gauss–Seidel pass on the positions that removes the drift
     /// without adding kinetic energy (as the contacts do).
     Impulse,
-    /// Extended position-based dynamics (Müller et al. 2020): substeps, each predicting the
-    /// positions, projecting them onto the joints once, and taking the velocities from the
-    /// positions.
+    /// Extended position-based dynamics (Müller et al. 2020), rigid (zero compliance):
+    /// substeps, each predicting the positions, projecting them onto the joints once, and
+    /// taking the velocities from the positions; hinges with limits or a motor then get a
+    /// velocity pass over their rows.
     Xpbd,
 }
 

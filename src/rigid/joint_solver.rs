@@ -176,8 +176,7 @@ impl Clone for Multipliers {
     }
 }
 
-/// Matrix rows per round of the active-set loop at most (limits switching off, motors hitting
-/// their bounds).
+/// Rounds of the active-set loop at most (limits switching off, motors hitting their bounds).
 const ACTIVE_SET_ROUNDS: usize = 4;
 
 fn block(j: &Joint, r: &Row, body: usize) -> (DVec3, DVec3) {
