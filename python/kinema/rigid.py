@@ -48,6 +48,8 @@ from kinema.rotation import Rotation
 
 __all__ = [
     "METHODS",
+    "PENALTY_DAMPING",
+    "PENALTY_STIFFNESS",
     "Ball",
     "Body",
     "Box",
@@ -63,6 +65,9 @@ __all__ = [
 
 #: The joint formulations accepted by :meth:`World.add_joint`.
 METHODS = ("penalty", "lagrange", "impulse", "xpbd")
+#: Default penalty stiffness (1/s²) and damping (1/s) per unit mass, as in the Rust core
+#: (``kinema::rigid::PENALTY_STIFFNESS``, ``PENALTY_DAMPING``).
+PENALTY_STIFFNESS, PENALTY_DAMPING = 1e4, 200.0
 
 
 @dataclass(frozen=True)
@@ -296,8 +301,8 @@ class World:
         joint: Joint,
         method: str = "lagrange",
         *,
-        stiffness: float = 1e4,
-        damping: float = 200.0,
+        stiffness: float | None = None,
+        damping: float | None = None,
     ) -> int:
         """Add a :class:`Ball`, :class:`Hinge`, :class:`Slider` or :class:`Fixed` joint and
         return its index.
@@ -306,12 +311,15 @@ class World:
         ``"penalty"``, ``stiffness`` (1/s²) and ``damping`` (1/s) are per unit mass: a linear
         row's spring is ``stiffness`` times the reduced mass of the two bodies (N/m), an
         angular row's times its effective inertia, so ``√stiffness`` is the frequency at which
-        the joint rings (the defaults: 100 rad/s, critically damped). Bodies joined by a joint
-        no longer collide with each other. Anchors and axes are read in world coordinates at
-        the current pose.
+        the joint rings (defaults :data:`PENALTY_STIFFNESS`, :data:`PENALTY_DAMPING`: 100 rad/s,
+        critically damped); other methods refuse them. Bodies joined by a joint no longer
+        collide with each other. Anchors and axes are read in world coordinates at the current
+        pose.
         """
         if method not in METHODS:
             raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+        if method != "penalty" and (stiffness is not None or damping is not None):
+            raise ValueError(f"stiffness: only penalty joints have one, not {method!r} joints")
         if not isinstance(joint, (Ball, Hinge, Slider, Fixed)):
             raise ValueError(f"joint: expected Ball, Hinge, Slider or Fixed, got {joint!r}")
         a = _body_index(joint.a, "a", False)
@@ -335,7 +343,16 @@ class World:
                 raise ValueError("max_torque: a torque bound needs a motor_speed")
         kind = type(joint).__name__.lower()
         return self._world.add_joint(
-            kind, a, b, anchor, axis, limits, motor, method, float(stiffness), float(damping)
+            kind,
+            a,
+            b,
+            anchor,
+            axis,
+            limits,
+            motor,
+            method,
+            PENALTY_STIFFNESS if stiffness is None else float(stiffness),
+            PENALTY_DAMPING if damping is None else float(damping),
         )
 
     @property

@@ -177,6 +177,8 @@ def test_bad_joints_raise_value_errors_naming_the_argument():
         w.add_joint(Fixed(0, 1), "springs")
     with pytest.raises(ValueError, match="stiffness"):
         w.add_joint(Fixed(0, 1), "penalty", stiffness=0.0)
+    with pytest.raises(ValueError, match="stiffness"):
+        w.add_joint(Fixed(0, 1), "xpbd", stiffness=1e5)
     with pytest.raises(ValueError, match="joint"):
         w.add_joint(Sphere(1.0))  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="xpbd_substeps"):
