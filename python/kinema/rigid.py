@@ -16,12 +16,26 @@ body's +Y. Rotations are integrated by one of:
 
 ``World.add_ground`` adds a ground plane; bodies collide with it and with each other
 (spheres, boxes and capsules; cylinders and meshes with the ground only) with restitution and
-Coulomb friction (sequential impulses). Not implemented yet: joints and their four
-formulations, stable stacks taller than five boxes; see docs/rigid.md.
+Coulomb friction (sequential impulses).
+
+``World.add_joint`` joins two bodies, or a body and the world, by a :class:`Ball`,
+:class:`Hinge` (with angle limits and a velocity motor), :class:`Slider` or :class:`Fixed`
+joint, enforced by one of four formulations (``method``):
+
+- ``"penalty"``: stiff springs and dampers on the constraint (Bender et al. 2014); cheap, but
+  the joint gives by about ``g/k`` and the step must stay small;
+- ``"lagrange"`` (default): Lagrange multipliers from ``J M⁻¹ Jᵀ λ = …`` solved by a sparse
+  Cholesky factorisation, with Baumgarte feedback and a post-stabilising projection;
+- ``"impulse"``: sequential impulses on the velocities and a position pass (Catto 2005);
+- ``"xpbd"``: extended position-based dynamics with substeps (Müller et al. 2020).
+
+Not implemented yet: stable stacks taller than five boxes; see docs/rigid.md for the measured
+trade between the joint formulations.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -32,7 +46,28 @@ from kinema import _kinema
 from kinema._array import as_batch, as_vector3
 from kinema.rotation import Rotation
 
-__all__ = ["Body", "Box", "Capsule", "Cylinder", "Mesh", "Sphere", "World"]
+__all__ = [
+    "METHODS",
+    "PENALTY_DAMPING",
+    "PENALTY_STIFFNESS",
+    "Ball",
+    "Body",
+    "Box",
+    "Capsule",
+    "Cylinder",
+    "Fixed",
+    "Hinge",
+    "Mesh",
+    "Slider",
+    "Sphere",
+    "World",
+]
+
+#: The joint formulations accepted by :meth:`World.add_joint`.
+METHODS = ("penalty", "lagrange", "impulse", "xpbd")
+#: Default penalty stiffness (1/s²) and damping (1/s) per unit mass, as in the Rust core
+#: (``kinema::rigid::PENALTY_STIFFNESS``, ``PENALTY_DAMPING``).
+PENALTY_STIFFNESS, PENALTY_DAMPING = 1e4, 200.0
 
 
 @dataclass(frozen=True)
@@ -78,6 +113,70 @@ class Mesh:
 
 
 Shape = Sphere | Box | Capsule | Cylinder | Mesh
+
+
+@dataclass(frozen=True)
+class Ball:
+    """A ball joint: the point ``anchor`` (world coordinates at creation, m) of body ``a`` and of
+    body ``b`` stay together; any relative rotation is free. ``b=None`` (or -1) is the world."""
+
+    a: int
+    b: int | None
+    anchor: Any
+
+
+@dataclass(frozen=True)
+class Hinge:
+    """A hinge: a ball joint at ``anchor`` that also keeps the bodies' ``axis`` (world, at
+    creation) aligned, so ``b`` turns relative to ``a`` only about it.
+
+    The hinge angle is 0 at creation and positive when ``b`` turns about ``+axis`` relative to
+    ``a``. ``limits=(lo, hi)`` (rad, ``lo <= 0 <= hi``) bound it. A motor drives the angular
+    velocity of ``b`` relative to ``a`` about the axis to ``motor_speed`` (rad/s) with a torque
+    of at most ``max_torque`` (N m; the default, infinity, makes it a velocity constraint).
+    ``b=None`` (or -1) is the world.
+    """
+
+    a: int
+    b: int | None
+    anchor: Any
+    axis: Any
+    limits: tuple[float, float] | None = None
+    motor_speed: float | None = None
+    max_torque: float = math.inf
+
+
+@dataclass(frozen=True)
+class Slider:
+    """A slider (prismatic joint): no relative rotation, and ``a`` moves relative to ``b`` only
+    along ``axis`` (world, at creation; it turns with ``b``). Anchored at the centre of mass of
+    ``a``. ``b=None`` (or -1) is the world."""
+
+    a: int
+    b: int | None
+    axis: Any
+
+
+@dataclass(frozen=True)
+class Fixed:
+    """A fixed joint (weld): ``a`` and ``b`` keep their relative pose at creation. ``b=None`` (or
+    -1) is the world."""
+
+    a: int
+    b: int | None
+
+
+Joint = Ball | Hinge | Slider | Fixed
+
+
+def _body_index(value: Any, name: str, world_ok: bool) -> int | None:
+    """A body index from ``value``: a non-negative integer, or None / -1 for the world."""
+    if world_ok and (value is None or (isinstance(value, (int, np.integer)) and value == -1)):
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        what = "a body index or None (the world)" if world_ok else "a body index"
+        raise ValueError(f"{name}: expected {what}, got {value!r}")
+    return int(value)
 
 
 class Body:
@@ -200,6 +299,114 @@ class World:
         impulses; see docs/rigid.md)."""
         self._world.add_plane([0.0, 1.0, 0.0], float(height), float(restitution), float(friction))
 
+    def add_joint(
+        self,
+        joint: Joint,
+        method: str = "lagrange",
+        *,
+        stiffness: float | None = None,
+        damping: float | None = None,
+    ) -> int:
+        """Add a :class:`Ball`, :class:`Hinge`, :class:`Slider` or :class:`Fixed` joint and
+        return its index.
+
+        ``method`` is one of :data:`METHODS` (see the module docs and docs/rigid.md). For
+        ``"penalty"``, ``stiffness`` (1/s²) and ``damping`` (1/s) are per unit mass: a linear
+        row's spring is ``stiffness`` times the reduced mass of the two bodies (N/m), an
+        angular row's times its effective inertia, so ``√stiffness`` is the frequency at which
+        the joint rings (defaults :data:`PENALTY_STIFFNESS`, :data:`PENALTY_DAMPING`: 100 rad/s,
+        critically damped); other methods refuse them. Bodies joined by a joint no longer
+        collide with each other. Anchors and axes are read in world coordinates at the current
+        pose.
+        """
+        if method not in METHODS:
+            raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+        if method != "penalty" and (stiffness is not None or damping is not None):
+            raise ValueError(f"stiffness: only penalty joints have one, not {method!r} joints")
+        if not isinstance(joint, (Ball, Hinge, Slider, Fixed)):
+            raise ValueError(f"joint: expected Ball, Hinge, Slider or Fixed, got {joint!r}")
+        a = _body_index(joint.a, "a", False)
+        b = _body_index(joint.b, "b", True)
+        if a is None:  # not reached: the world is refused for `a`
+            raise ValueError("a: expected a body index")
+        anchor = [0.0, 0.0, 0.0]
+        axis = [1.0, 0.0, 0.0]
+        limits = motor = None
+        if isinstance(joint, (Ball, Hinge)):
+            anchor = as_vector3(joint.anchor, "anchor")
+        if isinstance(joint, (Hinge, Slider)):
+            axis = as_vector3(joint.axis, "axis")
+        if isinstance(joint, Hinge):
+            if joint.limits is not None:
+                lo, hi = (float(x) for x in joint.limits)
+                limits = (lo, hi)
+            if joint.motor_speed is not None:
+                motor = (float(joint.motor_speed), float(joint.max_torque))
+            elif joint.max_torque != math.inf:
+                raise ValueError("max_torque: a torque bound needs a motor_speed")
+        kind = type(joint).__name__.lower()
+        return self._world.add_joint(
+            kind,
+            a,
+            b,
+            anchor,
+            axis,
+            limits,
+            motor,
+            method,
+            PENALTY_STIFFNESS if stiffness is None else float(stiffness),
+            PENALTY_DAMPING if damping is None else float(damping),
+        )
+
+    @property
+    def joint_violations(self) -> np.ndarray:
+        """Position error per joint, ``(J, 2)``: the distance between the joint's anchors (m;
+        for a slider, off its axis) and the angle of the relative rotation it forbids (rad;
+        between the axes for a hinge, 0 for a ball joint)."""
+        return self._world.joint_violations()
+
+    @property
+    def joint_coordinates(self) -> np.ndarray:
+        """Coordinate and rate per joint, ``(J, 2)``: a hinge's angle (rad, 0 at creation) and
+        the angular velocity of ``b`` relative to ``a`` about its axis (rad/s); a slider's
+        displacement of ``b`` relative to ``a`` along its axis (m) and its rate (m/s); zeros for
+        ball and fixed joints."""
+        return self._world.joint_coordinates()
+
+    @property
+    def joint_iterations(self) -> int:
+        """Sequential-impulse sweeps per step (velocities, then positions) for ``"impulse"``
+        joints (default 20)."""
+        return self._world.joint_iterations
+
+    @joint_iterations.setter
+    def joint_iterations(self, n: int) -> None:
+        if not isinstance(n, (int, np.integer)) or n < 0:
+            raise ValueError(f"joint_iterations: expected a non-negative integer, got {n!r}")
+        self._world.joint_iterations = int(n)
+
+    @property
+    def xpbd_substeps(self) -> int:
+        """Substeps per step when a joint uses ``"xpbd"`` (default 20; each substep projects
+        the positions once, as Müller et al. 2020 recommend)."""
+        return self._world.xpbd_substeps
+
+    @xpbd_substeps.setter
+    def xpbd_substeps(self, n: int) -> None:
+        if not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"xpbd_substeps: expected a positive integer, got {n!r}")
+        self._world.xpbd_substeps = int(n)
+
+    @property
+    def baumgarte(self) -> float:
+        """Baumgarte factor β in [0, 1] of the ``"lagrange"`` joints (default 0.2): the
+        multipliers ask for ``Ċ = −β C/h`` at the end of a step."""
+        return self._world.baumgarte
+
+    @baumgarte.setter
+    def baumgarte(self, beta: float) -> None:
+        self._world.baumgarte = float(beta)
+
     @property
     def shapes(self) -> list[Shape]:
         """The shape of each body, in the order added."""
@@ -253,6 +460,11 @@ class World:
     def kinetic_energy(self) -> float:
         """Total kinetic energy, translational plus rotational (J)."""
         return self._world.kinetic_energy()
+
+    def potential_energy(self) -> float:
+        """Gravitational potential energy ``−Σ m g · x`` of the free bodies, zero at the origin
+        (J)."""
+        return self._world.potential_energy()
 
     def linear_momentum(self) -> np.ndarray:
         """Total linear momentum ``(3,)`` (kg m/s)."""

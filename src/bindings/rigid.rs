@@ -4,7 +4,9 @@ use super::array::compute;
 use super::error::detached;
 use super::error::{reduce, Reduced};
 use crate::error::Error;
-use crate::rigid::{BodyDesc, RotationIntegrator, Shape, World};
+use crate::rigid::{
+    BodyDesc, JointDesc, JointKind, JointMethod, Motor, RotationIntegrator, Shape, World,
+};
 use crate::snapshot::Snapshot;
 use glam::{DQuat, DVec3};
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
@@ -130,6 +132,127 @@ impl RigidWorld {
         friction: f64,
     ) -> PyResult<()> {
         Ok(self.world.add_plane(vec3(normal), offset, restitution, friction)?)
+    }
+
+    /// Add a joint: `kind` is ball | hinge | slider | fixed between bodies `a` and `b` (None:
+    /// the world), with the world `anchor` (m) and `axis` at creation, hinge `limits` (lo, hi)
+    /// (rad), hinge `motor` (speed rad/s, max torque N m), the `method` (penalty | lagrange |
+    /// impulse | xpbd) and the penalty `stiffness` (1/s²) and `damping` (1/s). Returns the
+    /// joint index.
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (kind, a, b, anchor, axis, limits, motor, method, stiffness, damping))]
+    fn add_joint(
+        &mut self,
+        kind: &str,
+        a: usize,
+        b: Option<usize>,
+        anchor: [f64; 3],
+        axis: [f64; 3],
+        limits: Option<(f64, f64)>,
+        motor: Option<(f64, f64)>,
+        method: &str,
+        stiffness: f64,
+        damping: f64,
+    ) -> PyResult<usize> {
+        let kind = match kind {
+            "ball" => JointKind::Ball,
+            "hinge" => JointKind::Hinge {
+                limits,
+                motor: motor.map(|(speed, max_torque)| Motor { speed, max_torque }),
+            },
+            "slider" => JointKind::Slider,
+            "fixed" => JointKind::Fixed,
+            other => {
+                return Err(Error::invalid("joint", format!("unknown joint kind {other:?}")).into())
+            }
+        };
+        let desc = JointDesc {
+            kind,
+            method: JointMethod::parse(method)?,
+            a,
+            b,
+            anchor: vec3(anchor),
+            axis: vec3(axis),
+            stiffness,
+            damping,
+        };
+        Ok(self.world.add_joint(&desc)?)
+    }
+
+    /// Number of joints.
+    fn joint_count(&self) -> usize {
+        self.world.joint_count()
+    }
+
+    /// Position error per joint (J, 2): anchor distance (m), forbidden rotation angle (rad).
+    fn joint_violations<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
+        let w = &self.world;
+        compute(py, w.joint_count(), &[2], |out| {
+            for (j, o) in out.iter_mut().enumerate() {
+                let (l, a) = w.joint_violation(j)?;
+                *o = [l, a];
+            }
+            Ok(())
+        })
+    }
+
+    /// Coordinate and rate per joint (J, 2): hinge angle (rad) and rate (rad/s), slider
+    /// displacement (m) and rate (m/s), zeros for ball and fixed joints.
+    fn joint_coordinates<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
+        let w = &self.world;
+        let c = w.joint_coordinates();
+        compute(py, c.len(), &[2], |out| {
+            out.iter_mut().zip(&c).for_each(|(o, &(x, v))| *o = [x, v]);
+            Ok(())
+        })
+    }
+
+    /// Sequential-impulse sweeps per step for impulse joints.
+    #[getter]
+    fn get_joint_iterations(&self) -> usize {
+        self.world.joint_iterations
+    }
+
+    #[setter]
+    fn set_joint_iterations(&mut self, n: usize) {
+        self.world.joint_iterations = n;
+    }
+
+    /// Substeps per step when a joint uses XPBD.
+    #[getter]
+    fn get_xpbd_substeps(&self) -> usize {
+        self.world.xpbd_substeps
+    }
+
+    #[setter]
+    fn set_xpbd_substeps(&mut self, n: usize) -> PyResult<()> {
+        if n == 0 {
+            return Err(Error::invalid("xpbd_substeps", "must be at least 1").into());
+        }
+        self.world.xpbd_substeps = n;
+        Ok(())
+    }
+
+    /// Baumgarte factor of the Lagrange formulation.
+    #[getter]
+    fn get_baumgarte(&self) -> f64 {
+        self.world.baumgarte
+    }
+
+    #[setter]
+    fn set_baumgarte(&mut self, beta: f64) -> PyResult<()> {
+        if !(0.0..=1.0).contains(&beta) {
+            return Err(
+                Error::invalid("baumgarte", format!("must be in [0, 1], got {beta}")).into()
+            );
+        }
+        self.world.baumgarte = beta;
+        Ok(())
+    }
+
+    /// Gravitational potential energy, zero at the origin (J).
+    fn potential_energy(&self) -> f64 {
+        self.world.potential_energy()
     }
 
     /// Number of bodies.

@@ -191,42 +191,49 @@ pub(crate) fn warm_start(contacts: &mut [Contact], previous: &[Contact]) {
     }
 }
 
-/// Apply the contacts' starting impulses, then run `iterations` sweeps of sequential impulses
-/// over them, changing the velocities `v` (m/s) and angular velocities `w` (rad/s, world) of
-/// the bodies in place.
-pub(crate) fn solve(
-    contacts: &mut [Contact],
-    iterations: usize,
+/// Apply the contacts' starting (warm) impulses to the velocities `v` (m/s) and angular
+/// velocities `w` (rad/s, world) of the bodies.
+pub(crate) fn apply_impulses(
+    contacts: &[Contact],
     bodies: &Bodies<'_>,
     v: &mut [DVec3],
     w: &mut [DVec3],
 ) {
-    for c in contacts.iter() {
+    for c in contacts {
         let p = c.impulse[0] * c.n + c.impulse[1] * c.t1 + c.impulse[2] * c.t2;
         bodies.apply(c, p, v, w);
     }
-    for _ in 0..iterations {
-        for c in contacts.iter_mut() {
-            // Friction, clamped to the disc of the current normal impulse.
-            let vel = bodies.relative_velocity(c, v, w);
-            let old = [c.impulse[1], c.impulse[2]];
-            let mut t = [old[0] - c.mass[1] * vel.dot(c.t1), old[1] - c.mass[2] * vel.dot(c.t2)];
-            let limit = c.mu * c.impulse[0];
-            let len = (t[0] * t[0] + t[1] * t[1]).sqrt();
-            if len > limit {
-                let s = if len > 0.0 { limit / len } else { 0.0 };
-                t = [t[0] * s, t[1] * s];
-            }
-            c.impulse[1] = t[0];
-            c.impulse[2] = t[1];
-            bodies.apply(c, (t[0] - old[0]) * c.t1 + (t[1] - old[1]) * c.t2, v, w);
-            // Normal, accumulated and kept non-negative.
-            let vn = bodies.relative_velocity(c, v, w).dot(c.n);
-            let new = (c.impulse[0] + c.mass[0] * (c.target - vn)).max(0.0);
-            let dn = new - c.impulse[0];
-            c.impulse[0] = new;
-            bodies.apply(c, dn * c.n, v, w);
+}
+
+/// One sweep of sequential impulses over the contacts, changing the velocities in place:
+/// friction clamped to the disc of the current normal impulse, then the normal impulse,
+/// accumulated and kept non-negative.
+pub(crate) fn sweep(
+    contacts: &mut [Contact],
+    bodies: &Bodies<'_>,
+    v: &mut [DVec3],
+    w: &mut [DVec3],
+) {
+    for c in contacts.iter_mut() {
+        // Friction, clamped to the disc of the current normal impulse.
+        let vel = bodies.relative_velocity(c, v, w);
+        let old = [c.impulse[1], c.impulse[2]];
+        let mut t = [old[0] - c.mass[1] * vel.dot(c.t1), old[1] - c.mass[2] * vel.dot(c.t2)];
+        let limit = c.mu * c.impulse[0];
+        let len = (t[0] * t[0] + t[1] * t[1]).sqrt();
+        if len > limit {
+            let s = if len > 0.0 { limit / len } else { 0.0 };
+            t = [t[0] * s, t[1] * s];
         }
+        c.impulse[1] = t[0];
+        c.impulse[2] = t[1];
+        bodies.apply(c, (t[0] - old[0]) * c.t1 + (t[1] - old[1]) * c.t2, v, w);
+        // Normal, accumulated and kept non-negative.
+        let vn = bodies.relative_velocity(c, v, w).dot(c.n);
+        let new = (c.impulse[0] + c.mass[0] * (c.target - vn)).max(0.0);
+        let dn = new - c.impulse[0];
+        c.impulse[0] = new;
+        bodies.apply(c, dn * c.n, v, w);
     }
 }
 

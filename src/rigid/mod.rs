@@ -8,13 +8,17 @@
 //! intermediate-axis (Dzhanibekov) flip happen. See [`RotationIntegrator`] for the methods.
 //!
 //! Contacts with static planes (ground) use sequential impulses with restitution and Coulomb
-//! friction ([`contact`]). Body–body contacts, joints and the four joint formulations of the
-//! roadmap are not implemented yet.
+//! friction ([`contact`]), between bodies as well. Joints (ball, hinge with limits and a motor,
+//! slider, fixed) are enforced by one of four formulations, [`JointMethod`]: penalty forces,
+//! Lagrange multipliers, sequential impulses or XPBD.
 
 pub mod contact;
+mod joint;
+mod joint_solver;
 mod mass;
 mod world;
 
 pub use contact::Plane;
+pub use joint::{JointDesc, JointKind, JointMethod, Motor, PENALTY_DAMPING, PENALTY_STIFFNESS};
 pub use mass::{MassProperties, Shape};
 pub use world::{BodyDesc, RotationIntegrator, World};

@@ -1,6 +1,8 @@
 //! A world of free rigid bodies stepped with one clock.
 
 use super::contact::{self, Bodies, Contact, Placed, Plane};
+use super::joint::{Joint, JointDesc, JointKind, JointMethod, Row, State, SLOTS};
+use super::joint_solver::{self as js, Mass, Multipliers};
 use super::mass::Shape;
 use crate::error::{Error, Result};
 use glam::{DMat3, DQuat, DVec3};
@@ -81,6 +83,12 @@ pub struct BodyDesc {
     pub friction: f64,
 }
 
+/// Sweeps of the XPBD velocity pass over a hinge with limits or a motor.
+const XPBD_VELOCITY_SWEEPS: usize = 8;
+
+/// Alternations of a Lagrange velocity projection and a contact sweep when both are present.
+const LAGRANGE_CONTACT_ROUNDS: usize = 4;
+
 /// Next-step state, committed only when the whole step succeeded.
 type Scratch = (Vec<DVec3>, Vec<DVec3>, Vec<DQuat>, Vec<DVec3>);
 
@@ -130,6 +138,30 @@ pub struct World {
     dtheta: Vec<DVec3>,
     order: Vec<usize>,
     touches: Vec<(usize, contact::Touch)>,
+    // Joints and their workspaces.
+    joints: Vec<Joint>,
+    /// Pairs `(min, max)` of bodies joined by a joint, sorted: they do not collide.
+    jointed: Vec<(usize, usize)>,
+    /// Sequential-impulse sweeps (velocity and position) per step for impulse joints.
+    pub joint_iterations: usize,
+    /// Substeps per step when a joint uses XPBD (each substep projects once; Müller et al.
+    /// 2020 prefer substeps to iterations).
+    pub xpbd_substeps: usize,
+    /// Baumgarte factor `β` of the Lagrange formulation: `k_s = (β/h)²`, `k_d = 2β/h`, the
+    /// drift decays critically over about `1/β` steps.
+    pub baumgarte: f64,
+    rows: Vec<Row>,
+    row_mass: Vec<f64>,
+    /// Accumulated impulses of impulse joints per row slot, warm-starting the next step.
+    joint_impulse: Vec<f64>,
+    joint_impulse_next: Vec<f64>,
+    multipliers: Multipliers,
+    joint_force: Vec<DVec3>,
+    joint_torque: Vec<DVec3>,
+    acc_free: Vec<DVec3>,
+    alpha_free: Vec<DVec3>,
+    xpbd_dx: Vec<DVec3>,
+    xpbd_dtheta: Vec<DVec3>,
 }
 
 fn rotate_about(axis: usize, angle: f64) -> DQuat {
@@ -138,8 +170,15 @@ fn rotate_about(axis: usize, angle: f64) -> DQuat {
     DQuat::from_xyzw(v.x, v.y, v.z, c)
 }
 
+/// `exp(w)` as a unit quaternion; NaN for a non-finite `w`, so that the step's divergence
+/// check reports it instead of a panic.
 fn exp_map(w: DVec3) -> DQuat {
-    crate::rotation::quat_from_rotvec(&w.to_array()).expect("finite angular step")
+    crate::rotation::quat_from_rotvec(&w.to_array()).unwrap_or(DQuat::from_xyzw(
+        f64::NAN,
+        f64::NAN,
+        f64::NAN,
+        f64::NAN,
+    ))
 }
 
 impl World {
@@ -179,7 +218,100 @@ impl World {
             dtheta: Vec::new(),
             order: Vec::new(),
             touches: Vec::new(),
+            joints: Vec::new(),
+            jointed: Vec::new(),
+            joint_iterations: 20,
+            xpbd_substeps: 20,
+            baumgarte: 0.2,
+            rows: Vec::new(),
+            row_mass: Vec::new(),
+            joint_impulse: Vec::new(),
+            joint_impulse_next: Vec::new(),
+            multipliers: Multipliers::default(),
+            joint_force: Vec::new(),
+            joint_torque: Vec::new(),
+            acc_free: Vec::new(),
+            alpha_free: Vec::new(),
+            xpbd_dx: Vec::new(),
+            xpbd_dtheta: Vec::new(),
         }
+    }
+
+    /// Add a joint (see [`JointDesc`]) and return its index. The anchor and axis are read in
+    /// world coordinates at the current pose; bodies joined by a joint no longer collide with
+    /// each other.
+    ///
+    /// # Errors
+    /// An index out of range (`a`, `b`), `b == a`, a non-finite anchor or axis, a zero axis
+    /// for a hinge or slider, limits that are not finite with `lo ≤ 0 ≤ hi`, a non-finite
+    /// motor speed or negative torque bound, non-positive penalty stiffness or negative
+    /// damping.
+    pub fn add_joint(&mut self, desc: &JointDesc) -> Result<usize> {
+        let state = State { x: &self.x, q: &self.q, v: &[], w: &[] };
+        let joint = Joint::new(desc, self.len(), &state)?;
+        let mut joints = self.joints.clone();
+        joints.push(joint);
+        if desc.method == JointMethod::Lagrange {
+            self.multipliers.build(&joints, self.len())?;
+        }
+        self.joints = joints;
+        if let Some(b) = desc.b {
+            let pair = (desc.a.min(b), desc.a.max(b));
+            if let Err(k) = self.jointed.binary_search(&pair) {
+                self.jointed.insert(k, pair);
+            }
+        }
+        let slots = self.joints.len() * SLOTS;
+        self.rows.resize(slots, Row::INACTIVE);
+        self.row_mass.resize(slots, 0.0);
+        self.joint_impulse.resize(slots, 0.0);
+        self.joint_impulse_next.resize(slots, 0.0);
+        Ok(self.joints.len() - 1)
+    }
+
+    /// Number of joints.
+    pub fn joint_count(&self) -> usize {
+        self.joints.len()
+    }
+
+    fn check_joint(&self, j: usize) -> Result<()> {
+        if j < self.joints.len() {
+            Ok(())
+        } else {
+            Err(Error::invalid(
+                "joint",
+                format!("index {j} out of range ({} joints)", self.joints.len()),
+            ))
+        }
+    }
+
+    /// Position error of joint `j`: the distance between its anchors (m; for a slider, the
+    /// distance off its axis) and the angle of the relative rotation it forbids (rad).
+    ///
+    /// # Errors
+    /// An index out of range.
+    pub fn joint_violation(&self, j: usize) -> Result<(f64, f64)> {
+        self.check_joint(j)?;
+        Ok(self.joints[j].violation(&State { x: &self.x, q: &self.q, v: &[], w: &[] }))
+    }
+
+    /// [`World::joint_coordinate`] of every joint, in order.
+    pub fn joint_coordinates(&self) -> Vec<(f64, f64)> {
+        let w: Vec<DVec3> = (0..self.len()).map(|i| self.angular_velocity(i)).collect();
+        let s = State { x: &self.x, q: &self.q, v: &self.v, w: &w };
+        self.joints.iter().map(|j| j.coordinate(&s)).collect()
+    }
+
+    /// Coordinate of joint `j` and its rate: a hinge's angle (rad, 0 at creation) and
+    /// relative angular velocity about its axis (rad/s); a slider's displacement along its
+    /// axis (m, 0 at creation) and velocity (m/s); zeros for ball and fixed joints.
+    ///
+    /// # Errors
+    /// An index out of range.
+    pub fn joint_coordinate(&self, j: usize) -> Result<(f64, f64)> {
+        self.check_joint(j)?;
+        let w: Vec<DVec3> = (0..self.len()).map(|i| self.angular_velocity(i)).collect();
+        Ok(self.joints[j].coordinate(&State { x: &self.x, q: &self.q, v: &self.v, w: &w }))
     }
 
     /// Add the static plane `normal · x = offset` (the solid side below it) with its surface
@@ -349,6 +481,14 @@ impl World {
             .sum()
     }
 
+    /// Gravitational potential energy `−Σ m g · x` of the free bodies, zero at the origin (J).
+    pub fn potential_energy(&self) -> f64 {
+        (0..self.len())
+            .filter(|&i| !self.fixed[i])
+            .map(|i| -self.mass[i] * self.gravity.dot(self.x[i]))
+            .sum()
+    }
+
     /// Total linear momentum (kg m/s).
     pub fn linear_momentum(&self) -> DVec3 {
         (0..self.len()).map(|i| self.mass[i] * self.v[i]).sum()
@@ -382,22 +522,30 @@ impl World {
 
     /// Advance every body by `steps` steps of `dt` seconds.
     ///
-    /// Applied forces act during the first step and are then cleared. Without planes and
-    /// without two bodies that could collide (or with `collisions` off) the translation is the
+    /// Applied forces act during the first step and are then cleared. Without planes, joints
+    /// and two bodies that could collide (or with `collisions` off) the translation is the
     /// exact update for the constant force and the rotation follows the world's integrator.
-    /// Otherwise each step is: velocities from forces (`v += h a`,
-    /// `Π += h τ`), contacts found at the current pose and resolved by sequential impulses
-    /// (see [`contact`](super::contact)), then positions from the new velocities (`x += h v`)
-    /// and the rotation by the world's integrator, and any penetration left removed. A step
-    /// that produces a non-finite state returns [`Error::Diverged`] and leaves the world at
-    /// the last good step.
+    /// Otherwise each step (or each of [`World::xpbd_substeps`] substeps when a joint uses
+    /// XPBD) is: penalty and Lagrange joint forces at the current state, velocities from all
+    /// forces (`v += h a`, `Π += h τ`), contacts found at the current pose, sequential
+    /// impulses over the contacts and the impulse joints, positions from the new velocities
+    /// (`x += h v`) and the rotation by the world's integrator, a position pass removing
+    /// penetration and the impulse joints' drift, and the XPBD projection with its velocity
+    /// update. A step that produces a non-finite state, or whose multiplier solve fails,
+    /// returns an error and leaves the world at the last good step.
     ///
     /// # Errors
-    /// A non-positive or non-finite `dt`; divergence.
+    /// A non-positive or non-finite `dt`; divergence ([`Error::Diverged`]); a failed
+    /// factorisation of the joints' multiplier system ([`Error::SolverFailed`]).
     pub fn step(&mut self, dt: f64, steps: usize) -> Result<()> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(Error::invalid("dt", format!("must be positive and finite, got {dt}")));
         }
+        let substeps = if self.joints.iter().any(|j| j.method == JointMethod::Xpbd) {
+            self.xpbd_substeps.max(1)
+        } else {
+            1
+        };
         for s in 0..steps {
             let (x, v, q, pi) = &mut *self.scratch;
             x.clone_from(&self.x);
@@ -411,7 +559,7 @@ impl World {
                     .filter(|s| !matches!(s, Shape::Cylinder { .. } | Shape::Mesh { .. }))
                     .count()
                     > 1;
-            if self.planes.is_empty() && !pairs {
+            if self.planes.is_empty() && !pairs && self.joints.is_empty() {
                 for i in 0..self.mass.len() {
                     if self.fixed[i] {
                         continue;
@@ -425,46 +573,361 @@ impl World {
                     pi[i] = pii;
                 }
             } else {
-                self.contact_step(dt);
+                self.joint_impulse_next.clone_from(&self.joint_impulse);
+                let detect = pairs || !self.planes.is_empty();
+                for _ in 0..substeps {
+                    self.coupled_step(dt / substeps as f64, detect)?;
+                    if self.first_non_finite().is_some() {
+                        break; // reported below, before any contact sees the bad state
+                    }
+                }
             }
-            let (x, v, q, pi) = &mut *self.scratch;
-            if let Some(i) = (0..self.mass.len()).find(|&i| {
-                !(x[i].is_finite() && v[i].is_finite() && q[i].is_finite() && pi[i].is_finite())
-            }) {
+            if let Some(i) = self.first_non_finite() {
                 return Err(Error::Diverged {
                     step: s,
                     index: i,
                     reason: "non-finite body state".into(),
                 });
             }
+            let (x, v, q, pi) = &mut *self.scratch;
             std::mem::swap(&mut self.x, x);
             std::mem::swap(&mut self.v, v);
             std::mem::swap(&mut self.q, q);
             std::mem::swap(&mut self.pi, pi);
+            std::mem::swap(&mut self.joint_impulse, &mut self.joint_impulse_next);
             self.force.fill(DVec3::ZERO);
             self.torque.fill(DVec3::ZERO);
         }
         Ok(())
     }
 
-    /// One step with contacts, on the scratch state.
-    fn contact_step(&mut self, h: f64) {
+    /// The first body whose scratch state is not finite.
+    fn first_non_finite(&self) -> Option<usize> {
+        let (x, v, q, pi) = &*self.scratch;
+        (0..self.mass.len()).find(|&i| {
+            !(x[i].is_finite() && v[i].is_finite() && q[i].is_finite() && pi[i].is_finite())
+        })
+    }
+
+    /// One step (or substep) of `h` seconds with contacts (when `detect`) and joints, on the
+    /// scratch state.
+    fn coupled_step(&mut self, h: f64, detect: bool) -> Result<()> {
         let (x, v, q, pi) = &mut *self.scratch;
         let n = self.mass.len();
+        let has = |m: JointMethod| self.joints.iter().any(|j| j.method == m);
+        let (penalty, lagrange, impulse, xpbd) = (
+            has(JointMethod::Penalty),
+            has(JointMethod::Lagrange),
+            has(JointMethod::Impulse),
+            has(JointMethod::Xpbd),
+        );
+        let mass = Mass { inv_mass: &self.inv_mass, inv_moments: &self.inv_moments };
         self.omega.clear();
+        self.omega.extend((0..n).map(|i| q[i] * (pi[i] / self.moments[i])));
+        // Joint forces at the start of the step: penalty springs, then the multipliers.
+        self.joint_force.clear();
+        self.joint_force.resize(n, DVec3::ZERO);
+        self.joint_torque.clear();
+        self.joint_torque.resize(n, DVec3::ZERO);
+        if penalty || lagrange {
+            let s = State { x, q, v, w: &self.omega };
+            for (ji, j) in self.joints.iter().enumerate() {
+                if matches!(j.method, JointMethod::Penalty | JointMethod::Lagrange) {
+                    j.rows(&s, &mut self.rows[ji * SLOTS..(ji + 1) * SLOTS]);
+                }
+                if j.method == JointMethod::Penalty {
+                    let rows = &self.rows[ji * SLOTS..ji * SLOTS + j.slots()];
+                    js::penalty(
+                        j,
+                        rows,
+                        &mass,
+                        &s,
+                        h,
+                        &mut self.joint_force,
+                        &mut self.joint_torque,
+                    );
+                }
+            }
+            if lagrange {
+                self.acc_free.clear();
+                self.alpha_free.clear();
+                for i in 0..n {
+                    if self.fixed[i] {
+                        self.acc_free.push(DVec3::ZERO);
+                        self.alpha_free.push(DVec3::ZERO);
+                        continue;
+                    }
+                    let force = self.force[i] + self.joint_force[i];
+                    let torque = self.torque[i] + self.joint_torque[i];
+                    let l = q[i] * pi[i]; // world angular momentum I ω
+                    self.acc_free.push(self.gravity + force / self.mass[i]);
+                    self.alpha_free.push(mass.inv_inertia(
+                        i,
+                        q[i],
+                        torque - self.omega[i].cross(l),
+                    ));
+                }
+                self.multipliers.solve(
+                    &self.joints,
+                    &self.rows,
+                    &mass,
+                    &s,
+                    &self.acc_free,
+                    &self.alpha_free,
+                    h,
+                    self.baumgarte,
+                    &mut self.joint_force,
+                    &mut self.joint_torque,
+                )?;
+            }
+        }
         self.placed.clear();
         for i in 0..n {
             if !self.fixed[i] {
-                v[i] += h * (self.gravity + self.force[i] / self.mass[i]);
-                pi[i] += h * (q[i].conjugate() * self.torque[i]);
+                v[i] += h * (self.gravity + (self.force[i] + self.joint_force[i]) / self.mass[i]);
+                pi[i] += h * (q[i].conjugate() * (self.torque[i] + self.joint_torque[i]));
             }
-            self.omega.push(q[i] * (pi[i] / self.moments[i]));
-            let orient = q[i] * self.principal[i].conjugate();
-            self.placed.push(Placed::new(&self.shape[i], x[i] - orient * self.com_body[i], orient));
+            self.omega[i] = q[i] * (pi[i] / self.moments[i]);
+            if detect {
+                let orient = q[i] * self.principal[i].conjugate();
+                self.placed.push(Placed::new(
+                    &self.shape[i],
+                    x[i] - orient * self.com_body[i],
+                    orient,
+                ));
+            }
         }
-        let resting_speed = 2.0 * self.gravity.length() * h;
         std::mem::swap(&mut self.contacts, &mut self.previous);
         self.contacts.clear();
+        if detect {
+            self.detect_contacts(h);
+        }
+        let (x, v, q, pi) = &mut *self.scratch;
+        let mass = Mass { inv_mass: &self.inv_mass, inv_moments: &self.inv_moments };
+        let bodies = Bodies { inv_mass: &self.inv_mass, inv_moments: &self.inv_moments, q };
+        for c in self.contacts.iter_mut() {
+            c.mass = [c.n, c.t1, c.t2].map(|d| bodies.effective_mass(c, d));
+        }
+        contact::warm_start(&mut self.contacts, &self.previous);
+        contact::apply_impulses(&self.contacts, &bodies, v, &mut self.omega);
+        let mut sweeps = if self.contacts.is_empty() { 0 } else { self.contact_iterations };
+        if impulse {
+            sweeps = sweeps.max(self.joint_iterations);
+            let s = State { x, q, v, w: &self.omega };
+            for (ji, j) in self.joints.iter().enumerate() {
+                if j.method != JointMethod::Impulse {
+                    continue;
+                }
+                let slots = ji * SLOTS..ji * SLOTS + j.slots();
+                j.rows(&s, &mut self.rows[ji * SLOTS..(ji + 1) * SLOTS]);
+                js::effective_masses(
+                    j,
+                    &self.rows[slots.clone()],
+                    &mass,
+                    q,
+                    &mut self.row_mass[slots.clone()],
+                );
+            }
+            for (ji, j) in self.joints.iter().enumerate() {
+                if j.method == JointMethod::Impulse {
+                    for k in ji * SLOTS..ji * SLOTS + j.slots() {
+                        let l = self.joint_impulse_next[k];
+                        js::apply(&mass, j, &self.rows[k], l, q, v, &mut self.omega);
+                    }
+                }
+            }
+        }
+        for _ in 0..sweeps {
+            for (ji, j) in self.joints.iter().enumerate() {
+                if j.method == JointMethod::Impulse {
+                    let slots = ji * SLOTS..ji * SLOTS + j.slots();
+                    js::sweep(
+                        j,
+                        &self.rows[slots.clone()],
+                        &self.row_mass[slots.clone()],
+                        &mut self.joint_impulse_next[slots],
+                        &mass,
+                        q,
+                        h,
+                        v,
+                        &mut self.omega,
+                    );
+                }
+            }
+            contact::sweep(&mut self.contacts, &bodies, v, &mut self.omega);
+        }
+        if lagrange && !self.contacts.is_empty() {
+            // The contacts changed the velocities after the multipliers: alternate a velocity
+            // projection onto the Lagrange joints with contact sweeps so both hold.
+            for _ in 0..LAGRANGE_CONTACT_ROUNDS {
+                self.multipliers.project_velocities(
+                    &self.joints,
+                    &self.rows,
+                    &mass,
+                    q,
+                    v,
+                    &mut self.omega,
+                )?;
+                contact::sweep(&mut self.contacts, &bodies, v, &mut self.omega);
+            }
+        }
+        // Positions from the new velocities.
+        contact::advance_gaps(&mut self.contacts, &bodies, h, v, &self.omega);
+        let mass = Mass { inv_mass: &self.inv_mass, inv_moments: &self.inv_moments };
+        for i in (0..n).filter(|&i| !self.fixed[i]) {
+            pi[i] = (q[i].conjugate() * self.omega[i]) * self.moments[i];
+            x[i] += h * v[i];
+            let (qi, pii) = rotate(self.integrator, q[i], pi[i], self.moments[i], DVec3::ZERO, h);
+            q[i] = qi;
+            pi[i] = pii;
+        }
+        if lagrange {
+            // Post-stabilisation of the Lagrange joints at the end-of-step pose.
+            self.dx.clear();
+            self.dx.resize(n, DVec3::ZERO);
+            self.dtheta.clear();
+            self.dtheta.resize(n, DVec3::ZERO);
+            let s = State { x, q, v: &[], w: &[] };
+            for (ji, j) in self.joints.iter().enumerate() {
+                if j.method == JointMethod::Lagrange {
+                    j.rows(&s, &mut self.rows[ji * SLOTS..(ji + 1) * SLOTS]);
+                }
+            }
+            self.multipliers.project(
+                &self.joints,
+                &self.rows,
+                &mass,
+                q,
+                &mut self.dx,
+                &mut self.dtheta,
+            )?;
+            for i in (0..n).filter(|&i| !self.fixed[i]) {
+                x[i] += self.dx[i];
+                q[i] = (exp_map(self.dtheta[i]) * q[i]).normalize();
+            }
+        }
+        // Position pass: penetration and the impulse joints' drift, positions only.
+        self.dx.clear();
+        self.dx.resize(n, DVec3::ZERO);
+        self.dtheta.clear();
+        self.dtheta.resize(n, DVec3::ZERO);
+        if impulse || !self.contacts.is_empty() {
+            let bodies = Bodies { inv_mass: &self.inv_mass, inv_moments: &self.inv_moments, q };
+            let s = State { x, q, v: &[], w: &[] };
+            for (ji, j) in self.joints.iter().enumerate() {
+                if j.method == JointMethod::Impulse {
+                    let slots = ji * SLOTS..ji * SLOTS + j.slots();
+                    j.rows(&s, &mut self.rows[ji * SLOTS..(ji + 1) * SLOTS]);
+                    js::effective_masses(
+                        j,
+                        &self.rows[slots.clone()],
+                        &mass,
+                        q,
+                        &mut self.row_mass[slots],
+                    );
+                }
+            }
+            for _ in 0..sweeps {
+                for (ji, j) in self.joints.iter().enumerate() {
+                    if j.method == JointMethod::Impulse {
+                        let slots = ji * SLOTS..ji * SLOTS + j.slots();
+                        js::correct_positions(
+                            j,
+                            &self.rows[slots.clone()],
+                            &self.row_mass[slots],
+                            &mass,
+                            q,
+                            &mut self.dx,
+                            &mut self.dtheta,
+                        );
+                    }
+                }
+                contact::correct_positions(
+                    &self.contacts,
+                    1,
+                    &bodies,
+                    &mut self.dx,
+                    &mut self.dtheta,
+                );
+            }
+            for i in (0..n).filter(|&i| !self.fixed[i]) {
+                x[i] += self.dx[i];
+                q[i] = (exp_map(self.dtheta[i]) * q[i]).normalize();
+            }
+        }
+        if xpbd {
+            self.xpbd_step(h);
+        }
+        Ok(())
+    }
+
+    /// The XPBD part of a substep: project the positions onto the XPBD joints once, take the
+    /// corrections into the velocities (`v += Δx/h`, `ω += Δθ/h`), then run the motors of
+    /// those joints as a velocity pass (Müller et al. 2020, Alg. 2).
+    fn xpbd_step(&mut self, h: f64) {
+        let (x, v, q, pi) = &mut *self.scratch;
+        let n = self.mass.len();
+        let mass = Mass { inv_mass: &self.inv_mass, inv_moments: &self.inv_moments };
+        self.xpbd_dx.clear();
+        self.xpbd_dx.resize(n, DVec3::ZERO);
+        self.xpbd_dtheta.clear();
+        self.xpbd_dtheta.resize(n, DVec3::ZERO);
+        for i in 0..n {
+            self.omega[i] = q[i] * (pi[i] / self.moments[i]);
+        }
+        for j in self.joints.iter().filter(|j| j.method == JointMethod::Xpbd) {
+            js::project(j, &mass, x, q, &mut self.xpbd_dx, &mut self.xpbd_dtheta);
+        }
+        for i in (0..n).filter(|&i| !self.fixed[i]) {
+            v[i] += self.xpbd_dx[i] / h;
+            self.omega[i] += self.xpbd_dtheta[i] / h;
+        }
+        // Velocity pass of hinges with limits or a motor: a few sweeps over all their rows
+        // (equalities, limits as λ ≥ 0, the motor within its torque bound), so that a limit
+        // stops the whole body (not only its turning about the centre of mass) and a motor
+        // turns it about the hinge.
+        let s = State { x, q, v: &[], w: &[] };
+        for (ji, j) in self.joints.iter().enumerate() {
+            let driven = matches!(j.kind, JointKind::Hinge { limits: Some(_), .. })
+                || matches!(j.kind, JointKind::Hinge { motor: Some(_), .. });
+            if j.method != JointMethod::Xpbd || !driven {
+                continue;
+            }
+            let slots = ji * SLOTS..(ji + 1) * SLOTS;
+            j.rows(&s, &mut self.rows[slots.clone()]);
+            js::effective_masses(
+                j,
+                &self.rows[slots.clone()],
+                &mass,
+                q,
+                &mut self.row_mass[slots.clone()],
+            );
+            let mut impulse = [0.0; SLOTS];
+            for _ in 0..XPBD_VELOCITY_SWEEPS {
+                js::sweep(
+                    j,
+                    &self.rows[slots.clone()],
+                    &self.row_mass[slots.clone()],
+                    &mut impulse,
+                    &mass,
+                    q,
+                    h,
+                    v,
+                    &mut self.omega,
+                );
+            }
+        }
+        for i in (0..n).filter(|&i| !self.fixed[i]) {
+            pi[i] = (q[i].conjugate() * self.omega[i]) * self.moments[i];
+        }
+    }
+
+    /// Find the contacts of the scratch state (planes, then body pairs by sweep and prune)
+    /// into `self.contacts`, sorted by key; velocities already include this step's forces.
+    fn detect_contacts(&mut self, h: f64) {
+        let (x, v, q, _) = &*self.scratch;
+        let n = self.mass.len();
+        let resting_speed = 2.0 * self.gravity.length() * h;
         // The new contact: its target normal velocity from the approach speed and the gap.
         let make = |key, a: usize, b: Option<usize>, p: DVec3, nrm: DVec3, gap: f64, e: f64, mu| {
             let (ra, rb) = (p - x[a], b.map_or(DVec3::ZERO, |b| p - x[b]));
@@ -533,11 +996,13 @@ impl World {
                 if x[j].x - reach(j) > x[i].x + reach(i) {
                     break;
                 }
-                if (self.fixed[i] && self.fixed[j]) || (x[i] - x[j]).length() > reach(i) + reach(j)
+                let (a, b) = (i.min(j), i.max(j));
+                if (self.fixed[i] && self.fixed[j])
+                    || (x[i] - x[j]).length() > reach(i) + reach(j)
+                    || self.jointed.binary_search(&(a, b)).is_ok()
                 {
                     continue;
                 }
-                let (a, b) = (i.min(j), i.max(j));
                 let margin = h * (v[a] - v[b]).length().max(resting_speed) + contact::SLOP;
                 self.touches.clear();
                 contact::touches(&self.placed[a], &self.placed[b], margin, &mut self.touches);
@@ -552,31 +1017,6 @@ impl World {
             }
         }
         self.contacts.sort_unstable_by_key(|c| c.key);
-        let bodies = Bodies { inv_mass: &self.inv_mass, inv_moments: &self.inv_moments, q };
-        for c in self.contacts.iter_mut() {
-            c.mass = [c.n, c.t1, c.t2].map(|d| bodies.effective_mass(c, d));
-        }
-        contact::warm_start(&mut self.contacts, &self.previous);
-        contact::solve(&mut self.contacts, self.contact_iterations, &bodies, v, &mut self.omega);
-        self.dx.clear();
-        self.dx.resize(n, DVec3::ZERO);
-        self.dtheta.clear();
-        self.dtheta.resize(n, DVec3::ZERO);
-        contact::advance_gaps(&mut self.contacts, &bodies, h, v, &self.omega);
-        contact::correct_positions(
-            &self.contacts,
-            self.contact_iterations,
-            &bodies,
-            &mut self.dx,
-            &mut self.dtheta,
-        );
-        for i in (0..n).filter(|&i| !self.fixed[i]) {
-            pi[i] = (q[i].conjugate() * self.omega[i]) * self.moments[i];
-            x[i] += h * v[i] + self.dx[i];
-            let (qi, pii) = rotate(self.integrator, q[i], pi[i], self.moments[i], DVec3::ZERO, h);
-            q[i] = (exp_map(self.dtheta[i]) * qi).normalize();
-            pi[i] = pii;
-        }
     }
 }
 
