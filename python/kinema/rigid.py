@@ -29,8 +29,9 @@ joint, enforced by one of four formulations (``method``):
 - ``"impulse"``: sequential impulses on the velocities and a position pass (Catto 2005);
 - ``"xpbd"``: extended position-based dynamics with substeps (Müller et al. 2020).
 
-Not implemented yet: stable stacks taller than five boxes; see docs/rigid.md for the measured
-trade between the joint formulations.
+Tall stacks need more contact sweeps than the default (``World.contact_iterations``: a
+ten-box stack stands with 320); see docs/rigid.md for this and for the measured trade between
+the joint formulations.
 """
 
 from __future__ import annotations
@@ -372,6 +373,18 @@ class World:
         displacement of ``b`` relative to ``a`` along its axis (m) and its rate (m/s); zeros for
         ball and fixed joints."""
         return self._world.joint_coordinates()
+
+    @property
+    def contact_iterations(self) -> int:
+        """Sequential-impulse sweeps per step for contacts, on the velocities and then on the
+        positions (default 40; more for tall stacks, fewer for speed)."""
+        return self._world.contact_iterations
+
+    @contact_iterations.setter
+    def contact_iterations(self, n: int) -> None:
+        if not isinstance(n, (int, np.integer)) or n < 0:
+            raise ValueError(f"contact_iterations: expected a non-negative integer, got {n!r}")
+        self._world.contact_iterations = int(n)
 
     @property
     def joint_iterations(self) -> int:

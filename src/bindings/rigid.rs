@@ -207,6 +207,17 @@ impl RigidWorld {
         })
     }
 
+    /// Sequential-impulse sweeps per step for contacts (velocities, then positions).
+    #[getter]
+    fn get_contact_iterations(&self) -> usize {
+        self.world.contact_iterations
+    }
+
+    #[setter]
+    fn set_contact_iterations(&mut self, n: usize) {
+        self.world.contact_iterations = n;
+    }
+
     /// Sequential-impulse sweeps per step for impulse joints.
     #[getter]
     fn get_joint_iterations(&self) -> usize {

@@ -157,3 +157,12 @@ def test_ground_contact_bounce_rest_and_bad_material():
         w.add_body(Sphere(0.1), restitution=1.5)
     with pytest.raises(ValueError, match="friction"):
         w.add_ground(friction=-0.1)
+
+
+def test_contact_iterations_setting():
+    w = World()
+    assert w.contact_iterations == 40
+    w.contact_iterations = 320
+    assert w.contact_iterations == 320
+    with pytest.raises(ValueError, match="contact_iterations"):
+        w.contact_iterations = -1
