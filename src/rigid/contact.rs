@@ -65,6 +65,10 @@ pub(crate) struct Contact {
     pub t2: DVec3,
     /// Effective masses `1 / Σ (1/m + (r × d) · I⁻¹ (r × d))` along `n`, `t1`, `t2`.
     pub mass: [f64; 3],
+    /// Angular velocity change of `a` and of `b` per unit impulse along `n`, `t1`, `t2`:
+    /// `I⁻¹ (r × d)` (world), fixed while the velocities are solved, so a sweep needs no
+    /// rotation of inertia tensors.
+    pub spin: [[DVec3; 3]; 2],
     /// Lowest normal velocity allowed after the solve (m/s).
     pub target: f64,
     /// Gap along `n` at the start of the step, then after it (m; negative when overlapping).
@@ -138,6 +142,30 @@ impl Bodies<'_> {
         self.inv_mass[i] + rd.dot(self.inv_inertia(i, rd))
     }
 
+    /// Fill the contact's effective masses and angular responses (see [`Contact::spin`]).
+    pub fn prepare(&self, c: &mut Contact) {
+        let dirs = [c.n, c.t1, c.t2];
+        c.mass = dirs.map(|d| self.effective_mass(c, d));
+        c.spin[0] = dirs.map(|d| self.inv_inertia(c.a, c.ra.cross(d)));
+        c.spin[1] = match c.b {
+            Some(b) => dirs.map(|d| self.inv_inertia(b, c.rb.cross(d))),
+            None => [DVec3::ZERO; 3],
+        };
+    }
+
+    /// Apply impulses `j` along `n`, `t1`, `t2` to `a` and their opposites to `b`, with the
+    /// prepared responses.
+    fn apply_prepared(&self, c: &Contact, j: [f64; 3], v: &mut [DVec3], w: &mut [DVec3]) {
+        let p = j[0] * c.n + j[1] * c.t1 + j[2] * c.t2;
+        let [sa, sb] = &c.spin;
+        v[c.a] += p * self.inv_mass[c.a];
+        w[c.a] += j[0] * sa[0] + j[1] * sa[1] + j[2] * sa[2];
+        if let Some(b) = c.b {
+            v[b] -= p * self.inv_mass[b];
+            w[b] -= j[0] * sb[0] + j[1] * sb[1] + j[2] * sb[2];
+        }
+    }
+
     /// Effective mass of the contact along `d`.
     pub fn effective_mass(&self, c: &Contact, d: DVec3) -> f64 {
         let k = self.compliance(c.a, c.ra, d) + c.b.map_or(0.0, |b| self.compliance(b, c.rb, d));
@@ -152,16 +180,6 @@ impl Bodies<'_> {
     fn relative_velocity(&self, c: &Contact, v: &[DVec3], w: &[DVec3]) -> DVec3 {
         let va = v[c.a] + w[c.a].cross(c.ra);
         va - c.b.map_or(DVec3::ZERO, |b| v[b] + w[b].cross(c.rb))
-    }
-
-    /// Apply impulse `p` to `a` and `-p` to `b` at the contact.
-    fn apply(&self, c: &Contact, p: DVec3, v: &mut [DVec3], w: &mut [DVec3]) {
-        v[c.a] += p * self.inv_mass[c.a];
-        w[c.a] += self.inv_inertia(c.a, c.ra.cross(p));
-        if let Some(b) = c.b {
-            v[b] -= p * self.inv_mass[b];
-            w[b] -= self.inv_inertia(b, c.rb.cross(p));
-        }
     }
 }
 
@@ -200,12 +218,12 @@ pub(crate) fn apply_impulses(
     w: &mut [DVec3],
 ) {
     for c in contacts {
-        let p = c.impulse[0] * c.n + c.impulse[1] * c.t1 + c.impulse[2] * c.t2;
-        bodies.apply(c, p, v, w);
+        bodies.apply_prepared(c, c.impulse, v, w);
     }
 }
 
-/// One sweep of sequential impulses over the contacts, changing the velocities in place:
+/// One sweep of sequential impulses over the contacts, changing the velocities in place
+/// and returning the largest change of any impulse (N s):
 /// friction clamped to the disc of the current normal impulse, then the normal impulse,
 /// accumulated and kept non-negative.
 pub(crate) fn sweep(
@@ -213,7 +231,8 @@ pub(crate) fn sweep(
     bodies: &Bodies<'_>,
     v: &mut [DVec3],
     w: &mut [DVec3],
-) {
+) -> f64 {
+    let mut largest = 0.0_f64;
     for c in contacts.iter_mut() {
         // Friction, clamped to the disc of the current normal impulse.
         let vel = bodies.relative_velocity(c, v, w);
@@ -227,14 +246,17 @@ pub(crate) fn sweep(
         }
         c.impulse[1] = t[0];
         c.impulse[2] = t[1];
-        bodies.apply(c, (t[0] - old[0]) * c.t1 + (t[1] - old[1]) * c.t2, v, w);
+        largest = largest.max((t[0] - old[0]).abs()).max((t[1] - old[1]).abs());
+        bodies.apply_prepared(c, [0.0, t[0] - old[0], t[1] - old[1]], v, w);
         // Normal, accumulated and kept non-negative.
         let vn = bodies.relative_velocity(c, v, w).dot(c.n);
         let new = (c.impulse[0] + c.mass[0] * (c.target - vn)).max(0.0);
         let dn = new - c.impulse[0];
         c.impulse[0] = new;
-        bodies.apply(c, dn * c.n, v, w);
+        largest = largest.max(dn.abs());
+        bodies.apply_prepared(c, [dn, 0.0, 0.0], v, w);
     }
+    largest
 }
 
 /// Move each contact's gap to its value after the velocity step, `gap + h v_n`, to first order.
@@ -254,14 +276,15 @@ pub(crate) fn advance_gaps(
 /// contacts, each estimating its gap as the advanced gap (see [`advance_gaps`]) plus the
 /// corrections made so far (`dx` translations, `dtheta` small world rotations, per body), and
 /// moving the bodies by a mass-weighted pseudo-impulse that closes `β` of the depth beyond
-/// `SLOP`.
+/// `SLOP`; returns whether any contact pushed.
 pub(crate) fn correct_positions(
     contacts: &[Contact],
     iterations: usize,
     bodies: &Bodies<'_>,
     dx: &mut [DVec3],
     dtheta: &mut [DVec3],
-) {
+) -> bool {
+    let mut pushed = false;
     for _ in 0..iterations {
         for c in contacts {
             let moved = |i: usize, r: DVec3| dx[i] + dtheta[i].cross(r);
@@ -270,6 +293,7 @@ pub(crate) fn correct_positions(
             if push <= 0.0 || c.mass[0] == 0.0 {
                 continue;
             }
+            pushed = true;
             let p = c.n * (push * c.mass[0]);
             dx[c.a] += p * bodies.inv_mass[c.a];
             dtheta[c.a] += bodies.inv_inertia(c.a, c.ra.cross(p));
@@ -279,6 +303,7 @@ pub(crate) fn correct_positions(
             }
         }
     }
+    pushed
 }
 
 /// A shape placed in the world, as the narrow phase sees it.
