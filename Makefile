@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 BIN    := $(VENV)/bin
 
-.PHONY: install test check lint demo bench clean
+.PHONY: install test check lint demo bench docs clean
 
 $(VENV)/bin/activate:
 	python3 -m venv $(VENV)
@@ -31,9 +31,12 @@ check: lint test
 demo: install
 	$(BIN)/kinema demo
 
+docs: install
+	$(BIN)/mkdocs build --strict --site-dir site
+
 bench: install
 	$(PY) -m pip install -q -e ".[bench]"
 	for f in bench/bench_*.py; do $(PY) $$f || exit 1; done
 
 clean:
-	rm -rf $(VENV) target kinema-out
+	rm -rf $(VENV) target kinema-out site
