@@ -447,7 +447,9 @@ fn face_towards(q: DQuat, n: DVec3) -> (usize, f64) {
 /// reference face; the incident face of the other box (the one facing it most) is clipped
 /// against the reference face's four side planes (Sutherland–Hodgman), and every clipped
 /// point within `margin` of the reference plane is a contact — the manifold of Box2D and ODE.
-/// Face–face and corner–face contacts are exact; edge–edge contacts are not generated.
+/// When an axis `A_i × B_j` of an edge of each box separates clearly better than every face
+/// (two boxes crossing edge on edge), the contact is instead the single pair of closest points
+/// of those two edges (feature `16 + 3i + j`), as in ODE's `dBoxBox`.
 fn box_box(a: PlacedBox, b: PlacedBox, margin: f64, out: &mut Vec<(usize, Touch)>) {
     let (ca, qa, ha) = a;
     let (cb, qb, hb) = b;
@@ -473,6 +475,43 @@ fn box_box(a: PlacedBox, b: PlacedBox, margin: f64, out: &mut Vec<(usize, Touch)
     };
     let (gap, n, reference_is_a) = best;
     if gap > margin {
+        return;
+    }
+    // Edge–edge axes; preferred over the faces only when clearly better, like b's faces.
+    let mut edge = (f64::NEG_INFINITY, DVec3::Y, 0, 0);
+    for i in 0..3 {
+        for j in 0..3 {
+            let axis = (qa * DVec3::AXES[i]).cross(qb * DVec3::AXES[j]);
+            let len = axis.length();
+            if len < 1e-6 {
+                continue; // parallel edges: a face axis separates as well
+            }
+            let axis = axis / len;
+            let g = d.dot(axis).abs() - radius(qa, ha, axis) - radius(qb, hb, axis);
+            if g > edge.0 {
+                edge = (g, if d.dot(axis) >= 0.0 { axis } else { -axis }, i, j);
+            }
+        }
+    }
+    if edge.0 > margin {
+        return; // separated along an edge axis
+    }
+    if edge.0 > 0.95 * gap + 0.01 * ha.min_element().min(hb.min_element()) {
+        let (g, n, i, j) = edge;
+        // Each box's edge along its axis i (j) that lies furthest towards the other box.
+        let supporting = |c: DVec3, q: DQuat, h: DVec3, k: usize, toward: DVec3| {
+            let mut mid = c;
+            for m in (0..3).filter(|&m| m != k) {
+                let axis = q * DVec3::AXES[m];
+                mid += axis * (h[m] * axis.dot(toward).signum());
+            }
+            let half = q * DVec3::AXES[k] * h[k];
+            (mid - half, mid + half)
+        };
+        let (a0, a1) = supporting(ca, qa, ha, i, -n);
+        let (b0, b1) = supporting(cb, qb, hb, j, n);
+        let (pa, pb) = closest_segments(a0, a1, b0, b1);
+        out.push((16 + 3 * i + j, (0.5 * (pa + pb), n, g)));
         return;
     }
     // Reference box and its face's outward normal; the incident box.
@@ -564,5 +603,38 @@ pub(crate) fn touches(a: &Placed, b: &Placed, margin: f64, out: &mut Vec<(usize,
             }
         }
         _ => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn boxes_crossing_edge_on_edge_touch_at_the_crossing_with_the_edges_normal() {
+        // A unit box turned 45° about z (an edge along z on top) below a unit box turned 45°
+        // about x (an edge along x at the bottom), overlapping by 1 cm at the crossing.
+        let s = std::f64::consts::SQRT_2 * 0.5;
+        let quarter = 0.25 * std::f64::consts::PI;
+        let lower = (DVec3::ZERO, DQuat::from_rotation_z(quarter), DVec3::splat(0.5));
+        let upper = (
+            DVec3::new(0.0, 2.0 * s - 0.01, 0.0),
+            DQuat::from_rotation_x(quarter),
+            DVec3::splat(0.5),
+        );
+        let mut out = Vec::new();
+        box_box(upper, lower, 0.0, &mut out);
+        assert_eq!(out.len(), 1, "{out:?}");
+        let (feature, (p, n, g)) = out[0];
+        assert!(feature >= 16);
+        assert!((n - DVec3::Y).length() < 1e-12, "normal {n}");
+        assert!((g + 0.01).abs() < 1e-12, "gap {g}");
+        assert!((p - DVec3::new(0.0, s - 0.005, 0.0)).length() < 1e-12, "point {p}");
+        // Face on face still gives the clipped face manifold.
+        let flat = (DVec3::new(0.0, 0.99, 0.0), DQuat::IDENTITY, DVec3::splat(0.5));
+        out.clear();
+        box_box(flat, (DVec3::ZERO, DQuat::IDENTITY, DVec3::splat(0.5)), 0.0, &mut out);
+        assert_eq!(out.len(), 4);
+        assert!(out.iter().all(|(k, _)| *k < 16));
     }
 }
