@@ -1242,11 +1242,14 @@ impl Cloth {
             }
             let alpha = delta_new / cq;
             let mut delta_next = 0.0;
+            // Values are kept in registers: reading back a vector just stored in parts stalls.
             for i in 0..n {
                 s.dv[i] += alpha * s.c[i];
-                s.r[i] -= alpha * s.q[i];
-                s.s[i] = s.precond[i] * s.r[i];
-                delta_next += s.r[i].dot(s.s[i]);
+                let r = s.r[i] - alpha * s.q[i];
+                let z = s.precond[i] * r;
+                s.r[i] = r;
+                s.s[i] = z;
+                delta_next += r.dot(z);
             }
             let beta = delta_next / delta_new;
             delta_new = delta_next;
