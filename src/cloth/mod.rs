@@ -15,7 +15,7 @@
 //!   every iterate in `z + range(S)`, with the stopping rule `δ < ε² δ₀` on the
 //!   preconditioned residual; the preconditioner is symmetric block Gauss–Seidel (SSOR with
 //!   ω = 1, applied by Eisenstat's trick) instead of the paper's block-Jacobi: a third of the
-//!   iterations at the same cost per iteration;
+//!   iterations at about the same cost per iteration (the flops of one matrix product);
 //! - [`Solver::Cholesky`]: faer's sparse Cholesky on the equivalent SPD system
 //!   `(S A S + I - S) y = S (b - A z)`, `Δv = z + y`, whose symbolic factorisation is
 //!   computed on first use and reused every step.
