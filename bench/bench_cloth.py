@@ -19,12 +19,18 @@ on an 8² cloth.)
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
-import numpy as np
+# One thread for the reference too: a multi-threaded BLAS on shared cores made scipy's CG
+# 5-10x slower at 64² (each vector dot product waking idle threads), not faster.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
-import kinema
-from kinema.cloth import Cloth
+import numpy as np  # noqa: E402
+
+import kinema  # noqa: E402
+from kinema.cloth import Cloth  # noqa: E402
 
 try:
     import scipy.sparse as sp

@@ -9,7 +9,8 @@ Integrators: ``"implicit_euler"`` (the paper's one Newton step per time step), `
 (Choi & Ko 2002, second order, less numerical damping), or any explicit method of
 :mod:`kinema.ode` (``"symplectic_euler"``, ``"rk4"``, ...) for comparison — they need far
 smaller steps. Solvers for the implicit step: ``"pcg"`` (the paper's modified preconditioned
-conjugate gradient with the constraint filter, block-Jacobi preconditioner, tolerance ``tol``)
+conjugate gradient with the constraint filter, symmetric block Gauss–Seidel preconditioner,
+tolerance ``tol``)
 or ``"cholesky"`` (faer sparse Cholesky, symbolic analysis done once).
 
 Units: metres, kilograms, seconds; ``density`` kg/m², ``stretch`` and ``shear`` N/m (membrane

@@ -83,6 +83,32 @@ impl BlockMatrix {
         }
     }
 
+    /// Forward substitution `x = (D + L)⁻¹ y` with `D` the diagonal blocks of the matrix given
+    /// by their inverses `dinv` and `L` its strict lower triangle (the transposes of the stored
+    /// blocks). `y` is overwritten with partial sums.
+    pub fn solve_lower(&self, dinv: &[DMat3], y: &mut [DVec3], x: &mut [DVec3]) {
+        for i in 0..self.n() {
+            let xi = dinv[i] * y[i];
+            x[i] = xi;
+            for s in self.diag[i] + 1..self.row_ptr[i + 1] {
+                y[self.cols[s]] -= self.blocks[s].transpose() * xi;
+            }
+        }
+    }
+
+    /// Backward substitution `x = (D + U)⁻¹ y` with `D` given by its inverses `dinv` and `U`
+    /// the stored strict upper triangle; `t` receives the products `U x` (so `y - D x = t`).
+    pub fn solve_upper(&self, dinv: &[DMat3], y: &[DVec3], x: &mut [DVec3], t: &mut [DVec3]) {
+        for i in (0..self.n()).rev() {
+            let mut acc = DVec3::ZERO;
+            for s in self.diag[i] + 1..self.row_ptr[i + 1] {
+                acc += self.blocks[s] * x[self.cols[s]];
+            }
+            t[i] = acc;
+            x[i] = dinv[i] * (y[i] - acc);
+        }
+    }
+
     /// The scalar lower-triangle pattern (compressed sparse columns) of this block pattern,
     /// and for each scalar entry the block and the component (row-major `3 r + c` of the block
     /// `(i, j)` with `i >= j`) it is read from.
@@ -114,4 +140,44 @@ impl BlockMatrix {
 /// Entry `(r, c)` of a block, `k = 3 r + c`.
 pub fn entry(m: &DMat3, k: usize) -> f64 {
     m.col(k % 3)[k / 3]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn triangular_solves_invert_their_halves() {
+        let elements = [[0, 1, 2], [1, 2, 3], [2, 3, 4]];
+        let mut m = BlockMatrix::from_elements(5, elements.iter().map(|e| &e[..]));
+        for (k, b) in m.blocks.iter_mut().enumerate() {
+            let f = k as f64;
+            *b = DMat3::from_cols_array(&[4.0, 0.3, f, 0.1, 5.0 + f, 0.2, -f, 0.4, 6.0]) * 0.5;
+        }
+        let dinv: Vec<DMat3> = m.diag.iter().map(|&d| m.blocks[d].inverse()).collect();
+        let y: Vec<DVec3> = (0..5).map(|i| DVec3::new(1.0, -2.0, 0.5) * (i as f64 + 1.0)).collect();
+        // (D + U) x = y: check each row.
+        let (mut x, mut t) = (vec![DVec3::ZERO; 5], vec![DVec3::ZERO; 5]);
+        m.solve_upper(&dinv, &y, &mut x, &mut t);
+        for i in 0..5 {
+            let mut row = m.blocks[m.diag[i]] * x[i];
+            for s in m.diag[i] + 1..m.row_ptr[i + 1] {
+                row += m.blocks[s] * x[m.cols[s]];
+            }
+            assert!(
+                (row - y[i]).length() < 1e-12
+                    && (y[i] - m.blocks[m.diag[i]] * x[i] - t[i]).length() < 1e-12
+            );
+        }
+        // (D + L) x = y with L = Uᵀ.
+        let mut w = y.clone();
+        m.solve_lower(&dinv, &mut w, &mut x);
+        let mut row: Vec<DVec3> = (0..5).map(|i| m.blocks[m.diag[i]] * x[i]).collect();
+        for (i, &xi) in x.iter().enumerate() {
+            for s in m.diag[i] + 1..m.row_ptr[i + 1] {
+                row[m.cols[s]] += m.blocks[s].transpose() * xi;
+            }
+        }
+        assert!(row.iter().zip(&y).all(|(a, b)| (*a - *b).length() < 1e-12));
+    }
 }

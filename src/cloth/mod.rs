@@ -12,8 +12,10 @@
 //! (identity when free, `I - n̂n̂ᵀ` on a plane, `d̂d̂ᵀ` on a line, 0 when pinned) and a
 //! prescribed velocity change `z_i` in the constrained directions. The two solvers:
 //! - [`Solver::Pcg`]: the paper's modified preconditioned conjugate gradient, which keeps
-//!   every iterate in `z + range(S)`, with a block-Jacobi preconditioner (the 3x3 diagonal
-//!   blocks inverted) and the stopping rule `δ < ε² δ₀` on the preconditioned residual;
+//!   every iterate in `z + range(S)`, with the stopping rule `δ < ε² δ₀` on the
+//!   preconditioned residual; the preconditioner is symmetric block Gauss–Seidel (SSOR with
+//!   ω = 1, applied by Eisenstat's trick) instead of the paper's block-Jacobi: a third of the
+//!   iterations at about the same cost per iteration (the flops of one matrix product);
 //! - [`Solver::Cholesky`]: faer's sparse Cholesky on the equivalent SPD system
 //!   `(S A S + I - S) y = S (b - A z)`, `Δv = z + y`, whose symbolic factorisation is
 //!   computed on first use and reused every step.
@@ -303,6 +305,7 @@ struct Scratch {
     c: Vec<DVec3>,
     q: Vec<DVec3>,
     s: Vec<DVec3>,
+    t: Vec<DVec3>,
     filter: Vec<DMat3>,
     z: Vec<DVec3>,
     y: Vec<DVec3>,
@@ -509,6 +512,7 @@ impl Cloth {
             c: zero.clone(),
             q: zero.clone(),
             s: zero.clone(),
+            t: zero.clone(),
             filter: vec![DMat3::IDENTITY; n],
             z: zero.clone(),
             y: zero.clone(),
@@ -1203,58 +1207,93 @@ impl Cloth {
         self.time += h;
     }
 
-    /// The modified PCG of Baraff & Witkin (1998, §5.3) with a block-Jacobi preconditioner.
+    /// The modified PCG of Baraff & Witkin (1998, §5.3) on the filtered system: it solves
+    /// `Â y = S (b - A Δv₀)` with `Â = S A S + I - S` and `Δv₀ = z + S Δv_last` (warm start), so
+    /// every iterate stays in `z + range(S)`, and stops when `δ = rᵀ P⁻¹ r < ε² δ₀` with
+    /// `δ₀ = (S b)ᵀ P⁻¹ S b` (the paper's rule).
+    ///
+    /// `P = (D + L) D⁻¹ (D + U)` is the symmetric block Gauss–Seidel (SSOR, ω = 1)
+    /// preconditioner of `Â = L + D + U`, which needs about a third of the iterations of the
+    /// paper's block-Jacobi `P = D` on cloth. Eisenstat's trick (Eisenstat 1981, "Efficient
+    /// implementation of a class of preconditioned conjugate gradient methods"; Saad,
+    /// "Iterative Methods for Sparse Linear Systems", §9.2.2) makes an iteration cost one
+    /// backward and one forward substitution, together one product with the matrix: with
+    /// `p̂ = (D + U) p`, `(D + L)⁻¹ Â p = p + (D + L)⁻¹ (p̂ - D p)`, and the iteration runs on
+    /// `r̃ = (D + L)⁻¹ r` (so `δ = r̃ᵀ D r̃`) and `p̂`.
+    ///
+    /// The filter enters only through the diagonal: with `D̂ᵢ⁻¹ = Sᵢ (Sᵢ Aᵢᵢ Sᵢ + I - Sᵢ)⁻¹ Sᵢ`
+    /// the substitutions on `A`'s blocks give those of `Â` for vectors in `range(S)` (`Â`'s
+    /// off-diagonal blocks are `Sᵢ Aᵢⱼ Sⱼ`).
     fn solve_pcg(&self, s: &mut Scratch, options: SolveOptions) -> Result<(usize, f64, bool)> {
         let n = self.x.len();
         let a = &self.matrix;
+        let mut delta_b = 0.0;
         for i in 0..n {
-            let d = a.blocks[a.diag[i]];
-            s.precond[i] = d.inverse();
+            let (d, f) = (a.blocks[a.diag[i]], s.filter[i]);
+            let inverse = d.inverse();
+            // Rounding floor: bᵀ D⁻¹ b of the unfiltered right-hand side.
+            delta_b += s.b[i].dot(inverse * s.b[i]);
+            s.precond[i] = if f == DMat3::IDENTITY {
+                inverse
+            } else {
+                f * (f * d * f + DMat3::IDENTITY - f).inverse() * f
+            };
         }
-        let filter = |f: &[DMat3], i: usize, v: DVec3| f[i] * v;
-        // Δv = z; δ₀ = filter(b)ᵀ P⁻¹ filter(b).
+        // `D̂ v` for `v` in range(S).
+        let diag = |s: &Scratch, i: usize, v: DVec3| s.filter[i] * (a.blocks[a.diag[i]] * v);
         for i in 0..n {
             s.dv[i] = s.z[i] + s.filter[i] * s.dv[i];
         }
-        let (mut delta0, mut delta_b) = (0.0, 0.0);
+        // δ₀ = ‖(D + L)⁻¹ S b‖²_D.
         for i in 0..n {
-            let fb = filter(&s.filter, i, s.b[i]);
-            delta0 += fb.dot(s.precond[i] * fb);
-            delta_b += s.b[i].dot(s.precond[i] * s.b[i]);
+            s.t[i] = s.filter[i] * s.b[i];
         }
+        a.solve_lower(&s.precond, &mut s.t, &mut s.q);
+        let delta0: f64 = (0..n).map(|i| s.q[i].dot(diag(s, i, s.q[i]))).sum();
+        // r̃ = (D + L)⁻¹ S (b - A Δv₀), p̂ = D r̃.
         a.mul(&s.dv, &mut s.q);
         for i in 0..n {
-            s.r[i] = filter(&s.filter, i, s.b[i] - s.q[i]);
-            s.c[i] = filter(&s.filter, i, s.precond[i] * s.r[i]);
+            s.t[i] = s.filter[i] * (s.b[i] - s.q[i]);
         }
-        let mut delta_new: f64 = (0..n).map(|i| s.r[i].dot(s.c[i])).sum();
+        a.solve_lower(&s.precond, &mut s.t, &mut s.r);
+        let mut delta_new = 0.0;
+        for i in 0..n {
+            let z = diag(s, i, s.r[i]);
+            s.c[i] = z;
+            delta_new += s.r[i].dot(z);
+        }
         // Stop at ε² δ₀, or at the rounding floor of the unfiltered right-hand side when the
         // filter cancels nearly all of it (e.g. a cloth held by friction).
         let floor = (1e3 * f64::EPSILON).powi(2) * delta_b;
         let target = (options.tol * options.tol * delta0).max(floor);
         let mut iterations = 0;
-        // The filter is the identity except at the constrained vertices, so inside the loop it
-        // is applied there only.
         while delta_new > target && iterations < options.max_iterations {
-            a.mul(&s.c, &mut s.q);
-            for &i in &s.constrained {
-                s.q[i] = s.filter[i] * s.q[i];
+            // p = (D + U)⁻¹ p̂, then q̃ = (D + L)⁻¹ Â p = p + (D + L)⁻¹ (p̂ - D p).
+            a.solve_upper(&s.precond, &s.c, &mut s.s, &mut s.t);
+            a.solve_lower(&s.precond, &mut s.t, &mut s.q);
+            let mut pq = 0.0; // pᵀ Â p = p̂ᵀ q̃
+            for i in 0..n {
+                let q = s.s[i] + s.q[i];
+                s.q[i] = q;
+                pq += s.c[i].dot(q);
             }
-            let cq: f64 = (0..n).map(|i| s.c[i].dot(s.q[i])).sum();
-            if cq <= 0.0 || !cq.is_finite() {
+            if pq <= 0.0 || !pq.is_finite() {
                 return Err(Error::SolverFailed {
                     reason: format!(
-                        "PCG: the system matrix is not positive definite (cᵀAc = {cq})"
+                        "PCG: the system matrix is not positive definite (pᵀAp = {pq})"
                     ),
                 });
             }
-            let alpha = delta_new / cq;
+            let alpha = delta_new / pq;
             let mut delta_next = 0.0;
+            // Values are kept in registers: reading back a vector just stored in parts stalls.
             for i in 0..n {
-                s.dv[i] += alpha * s.c[i];
-                s.r[i] -= alpha * s.q[i];
-                s.s[i] = s.precond[i] * s.r[i];
-                delta_next += s.r[i].dot(s.s[i]);
+                s.dv[i] += alpha * s.s[i];
+                let r = s.r[i] - alpha * s.q[i];
+                let z = diag(s, i, r);
+                s.r[i] = r;
+                s.s[i] = z;
+                delta_next += r.dot(z);
             }
             let beta = delta_next / delta_new;
             delta_new = delta_next;
@@ -1264,9 +1303,6 @@ impl Cloth {
             }
             for i in 0..n {
                 s.c[i] = s.s[i] + beta * s.c[i];
-            }
-            for &i in &s.constrained {
-                s.c[i] = s.filter[i] * s.c[i];
             }
         }
         let residual = if delta0 > 0.0 { (delta_new.max(0.0) / delta0).sqrt() } else { 0.0 };

@@ -139,7 +139,11 @@ impl Accumulator<'_> {
     /// Add one condition `C` with gradient `g` over `verts`, stiffness `k`, damping `kd`,
     /// and optionally its curvature (see [`Curvature`]).
     #[allow(clippy::too_many_arguments)]
-    pub fn condition<const N: usize, H: Fn(usize, usize) -> DMat3>(
+    pub fn condition<
+        const N: usize,
+        H: Fn(usize, usize) -> DMat3,
+        P: Fn(&[DVec3; N]) -> [DVec3; N],
+    >(
         &mut self,
         verts: &[usize; N],
         slots: &[usize],
@@ -147,7 +151,7 @@ impl Accumulator<'_> {
         g: &[DVec3; N],
         k: f64,
         kd: f64,
-        curvature: Option<Curvature<H>>,
+        curvature: Option<Curvature<H, P>>,
     ) {
         let c_dot: f64 = (0..N).map(|m| g[m].dot(self.v[verts[m]])).sum();
         let scale = k * c + kd * c_dot;
@@ -163,14 +167,14 @@ impl Accumulator<'_> {
         });
         let weight = alpha * kd + beta * k;
         for m in 0..N {
+            let gw = g[m] * weight;
             for n in 0..N {
                 let slot = slots[N * m + n];
                 if slot == LOWER {
                     continue; // the transpose of a stored block
                 }
                 // -(α ∂d/∂v + β ∂f/∂x) = (α k_d + β k) g_m g_nᵀ + β s H_mn.
-                let mut block =
-                    DMat3::from_cols(g[m] * g[n].x, g[m] * g[n].y, g[m] * g[n].z) * weight;
+                let mut block = DMat3::from_cols(gw * g[n].x, gw * g[n].y, gw * g[n].z);
                 if let Some(h) = &curvature {
                     block += (h.block)(m, n) * (scale * beta);
                 }
@@ -179,13 +183,13 @@ impl Accumulator<'_> {
         }
         // (∂f/∂x) u = -k g (gᵀu) - s H u.
         if let Some((u, ku)) = self.ku.as_mut() {
-            let gu: f64 = (0..N).map(|n| g[n].dot(u[verts[n]])).sum();
+            let ue = verts.map(|i| u[i]);
+            let gu: f64 = (0..N).map(|n| g[n].dot(ue[n])).sum();
+            let hu = curvature.as_ref().map(|h| (h.apply)(&ue));
             for m in 0..N {
                 let mut v = g[m] * (-k * gu);
-                if let Some(h) = &curvature {
-                    for n in 0..N {
-                        v -= (h.block)(m, n) * (scale * u[verts[n]]);
-                    }
+                if let Some(hu) = &hu {
+                    v -= hu[m] * scale;
                 }
                 ku[verts[m]] += v;
             }
@@ -194,9 +198,12 @@ impl Accumulator<'_> {
 }
 
 /// The second derivative `∂²C/∂x_m∂x_n` of a condition, as the function `block(m, n)`.
-pub struct Curvature<H> {
+pub struct Curvature<H, P> {
     /// `∂²C/∂x_m∂x_n`.
     pub block: H,
+    /// The product `(∂²C/∂x²) u` for the element's displacements `u` (m), by the structure of
+    /// the blocks rather than block by block.
+    pub apply: P,
     /// Whether `∂²C/∂x²` is positive semidefinite.
     pub psd: bool,
     /// A bound on `-λ_min(s ∂²C/∂x²) / |s|` (the most negative eigenvalue per unit `s`).
@@ -228,6 +235,11 @@ pub fn triangle(
             (DMat3::IDENTITY - DMat3::from_cols(wh * wh.x, wh * wh.y, wh * wh.z)) * (a / len);
         let curvature = Curvature {
             block: |m: usize, n: usize| projector * (d[m] * d[n]),
+            // Σₙ d_m d_n P uₙ = d_m P (Σₙ d_n uₙ).
+            apply: |u: &[DVec3; 3]| {
+                let pu = projector * (u[0] * d[0] + u[1] * d[1] + u[2] * d[2]);
+                [pu * d[0], pu * d[1], pu * d[2]]
+            },
             psd: true,
             negative_bound: a * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / len,
             mass_share: t.mass_share,
@@ -245,6 +257,12 @@ pub fn triangle(
         block: |m: usize, n: usize| {
             DMat3::from_diagonal(DVec3::splat(a * (t.du[m] * t.dv[n] + t.dv[m] * t.du[n])))
         },
+        // Σₙ a (du_m dv_n + dv_m du_n) uₙ = a (du_m U_v + dv_m U_u), U = Σₙ d_n uₙ.
+        apply: |u: &[DVec3; 3]| {
+            let uu = (u[0] * t.du[0] + u[1] * t.du[1] + u[2] * t.du[2]) * a;
+            let uv = (u[0] * t.dv[0] + u[1] * t.dv[1] + u[2] * t.dv[2]) * a;
+            [0, 1, 2].map(|m| uv * t.du[m] + uu * t.dv[m])
+        },
         psd: false,
         negative_bound: a * (du.length() * dv.length() + du.dot(dv).abs()),
         mass_share: t.mass_share,
@@ -254,21 +272,13 @@ pub fn triangle(
 }
 
 /// No curvature term.
-type Flat = fn(usize, usize) -> DMat3;
+type Flat = Curvature<fn(usize, usize) -> DMat3, fn(&[DVec3; 4]) -> [DVec3; 4]>;
 
 /// Bending of one hinge on its dihedral angle (Baraff & Witkin 1998, §4.4), `k_d = damping · k`.
 pub fn hinge(h: &Hinge, x: &[DVec3], damping: f64, acc: &mut Accumulator) {
     let [a, b, p, q] = h.verts.map(|i| x[i]);
     let (theta, g) = dihedral_angle(a, b, p, q);
-    acc.condition(
-        &h.verts,
-        &h.slots,
-        theta - h.rest_angle,
-        &g,
-        h.k,
-        damping * h.k,
-        None::<Curvature<Flat>>,
-    );
+    acc.condition(&h.verts, &h.slots, theta - h.rest_angle, &g, h.k, damping * h.k, None::<Flat>);
 }
 
 /// One spring: `C = l - L`, `k_d = damping · k`.
@@ -281,6 +291,10 @@ pub fn spring(s: &Spring, x: &[DVec3], damping: f64, acc: &mut Accumulator) {
     let projector = (DMat3::IDENTITY - DMat3::from_cols(n * n.x, n * n.y, n * n.z)) / l;
     let curvature = Curvature {
         block: |m: usize, k: usize| if m == k { projector } else { -projector },
+        apply: |u: &[DVec3; 2]| {
+            let pu = projector * (u[0] - u[1]);
+            [pu, -pu]
+        },
         psd: true,
         negative_bound: 2.0 / l,
         mass_share: s.mass_share,
