@@ -449,41 +449,41 @@ fn a_failed_step_leaves_the_world_as_it_was() {
     }
 }
 
+/// A chain hinged to the world whose free end hits the ground 0.5 m below the hinge, stepped
+/// 8 s; returns the largest joint drift, the lowest centre and the final largest speed.
+fn chain_on_the_ground(method: JointMethod) -> (f64, f64, f64) {
+    let mut w = chain(method);
+    w.add_plane(DVec3::Y, -0.5, 0.0, 0.5).unwrap();
+    let mut worst = 0.0f64;
+    let dt = if method == JointMethod::Penalty { 1e-3 } else { 1.0 / 240.0 };
+    for _ in 0..(8.0 / dt) as usize {
+        w.step(dt, 1).unwrap();
+        worst = worst.max(max_violation(&w).0);
+    }
+    let lowest = (0..5).map(|i| w.position(i).y).fold(f64::INFINITY, f64::min);
+    let speed = (0..5).map(|i| w.velocity(i).length()).fold(0.0, f64::max);
+    println!("{method:?}: drift {worst:.2e}, lowest centre {lowest:.4}, speed {speed:.2e}");
+    (worst, lowest, speed)
+}
+
 #[test]
 fn a_hinged_chain_falls_onto_the_ground_and_rests_connected() {
-    // The chain's free end hits the ground 0.5 m below the hinge; the joints and the contacts
-    // are solved in the same step (for impulses, in the same sweeps).
-    for method in METHODS {
-        let mut w = chain(method);
-        w.add_plane(DVec3::Y, -0.5, 0.0, 0.5).unwrap();
-        let mut worst = 0.0f64;
-        let dt = if method == JointMethod::Penalty { 1e-3 } else { 1.0 / 240.0 };
-        for _ in 0..(8.0 / dt) as usize {
-            w.step(dt, 1).unwrap();
-            worst = worst.max(max_violation(&w).0);
-        }
-        let lowest = (0..5).map(|i| w.position(i).y).fold(f64::INFINITY, f64::min);
-        let speed = (0..5).map(|i| w.velocity(i).length()).fold(0.0, f64::max);
-        println!("{method:?}: drift {worst:.2e}, lowest centre {lowest:.4}, speed {speed:.2e}");
-        // XPBD projects its joints after the contacts, and links folding onto each other
-        // cross edge on edge: the two fight (docs/rigid.md), so only "connected within a few
-        // cm" is asserted for XPBD.
-        let tol = match method {
-            JointMethod::Penalty | JointMethod::Xpbd => 5e-2,
-            _ => 5e-3,
-        };
-        // Impulse joints share the contacts' sweeps and come to rest; Lagrange joints
-        // alternate with them and keep a few mm/s. XPBD joints projected after the contacts
-        // keep jittering at 2e-3 to 1e-1 m/s, depending on rounding-level details (a friction
-        // of 0.5001 instead of 0.5 turns 2e-3 into 1e-2): only "connected and not flying
-        // off" is asserted for them (docs/rigid.md).
-        let rest = match method {
-            JointMethod::Lagrange => 1e-2,
-            JointMethod::Xpbd => 1.0,
-            _ => 1e-9,
-        };
+    // The joints and the contacts are solved in the same step (for impulses, in the same
+    // sweeps; Lagrange joints alternate with the contacts and keep a few mm/s).
+    for method in [JointMethod::Penalty, JointMethod::Lagrange, JointMethod::Impulse] {
+        let (worst, lowest, speed) = chain_on_the_ground(method);
+        let tol = if method == JointMethod::Penalty { 5e-2 } else { 5e-3 };
+        let rest = if method == JointMethod::Lagrange { 1e-2 } else { 1e-9 };
         assert!(worst < tol && lowest > -0.5 && speed < rest, "{method:?}");
     }
+}
+
+#[test]
+#[ignore = "known failure: XPBD joints are projected after the contact solve and fight it; the \
+            chain piled on the ground drifts 3.6 cm and keeps moving (docs/rigid.md, Joints)"]
+fn an_xpbd_chain_falls_onto_the_ground_and_rests_connected() {
+    let (worst, lowest, speed) = chain_on_the_ground(JointMethod::Xpbd);
+    assert!(worst < 5e-3 && lowest > -0.5 && speed < 1e-2);
 }
 
 #[test]
