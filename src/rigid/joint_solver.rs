@@ -152,7 +152,7 @@ pub(crate) struct Multipliers {
     rhs: Vec<f64>,
     lambda: Vec<f64>,
     activity: Vec<Activity>,
-    #[serde(skip)] // rebuilt by `ensure_factor` (same pattern, same factor)
+    #[serde(skip)] // rebuilt by `solve_rhs` (same pattern, same factor)
     chol: Option<SparseCholesky>,
     acc: Vec<DVec3>,
     alpha: Vec<DVec3>,
@@ -256,14 +256,19 @@ impl Multipliers {
         Ok(())
     }
 
-    /// Analyse the pattern again if the factorisation is missing: in a clone or a restored
-    /// snapshot, which do not carry faer's symbolic structure (rebuilt identically).
-    fn ensure_factor(&mut self) -> Result<()> {
+    /// Factorise the assembled `values` and solve for `lambda` with the right-hand side `rhs`;
+    /// `false` when there is no system. The symbolic analysis is redone first if missing (in a
+    /// clone or a restored snapshot, which do not carry faer's structure; rebuilt identically).
+    fn solve_rhs(&mut self) -> Result<bool> {
         if self.chol.is_none() && !self.map.is_empty() {
             let m = self.map.len();
             self.chol = Some(SparseCholesky::new(m, self.col_ptr.clone(), self.row_idx.clone())?);
         }
-        Ok(())
+        let Some(chol) = self.chol.as_mut() else { return Ok(false) };
+        chol.factorize(&self.values)?;
+        self.lambda.copy_from_slice(&self.rhs);
+        chol.solve_in_place(&mut self.lambda);
+        Ok(true)
     }
 
     /// Fill the values of `J M⁻¹ Jᵀ` over the active rows (identity rows for the others, and
@@ -331,11 +336,9 @@ impl Multipliers {
                 0.0
             };
         }
-        self.ensure_factor()?;
-        let Some(chol) = self.chol.as_mut() else { return Ok(()) };
-        chol.factorize(&self.values)?;
-        self.lambda.copy_from_slice(&self.rhs);
-        chol.solve_in_place(&mut self.lambda);
+        if !self.solve_rhs()? {
+            return Ok(());
+        }
         for (k, &(g, ji)) in self.map.iter().enumerate() {
             let mu = self.lambda[k];
             if self.activity[k] == Activity::Active && mu.is_finite() {
@@ -376,11 +379,9 @@ impl Multipliers {
         for (k, &(g, _)) in self.map.iter().enumerate() {
             self.rhs[k] = if self.activity[k] == Activity::Active { -rows[g].c } else { 0.0 };
         }
-        self.ensure_factor()?;
-        let Some(chol) = self.chol.as_mut() else { return Ok(()) };
-        chol.factorize(&self.values)?;
-        self.lambda.copy_from_slice(&self.rhs);
-        chol.solve_in_place(&mut self.lambda);
+        if !self.solve_rhs()? {
+            return Ok(());
+        }
         for (k, &(g, ji)) in self.map.iter().enumerate() {
             let mu = self.lambda[k];
             if self.activity[k] != Activity::Active || !mu.is_finite() {
@@ -474,11 +475,9 @@ impl Multipliers {
                 }
                 self.rhs[k] = target - ja;
             }
-            self.ensure_factor()?;
-            let Some(chol) = self.chol.as_mut() else { return Ok(()) };
-            chol.factorize(&self.values)?;
-            self.lambda.copy_from_slice(&self.rhs);
-            chol.solve_in_place(&mut self.lambda);
+            if !self.solve_rhs()? {
+                return Ok(());
+            }
             if let Some(k) = self.lambda.iter().position(|l| !l.is_finite()) {
                 return Err(Error::SolverFailed {
                     reason: format!("joint multiplier {k} is not finite"),
