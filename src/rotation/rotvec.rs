@@ -6,7 +6,7 @@
 //! evaluated so that they stay accurate for `θ` down to 0 and up to pi: the small-angle
 //! factor `sin(θ/2)/θ` uses its Taylor series below `θ = 1e-3`, and `atan2` needs no series.
 
-use super::trig::atan2;
+use super::trig::{atan2, sin_cos};
 use crate::error::{ensure_finite, Error, Result};
 use glam::{DQuat, DVec3};
 
@@ -26,7 +26,7 @@ pub fn quat_from_rotvec(v: &[f64; 3]) -> Result<DQuat> {
         m * (v / m).length()
     };
     let half = 0.5 * theta;
-    let (sin, cos) = half.sin_cos();
+    let (sin, cos) = sin_cos(half);
     // sin(θ/2)/θ; the series error at θ = 1e-3 is below θ⁶/322560 ≈ 3e-24.
     let k = if theta < 1e-3 {
         let t2 = theta * theta;
@@ -62,7 +62,7 @@ pub fn quat_from_axis_angle(axis: &[f64; 3], angle: f64) -> Result<DQuat> {
         return Err(Error::invalid("axis", "is the zero vector"));
     }
     let a = (a / m).normalize();
-    let (s, c) = (0.5 * angle).sin_cos();
+    let (s, c) = sin_cos(0.5 * angle);
     Ok(DQuat::from_xyzw(a.x * s, a.y * s, a.z * s, c))
 }
 
