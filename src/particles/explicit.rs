@@ -193,20 +193,10 @@ impl Block {
                 }
             }
         }
-        // Without external forces the general path adds a zero one (turning -0 into +0).
-        let zero = if model.external.is_empty() { 0.0 } else { -0.0 };
-        let dt = model.dt;
-        let Block { x, v, f, inv_m, live, .. } = self;
-        let [a, b] = x;
-        let (x0, x1) = if from == 0 { (a, b) } else { (b, a) };
-        for k in 0..BLOCK {
-            // Symplectic Euler as `crate::ode` computes it; slots that do not move keep theirs.
-            for c in 0..3 {
-                let v1 = v[c][k] + dt * ((f[c][k] + zero) * inv_m[k]);
-                let p1 = x0[c][k] + dt * v1;
-                x1[c][k] = if live[k] { p1 } else { x0[c][k] };
-                v[c][k] = if live[k] { v1 } else { v[c][k] };
-            }
+        if self.live.iter().all(|&live| live) {
+            self.integrate::<true>(model, from);
+        } else {
+            self.integrate::<false>(model, from);
         }
         let mut contacts = 0;
         for collider in model.colliders {
@@ -215,18 +205,40 @@ impl Block {
         contacts
     }
 
+    /// Symplectic Euler as `crate::ode` computes it, from positions `x[from]` to `x[1 - from]`;
+    /// the slots that do not move (unless `ALL_LIVE`: all move) keep their position and velocity.
+    #[inline(always)]
+    fn integrate<const ALL_LIVE: bool>(&mut self, model: &Model, from: usize) {
+        // Without external forces the general path adds a zero one (turning -0 into +0).
+        let zero = if model.external.is_empty() { 0.0 } else { -0.0 };
+        let dt = model.dt;
+        let Block { x, v, f, inv_m, live, .. } = self;
+        let [a, b] = x;
+        let (x0, x1) = if from == 0 { (a, b) } else { (b, a) };
+        for k in 0..BLOCK {
+            let moves = ALL_LIVE || live[k];
+            for c in 0..3 {
+                let v1 = v[c][k] + dt * ((f[c][k] + zero) * inv_m[k]);
+                let p1 = x0[c][k] + dt * v1;
+                x1[c][k] = if moves { p1 } else { x0[c][k] };
+                v[c][k] = if moves { v1 } else { v[c][k] };
+            }
+        }
+    }
+
     /// Meet `collider` at positions `x[to]` (that were `x[1 - to]` before the step); returns
     /// the number of contacts.
     #[inline(always)]
     fn collide(&mut self, collider: &Collider, model: &Model, to: usize) -> usize {
         let plane = if let Collider::Plane { point, normal, .. } = *collider {
-            // The same distance as `surface`, for the whole block in one loop.
-            let Block { x, d, live, .. } = self;
+            // The same distance as `surface`, for the whole block in one loop (slots that do
+            // not move are skipped below).
+            let Block { x, d, .. } = self;
             let x = &x[to];
             let mut inside = 0;
             for k in 0..BLOCK {
                 d[k] = (DVec3::new(x[0][k], x[1][k], x[2][k]) - point).dot(normal);
-                inside += usize::from(live[k] & !(d[k] >= 0.0));
+                inside += usize::from(!(d[k] >= 0.0));
             }
             if inside == 0 {
                 return 0;
@@ -271,12 +283,13 @@ impl Block {
     fn first_bad(&self, at: usize) -> Option<usize> {
         let Block { x, v, live, .. } = self;
         let x = &x[at];
-        // Finite values have a finite sum of products with zero; others give NaN.
+        // Finite values have a finite sum of products with zero; others give NaN. (Slots that
+        // do not move are skipped below.)
         let mut bad = 0;
         for k in 0..BLOCK {
             let s = 0.0 * x[0][k] + 0.0 * x[1][k] + 0.0 * x[2][k];
             let s = s + 0.0 * v[0][k] + 0.0 * v[1][k] + 0.0 * v[2][k];
-            bad += usize::from(live[k] & (s != 0.0));
+            bad += usize::from(s != 0.0);
         }
         if bad == 0 {
             return None;
