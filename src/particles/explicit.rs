@@ -192,8 +192,8 @@ impl Block {
         if !model.external.is_empty() {
             let ext = &model.external[3 * self.start..3 * (self.start + self.len)];
             for (k, e) in ext.chunks_exact(3).enumerate() {
-                for c in 0..3 {
-                    self.f[c][k] += e[c];
+                for (f, e) in self.f.iter_mut().zip(e) {
+                    f[k] += e;
                 }
             }
         }
@@ -242,7 +242,7 @@ impl Block {
             let mut inside = 0;
             for k in 0..BLOCK {
                 d[k] = (DVec3::new(x[0][k], x[1][k], x[2][k]) - point).dot(normal);
-                inside += usize::from(!(d[k] >= 0.0));
+                inside += usize::from(d[k] < 0.0 || d[k].is_nan());
             }
             if inside == 0 {
                 return 0;
