@@ -485,7 +485,8 @@ fn explicit_kernel_failure_keeps_the_last_good_step() {
     let mut reference = system();
     reference.step(1.0, 3, Method::SymplecticEuler).unwrap();
 
-    // In one call: steps 0 to 2 are written, step 3 fails.
+    // In one call: steps 0 to 2 are written, the look-ahead of step 2 finds step 3 not
+    // finite and the read-only pass names the particle.
     let mut s = system();
     let err = s.step(1.0, 10, Method::SymplecticEuler).unwrap_err();
     assert!(matches!(err, kinema::Error::Diverged { step: 3, index: 30_000, .. }), "{err}");
@@ -494,7 +495,8 @@ fn explicit_kernel_failure_keeps_the_last_good_step() {
     assert_eq!(s.ages(), reference.ages());
     assert_eq!(s.time(), reference.time());
 
-    // Across calls (the look-ahead of the previous call is reused, then rejects step 3).
+    // Across calls (the first step of a call is checked by the read-only pass, the second one
+    // by the look-ahead of the first).
     let mut s = system();
     s.step(1.0, 2, Method::SymplecticEuler).unwrap();
     let err = s.step(1.0, 10, Method::SymplecticEuler).unwrap_err();

@@ -15,12 +15,15 @@
 //! not depend on the instruction set either).
 //!
 //! A step either completes or leaves the state as it was, and no copy of the state is kept:
-//! a step is written only when it is known to stay finite. The pass that writes step `s` also
-//! computes step `s + 1` of each block from the values it has just written, still in the
-//! cache, and only checks it ([`commit`]). When that look-ahead found every value finite and
-//! nothing changed since, step `s + 1` is written directly; otherwise a read-only pass
-//! ([`check`]) decides first. A step thus streams the state once (read and written in place)
-//! and computes it twice.
+//! a step is written only when it is known to stay finite. The first step of a call of
+//! [`super::ParticleSystem::step`] is checked by a read-only pass ([`check`]). The pass that
+//! writes step `s` ([`commit`]) also computes step `s + 1` of each block from the values it
+//! has just written, still in the cache, and only checks it; when another step of the call
+//! follows and that look-ahead found every value finite, step `s + 1` is written directly
+//! (only the particles emitted in between are checked first), otherwise the read-only pass
+//! decides. A call of `k` steps thus streams the state `k` times (read and written in place)
+//! plus one read, and computes each step twice. (Nothing outside can change the system between
+//! the steps of one call, so no look-ahead outlives the call.)
 
 use super::{respond, surface, Collider, Force};
 use glam::DVec3;
@@ -368,14 +371,21 @@ pub(super) struct Committed {
     pub(super) contacts: usize,
     /// Particles retired at the end of their lifespan.
     pub(super) expired: usize,
-    /// Whether the next step from the state written, with the same model, stays finite.
+    /// Whether the look-ahead was asked for and found that the next step from the state
+    /// written, with the same model, stays finite.
     pub(super) next_finite: bool,
 }
 
 /// Write one step of all particles (positions `xs`, velocities `vs`, `3 capacity` values each)
 /// in place and age them ([`super::age_slots`]); the step must be known to stay finite
-/// ([`check`]). Looks one step further ahead.
-pub(super) fn commit(model: &Model, xs: &mut [f64], vs: &mut [f64], aging: Aging) -> Committed {
+/// ([`check`]). With `look_ahead`, also finds whether the next step stays finite.
+pub(super) fn commit(
+    model: &Model,
+    xs: &mut [f64],
+    vs: &mut [f64],
+    aging: Aging,
+    look_ahead: bool,
+) -> Committed {
     let arch = pulp::Arch::new();
     let Aging { alive, age, lifespan } = aging;
     xs.par_chunks_mut(3 * TASK)
@@ -385,10 +395,10 @@ pub(super) fn commit(model: &Model, xs: &mut [f64], vs: &mut [f64], aging: Aging
         .enumerate()
         .map(|(t, (((xs, vs), (alive, age)), lifespan))| {
             let aging = Aging { alive, age, lifespan };
-            arch.dispatch(Commit { model, start: t * TASK, xs, vs, aging })
+            arch.dispatch(Commit { model, start: t * TASK, xs, vs, aging, look_ahead })
         })
         .reduce(
-            || Committed { contacts: 0, expired: 0, next_finite: true },
+            || Committed { contacts: 0, expired: 0, next_finite: look_ahead },
             |a, b| Committed {
                 contacts: a.contacts + b.contacts,
                 expired: a.expired + b.expired,
@@ -404,6 +414,7 @@ struct Commit<'a> {
     xs: &'a mut [f64],
     vs: &'a mut [f64],
     aging: Aging<'a>,
+    look_ahead: bool,
 }
 
 impl pulp::WithSimd for Commit<'_> {
@@ -411,9 +422,9 @@ impl pulp::WithSimd for Commit<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> Committed {
-        let Commit { model, start, xs, vs, aging } = self;
+        let Commit { model, start, xs, vs, aging, look_ahead } = self;
         let mut block = Block::new();
-        let mut done = Committed { contacts: 0, expired: 0, next_finite: true };
+        let mut done = Committed { contacts: 0, expired: 0, next_finite: look_ahead };
         let blocks = xs
             .chunks_mut(3 * BLOCK)
             .zip(vs.chunks_mut(3 * BLOCK))

@@ -146,10 +146,6 @@ pub struct ParticleSystem {
     /// Forces set from outside for the next steps (N, 3 per slot), empty when unused.
     external: Vec<f64>,
     stepper: Option<Stepper>,
-    /// The time step (its bits) whose next step from the current state the explicit
-    /// kernel's look-ahead found finite; `None` when not known.
-    #[serde(skip)]
-    checked: Option<u64>,
     time: f64,
     /// Counters of the last step call.
     pub stats: StepStats,
@@ -239,7 +235,6 @@ impl ParticleSystem {
             cells: Vec::with_capacity(n),
             external: Vec::new(),
             stepper: None,
-            checked: None,
             time: 0.0,
             stats: StepStats::default(),
         })
@@ -267,14 +262,12 @@ impl ParticleSystem {
 
     /// The whole state `[x; v]` for writing; call [`ParticleSystem::state_changed`] after.
     pub fn state_mut(&mut self) -> &mut [f64] {
-        self.checked = None;
         &mut self.y
     }
 
     /// The free (unconstrained) equations of motion, the state and the inverse masses, for
     /// systems that step the particles themselves (constraints).
     pub(crate) fn parts(&mut self) -> (Dynamics<'_>, &mut [f64], &[f64], &mut f64) {
-        self.checked = None;
         let dynamics = Dynamics {
             n: self.n,
             forces: &self.forces,
@@ -309,13 +302,11 @@ impl ParticleSystem {
         }
         self.external.clear();
         self.external.extend_from_slice(forces);
-        self.checked = None;
         Ok(())
     }
 
     /// Forget integrator history after the state was changed from outside.
     pub fn state_changed(&mut self) {
-        self.checked = None;
         if let Some(s) = self.stepper.as_mut() {
             s.reset();
         }
@@ -342,7 +333,6 @@ impl ParticleSystem {
     /// Invalid parameters ([`Force::validate`]).
     pub fn add_force(&mut self, force: Force) -> Result<()> {
         force.validate(self.n)?;
-        self.checked = None;
         self.forces.push(match force {
             Force::Vortex { center, axis, strength, core } => {
                 Force::Vortex { center, axis: axis.normalize(), strength, core }
@@ -360,7 +350,6 @@ impl ParticleSystem {
     pub fn add_collider(&mut self, collider: Collider) -> Result<()> {
         let c = Self::checked(collider)?;
         self.colliders.push(c);
-        self.checked = None;
         Ok(())
     }
 
@@ -377,7 +366,6 @@ impl ParticleSystem {
             ));
         }
         self.colliders[index] = Self::checked(collider)?;
-        self.checked = None;
         Ok(())
     }
 
@@ -558,14 +546,17 @@ impl ParticleSystem {
             )
         });
         let explicit = method == Method::SymplecticEuler && !pairwise;
-        let mut fresh = None; // slots emitted since the last step
+        // For the explicit kernel: whether the look-ahead of the step before found this one
+        // finite, and the slots emitted since (which it did not see).
+        let (mut checked, mut fresh) = (false, None);
         for s in 0..steps {
             // The explicit kernel writes only a step known to stay finite; the general path
             // keeps a copy of the state to restore.
             let result = if explicit {
-                self.explicit_step(dt, gravity, fresh.take())
+                let look_ahead = s + 1 < steps;
+                self.explicit_step(dt, gravity, checked, fresh.take(), look_ahead)
+                    .map(|next_finite| checked = next_finite)
             } else {
-                self.checked = None;
                 self.backup.resize(self.y.len(), 0.0);
                 self.backup
                     .par_chunks_mut(6 * CHUNK)
@@ -592,10 +583,6 @@ impl ParticleSystem {
             }
             self.time += dt;
             fresh = self.emit(dt);
-        }
-        if fresh.is_some() {
-            // The look-ahead did not see the particles emitted last.
-            self.checked = None;
         }
         Ok(())
     }
@@ -659,15 +646,19 @@ impl ParticleSystem {
     }
 
     /// One step of symplectic Euler with the collision response by the explicit kernel
-    /// (module `explicit`), for systems without forces between particles: checked first
-    /// unless the previous step's look-ahead already found it finite (then only the slots
-    /// emitted since, `fresh`, are checked), then written in place.
+    /// (module `explicit`), for systems without forces between particles: checked first by a
+    /// read-only pass unless the look-ahead of the step before found it finite (`checked`; then
+    /// only the slots emitted since, `fresh`, are checked), then written in place. With
+    /// `look_ahead` (another step of the same call follows), returns whether the next step
+    /// stays finite.
     fn explicit_step(
         &mut self,
         dt: f64,
         gravity: DVec3,
+        checked: bool,
         fresh: Option<Range<usize>>,
-    ) -> Result<()> {
+        look_ahead: bool,
+    ) -> Result<bool> {
         let n = self.n;
         let model = explicit::Model {
             forces: &self.forces,
@@ -679,7 +670,7 @@ impl ParticleSystem {
             gravity,
         };
         let (xs, vs) = self.y.split_at_mut(3 * n);
-        let unchecked = if self.checked != Some(dt.to_bits()) { Some(0..n) } else { fresh };
+        let unchecked = if checked { fresh } else { Some(0..n) };
         if let Some(slots) = unchecked {
             let state = (&xs[3 * slots.start..3 * slots.end], &vs[3 * slots.start..3 * slots.end]);
             let alive = &self.alive[slots.clone()];
@@ -696,11 +687,10 @@ impl ParticleSystem {
             age: &mut self.age,
             lifespan: &self.lifespan,
         };
-        let done = explicit::commit(&model, xs, vs, aging);
-        self.checked = done.next_finite.then_some(dt.to_bits());
+        let done = explicit::commit(&model, xs, vs, aging, look_ahead);
         self.stats.contacts += done.contacts;
         self.stats.expired += done.expired;
-        Ok(())
+        Ok(done.next_finite)
     }
 
     /// Age the particles and retire those past their lifespan ([`age_slots`]).
@@ -746,11 +736,7 @@ impl ParticleSystem {
             }
         }
         if self.stats.emitted > 0 || self.stats.expired > 0 {
-            // Integrator history is stale; the explicit kernel's look-ahead is not (retired
-            // slots no longer move, and the caller checks the emitted ones).
-            if let Some(s) = self.stepper.as_mut() {
-                s.reset();
-            }
+            self.state_changed();
         }
         emitted
     }
