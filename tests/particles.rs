@@ -353,3 +353,158 @@ fn oriented_box_distance_matches_brute_force() {
         assert!(on.abs() < 1e-12, "{on}");
     }
 }
+
+/// A scene for the explicit symplectic-Euler kernel: `n` particles on a grid above a tilted
+/// ground under gravity, quadratic drag with wind, a vortex, a sphere and an emitter whose
+/// particles expire, and a few pinned particles (at rest: the general path moves a pinned
+/// particle with its velocity, the kernel keeps it in place).
+fn kernel_scene(n: usize) -> ParticleSystem {
+    let live = n - n / 4; // room for the emitter
+    let x: Vec<DVec3> = (0..live)
+        .map(|i| {
+            DVec3::new((i % 97) as f64 * 0.1 - 4.8, 0.002 * (i % 13) as f64, (i / 97) as f64 * 0.1)
+        })
+        .collect();
+    let pinned = |i: usize| i % 1000 == 3;
+    let v: Vec<DVec3> = (0..live)
+        .map(|i| {
+            let v = DVec3::new(((i * 7) % 11) as f64 - 5.0, -((i % 5) as f64), 0.3);
+            if pinned(i) {
+                DVec3::ZERO
+            } else {
+                v
+            }
+        })
+        .collect();
+    let m: Vec<f64> =
+        (0..live).map(|i| if pinned(i) { f64::INFINITY } else { 1.0 + (i % 3) as f64 }).collect();
+    let mut s = ParticleSystem::new(&x, &v, &m, n).unwrap();
+    s.add_force(Force::Gravity { g: G }).unwrap();
+    s.add_force(Force::Drag { linear: 0.01, quadratic: 0.05, wind: DVec3::new(1.0, 0.0, 0.5) })
+        .unwrap();
+    s.add_force(Force::Vortex { center: DVec3::ZERO, axis: DVec3::Y, strength: 2.0, core: 0.1 })
+        .unwrap();
+    s.add_collider(Collider::Plane {
+        point: DVec3::ZERO,
+        normal: DVec3::new(0.1, 1.0, 0.0),
+        restitution: 0.5,
+        friction: 0.3,
+    })
+    .unwrap();
+    s.add_collider(Collider::Sphere {
+        center: DVec3::new(1.0, 0.0, 1.0),
+        radius: 0.5,
+        inside: false,
+        restitution: 0.2,
+        friction: 0.6,
+        velocity: DVec3::ZERO,
+    })
+    .unwrap();
+    s.add_emitter(Emitter {
+        rate: 20_000.0,
+        position: DVec3::new(0.0, 1.0, 0.0),
+        position_spread: 0.2,
+        velocity: DVec3::new(0.0, 3.0, 0.0),
+        velocity_spread: 1.0,
+        lifespan: 0.05,
+        mass: 0.5,
+        seed: 7,
+    })
+    .unwrap();
+    s
+}
+
+#[test]
+fn explicit_kernel_matches_the_general_path_bitwise() {
+    // Symplectic Euler without forces between particles runs the blocked SIMD kernel; a spring
+    // set without pairs sends the same system down the general path (Stepper + collide_one).
+    let mut fast = kernel_scene(20_000);
+    let mut general = kernel_scene(20_000);
+    general
+        .add_force(Force::Springs { pairs: vec![], rest: vec![], stiffness: 1.0, damping: 0.0 })
+        .unwrap();
+    for _ in 0..4 {
+        fast.step(1e-3, 25, Method::SymplecticEuler).unwrap();
+        general.step(1e-3, 25, Method::SymplecticEuler).unwrap();
+        assert_eq!(fast.stats, general.stats);
+        assert!(fast
+            .positions()
+            .iter()
+            .zip(general.positions())
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(fast
+            .velocities()
+            .iter()
+            .zip(general.velocities())
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert_eq!(fast.alive(), general.alive());
+        assert_eq!(fast.ages(), general.ages());
+    }
+    assert!(fast.stats.contacts > 0 && fast.stats.expired > 0 && fast.stats.emitted > 0);
+}
+
+#[test]
+fn explicit_kernel_does_not_depend_on_the_thread_count() {
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let mut s = kernel_scene(50_000);
+            s.step(1e-3, 60, Method::SymplecticEuler).unwrap();
+            (s.positions().to_vec(), s.velocities().to_vec(), s.stats)
+        })
+    };
+    let one = run(1);
+    for threads in [2, 3] {
+        let other = run(threads);
+        assert!(one.0.iter().zip(&other.0).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(one.1.iter().zip(&other.1).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert_eq!(one.2, other.2);
+    }
+}
+
+#[test]
+fn explicit_kernel_failure_keeps_the_last_good_step() {
+    // Particle 30_000 (in a later parallel task) moves by 2e307 m per step from 1e308 m: its
+    // position overflows at the fourth step (step index 3).
+    let system = || {
+        let mut x = vec![DVec3::new(0.0, 1.0, 0.0); 40_000];
+        let mut v = vec![DVec3::new(0.5, 0.0, 0.0); 40_000];
+        x[30_000] = DVec3::new(1e308, 1.0, 0.0);
+        v[30_000] = DVec3::new(2e307, 0.0, 0.0);
+        let mut s = ParticleSystem::new(&x, &v, &vec![1.0; 40_000], 40_000).unwrap();
+        s.add_force(Force::Gravity { g: G }).unwrap();
+        s.add_collider(Collider::Plane {
+            point: DVec3::ZERO,
+            normal: DVec3::Y,
+            restitution: 0.5,
+            friction: 0.3,
+        })
+        .unwrap();
+        s
+    };
+    let mut reference = system();
+    reference.step(1.0, 3, Method::SymplecticEuler).unwrap();
+
+    // In one call: steps 0 to 2 are written, the look-ahead of step 2 finds step 3 not
+    // finite and the read-only pass names the particle.
+    let mut s = system();
+    let err = s.step(1.0, 10, Method::SymplecticEuler).unwrap_err();
+    assert!(matches!(err, kinema::Error::Diverged { step: 3, index: 30_000, .. }), "{err}");
+    assert_eq!(s.positions(), reference.positions());
+    assert_eq!(s.velocities(), reference.velocities());
+    assert_eq!(s.ages(), reference.ages());
+    assert_eq!(s.time(), reference.time());
+
+    // Across calls (the first step of a call is checked by the read-only pass, the second one
+    // by the look-ahead of the first).
+    let mut s = system();
+    s.step(1.0, 2, Method::SymplecticEuler).unwrap();
+    let err = s.step(1.0, 10, Method::SymplecticEuler).unwrap_err();
+    assert!(matches!(err, kinema::Error::Diverged { step: 1, index: 30_000, .. }), "{err}");
+    assert_eq!(s.positions(), reference.positions());
+    assert_eq!(s.velocities(), reference.velocities());
+    // The state is unchanged by further failed calls, and a smaller step still works.
+    assert!(s.step(1.0, 1, Method::SymplecticEuler).is_err());
+    assert_eq!(s.positions(), reference.positions());
+    s.step(1e-3, 1, Method::SymplecticEuler).unwrap();
+}

@@ -17,6 +17,7 @@
 //! twice the speed gravity adds in one step are treated as resting (no bounce), which keeps
 //! resting particles exactly on the surface without jitter.
 
+mod explicit;
 mod forces;
 
 pub use forces::{curl_noise, noise_with_gradient, Force};
@@ -26,6 +27,7 @@ use crate::ode::{Method, OdeSystem, Stepper};
 use crate::sdf;
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Particles per parallel chunk.
 const CHUNK: usize = 4096;
@@ -220,7 +222,7 @@ impl ParticleSystem {
         mass[..live].copy_from_slice(masses);
         Ok(ParticleSystem {
             n,
-            backup: y.clone(),
+            backup: Vec::new(),
             y,
             inv_mass: mass.iter().map(|m| if m.is_finite() { 1.0 / m } else { 0.0 }).collect(),
             mass,
@@ -543,12 +545,19 @@ impl ParticleSystem {
                     | Force::NBodyGravity { .. }
             )
         });
-        let fused = method == Method::SymplecticEuler && !pairwise;
+        let explicit = method == Method::SymplecticEuler && !pairwise;
+        // For the explicit kernel: whether the look-ahead of the step before found this one
+        // finite, and the slots emitted since (which it did not see).
+        let (mut checked, mut fresh) = (false, None);
         for s in 0..steps {
-            // The fused pass saves the state it reads on its way; the general path first.
-            let result = if fused {
-                self.fused_symplectic_step(dt, gravity)
+            // The explicit kernel writes only a step known to stay finite; the general path
+            // keeps a copy of the state to restore.
+            let result = if explicit {
+                let look_ahead = s + 1 < steps;
+                self.explicit_step(dt, gravity, checked, fresh.take(), look_ahead)
+                    .map(|next_finite| checked = next_finite)
             } else {
+                self.backup.resize(self.y.len(), 0.0);
                 self.backup
                     .par_chunks_mut(6 * CHUNK)
                     .zip(self.y.par_chunks(6 * CHUNK))
@@ -556,7 +565,9 @@ impl ParticleSystem {
                 self.one_step(dt, gravity)
             };
             if let Err(e) = result {
-                self.y.copy_from_slice(&self.backup);
+                if !explicit {
+                    self.y.copy_from_slice(&self.backup);
+                }
                 if let Some(st) = self.stepper.as_mut() {
                     st.reset();
                 }
@@ -567,8 +578,11 @@ impl ParticleSystem {
                     other => other,
                 });
             }
+            if !explicit {
+                self.age(dt); // the explicit kernel ages the particles as it writes them
+            }
             self.time += dt;
-            self.age_and_emit(dt);
+            fresh = self.emit(dt);
         }
         Ok(())
     }
@@ -631,101 +645,71 @@ impl ParticleSystem {
             .sum::<usize>();
     }
 
-    /// Symplectic Euler fused with the collision response in one parallel pass over the
-    /// particles, for systems without forces between particles (the common emitter case).
-    /// The pass copies each particle's state into `backup` as it reads it (one pass over the
-    /// memory instead of a copy and then a step), for the caller to restore if the pass
-    /// produces a non-finite value. The arithmetic is that of the general path, so results are
-    /// bitwise identical.
-    fn fused_symplectic_step(&mut self, dt: f64, gravity: DVec3) -> Result<()> {
+    /// One step of symplectic Euler with the collision response by the explicit kernel
+    /// (module `explicit`), for systems without forces between particles: checked first by a
+    /// read-only pass unless the look-ahead of the step before found it finite (`checked`; then
+    /// only the slots emitted since, `fresh`, are checked), then written in place. With
+    /// `look_ahead` (another step of the same call follows), returns whether the next step
+    /// stays finite.
+    fn explicit_step(
+        &mut self,
+        dt: f64,
+        gravity: DVec3,
+        checked: bool,
+        fresh: Option<Range<usize>>,
+        look_ahead: bool,
+    ) -> Result<bool> {
         let n = self.n;
-        let (forces, colliders, alive, mass, inv_mass, external) = (
-            &self.forces,
-            &self.colliders,
-            &self.alive,
-            &self.mass,
-            &self.inv_mass,
-            &self.external,
-        );
+        let model = explicit::Model {
+            forces: &self.forces,
+            colliders: &self.colliders,
+            mass: &self.mass,
+            inv_mass: &self.inv_mass,
+            external: &self.external,
+            dt,
+            gravity,
+        };
         let (xs, vs) = self.y.split_at_mut(3 * n);
-        let (xb, vb) = self.backup.split_at_mut(3 * n);
-        let (contacts, bad) = xs
-            .par_chunks_mut(3 * CHUNK)
-            .zip(vs.par_chunks_mut(3 * CHUNK))
-            .zip(xb.par_chunks_mut(3 * CHUNK).zip(vb.par_chunks_mut(3 * CHUNK)))
-            .enumerate()
-            .map(|(c, ((xc, vc), (xbc, vbc)))| {
-                xbc.copy_from_slice(xc);
-                vbc.copy_from_slice(vc);
-                let (mut contacts, mut bad) = (0, None);
-                for k in 0..xc.len() / 3 {
-                    let i = c * CHUNK + k;
-                    if !alive[i] || inv_mass[i] == 0.0 {
-                        continue;
-                    }
-                    let (x, v) = (DVec3::from_slice(&xc[3 * k..]), DVec3::from_slice(&vc[3 * k..]));
-                    let a = (particle_force(forces, x, v, mass[i]) + external_force(external, i))
-                        * inv_mass[i];
-                    let v1 = v + dt * a;
-                    let x1 = x + dt * v1;
-                    let (x1, v1, hits) = if colliders.is_empty() {
-                        (x1, v1, 0)
-                    } else {
-                        collide_one(colliders, x1, v1, x, dt, gravity)
-                    };
-                    if bad.is_none() && !(x1.is_finite() && v1.is_finite()) {
-                        bad = Some(i);
-                    }
-                    xc[3 * k..3 * k + 3].copy_from_slice(&x1.to_array());
-                    vc[3 * k..3 * k + 3].copy_from_slice(&v1.to_array());
-                    contacts += hits;
-                }
-                (contacts, bad)
-            })
-            .reduce(
-                || (0, None),
-                |a, b| {
-                    let first_bad = match (a.1, b.1) {
-                        (Some(x), Some(y)) => Some(x.min(y)),
-                        (x, y) => x.or(y),
-                    };
-                    (a.0 + b.0, first_bad)
-                },
-            );
-        if let Some(index) = bad {
-            return Err(Error::Diverged {
-                step: 0,
-                index,
-                reason: "non-finite particle state".into(),
-            });
+        let unchecked = if checked { fresh } else { Some(0..n) };
+        if let Some(slots) = unchecked {
+            let state = (&xs[3 * slots.start..3 * slots.end], &vs[3 * slots.start..3 * slots.end]);
+            let alive = &self.alive[slots.clone()];
+            if let Some(index) = explicit::check(&model, slots.start, state.0, state.1, alive) {
+                return Err(Error::Diverged {
+                    step: 0,
+                    index,
+                    reason: "non-finite particle state".into(),
+                });
+            }
         }
-        self.stats.contacts += contacts;
-        Ok(())
+        let aging = explicit::Aging {
+            alive: &mut self.alive,
+            age: &mut self.age,
+            lifespan: &self.lifespan,
+        };
+        let done = explicit::commit(&model, xs, vs, aging, look_ahead);
+        self.stats.contacts += done.contacts;
+        self.stats.expired += done.expired;
+        Ok(done.next_finite)
     }
 
-    fn age_and_emit(&mut self, dt: f64) {
+    /// Age the particles and retire those past their lifespan ([`age_slots`]).
+    fn age(&mut self, dt: f64) {
         let n = self.n;
-        let (alive, age, lifespan) = (&mut self.alive, &mut self.age, &self.lifespan);
         self.stats.expired += self.y[3 * n..]
             .par_chunks_mut(3 * CHUNK)
-            .zip(alive.par_chunks_mut(CHUNK))
-            .zip(age.par_chunks_mut(CHUNK).zip(lifespan.par_chunks(CHUNK)))
-            .map(|((vc, alive), (age, lifespan))| {
-                let mut expired = 0;
-                for k in 0..alive.len() {
-                    if alive[k] {
-                        age[k] += dt;
-                        if age[k] >= lifespan[k] {
-                            alive[k] = false;
-                            expired += 1;
-                            vc[3 * k..3 * k + 3].fill(0.0);
-                        }
-                    }
-                }
-                expired
-            })
+            .zip(self.alive.par_chunks_mut(CHUNK))
+            .zip(self.age.par_chunks_mut(CHUNK).zip(self.lifespan.par_chunks(CHUNK)))
+            .map(|((vs, alive), (age, lifespan))| age_slots(dt, alive, age, lifespan, vs))
             .sum::<usize>();
+    }
+
+    /// Emit new particles into dead slots; returns the range of the slots emitted into, if
+    /// any.
+    fn emit(&mut self, dt: f64) -> Option<Range<usize>> {
+        let n = self.n;
         let mut cursor = 0;
+        let mut emitted: Option<Range<usize>> = None;
         for (emitter, accum, rng) in &mut self.emitters {
             *accum += emitter.rate * dt;
             while *accum >= 1.0 {
@@ -748,11 +732,13 @@ impl ParticleSystem {
                 self.mass[i] = emitter.mass;
                 self.inv_mass[i] = 1.0 / emitter.mass;
                 self.stats.emitted += 1;
+                emitted = Some(emitted.map_or(i..i + 1, |r| r.start.min(i)..i + 1));
             }
         }
         if self.stats.emitted > 0 || self.stats.expired > 0 {
             self.state_changed();
         }
+        emitted
     }
 }
 
@@ -761,31 +747,60 @@ impl ParticleSystem {
 fn particle_force(forces: &[Force], x: DVec3, v: DVec3, m: f64) -> DVec3 {
     let mut acc = DVec3::ZERO;
     for force in forces {
-        acc += match force {
-            Force::Gravity { g } => m * *g,
-            Force::Drag { linear, quadratic, wind } => {
-                let u = v - *wind;
-                -(*linear + quadratic * u.length()) * u
-            }
-            Force::Damping { rate } => -rate * m * v,
+        acc += match *force {
+            Force::Gravity { g } => gravity(g, m),
+            Force::Drag { linear, quadratic, wind } => drag(linear, quadratic, wind, v),
+            Force::Damping { rate } => damping(rate, m, v),
             Force::Attractor { center, strength, softening } => {
-                let r = *center - x;
-                strength * m / (r.length_squared() + softening * softening).powf(1.5) * r
+                attractor(center, strength, softening, x, m)
             }
             Force::Vortex { center, axis, strength, core } => {
-                let r = x - *center;
-                let perp = r - r.dot(*axis) * *axis;
-                strength * m / (perp.length() + core) * axis.cross(perp)
+                vortex(center, axis, strength, core, x, m)
             }
-            Force::Turbulence { strength, scale, seed } => {
-                strength * m * forces::curl_noise(*seed, x / *scale)
-            }
+            Force::Turbulence { strength, scale, seed } => turbulence(strength, scale, seed, x, m),
             Force::Springs { .. }
             | Force::NeighborRepulsion { .. }
             | Force::NBodyGravity { .. } => DVec3::ZERO,
         };
     }
     acc
+}
+
+// The forces on one particle (N) of mass `m` at `x` with velocity `v`, as [`Force`] defines
+// them; shared by `particle_force` and the explicit kernel so that both compute alike.
+
+#[inline(always)]
+fn gravity(g: DVec3, m: f64) -> DVec3 {
+    m * g
+}
+
+#[inline(always)]
+fn drag(linear: f64, quadratic: f64, wind: DVec3, v: DVec3) -> DVec3 {
+    let u = v - wind;
+    -(linear + quadratic * u.length()) * u
+}
+
+#[inline(always)]
+fn damping(rate: f64, m: f64, v: DVec3) -> DVec3 {
+    -rate * m * v
+}
+
+#[inline(always)]
+fn attractor(center: DVec3, strength: f64, softening: f64, x: DVec3, m: f64) -> DVec3 {
+    let r = center - x;
+    strength * m / (r.length_squared() + softening * softening).powf(1.5) * r
+}
+
+#[inline(always)]
+fn vortex(center: DVec3, axis: DVec3, strength: f64, core: f64, x: DVec3, m: f64) -> DVec3 {
+    let r = x - center;
+    let perp = r - r.dot(axis) * axis;
+    strength * m / (perp.length() + core) * axis.cross(perp)
+}
+
+#[inline(always)]
+fn turbulence(strength: f64, scale: f64, seed: u64, x: DVec3, m: f64) -> DVec3 {
+    strength * m * forces::curl_noise(seed, x / scale)
 }
 
 /// Resolve the contacts of one particle at `x` with velocity `v` that was at `prev` before the
@@ -800,56 +815,114 @@ fn collide_one(
 ) -> (DVec3, DVec3, usize) {
     let mut contacts = 0;
     for collider in colliders {
-        // Distance to the surface (negative inside the solid), the outward normal, the
-        // material, and the collider's velocity.
-        let (d, normal, e, mu, vc) = match *collider {
-            Collider::Plane { point, normal, restitution, friction } => {
-                ((x - point).dot(normal), normal, restitution, friction, DVec3::ZERO)
-            }
-            Collider::Sphere { center, radius, inside, restitution, friction, velocity } => {
-                let (d, n) = sdf::sphere(center, radius, x);
-                if inside {
-                    (-d, -n, restitution, friction, velocity)
-                } else {
-                    (d, n, restitution, friction, velocity)
-                }
-            }
-            Collider::Capsule { a, b, radius, restitution, friction, velocity } => {
-                let (d, n) = sdf::capsule(a, b, radius, x);
-                (d, n, restitution, friction, velocity)
-            }
-            Collider::Box { center, rotation, half, restitution, friction, velocity } => {
-                let (d, n) = sdf::oriented_box(center, rotation, half, x);
-                (d, n, restitution, friction, velocity)
-            }
-        };
-        if d >= 0.0 {
+        let contact = surface(collider, x);
+        if contact.distance >= 0.0 {
             continue;
         }
         contacts += 1;
-        // Project onto the surface, and apply Coulomb friction to the tangential displacement
-        // of this step relative to the collider too (at most μ times the penetration), so that
-        // a particle held by static friction does not creep.
-        x -= d * normal;
-        let moved = x - prev - vc * dt;
-        let moved_t = moved - moved.dot(normal) * normal;
-        let slip = moved_t.length();
-        if slip > 0.0 {
-            x -= moved_t * (mu * -d / slip).min(1.0);
-        }
-        let u = v - vc; // velocity relative to the collider
-        let vn = u.dot(normal);
-        if vn >= 0.0 {
-            continue;
-        }
-        let resting = -vn <= 2.0 * gravity.dot(normal).abs() * dt;
-        let jn = -vn * (1.0 + if resting { 0.0 } else { e });
-        let vt = u - vn * normal;
-        let speed_t = vt.length();
-        let vt = if speed_t <= mu * jn { DVec3::ZERO } else { vt * (1.0 - mu * jn / speed_t) };
-        v = vc + (vn + jn) * normal + vt;
+        (x, v) = respond(&contact, x, v, prev, dt, gravity);
     }
     (x, v, contacts)
+}
+
+/// Where a point stands against a collider: the distance to the surface (negative inside the
+/// solid), the outward normal, the material and the collider's velocity.
+struct Contact {
+    distance: f64,
+    normal: DVec3,
+    restitution: f64,
+    friction: f64,
+    velocity: DVec3,
+}
+
+/// The contact of the point `x` with `collider`.
+fn surface(collider: &Collider, x: DVec3) -> Contact {
+    let (distance, normal, restitution, friction, velocity) = match *collider {
+        Collider::Plane { point, normal, restitution, friction } => {
+            ((x - point).dot(normal), normal, restitution, friction, DVec3::ZERO)
+        }
+        Collider::Sphere { center, radius, inside, restitution, friction, velocity } => {
+            let (d, n) = sdf::sphere(center, radius, x);
+            if inside {
+                (-d, -n, restitution, friction, velocity)
+            } else {
+                (d, n, restitution, friction, velocity)
+            }
+        }
+        Collider::Capsule { a, b, radius, restitution, friction, velocity } => {
+            let (d, n) = sdf::capsule(a, b, radius, x);
+            (d, n, restitution, friction, velocity)
+        }
+        Collider::Box { center, rotation, half, restitution, friction, velocity } => {
+            let (d, n) = sdf::oriented_box(center, rotation, half, x);
+            (d, n, restitution, friction, velocity)
+        }
+    };
+    Contact { distance, normal, restitution, friction, velocity }
+}
+
+/// The response to a penetrating `contact` (distance < 0) of a particle at `x` with velocity
+/// `v` that was at `prev` before the step: the new position and velocity.
+fn respond(
+    contact: &Contact,
+    mut x: DVec3,
+    v: DVec3,
+    prev: DVec3,
+    dt: f64,
+    gravity: DVec3,
+) -> (DVec3, DVec3) {
+    let Contact { distance: d, normal, restitution: e, friction: mu, velocity: vc } = *contact;
+    // Project onto the surface, and apply Coulomb friction to the tangential displacement of
+    // this step relative to the collider too (at most μ times the penetration), so that a
+    // particle held by static friction does not creep.
+    x -= d * normal;
+    let moved = x - prev - vc * dt;
+    let moved_t = moved - moved.dot(normal) * normal;
+    let slip = moved_t.length();
+    if slip > 0.0 {
+        x -= moved_t * (mu * -d / slip).min(1.0);
+    }
+    let u = v - vc; // velocity relative to the collider
+    let vn = u.dot(normal);
+    if vn >= 0.0 {
+        return (x, v);
+    }
+    let resting = -vn <= 2.0 * gravity.dot(normal).abs() * dt;
+    let jn = -vn * (1.0 + if resting { 0.0 } else { e });
+    let vt = u - vn * normal;
+    let speed_t = vt.length();
+    let vt = if speed_t <= mu * jn { DVec3::ZERO } else { vt * (1.0 - mu * jn / speed_t) };
+    (x, vc + (vn + jn) * normal + vt)
+}
+
+/// Age the live slots of `alive` by `dt` and retire those that reach their `lifespan`
+/// (velocities `vs`, three per slot, set to zero); returns how many retired.
+#[inline(always)]
+fn age_slots(
+    dt: f64,
+    alive: &mut [bool],
+    age: &mut [f64],
+    lifespan: &[f64],
+    vs: &mut [f64],
+) -> usize {
+    let mut expiring = false;
+    for k in 0..alive.len() {
+        let older = age[k] + dt;
+        age[k] = if alive[k] { older } else { age[k] };
+        expiring |= alive[k] & (age[k] >= lifespan[k]);
+    }
+    if !expiring {
+        return 0;
+    }
+    let mut expired = 0;
+    for k in 0..alive.len() {
+        if alive[k] && age[k] >= lifespan[k] {
+            alive[k] = false;
+            expired += 1;
+            vs[3 * k..3 * k + 3].fill(0.0);
+        }
+    }
+    expired
 }
 
 /// The externally set force on slot `i` (zero when none is set).

@@ -1,0 +1,450 @@
+//! The explicit step kernel: symplectic Euler with the collision response in one pass over
+//! the state, for systems without forces between particles (the common emitter case).
+//!
+//! The particles are taken in blocks of [`BLOCK`]. A block is copied into a structure of arrays
+//! on the stack (positions, velocities, forces, masses: small enough for the L1 cache); each
+//! force is then one loop over the block (forces outer, particles inner: no dispatch per
+//! particle, and the simple forces vectorise), the block is integrated, the colliders are met
+//! in turn (a plane first finds its penetrating particles with one vectorised loop) and the
+//! block is written back and aged ([`super::age_slots`]). Per particle the arithmetic is that
+//! of [`super::particle_force`], of the symplectic Euler of [`crate::ode`] and of
+//! [`super::collide_one`], in the same order, so the results are bitwise those of the general
+//! path whatever the blocks and the threads (a test holds both to it). Each parallel task runs
+//! through [`pulp::Arch::dispatch`], which compiles it for AVX2 too and picks that build at run
+//! time where the CPU has it (safe code; no fused multiply-add is introduced, so the results do
+//! not depend on the instruction set either).
+//!
+//! A step either completes or leaves the state as it was, and no copy of the state is kept:
+//! a step is written only when it is known to stay finite. The first step of a call of
+//! [`super::ParticleSystem::step`] is checked by a read-only pass ([`check`]). The pass that
+//! writes step `s` ([`commit`]) also computes step `s + 1` of each block from the values it
+//! has just written, still in the cache, and only checks it; when another step of the call
+//! follows and that look-ahead found every value finite, step `s + 1` is written directly
+//! (only the particles emitted in between are checked first), otherwise the read-only pass
+//! decides. A call of `k` steps thus streams the state `k` times (read and written in place)
+//! plus one read, and computes each step twice. (Nothing outside can change the system between
+//! the steps of one call, so no look-ahead outlives the call.)
+
+use super::{respond, surface, Collider, Force};
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// Particles per block: the block's arrays take 4 KB. (Blocks of 256, 34 KB, execute as many
+/// instructions but took 45 % more time, likely from 4 KB aliasing between arrays 2 KB apart.)
+pub(super) const BLOCK: usize = 32;
+
+/// Particles per parallel task.
+const TASK: usize = 128 * BLOCK;
+
+/// What a step reads besides the state.
+pub(super) struct Model<'a> {
+    pub(super) forces: &'a [Force],
+    pub(super) colliders: &'a [Collider],
+    pub(super) mass: &'a [f64],
+    pub(super) inv_mass: &'a [f64],
+    /// Forces set from outside (`3 capacity` values), or empty.
+    pub(super) external: &'a [f64],
+    /// Time step (s).
+    pub(super) dt: f64,
+    /// The sum of the uniform gravity fields (m/s²), for resting contacts.
+    pub(super) gravity: DVec3,
+}
+
+/// Three coordinates of every particle of a block, one array per axis.
+type Vectors = [[f64; BLOCK]; 3];
+
+/// One block of particles as a structure of arrays.
+struct Block {
+    /// Index of the block's first particle.
+    start: usize,
+    /// Particles in the block (the slots past it are not live).
+    len: usize,
+    /// Positions (m): a step goes from one of the two to the other.
+    x: [Vectors; 2],
+    /// Velocities (m/s), updated in place.
+    v: Vectors,
+    /// Force accumulator (N).
+    f: Vectors,
+    /// Masses (kg).
+    m: [f64; BLOCK],
+    /// Inverse masses (1/kg).
+    inv_m: [f64; BLOCK],
+    /// Whether the slot moves: alive and not pinned.
+    live: [bool; BLOCK],
+    /// Signed distance to the plane being met (m).
+    d: [f64; BLOCK],
+}
+
+impl Block {
+    fn new() -> Self {
+        let z = [0.0; BLOCK];
+        Block {
+            start: 0,
+            len: 0,
+            x: [[z; 3]; 2],
+            v: [z; 3],
+            f: [z; 3],
+            m: z,
+            inv_m: z,
+            live: [false; BLOCK],
+            d: z,
+        }
+    }
+
+    /// Copy in the particles from `start` on, whose positions and velocities are `xs` and `vs`
+    /// (`3 len` values each, `len <= BLOCK`, positions into `x[0]`) and whose alive flags are
+    /// `alive`.
+    #[inline(always)]
+    fn load(&mut self, model: &Model, start: usize, xs: &[f64], vs: &[f64], alive: &[bool]) {
+        let len = xs.len() / 3;
+        (self.start, self.len) = (start, len);
+        let [x, ..] = &mut self.x;
+        for (k, (p, u)) in xs.chunks_exact(3).zip(vs.chunks_exact(3)).enumerate() {
+            for c in 0..3 {
+                x[c][k] = p[c];
+                self.v[c][k] = u[c];
+            }
+        }
+        let slots = start..start + len;
+        self.m[..len].copy_from_slice(&model.mass[slots.clone()]);
+        self.inv_m[..len].copy_from_slice(&model.inv_mass[slots.clone()]);
+        for ((live, &alive), &inv_m) in self.live.iter_mut().zip(alive).zip(&model.inv_mass[slots])
+        {
+            *live = alive & (inv_m != 0.0);
+        }
+        self.live[len..].fill(false);
+    }
+
+    /// Copy the positions `x[1]` out to `xs` and the velocities to `vs`.
+    #[inline(always)]
+    fn store(&self, xs: &mut [f64], vs: &mut [f64]) {
+        let [_, x] = &self.x;
+        for (k, (p, u)) in xs.chunks_exact_mut(3).zip(vs.chunks_exact_mut(3)).enumerate() {
+            for c in 0..3 {
+                p[c] = x[c][k];
+                u[c] = self.v[c][k];
+            }
+        }
+    }
+
+    /// Add `force(x, v, m)` of every slot, at positions `x[from]`, to the force accumulator,
+    /// or set the accumulator to it (`0 + force`, as a sum from zero) when `FIRST`.
+    #[inline(always)]
+    fn add<const FIRST: bool>(&mut self, from: usize, force: impl Fn(DVec3, DVec3, f64) -> DVec3) {
+        let Block { x, v, f, m, .. } = self;
+        let x = &x[from];
+        for k in 0..BLOCK {
+            let a = force(
+                DVec3::new(x[0][k], x[1][k], x[2][k]),
+                DVec3::new(v[0][k], v[1][k], v[2][k]),
+                m[k],
+            );
+            for (c, a) in [a.x, a.y, a.z].into_iter().enumerate() {
+                f[c][k] = if FIRST { 0.0 } else { f[c][k] } + a;
+            }
+        }
+    }
+
+    /// Add `force` (see [`Block::add`]), as the first one when `first`.
+    #[inline(always)]
+    fn add_force(&mut self, from: usize, first: bool, force: impl Fn(DVec3, DVec3, f64) -> DVec3) {
+        if first {
+            self.add::<true>(from, force);
+        } else {
+            self.add::<false>(from, force);
+        }
+    }
+
+    /// One step from positions `x[from]` and the velocities to positions `x[1 - from]` and
+    /// new velocities; returns the number of contacts.
+    #[inline(always)]
+    fn advance(&mut self, model: &Model, from: usize) -> usize {
+        for (i, force) in model.forces.iter().enumerate() {
+            let first = i == 0;
+            match *force {
+                Force::Gravity { g } => self.add_force(from, first, |_, _, m| super::gravity(g, m)),
+                Force::Drag { linear, quadratic, wind } => {
+                    self.add_force(from, first, |_, v, _| super::drag(linear, quadratic, wind, v))
+                }
+                Force::Damping { rate } => {
+                    self.add_force(from, first, |_, v, m| super::damping(rate, m, v))
+                }
+                Force::Attractor { center, strength, softening } => {
+                    self.add_force(from, first, |x, _, m| {
+                        super::attractor(center, strength, softening, x, m)
+                    })
+                }
+                Force::Vortex { center, axis, strength, core } => {
+                    self.add_force(from, first, |x, _, m| {
+                        super::vortex(center, axis, strength, core, x, m)
+                    })
+                }
+                Force::Turbulence { strength, scale, seed } => {
+                    self.add_force(from, first, |x, _, m| {
+                        super::turbulence(strength, scale, seed, x, m)
+                    })
+                }
+                Force::Springs { .. }
+                | Force::NeighborRepulsion { .. }
+                | Force::NBodyGravity { .. } => self.add_force(from, first, |_, _, _| DVec3::ZERO),
+            }
+        }
+        if model.forces.is_empty() {
+            self.f = [[0.0; BLOCK]; 3];
+        }
+        if !model.external.is_empty() {
+            let ext = &model.external[3 * self.start..3 * (self.start + self.len)];
+            for (k, e) in ext.chunks_exact(3).enumerate() {
+                for (f, e) in self.f.iter_mut().zip(e) {
+                    f[k] += e;
+                }
+            }
+        }
+        if self.live.iter().all(|&live| live) {
+            self.integrate::<true>(model, from);
+        } else {
+            self.integrate::<false>(model, from);
+        }
+        let mut contacts = 0;
+        for collider in model.colliders {
+            contacts += self.collide(collider, model, 1 - from);
+        }
+        contacts
+    }
+
+    /// Symplectic Euler as `crate::ode` computes it, from positions `x[from]` to `x[1 - from]`;
+    /// the slots that do not move (unless `ALL_LIVE`: all move) keep their position and velocity.
+    #[inline(always)]
+    fn integrate<const ALL_LIVE: bool>(&mut self, model: &Model, from: usize) {
+        // Without external forces the general path adds a zero one (turning -0 into +0).
+        let zero = if model.external.is_empty() { 0.0 } else { -0.0 };
+        let dt = model.dt;
+        let Block { x, v, f, inv_m, live, .. } = self;
+        let [a, b] = x;
+        let (x0, x1) = if from == 0 { (a, b) } else { (b, a) };
+        for k in 0..BLOCK {
+            let moves = ALL_LIVE || live[k];
+            for c in 0..3 {
+                let v1 = v[c][k] + dt * ((f[c][k] + zero) * inv_m[k]);
+                let p1 = x0[c][k] + dt * v1;
+                x1[c][k] = if moves { p1 } else { x0[c][k] };
+                v[c][k] = if moves { v1 } else { v[c][k] };
+            }
+        }
+    }
+
+    /// Meet `collider` at positions `x[to]` (that were `x[1 - to]` before the step); returns
+    /// the number of contacts.
+    #[inline(always)]
+    fn collide(&mut self, collider: &Collider, model: &Model, to: usize) -> usize {
+        let plane = if let Collider::Plane { point, normal, .. } = *collider {
+            // The same distance as `surface`, for the whole block in one loop (slots that do
+            // not move are skipped below).
+            let Block { x, d, .. } = self;
+            let x = &x[to];
+            let mut inside = 0;
+            for k in 0..BLOCK {
+                d[k] = (DVec3::new(x[0][k], x[1][k], x[2][k]) - point).dot(normal);
+                inside += usize::from(d[k] < 0.0 || d[k].is_nan());
+            }
+            if inside == 0 {
+                return 0;
+            }
+            true
+        } else {
+            false
+        };
+        let Block { x, v, live, d, .. } = self;
+        let [a, b] = x;
+        let (prev, x) = if to == 1 { (a, b) } else { (b, a) };
+        let mut contacts = 0;
+        for k in 0..BLOCK {
+            if !live[k] || (plane && d[k] >= 0.0) {
+                continue;
+            }
+            let p = DVec3::new(x[0][k], x[1][k], x[2][k]);
+            let contact = surface(collider, p);
+            if contact.distance >= 0.0 {
+                continue;
+            }
+            contacts += 1;
+            let (p1, v1) = respond(
+                &contact,
+                p,
+                DVec3::new(v[0][k], v[1][k], v[2][k]),
+                DVec3::new(prev[0][k], prev[1][k], prev[2][k]),
+                model.dt,
+                model.gravity,
+            );
+            for (c, (p1, v1)) in [(p1.x, v1.x), (p1.y, v1.y), (p1.z, v1.z)].into_iter().enumerate()
+            {
+                x[c][k] = p1;
+                v[c][k] = v1;
+            }
+        }
+        contacts
+    }
+
+    /// The first live particle whose position `x[at]` or velocity is not finite.
+    #[inline(always)]
+    fn first_bad(&self, at: usize) -> Option<usize> {
+        let Block { x, v, live, .. } = self;
+        let x = &x[at];
+        // Finite values have a finite sum of products with zero; others give NaN. (Slots that
+        // do not move are skipped below.)
+        let mut bad = 0;
+        for k in 0..BLOCK {
+            let s = 0.0 * x[0][k] + 0.0 * x[1][k] + 0.0 * x[2][k];
+            let s = s + 0.0 * v[0][k] + 0.0 * v[1][k] + 0.0 * v[2][k];
+            bad += usize::from(s != 0.0);
+        }
+        if bad == 0 {
+            return None;
+        }
+        let finite = |k: usize| (0..3).all(|c| x[c][k].is_finite() && v[c][k].is_finite());
+        (0..BLOCK).find(|&k| live[k] && !finite(k)).map(|k| self.start + k)
+    }
+}
+
+/// The first of the particles from `start` on (positions `xs`, velocities `vs`, `3 count`
+/// values each, alive flags `alive`) whose step of `model.dt` would not stay finite, without
+/// writing anything.
+pub(super) fn check(
+    model: &Model,
+    start: usize,
+    xs: &[f64],
+    vs: &[f64],
+    alive: &[bool],
+) -> Option<usize> {
+    let arch = pulp::Arch::new();
+    xs.par_chunks(3 * TASK)
+        .zip(vs.par_chunks(3 * TASK))
+        .zip(alive.par_chunks(TASK))
+        .enumerate()
+        .map(|(t, ((xs, vs), alive))| {
+            arch.dispatch(Check { model, start: start + t * TASK, xs, vs, alive })
+        })
+        .reduce(|| None, |a, b| a.into_iter().chain(b).min())
+}
+
+/// [`check`] of one task's particles, compiled for the SIMD instruction set found at run time.
+struct Check<'a> {
+    model: &'a Model<'a>,
+    start: usize,
+    xs: &'a [f64],
+    vs: &'a [f64],
+    alive: &'a [bool],
+}
+
+impl pulp::WithSimd for Check<'_> {
+    type Output = Option<usize>;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Option<usize> {
+        let Check { model, start, xs, vs, alive } = self;
+        let mut block = Block::new();
+        let blocks = xs.chunks(3 * BLOCK).zip(vs.chunks(3 * BLOCK)).zip(alive.chunks(BLOCK));
+        for (b, ((xb, vb), alive)) in blocks.enumerate() {
+            block.load(model, start + b * BLOCK, xb, vb, alive);
+            block.advance(model, 0);
+            if let Some(i) = block.first_bad(1) {
+                return Some(i);
+            }
+        }
+        None
+    }
+}
+
+/// The particles' ages, to advance by each step written.
+pub(super) struct Aging<'a> {
+    /// Alive flags, cleared when a particle reaches its lifespan.
+    pub(super) alive: &'a mut [bool],
+    /// Ages (s).
+    pub(super) age: &'a mut [f64],
+    /// Lifespans (s).
+    pub(super) lifespan: &'a [f64],
+}
+
+/// What [`commit`] found.
+pub(super) struct Committed {
+    /// Contacts of the step written.
+    pub(super) contacts: usize,
+    /// Particles retired at the end of their lifespan.
+    pub(super) expired: usize,
+    /// Whether the look-ahead was asked for and found that the next step from the state
+    /// written, with the same model, stays finite.
+    pub(super) next_finite: bool,
+}
+
+/// Write one step of all particles (positions `xs`, velocities `vs`, `3 capacity` values each)
+/// in place and age them ([`super::age_slots`]); the step must be known to stay finite
+/// ([`check`]). With `look_ahead`, also finds whether the next step stays finite.
+pub(super) fn commit(
+    model: &Model,
+    xs: &mut [f64],
+    vs: &mut [f64],
+    aging: Aging,
+    look_ahead: bool,
+) -> Committed {
+    let arch = pulp::Arch::new();
+    let Aging { alive, age, lifespan } = aging;
+    xs.par_chunks_mut(3 * TASK)
+        .zip(vs.par_chunks_mut(3 * TASK))
+        .zip(alive.par_chunks_mut(TASK).zip(age.par_chunks_mut(TASK)))
+        .zip(lifespan.par_chunks(TASK))
+        .enumerate()
+        .map(|(t, (((xs, vs), (alive, age)), lifespan))| {
+            let aging = Aging { alive, age, lifespan };
+            arch.dispatch(Commit { model, start: t * TASK, xs, vs, aging, look_ahead })
+        })
+        .reduce(
+            || Committed { contacts: 0, expired: 0, next_finite: look_ahead },
+            |a, b| Committed {
+                contacts: a.contacts + b.contacts,
+                expired: a.expired + b.expired,
+                next_finite: a.next_finite && b.next_finite,
+            },
+        )
+}
+
+/// [`commit`] of one task's particles, compiled for the SIMD instruction set found at run time.
+struct Commit<'a> {
+    model: &'a Model<'a>,
+    start: usize,
+    xs: &'a mut [f64],
+    vs: &'a mut [f64],
+    aging: Aging<'a>,
+    look_ahead: bool,
+}
+
+impl pulp::WithSimd for Commit<'_> {
+    type Output = Committed;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Committed {
+        let Commit { model, start, xs, vs, aging, look_ahead } = self;
+        let mut block = Block::new();
+        let mut done = Committed { contacts: 0, expired: 0, next_finite: look_ahead };
+        let blocks = xs
+            .chunks_mut(3 * BLOCK)
+            .zip(vs.chunks_mut(3 * BLOCK))
+            .zip(aging.alive.chunks_mut(BLOCK).zip(aging.age.chunks_mut(BLOCK)))
+            .zip(aging.lifespan.chunks(BLOCK));
+        for (b, (((xb, vb), (alive, age)), lifespan)) in blocks.enumerate() {
+            block.load(model, start + b * BLOCK, xb, vb, alive);
+            done.contacts += block.advance(model, 0);
+            debug_assert!(block.first_bad(1).is_none(), "a step written must have been checked");
+            block.store(xb, vb);
+            done.expired += super::age_slots(model.dt, alive, age, lifespan, vb);
+            if done.next_finite {
+                // Retired particles no longer move.
+                for (live, &alive) in block.live.iter_mut().zip(&*alive) {
+                    *live &= alive;
+                }
+                block.advance(model, 1);
+                done.next_finite = block.first_bad(0).is_none();
+            }
+        }
+        done
+    }
+}
