@@ -1155,7 +1155,10 @@ impl Cloth {
             };
         }
         self.project_penetrating(&mut scratch, h);
-        if check && self.strain_change(&scratch.x_new) > options.max_strain_change {
+        if check
+            && options.max_strain_change.is_finite()
+            && self.strain_change(&scratch.x_new) > options.max_strain_change
+        {
             self.scratch = scratch;
             self.history = history;
             self.stats.collide_seconds += collide_time + t3.elapsed().as_secs_f64();
