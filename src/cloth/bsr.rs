@@ -121,12 +121,15 @@ impl BlockMatrix {
     }
 
     /// Backward substitution `x = (D + U)⁻¹ y` with `D` given by its inverses `dinv` and `U`
-    /// the stored strict upper triangle; `t` receives `U x + κ (y - U x)`.
+    /// the stored strict upper triangle, in place: on entry `x` holds `z` and the right-hand
+    /// side is `y = z + β c`, formed row by row and stored into `c` (the conjugate-gradient
+    /// direction update in the same pass); `t` receives `U x + κ (y - U x)`.
     pub fn solve_upper(
         &self,
         dinv: &[DMat3],
-        y: &[DVec3],
         x: &mut [DVec3],
+        c: &mut [DVec3],
+        beta: f64,
         t: &mut [DVec3],
         kappa: f64,
     ) {
@@ -136,7 +139,9 @@ impl BlockMatrix {
             for (&j, b) in self.cols[start..end].iter().zip(&self.blocks[start..end]) {
                 acc += *b * x[j];
             }
-            let rest = y[i] - acc;
+            let y = x[i] + beta * c[i];
+            c[i] = y;
+            let rest = y - acc;
             t[i] = acc + kappa * rest;
             x[i] = dinv[i] * rest;
         }
@@ -188,11 +193,15 @@ mod tests {
             *b = DMat3::from_cols_array(&[4.0, 0.3, f, 0.1, 5.0 + f, 0.2, -f, 0.4, 6.0]) * 0.5;
         }
         let dinv: Vec<DMat3> = m.diag.iter().map(|&d| m.blocks[d].inverse()).collect();
-        let y: Vec<DVec3> = (0..5).map(|i| DVec3::new(1.0, -2.0, 0.5) * (i as f64 + 1.0)).collect();
-        // (D + U) x = y: check each row, and t = U x + κ D x.
-        let (mut x, mut t) = (vec![DVec3::ZERO; 5], vec![DVec3::ZERO; 5]);
-        let kappa = 0.4;
-        m.solve_upper(&dinv, &y, &mut x, &mut t, kappa);
+        let z: Vec<DVec3> = (0..5).map(|i| DVec3::new(1.0, -2.0, 0.5) * (i as f64 + 1.0)).collect();
+        let y = z.clone();
+        // (D + U) x = y with y = z + β c: check each row, c = y and t = U x + κ D x.
+        let c0: Vec<DVec3> = (0..5).map(|i| DVec3::new(0.5, -1.0, i as f64)).collect();
+        let (beta, kappa) = (0.7, 0.4);
+        let y: Vec<DVec3> = (0..5).map(|i| y[i] + beta * c0[i]).collect();
+        let (mut x, mut c, mut t) = (z, c0.clone(), vec![DVec3::ZERO; 5]);
+        m.solve_upper(&dinv, &mut x, &mut c, beta, &mut t, kappa);
+        assert!(c.iter().zip(&y).all(|(a, b)| (*a - *b).length() < 1e-15));
         for i in 0..5 {
             let mut ux = DVec3::ZERO;
             for s in m.diag[i] + 1..m.row_ptr[i + 1] {

@@ -1269,7 +1269,7 @@ impl Cloth {
         }
         a.solve_lower(&s.precond, &mut s.t, &mut s.q);
         let delta0: f64 = (0..n).map(|i| s.q[i].dot(s.dhat[i] * s.q[i])).sum();
-        // r̃ = (D/ω + L)⁻¹ S (b - A Δv₀), p̂ = (D/ω) r̃.
+        // r̃ = (D/ω + L)⁻¹ S (b - A Δv₀), z = (D/ω) r̃ (the first p̂, with β = 0).
         a.mul(&s.dv, &mut s.q);
         for i in 0..n {
             s.t[i] = s.filter[i] * (s.b[i] - s.q[i]);
@@ -1278,7 +1278,8 @@ impl Cloth {
         let mut delta_new = 0.0;
         for i in 0..n {
             let z = s.dhat[i] * s.r[i];
-            s.c[i] = z;
+            s.s[i] = z;
+            s.c[i] = DVec3::ZERO;
             delta_new += s.r[i].dot(z);
         }
         // Stop at ε² δ₀, or at the rounding floor of the unfiltered right-hand side when the
@@ -1286,10 +1287,11 @@ impl Cloth {
         let floor = (1e3 * f64::EPSILON).powi(2) * delta_b;
         let target = (options.tol * options.tol * delta0).max(floor);
         let mut iterations = 0;
+        let mut beta = 0.0;
         while delta_new > target && iterations < options.max_iterations {
-            // p = (D/ω + U)⁻¹ p̂, then
+            // p̂ = z + β p̂ (in `c`, with z = (D/ω) r̃ in `s`), p = (D/ω + U)⁻¹ p̂ (in `s`), then
             // q̃ = (D/ω + L)⁻¹ Â p = p + (D/ω + L)⁻¹ (U p + (1 - 1/ω) D p).
-            a.solve_upper(&s.precond, &s.c, &mut s.s, &mut s.t, omega - 1.0);
+            a.solve_upper(&s.precond, &mut s.s, &mut s.c, beta, &mut s.t, omega - 1.0);
             let pq = a.solve_lower_add(&s.precond, &mut s.t, &s.s, &s.c, &mut s.q);
             if pq <= 0.0 || !pq.is_finite() {
                 return Err(Error::SolverFailed {
@@ -1309,14 +1311,11 @@ impl Cloth {
                 s.s[i] = z;
                 delta_next += r.dot(z);
             }
-            let beta = delta_next / delta_new;
+            beta = delta_next / delta_new;
             delta_new = delta_next;
             iterations += 1;
             if delta_new <= 0.0 {
                 break;
-            }
-            for i in 0..n {
-                s.c[i] = s.s[i] + beta * s.c[i];
             }
         }
         let residual = if delta0 > 0.0 { (delta_new.max(0.0) / delta0).sqrt() } else { 0.0 };
