@@ -1232,10 +1232,11 @@ impl Cloth {
     /// (up to the constant factor `2 - ω`, which PCG does not see), with `ω` from
     /// [`ssor_omega`]; symmetric block Gauss–Seidel (`ω = 1`) needs about a third of the
     /// iterations of the paper's block-Jacobi `P = D` on cloth, and over-relaxation a further
-    /// 2% (32²), 18% (64²), 40% (128²) and 53% (256²) fewer on the benchmark cloth. Eisenstat's trick (Eisenstat 1981, "Efficient
-    /// implementation of a class of preconditioned conjugate gradient methods"; Saad,
-    /// "Iterative Methods for Sparse Linear Systems", §9.2.2) makes an iteration cost one
-    /// backward and one forward substitution, together one product with the matrix: with
+    /// 2% (32²), 18% (64²), 40% (128²) and 53% (256²) fewer on the benchmark cloth.
+    /// Eisenstat's trick (Eisenstat 1981, "Efficient implementation of a class of
+    /// preconditioned conjugate gradient methods"; Saad, "Iterative Methods for Sparse Linear
+    /// Systems", §9.2.2) makes an iteration cost one backward and one forward substitution,
+    /// together one product with the matrix: with
     /// `p̂ = (D/ω + U) p` and `Â = (D/ω + L) + (D/ω + U) - (2/ω - 1) D`,
     /// `(D/ω + L)⁻¹ Â p = p + (D/ω + L)⁻¹ (U p + (1 - 1/ω) D p)`, and the iteration runs on
     /// `r̃ = (D/ω + L)⁻¹ r` (so `δ = r̃ᵀ (D/ω) r̃`) and `p̂`.

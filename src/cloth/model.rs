@@ -254,7 +254,8 @@ pub fn triangle(
     }
     let Some((blocks, alpha, beta)) = acc.matrix.as_mut() else { return };
     let (alpha, beta) = (*alpha, *beta);
-    // Gauss–Newton part Σ k ∂C/∂w ∂C/∂wᵀ: ∂C/∂w_u = a ŵ_u (stretch u), a w_v (shear), ...
+    // Gauss–Newton part Σ k (∂C/∂w)(∂C/∂w)ᵀ, with ∂C/∂w_u = a ŵ_u for stretch in u and a w_v
+    // for shear, ∂C/∂w_v = a ŵ_v for stretch in v and a w_u for shear.
     let outer = |p: DVec3, q: DVec3| DMat3::from_cols(p * q.x, p * q.y, p * q.z);
     let a2 = a * a;
     let g_uu = (outer(hu, hu) * ks + outer(wv, wv) * kh) * a2;
