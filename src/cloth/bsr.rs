@@ -107,12 +107,14 @@ impl BlockMatrix {
         q: &mut [DVec3],
     ) -> f64 {
         let mut dot = 0.0;
-        for i in 0..self.n() {
-            let xi = dinv[i] * y[i];
-            let qi = p[i] + xi;
-            q[i] = qi;
-            dot += p_hat[i].dot(qi);
-            let (start, end) = (self.diag[i] + 1, self.row_ptr[i + 1]);
+        // Row i's strict upper blocks follow its diagonal block: row_ptr[i] + 1..row_ptr[i + 1].
+        let rows = self.row_ptr.windows(2).zip(dinv).zip(p).zip(p_hat).zip(q.iter_mut());
+        for (i, ((((range, dinv), p), p_hat), q)) in rows.enumerate() {
+            let xi = *dinv * y[i];
+            let qi = *p + xi;
+            *q = qi;
+            dot += p_hat.dot(qi);
+            let (start, end) = (range[0] + 1, range[1]);
             for (&j, b) in self.cols[start..end].iter().zip(&self.blocks[start..end]) {
                 y[j] -= b.transpose() * xi;
             }
@@ -133,17 +135,18 @@ impl BlockMatrix {
         t: &mut [DVec3],
         kappa: f64,
     ) {
-        for i in (0..self.n()).rev() {
+        let rows = self.row_ptr.windows(2).zip(dinv).zip(c.iter_mut()).zip(t.iter_mut());
+        for (i, (((range, dinv), c), t)) in rows.enumerate().rev() {
             let mut acc = DVec3::ZERO;
-            let (start, end) = (self.diag[i] + 1, self.row_ptr[i + 1]);
+            let (start, end) = (range[0] + 1, range[1]);
             for (&j, b) in self.cols[start..end].iter().zip(&self.blocks[start..end]) {
                 acc += *b * x[j];
             }
-            let y = x[i] + beta * c[i];
-            c[i] = y;
+            let y = x[i] + beta * *c;
+            *c = y;
             let rest = y - acc;
-            t[i] = acc + kappa * rest;
-            x[i] = dinv[i] * rest;
+            *t = acc + kappa * rest;
+            x[i] = *dinv * rest;
         }
     }
 
