@@ -326,6 +326,31 @@ mod rotation_tracks {
     }
 
     #[test]
+    fn squad_angular_velocity_matches_finite_differences_of_the_orientation() {
+        // Five-point central differences of the orientation at e = 5e-5 s (truncation ~e⁴,
+        // rounding ~1e-16/e: 6e-11 measured), on the short arcs and with a long-arc segment.
+        let w_fd = |tr: &RotationTrack, t: f64| {
+            let e = 5e-5;
+            let d = |a: f64, b: f64| {
+                DVec3::from_array(kinema::rotation::quat_to_rotvec(
+                    tr.eval(t + b) * tr.eval(t + a).conjugate(),
+                ))
+            };
+            (8.0 * d(-e, e) - d(-2.0 * e, 2.0 * e)) / (12.0 * e)
+        };
+        let sq = RotationTrack::new(&TIMES, &keys(), RotationInterpolation::Squad, &[]).unwrap();
+        let long = [true, false, true, true, true];
+        let sq_long =
+            RotationTrack::new(&TIMES, &keys(), RotationInterpolation::Squad, &long).unwrap();
+        for tr in [&sq, &sq_long] {
+            for t in [0.13, 0.55, 0.77, 1.3, 1.8, 2.0, 2.9] {
+                let err = (w_fd(tr, t) - tr.angular_velocity(t)).length();
+                assert!(err < 1e-9, "at {t}: {err}");
+            }
+        }
+    }
+
+    #[test]
     fn spline_of_two_keys_is_slerp_and_of_a_steady_spin_is_exact() {
         let two = &keys()[..2];
         let sp = RotationTrack::new(&TIMES[..2], two, RotationInterpolation::Spline, &[]).unwrap();

@@ -172,6 +172,20 @@ fn tiny_and_near_pi_rotation_vectors() {
 }
 
 #[test]
+fn huge_rotation_vectors_give_unit_quaternions() {
+    // |v| overflows its squares beyond ~1e154. The angle of such a vector is only known to the
+    // rounding of |v| (many turns), so what must hold is a unit quaternion about the axis v/|v|.
+    for m in [1e10, 1e160, 1e300, f64::MAX] {
+        let v = [m * 0.6, 0.0, -m * 0.8];
+        let [w, x, y, z] = quat_to_wxyz(quat_from_rotvec(&v).unwrap());
+        let s = x.hypot(z);
+        assert!(((w * w + s * s) - 1.0).abs() < 1e-15 && y == 0.0, "{m}: {:?}", [w, x, y, z]);
+        // (x, z) parallel to (0.6, -0.8): no component along (0.8, 0.6).
+        assert!((0.8 * x + 0.6 * z).abs() < 1e-15, "{m}: {:?}", [w, x, y, z]);
+    }
+}
+
+#[test]
 fn bad_input_is_an_error_not_a_nan() {
     assert!(quat_from_wxyz(&[0.0; 4]).is_err());
     assert!(quat_from_wxyz(&[f64::INFINITY, 0.0, 0.0, 0.0]).is_err());

@@ -197,8 +197,9 @@ impl RotationTrack {
         }
     }
 
-    /// Angular velocity (rad/s, world frame) at time `t`: exact for slerp and the spline, by
-    /// a central difference of step `1e-6` of the segment for squad. Zero outside the keys.
+    /// Angular velocity (rad/s, world frame) at time `t`, exact (differentiated in closed
+    /// form through the exponential map's right Jacobian for the spline and squad). Zero
+    /// outside the keys.
     pub fn angular_velocity(&self, t: f64) -> DVec3 {
         let Some((k, tau, h)) = self.inside(t) else {
             return DVec3::ZERO;
@@ -209,10 +210,22 @@ impl RotationTrack {
                 self.eval(t) * (rotvec_as_given(rel) / h)
             }
             RotationInterpolation::Squad => {
-                let e = 1e-6 * h;
-                let (a, b) = ((t - e).max(self.times[k]), (t + e).min(self.times[k + 1]));
-                let rel = self.eval(b) * self.eval(a).conjugate();
-                DVec3::from_array(crate::rotation::quat_to_rotvec(rel)) / (b - a)
+                // q = slerp(a, b, u) = a Exp(u λ), a = q_k Exp(s φ_a), b = s_k Exp(s φ_b),
+                // λ = Log(a* b), u = 2s(1 - s), s = τ/h. Body rates per unit s:
+                // Ω = R_Eᵀ φ_a + J_r(uλ) (u' λ + u λ'), λ' = J_r(λ)⁻¹ (φ_b − R_Cᵀ φ_a).
+                let s = tau / h;
+                let (q0, q1) = (self.keys[k], self.keys[k + 1]);
+                let (p0, p1) = (self.inner[k], self.inner[k + 1]);
+                let (phi_a, phi_b) =
+                    (rotvec_as_given(q0.conjugate() * q1), rotvec_as_given(p0.conjugate() * p1));
+                let c = slerp(q0, q1, s, false).conjugate() * slerp(p0, p1, s, false);
+                let lambda = rotvec_as_given(c);
+                let lambda_dot = right_jacobian(lambda).inverse() * (phi_b - c.conjugate() * phi_a);
+                let (u, du) = (2.0 * s * (1.0 - s), 2.0 - 4.0 * s);
+                let e = exp(0.5 * u * lambda);
+                let body = e.conjugate() * phi_a
+                    + right_jacobian(u * lambda) * (du * lambda + u * lambda_dot);
+                self.eval(t) * (body / h)
             }
             RotationInterpolation::Spline => {
                 let [theta, theta_dot, _] = self.spline_at(k, tau);

@@ -517,6 +517,16 @@ impl Joint {
         }
     }
 
+    /// The world axis about which the joint leaves the bodies free to turn at state `s` (the
+    /// hinge axis of `a`), or `None` when every relative rotation is constrained (slider,
+    /// fixed) or none is (ball).
+    pub fn free_axis(&self, s: &State<'_>) -> Option<DVec3> {
+        match self.kind {
+            JointKind::Hinge { .. } => Some(self.sides(s).0.f * DVec3::X),
+            _ => None,
+        }
+    }
+
     /// Position error of the joint at state `s`: the distance between the anchors (m; for a
     /// slider, from the anchor of `a` to the line through `b`'s anchor along the axis) and the
     /// angle of the relative rotation the joint forbids (rad; between the axes for a hinge,

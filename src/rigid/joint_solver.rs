@@ -605,6 +605,15 @@ pub(crate) fn correct_positions(
 /// `Δλ = −C / (J M⁻¹ Jᵀ)`, moving `x += M⁻¹ lᵀ Δλ` and turning `q ← normalise(q + ½ (φ, 0) q)`
 /// with `φ = I⁻¹ aᵀ Δλ`. The corrections are also added to `dx`, `dtheta`, from which the
 /// caller updates the velocities (`v += dx/h`, `ω += dθ/h`).
+///
+/// The angular alignment is corrected as a block, not as one row along the error `θ`: with
+/// anisotropic inertia `I⁻¹ θ` is not parallel to `θ`, so the paper's single row zeroes the
+/// error along `θ` while turning the bodies out of the plane of rotations the joint forbids
+/// (a slender link loses almost nothing per projection: the residual is ~0.96 of the error for
+/// an inertia ratio of 50, and a hinged chain's axes tilted by up to 0.17 rad). The block
+/// solves `P (I_a⁻¹ + I_b⁻¹) P τ = −θ` over the constrained rotations (the plane normal to a
+/// hinge's axis, all three for a slider or a fixed joint), which zeroes the linearised error
+/// in one projection.
 pub(crate) fn project(
     j: &Joint,
     m: &Mass<'_>,
@@ -619,6 +628,11 @@ pub(crate) fn project(
         j.xpbd_rows(&State { x, q, v: &[], w: &[] }, &mut rows);
         let r = rows[k];
         if r.kind == RowKind::Inactive {
+            continue;
+        }
+        if k == 1 {
+            let free = j.free_axis(&State { x, q, v: &[], w: &[] });
+            project_alignment(j, m, free, r.ab * r.c, q, dtheta);
             continue;
         }
         let me = effective_mass(m.row_compliance(j, &r, q));
@@ -638,5 +652,56 @@ pub(crate) fn project(
         if let Some(b) = j.b {
             move_body(b, r.lb, r.ab);
         }
+    }
+}
+
+/// The block angular correction of [`project`]: `θ` is the alignment error (rad, world; the
+/// relative rotation the joint forbids), `free` the axis the bodies may turn about (hinge).
+fn project_alignment(
+    j: &Joint,
+    m: &Mass<'_>,
+    free: Option<DVec3>,
+    theta: DVec3,
+    q: &mut [DQuat],
+    dtheta: &mut [DVec3],
+) {
+    // K = I_a⁻¹ + I_b⁻¹ in the world, applied to a vector.
+    let k = |u: DVec3| {
+        let mut ku = m.inv_inertia(j.a, q[j.a], u);
+        if let Some(b) = j.b {
+            ku += m.inv_inertia(b, q[b], u);
+        }
+        ku
+    };
+    let tau = match free {
+        Some(axis) => {
+            let (e1, e2) = axis.normalize().any_orthonormal_pair();
+            let (k1, k2) = (k(e1), k(e2));
+            let (a, b, d) = (e1.dot(k1), e1.dot(k2), e2.dot(k2));
+            let det = a * d - b * b;
+            if det <= 1e-300 * (a * d).max(f64::MIN_POSITIVE) {
+                return;
+            }
+            let (c1, c2) = (e1.dot(theta), e2.dot(theta));
+            let (l1, l2) = ((-d * c1 + b * c2) / det, (b * c1 - a * c2) / det);
+            e1 * l1 + e2 * l2
+        }
+        None => {
+            let kmat = glam::DMat3::from_cols(k(DVec3::X), k(DVec3::Y), k(DVec3::Z));
+            let det = kmat.determinant();
+            if !(det.is_finite() && det > 0.0) {
+                return;
+            }
+            -(kmat.inverse() * theta)
+        }
+    };
+    let mut turn = |i: usize, torque: DVec3| {
+        let phi = m.inv_inertia(i, q[i], torque);
+        dtheta[i] += phi;
+        q[i] = (q[i] + DQuat::from_xyzw(phi.x, phi.y, phi.z, 0.0) * q[i] * 0.5).normalize();
+    };
+    turn(j.a, -tau);
+    if let Some(b) = j.b {
+        turn(b, tau);
     }
 }

@@ -84,6 +84,15 @@ def test_rotvec_round_trip_at_tiny_and_near_pi_angles(angle):
     np.testing.assert_allclose(r.as_matrix(), ref.as_matrix(), atol=1e-16)
 
 
+@pytest.mark.parametrize("scale", [1e10, 1e160, 1e300, np.finfo(float).max])
+def test_huge_rotation_vectors_give_unit_quaternions(scale):
+    # Beyond ~1e154 the squares of the components overflow; the rotation must stay finite.
+    q = Rotation.from_rotvec([0.6 * scale, 0.0, -0.8 * scale]).as_quat()
+    assert np.all(np.isfinite(q))
+    assert abs(np.linalg.norm(q) - 1.0) < 1e-15
+    assert abs(0.8 * q[1] + 0.6 * q[3]) < 1e-15  # the axis is along (0.6, 0, -0.8)
+
+
 def test_axis_angle_round_trip_and_broadcast():
     axes = np.array([[1.0, 0, 0], [0, 2.0, 0], [0, 0, -3.0]])
     r = Rotation.from_axis_angle(axes, 90.0, degrees=True)
