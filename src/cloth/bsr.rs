@@ -96,16 +96,57 @@ impl BlockMatrix {
         }
     }
 
-    /// Backward substitution `x = (D + U)⁻¹ y` with `D` given by its inverses `dinv` and `U`
-    /// the stored strict upper triangle; `t` receives the products `U x` (so `y - D x = t`).
-    pub fn solve_upper(&self, dinv: &[DMat3], y: &[DVec3], x: &mut [DVec3], t: &mut [DVec3]) {
-        for i in (0..self.n()).rev() {
-            let mut acc = DVec3::ZERO;
-            for s in self.diag[i] + 1..self.row_ptr[i + 1] {
-                acc += self.blocks[s] * x[self.cols[s]];
+    /// `q = p + (D + L)⁻¹ y`, the forward substitution of [`Self::solve_lower`] followed by
+    /// the sum, returning `p̂ᵀ q`. `y` is overwritten with partial sums.
+    pub fn solve_lower_add(
+        &self,
+        dinv: &[DMat3],
+        y: &mut [DVec3],
+        p: &[DVec3],
+        p_hat: &[DVec3],
+        q: &mut [DVec3],
+    ) -> f64 {
+        let mut dot = 0.0;
+        // Row i's strict upper blocks follow its diagonal block: row_ptr[i] + 1..row_ptr[i + 1].
+        let rows = self.row_ptr.windows(2).zip(dinv).zip(p).zip(p_hat).zip(q.iter_mut());
+        for (i, ((((range, dinv), p), p_hat), q)) in rows.enumerate() {
+            let xi = *dinv * y[i];
+            let qi = *p + xi;
+            *q = qi;
+            dot += p_hat.dot(qi);
+            let (start, end) = (range[0] + 1, range[1]);
+            for (&j, b) in self.cols[start..end].iter().zip(&self.blocks[start..end]) {
+                y[j] -= b.transpose() * xi;
             }
-            t[i] = acc;
-            x[i] = dinv[i] * (y[i] - acc);
+        }
+        dot
+    }
+
+    /// Backward substitution `x = (D + U)⁻¹ y` with `D` given by its inverses `dinv` and `U`
+    /// the stored strict upper triangle, in place: on entry `x` holds `z` and the right-hand
+    /// side is `y = z + β c`, formed row by row and stored into `c` (the conjugate-gradient
+    /// direction update in the same pass); `t` receives `U x + κ (y - U x)`.
+    pub fn solve_upper(
+        &self,
+        dinv: &[DMat3],
+        x: &mut [DVec3],
+        c: &mut [DVec3],
+        beta: f64,
+        t: &mut [DVec3],
+        kappa: f64,
+    ) {
+        let rows = self.row_ptr.windows(2).zip(dinv).zip(c.iter_mut()).zip(t.iter_mut());
+        for (i, (((range, dinv), c), t)) in rows.enumerate().rev() {
+            let mut acc = DVec3::ZERO;
+            let (start, end) = (range[0] + 1, range[1]);
+            for (&j, b) in self.cols[start..end].iter().zip(&self.blocks[start..end]) {
+                acc += *b * x[j];
+            }
+            let y = x[i] + beta * *c;
+            *c = y;
+            let rest = y - acc;
+            *t = acc + kappa * rest;
+            x[i] = *dinv * rest;
         }
     }
 
@@ -155,19 +196,23 @@ mod tests {
             *b = DMat3::from_cols_array(&[4.0, 0.3, f, 0.1, 5.0 + f, 0.2, -f, 0.4, 6.0]) * 0.5;
         }
         let dinv: Vec<DMat3> = m.diag.iter().map(|&d| m.blocks[d].inverse()).collect();
-        let y: Vec<DVec3> = (0..5).map(|i| DVec3::new(1.0, -2.0, 0.5) * (i as f64 + 1.0)).collect();
-        // (D + U) x = y: check each row.
-        let (mut x, mut t) = (vec![DVec3::ZERO; 5], vec![DVec3::ZERO; 5]);
-        m.solve_upper(&dinv, &y, &mut x, &mut t);
+        let z: Vec<DVec3> = (0..5).map(|i| DVec3::new(1.0, -2.0, 0.5) * (i as f64 + 1.0)).collect();
+        let y = z.clone();
+        // (D + U) x = y with y = z + β c: check each row, c = y and t = U x + κ D x.
+        let c0: Vec<DVec3> = (0..5).map(|i| DVec3::new(0.5, -1.0, i as f64)).collect();
+        let (beta, kappa) = (0.7, 0.4);
+        let y: Vec<DVec3> = (0..5).map(|i| y[i] + beta * c0[i]).collect();
+        let (mut x, mut c, mut t) = (z, c0.clone(), vec![DVec3::ZERO; 5]);
+        m.solve_upper(&dinv, &mut x, &mut c, beta, &mut t, kappa);
+        assert!(c.iter().zip(&y).all(|(a, b)| (*a - *b).length() < 1e-15));
         for i in 0..5 {
-            let mut row = m.blocks[m.diag[i]] * x[i];
+            let mut ux = DVec3::ZERO;
             for s in m.diag[i] + 1..m.row_ptr[i + 1] {
-                row += m.blocks[s] * x[m.cols[s]];
+                ux += m.blocks[s] * x[m.cols[s]];
             }
-            assert!(
-                (row - y[i]).length() < 1e-12
-                    && (y[i] - m.blocks[m.diag[i]] * x[i] - t[i]).length() < 1e-12
-            );
+            let dx = m.blocks[m.diag[i]] * x[i];
+            assert!((dx + ux - y[i]).length() < 1e-12);
+            assert!((ux + kappa * dx - t[i]).length() < 1e-12);
         }
         // (D + L) x = y with L = Uᵀ.
         let mut w = y.clone();
@@ -179,5 +224,13 @@ mod tests {
             }
         }
         assert!(row.iter().zip(&y).all(|(a, b)| (*a - *b).length() < 1e-12));
+        // q = p + (D + L)⁻¹ y and p̂ᵀ q.
+        let p: Vec<DVec3> = (0..5).map(|i| DVec3::new(0.5, i as f64, -1.0)).collect();
+        let p_hat: Vec<DVec3> = (0..5).map(|i| DVec3::new(i as f64, 2.0, 0.25)).collect();
+        let (mut w, mut q) = (y.clone(), vec![DVec3::ZERO; 5]);
+        let dot = m.solve_lower_add(&dinv, &mut w, &p, &p_hat, &mut q);
+        let expected: f64 = (0..5).map(|i| p_hat[i].dot(p[i] + x[i])).sum();
+        assert!((0..5).all(|i| (q[i] - p[i] - x[i]).length() < 1e-12));
+        assert!((dot - expected).abs() < 1e-12 * expected.abs());
     }
 }

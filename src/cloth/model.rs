@@ -215,6 +215,14 @@ pub struct Curvature<H, P> {
 /// Stretch and shear of one triangle (Baraff & Witkin 1998, §4.2–4.3), with
 /// `k_stretch = stretch / a`, `k_shear = shear / a` so that the energy per unit area does not
 /// depend on the mesh resolution, and `k_d = damping · k`.
+///
+/// The three conditions share one structure: `w_u = Σₘ du_m x_m`, `w_v = Σₘ dv_m x_m`, so
+/// each gradient is `∂C/∂x_m = du_m ∂C/∂w_u + dv_m ∂C/∂w_v` and each block of the
+/// triangle's matrix (Gauss–Newton and curvature parts of all three conditions) is
+/// `du_m du_n W_uu + dv_m dv_n W_vv + du_m dv_n W_uv + dv_m du_n W_uvᵀ` with four 3x3
+/// matrices summed over the conditions: the blocks are formed once per triangle from them,
+/// as are the forces and `(∂f/∂x) u`. Each condition's curvature term is kept or dropped
+/// as [`Accumulator::condition`] does it.
 pub fn triangle(
     t: &Triangle,
     x: &[DVec3],
@@ -224,51 +232,83 @@ pub fn triangle(
     acc: &mut Accumulator,
 ) {
     let (wu, wv) = t.warp(x);
-    let a = t.area;
-    let mut stretch_axis = |w: DVec3, d: &[f64; 3]| {
-        let len = w.length();
-        let wh = w / len;
-        let c = a * (len - 1.0);
-        let g = [wh * (a * d[0]), wh * (a * d[1]), wh * (a * d[2])];
-        // ∂²C/∂x_m∂x_n = a d_m d_n (I - ŵŵᵀ)/‖w‖, eigenvalues 0 and a |d|²/‖w‖.
-        let projector =
-            (DMat3::IDENTITY - DMat3::from_cols(wh * wh.x, wh * wh.y, wh * wh.z)) * (a / len);
-        let curvature = Curvature {
-            block: |m: usize, n: usize| projector * (d[m] * d[n]),
-            // Σₙ d_m d_n P uₙ = d_m P (Σₙ d_n uₙ).
-            apply: |u: &[DVec3; 3]| {
-                let pu = projector * (u[0] * d[0] + u[1] * d[1] + u[2] * d[2]);
-                [pu * d[0], pu * d[1], pu * d[2]]
-            },
-            psd: true,
-            negative_bound: a * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / len,
-            mass_share: t.mass_share,
-        };
-        let k = stretch / a;
-        acc.condition(&t.verts, &t.slots, c, &g, k, damping * k, Some(curvature));
-    };
-    stretch_axis(wu, &t.du);
-    stretch_axis(wv, &t.dv);
-    let c = a * wu.dot(wv);
-    let g = [0, 1, 2].map(|m| (wv * t.du[m] + wu * t.dv[m]) * a);
-    // ∂²C/∂x_m∂x_n = a (du_m dv_n + dv_m du_n) I, eigenvalues a (du·dv ± |du||dv|).
-    let (du, dv) = (DVec3::from_array(t.du), DVec3::from_array(t.dv));
-    let curvature = Curvature {
-        block: |m: usize, n: usize| {
-            DMat3::from_diagonal(DVec3::splat(a * (t.du[m] * t.dv[n] + t.dv[m] * t.du[n])))
-        },
-        // Σₙ a (du_m dv_n + dv_m du_n) uₙ = a (du_m U_v + dv_m U_u), U = Σₙ d_n uₙ.
-        apply: |u: &[DVec3; 3]| {
-            let uu = (u[0] * t.du[0] + u[1] * t.du[1] + u[2] * t.du[2]) * a;
-            let uv = (u[0] * t.dv[0] + u[1] * t.dv[1] + u[2] * t.dv[2]) * a;
-            [0, 1, 2].map(|m| uv * t.du[m] + uu * t.dv[m])
-        },
-        psd: false,
-        negative_bound: a * (du.length() * dv.length() + du.dot(dv).abs()),
-        mass_share: t.mass_share,
-    };
-    let k = shear / a;
-    acc.condition(&t.verts, &t.slots, c, &g, k, damping * k, Some(curvature));
+    let (a, du, dv) = (t.area, t.du, t.dv);
+    let v = t.verts.map(|i| acc.v[i]);
+    // ẇ_u, ẇ_v.
+    let (vu, vv) =
+        (v[0] * du[0] + v[1] * du[1] + v[2] * du[2], v[0] * dv[0] + v[1] * dv[1] + v[2] * dv[2]);
+    let (lu, lv) = (wu.length(), wv.length());
+    let (hu, hv) = (wu / lu, wv / lv);
+    let (ks, kh) = (stretch / a, shear / a);
+    // Stretch in u, stretch in v, shear: C, Ċ and s = k C + k_d Ċ.
+    let c = [a * (lu - 1.0), a * (lv - 1.0), a * wu.dot(wv)];
+    let c_dot = [a * hu.dot(vu), a * hv.dot(vv), a * (wv.dot(vu) + wu.dot(vv))];
+    let k = [ks, ks, kh];
+    let s = [0, 1, 2].map(|i| k[i] * c[i] + damping * k[i] * c_dot[i]);
+    acc.energy += 0.5 * (k[0] * c[0] * c[0] + k[1] * c[1] * c[1] + k[2] * c[2] * c[2]);
+    // f_m = -Σ s ∂C/∂x_m = -(du_m F_u + dv_m F_v).
+    let fu = (hu * s[0] + wv * s[2]) * a;
+    let fv = (hv * s[1] + wu * s[2]) * a;
+    for m in 0..3 {
+        acc.f[t.verts[m]] -= fu * du[m] + fv * dv[m];
+    }
+    let Some((blocks, alpha, beta)) = acc.matrix.as_mut() else { return };
+    let (alpha, beta) = (*alpha, *beta);
+    // Gauss–Newton part Σ k (∂C/∂w)(∂C/∂w)ᵀ, with ∂C/∂w_u = a ŵ_u for stretch in u and a w_v
+    // for shear, ∂C/∂w_v = a ŵ_v for stretch in v and a w_u for shear.
+    let outer = |p: DVec3, q: DVec3| DMat3::from_cols(p * q.x, p * q.y, p * q.z);
+    let a2 = a * a;
+    let g_uu = (outer(hu, hu) * ks + outer(wv, wv) * kh) * a2;
+    let g_vv = (outer(hv, hv) * ks + outer(wu, wu) * kh) * a2;
+    let g_uv = outer(wv, wu) * (kh * a2);
+    // Curvature part Σ s ∂²C/∂w∂w: a (I - ŵŵᵀ)/‖w‖ for stretch (positive semidefinite,
+    // eigenvalues up to a |d|²/‖w‖ per unit s), a I between w_u and w_v for shear
+    // (indefinite, eigenvalues a (du·dv ± |du||dv|)).
+    let dot3 = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
+    let keep =
+        |s: f64, psd: bool, bound: f64| (psd && s >= 0.0) || beta * s.abs() * bound <= t.mass_share;
+    let projector = |h: DVec3, len: f64| (DMat3::IDENTITY - outer(h, h)) * (a / len);
+    let mut h_uu = DMat3::ZERO;
+    let mut h_vv = DMat3::ZERO;
+    let mut h_uv = 0.0;
+    if keep(s[0], true, a * dot3(du, du) / lu) {
+        h_uu = projector(hu, lu) * s[0];
+    }
+    if keep(s[1], true, a * dot3(dv, dv) / lv) {
+        h_vv = projector(hv, lv) * s[1];
+    }
+    let shear_bound = a * (dot3(du, du).sqrt() * dot3(dv, dv).sqrt() + dot3(du, dv).abs());
+    if keep(s[2], false, shear_bound) {
+        h_uv = a * s[2];
+    }
+    // -(α ∂d/∂v + β ∂f/∂x) = (α k_d + β k) ∂C/∂x ∂C/∂xᵀ + β s ∂²C/∂x².
+    let weight = alpha * damping + beta;
+    let w_uu = g_uu * weight + h_uu * beta;
+    let w_vv = g_vv * weight + h_vv * beta;
+    let w_uv = g_uv * weight + DMat3::from_diagonal(DVec3::splat(h_uv * beta));
+    let w_vu = w_uv.transpose();
+    for n in 0..3 {
+        // Block (m, n) = du_m X_n + dv_m Y_n.
+        let xn = w_uu * du[n] + w_uv * dv[n];
+        let yn = w_vu * du[n] + w_vv * dv[n];
+        for m in 0..3 {
+            let slot = t.slots[3 * m + n];
+            if slot != LOWER {
+                blocks[slot] += xn * du[m] + yn * dv[m];
+            }
+        }
+    }
+    // (∂f/∂x) u = -(K u) with K of the same structure, K = G + H.
+    if let Some((u, ku)) = acc.ku.as_mut() {
+        let ue = t.verts.map(|i| u[i]);
+        let uu = ue[0] * du[0] + ue[1] * du[1] + ue[2] * du[2];
+        let uv = ue[0] * dv[0] + ue[1] * dv[1] + ue[2] * dv[2];
+        let ku_u = (g_uu + h_uu) * uu + g_uv * uv + uv * h_uv;
+        let ku_v = g_uv.transpose() * uu + uu * h_uv + (g_vv + h_vv) * uv;
+        for m in 0..3 {
+            ku[t.verts[m]] -= ku_u * du[m] + ku_v * dv[m];
+        }
+    }
 }
 
 /// No curvature term.
