@@ -3,6 +3,7 @@
 // Numeric kernels index several arrays in step; index loops read closest to the formulas.
 #![allow(clippy::needless_range_loop)]
 
+use super::sparse::SparseNewton;
 use super::{Method, OdeSystem};
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -10,9 +11,13 @@ use nalgebra::DMatrix;
 /// Advances an [`OdeSystem`] by fixed steps of one [`Method`], allocating nothing per step.
 ///
 /// A step either completes or returns an error and leaves `y` untouched. Implicit methods
-/// solve their equations by simplified Newton iterations with the Jacobian (analytic, or by
-/// forward differences) evaluated once per step and a dense LU factorisation with partial
-/// pivoting, in place.
+/// solve their equations by simplified Newton iterations with the Jacobian evaluated once per
+/// step. When the system offers a sparse Jacobian ([`OdeSystem::sparse_jacobian`]) the
+/// iteration matrix `I - γ h J` is assembled in its fixed pattern and factorised by faer's
+/// sparse LU (symbolic analysis once per pattern, numeric factorisation per step); otherwise
+/// the Jacobian is dense (analytic, or by forward differences over every column) with a dense
+/// LU factorisation with partial pivoting, in place. The dense workspaces (`n²` values) are
+/// allocated at the first dense step, so systems with a sparse Jacobian never hold them.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Stepper {
     method: Method,
@@ -25,6 +30,9 @@ pub struct Stepper {
     jac: DMatrix<f64>,
     lu: Vec<f64>,
     pivots: Vec<usize>,
+    /// Scratch of the sparse factorisation, rebuilt at the next step after a reload.
+    #[serde(skip)]
+    sparse: SparseNewton,
     /// Newton tolerance: stop when `max|Δy| ≤ newton_tol (1 + max|y|)`. Default 1e-10.
     pub newton_tol: f64,
     /// Newton iterations before a step fails with [`Error::SolverFailed`]. Default 20.
@@ -47,8 +55,6 @@ impl Stepper {
                 format!("{} needs a state [x; v] of even length, got {n}", method.name()),
             ));
         }
-        let implicit = method.is_implicit();
-        let m = if implicit { n } else { 0 };
         Ok(Stepper {
             method,
             n,
@@ -57,9 +63,10 @@ impl Stepper {
             y_new: vec![0.0; n],
             prev: vec![0.0; n],
             prev_h: None,
-            jac: DMatrix::zeros(m, m),
-            lu: vec![0.0; m * m],
-            pivots: vec![0; m],
+            jac: DMatrix::zeros(0, 0),
+            lu: Vec::new(),
+            pivots: Vec::new(),
+            sparse: SparseNewton::default(),
             newton_tol: 1e-10,
             max_newton: 20,
             nfev: 0,
@@ -226,13 +233,7 @@ impl Stepper {
             }
         };
         // Jacobian at (t1, y) and the iteration matrix I - γ h J, factorised once.
-        self.jacobian(sys, t1, y)?;
-        for c in 0..n {
-            for r in 0..n {
-                self.lu[r * n + c] = f64::from(u8::from(r == c)) - gamma * h * self.jac[(r, c)];
-            }
-        }
-        lu_factor(&mut self.lu, &mut self.pivots, n)?;
+        let sparse = self.factorize(sys, t1, y, gamma * h)?;
         self.y_new.copy_from_slice(y);
         for _ in 0..self.max_newton {
             self.nfev += 1;
@@ -241,7 +242,11 @@ impl Stepper {
             for i in 0..n {
                 self.stage[i] = -(self.y_new[i] - self.k[2][i] - gamma * h * self.k[1][i]);
             }
-            lu_solve(&self.lu, &self.pivots, n, &mut self.stage);
+            if sparse {
+                self.sparse.solve_in_place(&mut self.stage);
+            } else {
+                lu_solve(&self.lu, &self.pivots, n, &mut self.stage);
+            }
             let (mut step, mut size) = (0.0_f64, 0.0_f64);
             for i in 0..n {
                 self.y_new[i] += self.stage[i];
@@ -264,10 +269,36 @@ impl Stepper {
         })
     }
 
+    /// Evaluate ∂f/∂y at (t, y) and factorise `I - gh J`: sparse if the system offers it
+    /// (returns `true`), else dense (returns `false`).
+    fn factorize<S: OdeSystem>(&mut self, sys: &mut S, t: f64, y: &[f64], gh: f64) -> Result<bool> {
+        self.njev += 1;
+        if sys.sparse_jacobian(t, y, &mut self.sparse.jac)? {
+            self.sparse.factorize(self.n, gh)?;
+            return Ok(true);
+        }
+        if self.sparse.is_active() {
+            self.sparse.clear();
+        }
+        let n = self.n;
+        if self.jac.nrows() != n {
+            self.jac = DMatrix::zeros(n, n);
+            self.lu = vec![0.0; n * n];
+            self.pivots = vec![0; n];
+        }
+        self.dense_jacobian(sys, t, y)?;
+        for c in 0..n {
+            for r in 0..n {
+                self.lu[r * n + c] = f64::from(u8::from(r == c)) - gh * self.jac[(r, c)];
+            }
+        }
+        lu_factor(&mut self.lu, &mut self.pivots, n)?;
+        Ok(false)
+    }
+
     /// Fill `self.jac` with ∂f/∂y at (t, y): analytic if the system has it, else forward
     /// differences with steps `sqrt(eps) max(|y_j|, 1)`.
-    fn jacobian<S: OdeSystem>(&mut self, sys: &mut S, t: f64, y: &[f64]) -> Result<()> {
-        self.njev += 1;
+    fn dense_jacobian<S: OdeSystem>(&mut self, sys: &mut S, t: f64, y: &[f64]) -> Result<()> {
         if sys.jacobian(t, y, &mut self.jac)? {
             return Ok(());
         }

@@ -18,11 +18,12 @@
 //! resting particles exactly on the surface without jitter.
 
 mod forces;
+mod jacobian;
 
 pub use forces::{curl_noise, noise_with_gradient, Force};
 
 use crate::error::{Error, Result};
-use crate::ode::{Method, OdeSystem, Stepper};
+use crate::ode::{Method, OdeSystem, SparseJacobian, Stepper};
 use crate::sdf;
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
@@ -144,6 +145,9 @@ pub struct ParticleSystem {
     /// Forces set from outside for the next steps (N, 3 per slot), empty when unused.
     external: Vec<f64>,
     stepper: Option<Stepper>,
+    /// Buffers of the sparse Jacobian for the implicit methods, rebuilt at every evaluation.
+    #[serde(skip)]
+    jacobian: jacobian::JacobianWork,
     time: f64,
     /// Counters of the last step call.
     pub stats: StepStats,
@@ -233,6 +237,7 @@ impl ParticleSystem {
             cells: Vec::with_capacity(n),
             external: Vec::new(),
             stepper: None,
+            jacobian: jacobian::JacobianWork::default(),
             time: 0.0,
             stats: StepStats::default(),
         })
@@ -274,6 +279,7 @@ impl ParticleSystem {
             alive: &self.alive,
             external: &self.external,
             cells: &mut self.cells,
+            jacobian: &mut self.jacobian,
         };
         (dynamics, &mut self.y, &self.inv_mass, &mut self.time)
     }
@@ -584,6 +590,7 @@ impl ParticleSystem {
             alive: &self.alive,
             external: &self.external,
             cells: &mut self.cells,
+            jacobian: &mut self.jacobian,
         };
         stepper.step(&mut dynamics, self.time, &mut self.y, dt).map_err(|e| match e {
             Error::Diverged { index, .. } => Error::Diverged {
@@ -870,6 +877,7 @@ pub(crate) struct Dynamics<'a> {
     alive: &'a [bool],
     external: &'a [f64],
     cells: &'a mut Vec<(u64, u32)>,
+    jacobian: &'a mut jacobian::JacobianWork,
 }
 
 fn cell_key(c: [i64; 3]) -> u64 {
@@ -877,9 +885,66 @@ fn cell_key(c: [i64; 3]) -> u64 {
     h(c[0]) ^ h(c[1]).rotate_left(21) ^ h(c[2]).rotate_left(42)
 }
 
+/// Call `f(i, j, d, |d|)` for every pair `i < j` of live particles closer than `radius`
+/// (and not coincident), `d = x_i - x_j`, found with a spatial hash grid of cell size `radius`
+/// kept in `cells`; pairs come in a fixed order.
+fn for_each_close_pair(
+    cells: &mut Vec<(u64, u32)>,
+    n: usize,
+    alive: &[bool],
+    x: &[f64],
+    radius: f64,
+    mut f: impl FnMut(usize, usize, DVec3, f64),
+) {
+    let p = |i: usize| DVec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+    let cell = |q: DVec3| {
+        [
+            (q.x / radius).floor() as i64,
+            (q.y / radius).floor() as i64,
+            (q.z / radius).floor() as i64,
+        ]
+    };
+    cells.clear();
+    cells.extend((0..n).filter(|&i| alive[i]).map(|i| (cell_key(cell(p(i))), i as u32)));
+    cells.sort_unstable();
+    for i in (0..n).filter(|&i| alive[i]) {
+        let c = cell(p(i));
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let key = cell_key([c[0] + dx, c[1] + dy, c[2] + dz]);
+                    let start = cells.partition_point(|e| e.0 < key);
+                    for &(k, j) in &cells[start..] {
+                        if k != key {
+                            break;
+                        }
+                        let j = j as usize;
+                        if j <= i {
+                            continue;
+                        }
+                        let d = p(i) - p(j);
+                        let dist = d.length();
+                        if dist < radius && dist > 0.0 {
+                            f(i, j, d, dist);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 impl OdeSystem for Dynamics<'_> {
     fn dim(&self) -> usize {
         6 * self.n
+    }
+
+    fn sparse_jacobian(&mut self, _t: f64, y: &[f64], jac: &mut SparseJacobian) -> Result<bool> {
+        if !jacobian::is_sparse(self.forces) {
+            return Ok(false);
+        }
+        jacobian::fill(self, y, jac);
+        Ok(true)
     }
 
     fn rhs(&mut self, _t: f64, y: &[f64], dydt: &mut [f64]) -> Result<()> {
@@ -931,45 +996,11 @@ impl OdeSystem for Dynamics<'_> {
                     }
                 }
                 Force::NeighborRepulsion { radius, stiffness } => {
-                    let cell = |q: DVec3| {
-                        [
-                            (q.x / radius).floor() as i64,
-                            (q.y / radius).floor() as i64,
-                            (q.z / radius).floor() as i64,
-                        ]
-                    };
-                    self.cells.clear();
-                    self.cells.extend(
-                        (0..n).filter(|&i| self.alive[i]).map(|i| (cell_key(cell(p(i))), i as u32)),
-                    );
-                    self.cells.sort_unstable();
-                    for i in (0..n).filter(|&i| self.alive[i]) {
-                        let c = cell(p(i));
-                        for dz in -1..=1 {
-                            for dy in -1..=1 {
-                                for dx_ in -1..=1 {
-                                    let key = cell_key([c[0] + dx_, c[1] + dy, c[2] + dz]);
-                                    let start = self.cells.partition_point(|e| e.0 < key);
-                                    for &(k, j) in &self.cells[start..] {
-                                        if k != key {
-                                            break;
-                                        }
-                                        let j = j as usize;
-                                        if j <= i {
-                                            continue;
-                                        }
-                                        let d = p(i) - p(j);
-                                        let dist = d.length();
-                                        if dist < *radius && dist > 0.0 {
-                                            let fi = stiffness * (radius - dist) / dist * d;
-                                            add(f, i, fi);
-                                            add(f, j, -fi);
-                                        }
-                                    }
-                                }
-                            }
-                        }
-                    }
+                    for_each_close_pair(self.cells, n, alive, x, *radius, |i, j, d, dist| {
+                        let fi = stiffness * (radius - dist) / dist * d;
+                        add(f, i, fi);
+                        add(f, j, -fi);
+                    });
                 }
                 Force::NBodyGravity { constant, softening } => {
                     let free = |i: usize| self.alive[i] && self.inv_mass[i] > 0.0;
