@@ -8,16 +8,28 @@ use super::{Method, OdeSystem};
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
 
+/// Newton corrections that shrink by less than this factor per iteration trigger a Jacobian
+/// update (the simplified iteration contracts too slowly).
+const NEWTON_CONTRACTION: f64 = 0.5;
+
+/// Smallest fraction of a Newton update kept when backtracking.
+const MIN_FRACTION: f64 = 1.0 / 64.0;
+
 /// Advances an [`OdeSystem`] by fixed steps of one [`Method`], allocating nothing per step.
 ///
 /// A step either completes or returns an error and leaves `y` untouched. Implicit methods
-/// solve their equations by simplified Newton iterations with the Jacobian evaluated once per
-/// step. When the system offers a sparse Jacobian ([`OdeSystem::sparse_jacobian`]) the
-/// iteration matrix `I - γ h J` is assembled in its fixed pattern and factorised by faer's
-/// sparse LU (symbolic analysis once per pattern, numeric factorisation per step); otherwise
-/// the Jacobian is dense (analytic, or by forward differences over every column) with a dense
-/// LU factorisation with partial pivoting, in place. The dense workspaces (`n²` values) are
-/// allocated at the first dense step, so systems with a sparse Jacobian never hold them.
+/// solve their equations by Newton iterations from the start of the step: the Jacobian is
+/// evaluated once per step (simplified Newton) and again at the current iterate when the
+/// corrections shrink by less than half; a correction that does not shrink at all is taken back
+/// by halves down to 1/64 (Deuflhard's natural monotonicity test, *Newton Methods for
+/// Nonlinear Problems*, 2004, §3.3), which keeps strongly nonlinear steps (stiff springs that
+/// rotate) converging. When the system offers a sparse Jacobian
+/// ([`OdeSystem::sparse_jacobian`]) the iteration matrix `I - γ h J` is assembled in its
+/// pattern and factorised by faer's sparse LU (symbolic analysis once per pattern, numeric
+/// factorisation per Jacobian update); otherwise the Jacobian is dense (analytic, or by
+/// forward differences over every column) with a dense LU factorisation with partial
+/// pivoting, in place. The dense workspaces (`n²` values) are allocated at the first dense
+/// step, so systems with a sparse Jacobian never hold them.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Stepper {
     method: Method,
@@ -35,7 +47,7 @@ pub struct Stepper {
     sparse: SparseNewton,
     /// Newton tolerance: stop when `max|Δy| ≤ newton_tol (1 + max|y|)`. Default 1e-10.
     pub newton_tol: f64,
-    /// Newton iterations before a step fails with [`Error::SolverFailed`]. Default 20.
+    /// Newton iterations before a step fails with [`Error::SolverFailed`]. Default 100.
     pub max_newton: usize,
     /// Right-hand-side evaluations so far.
     pub nfev: usize,
@@ -68,7 +80,7 @@ impl Stepper {
             pivots: Vec::new(),
             sparse: SparseNewton::default(),
             newton_tol: 1e-10,
-            max_newton: 20,
+            max_newton: 100,
             nfev: 0,
             njev: 0,
         })
@@ -233,8 +245,10 @@ impl Stepper {
             }
         };
         // Jacobian at (t1, y) and the iteration matrix I - γ h J, factorised once.
-        let sparse = self.factorize(sys, t1, y, gamma * h)?;
+        let mut sparse = self.factorize(sys, t1, y, gamma * h)?;
         self.y_new.copy_from_slice(y);
+        // `k[0]` keeps the last full update, of which `fraction` is applied.
+        let (mut last, mut fraction) = (f64::INFINITY, 1.0);
         for _ in 0..self.max_newton {
             self.nfev += 1;
             sys.rhs(t1, &self.y_new, &mut self.k[1])?;
@@ -247,10 +261,19 @@ impl Stepper {
             } else {
                 lu_solve(&self.lu, &self.pivots, n, &mut self.stage);
             }
-            let (mut step, mut size) = (0.0_f64, 0.0_f64);
+            let step = self.stage.iter().fold(0.0_f64, |m, d| m.max(d.abs()));
+            if !(step < last) && fraction > MIN_FRACTION {
+                // The last update did not contract the Newton correction (Deuflhard's natural
+                // monotonicity test): take back half of it.
+                fraction *= 0.5;
+                for i in 0..n {
+                    self.y_new[i] -= fraction * self.k[0][i];
+                }
+                continue;
+            }
+            let mut size = 0.0_f64;
             for i in 0..n {
                 self.y_new[i] += self.stage[i];
-                step = step.max(self.stage[i].abs());
                 size = size.max(self.y_new[i].abs());
             }
             if !step.is_finite() {
@@ -259,6 +282,16 @@ impl Stepper {
             if step <= self.newton_tol * (1.0 + size) {
                 return Ok(());
             }
+            self.k[0].copy_from_slice(&self.stage);
+            if step > NEWTON_CONTRACTION * last {
+                // Slow contraction: the Jacobian of the start is too far off (a strongly
+                // nonlinear step); update it at the current iterate.
+                let y_new = std::mem::take(&mut self.y_new);
+                let result = self.factorize(sys, t1, &y_new, gamma * h);
+                self.y_new = y_new;
+                sparse = result?;
+            }
+            (last, fraction) = (step, 1.0);
         }
         Err(Error::SolverFailed {
             reason: format!(
