@@ -164,6 +164,8 @@ impl SparseNewton {
     /// and the symbolic factorisation for the pattern now in `self.jac`.
     fn analyse(&mut self, n: usize) -> Result<()> {
         self.jac.validate(n)?;
+        // Until the analysis succeeds no pattern is analysed (a failure leaves none half-built).
+        self.symbolic = None;
         let (cp, ri) = (&self.jac.col_ptr, &self.jac.row_idx);
         self.m_col_ptr.clear();
         self.m_row_idx.clear();

@@ -244,10 +244,11 @@ impl Stepper {
                 1.0
             }
         };
-        // Jacobian at (t1, y) and the iteration matrix I - γ h J, factorised once.
+        // Jacobian at (t1, y) and the iteration matrix I - γ h J.
         let mut sparse = self.factorize(sys, t1, y, gamma * h)?;
         self.y_new.copy_from_slice(y);
-        // `k[0]` keeps the last full update, of which `fraction` is applied.
+        // `k[0]` holds the last Newton update Δ of norm `last` (infinite before the first and
+        // after a Jacobian update), of which `fraction` is applied to the accepted iterate.
         let (mut last, mut fraction) = (f64::INFINITY, 1.0);
         for _ in 0..self.max_newton {
             self.nfev += 1;
@@ -262,35 +263,39 @@ impl Stepper {
                 lu_solve(&self.lu, &self.pivots, n, &mut self.stage);
             }
             let step = self.stage.iter().fold(0.0_f64, |m, d| m.max(d.abs()));
-            if !(step < last) && fraction > MIN_FRACTION {
-                // The last update did not contract the Newton correction (Deuflhard's natural
-                // monotonicity test): take back half of it.
+            let size = self.y_new.iter().fold(0.0_f64, |m, d| m.max(d.abs()));
+            if step <= self.newton_tol * (1.0 + size) {
+                for i in 0..n {
+                    self.y_new[i] += self.stage[i];
+                }
+                return Ok(());
+            }
+            if last.is_finite() && !(step < last) && fraction > MIN_FRACTION {
+                // The update did not shrink the correction computed with the same matrix
+                // (Deuflhard's natural monotonicity test): take back half of it.
                 fraction *= 0.5;
                 for i in 0..n {
                     self.y_new[i] -= fraction * self.k[0][i];
                 }
                 continue;
             }
-            let mut size = 0.0_f64;
-            for i in 0..n {
-                self.y_new[i] += self.stage[i];
-                size = size.max(self.y_new[i].abs());
-            }
             if !step.is_finite() {
                 break;
             }
-            if step <= self.newton_tol * (1.0 + size) {
-                return Ok(());
-            }
-            self.k[0].copy_from_slice(&self.stage);
-            if step > NEWTON_CONTRACTION * last {
-                // Slow contraction: the Jacobian of the start is too far off (a strongly
-                // nonlinear step); update it at the current iterate.
+            if last.is_finite() && step > NEWTON_CONTRACTION * last {
+                // Slow contraction: the matrix is too far off (a strongly nonlinear step);
+                // update it at this iterate and compute the Newton update there afresh.
                 let y_new = std::mem::take(&mut self.y_new);
                 let result = self.factorize(sys, t1, &y_new, gamma * h);
                 self.y_new = y_new;
                 sparse = result?;
+                (last, fraction) = (f64::INFINITY, 1.0);
+                continue;
             }
+            for i in 0..n {
+                self.y_new[i] += self.stage[i];
+            }
+            self.k[0].copy_from_slice(&self.stage);
             (last, fraction) = (step, 1.0);
         }
         Err(Error::SolverFailed {
