@@ -132,13 +132,14 @@ fn local_blocks(forces: &[Force], x: DVec3, v: DVec3, m: f64) -> (DMat3, DMat3) 
     (jx, jv)
 }
 
-/// Whether the forces admit a sparse Jacobian (no all-pairs gravity).
-pub(super) fn is_sparse(forces: &[Force]) -> bool {
-    !forces.iter().any(|f| matches!(f, Force::NBodyGravity { .. }))
-}
-
-/// Write `∂f/∂y` at `y` into `jac` (see the module docs).
-pub(super) fn fill(dynamics: &mut Dynamics<'_>, y: &[f64], jac: &mut SparseJacobian) {
+/// Write `∂f/∂y` at `y` into `jac` (see the module docs) and return `true`, or return `false`
+/// when the system offers no sparse Jacobian: it was given no buffers (the dense path was
+/// asked for) or all-pairs gravity couples every particle.
+pub(super) fn fill(dynamics: &mut Dynamics<'_>, y: &[f64], jac: &mut SparseJacobian) -> bool {
+    let all_pairs = dynamics.forces.iter().any(|f| matches!(f, Force::NBodyGravity { .. }));
+    let Some(w) = dynamics.jacobian.as_deref_mut().filter(|_| !all_pairs) else {
+        return false;
+    };
     let n = dynamics.n;
     let (x, v) = y.split_at(3 * n);
     let p = |i: usize| DVec3::from_slice(&x[3 * i..3 * i + 3]);
@@ -146,7 +147,6 @@ pub(super) fn fill(dynamics: &mut Dynamics<'_>, y: &[f64], jac: &mut SparseJacob
     let (forces, mass, inv_mass, alive) =
         (dynamics.forces, dynamics.mass, dynamics.inv_mass, dynamics.alive);
     let free = |i: usize| alive[i] && inv_mass[i] > 0.0;
-    let w = &mut *dynamics.jacobian;
 
     // The pattern: every particle with itself, and the coupled pairs both ways.
     w.close.clear();
@@ -257,6 +257,7 @@ pub(super) fn fill(dynamics: &mut Dynamics<'_>, y: &[f64], jac: &mut SparseJacob
             }
         }
     }
+    true
 }
 
 #[cfg(test)]

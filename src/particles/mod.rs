@@ -279,7 +279,7 @@ impl ParticleSystem {
             alive: &self.alive,
             external: &self.external,
             cells: &mut self.cells,
-            jacobian: &mut self.jacobian,
+            jacobian: Some(&mut self.jacobian),
         };
         (dynamics, &mut self.y, &self.inv_mass, &mut self.time)
     }
@@ -523,12 +523,33 @@ impl ParticleSystem {
         e
     }
 
-    /// Advance `steps` steps of `dt` seconds with `method`.
+    /// Advance `steps` steps of `dt` seconds with `method`; the implicit methods factorise
+    /// the sparse Newton matrix (see [`ParticleSystem::step_with_jacobian`]).
     ///
     /// # Errors
     /// A bad `dt`, an integrator failure, or a non-finite state ([`Error::Diverged`] naming the
     /// step and the particle); the system is left at the last good step.
     pub fn step(&mut self, dt: f64, steps: usize, method: Method) -> Result<()> {
+        self.step_with_jacobian(dt, steps, method, true)
+    }
+
+    /// [`ParticleSystem::step`] with the choice of the implicit methods' Newton matrix
+    /// `I - γ h J`: with `sparse`, the analytic sparse Jacobian of the forces and a sparse LU
+    /// (cost growing about linearly with the particles for springs and local forces); without,
+    /// a dense Jacobian by forward differences over all `6 capacity` columns and a dense LU
+    /// (`O(capacity³)` per step, for comparison and for small systems). All-pairs gravity
+    /// ([`Force::NBodyGravity`]) couples every particle, so with it the matrix is dense either
+    /// way. Explicit methods ignore the choice.
+    ///
+    /// # Errors
+    /// As [`ParticleSystem::step`].
+    pub fn step_with_jacobian(
+        &mut self,
+        dt: f64,
+        steps: usize,
+        method: Method,
+        sparse: bool,
+    ) -> Result<()> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(Error::invalid("dt", format!("must be positive and finite, got {dt}")));
         }
@@ -559,7 +580,7 @@ impl ParticleSystem {
                     .par_chunks_mut(6 * CHUNK)
                     .zip(self.y.par_chunks(6 * CHUNK))
                     .for_each(|(b, y)| b.copy_from_slice(y));
-                self.one_step(dt, gravity)
+                self.one_step(dt, gravity, sparse)
             };
             if let Err(e) = result {
                 self.y.copy_from_slice(&self.backup);
@@ -579,7 +600,7 @@ impl ParticleSystem {
         Ok(())
     }
 
-    fn one_step(&mut self, dt: f64, gravity: DVec3) -> Result<()> {
+    fn one_step(&mut self, dt: f64, gravity: DVec3, sparse: bool) -> Result<()> {
         let n = self.n;
         let stepper = self.stepper.as_mut().expect("stepper created in step");
         let mut dynamics = Dynamics {
@@ -590,7 +611,7 @@ impl ParticleSystem {
             alive: &self.alive,
             external: &self.external,
             cells: &mut self.cells,
-            jacobian: &mut self.jacobian,
+            jacobian: sparse.then_some(&mut self.jacobian),
         };
         stepper.step(&mut dynamics, self.time, &mut self.y, dt).map_err(|e| match e {
             Error::Diverged { index, .. } => Error::Diverged {
@@ -887,7 +908,8 @@ pub(crate) struct Dynamics<'a> {
     alive: &'a [bool],
     external: &'a [f64],
     cells: &'a mut Vec<(u64, u32)>,
-    jacobian: &'a mut jacobian::JacobianWork,
+    /// Buffers of the sparse Jacobian; `None` offers none (the dense path).
+    jacobian: Option<&'a mut jacobian::JacobianWork>,
 }
 
 fn cell_key(c: [i64; 3]) -> u64 {
@@ -950,11 +972,7 @@ impl OdeSystem for Dynamics<'_> {
     }
 
     fn sparse_jacobian(&mut self, _t: f64, y: &[f64], jac: &mut SparseJacobian) -> Result<bool> {
-        if !jacobian::is_sparse(self.forces) {
-            return Ok(false);
-        }
-        jacobian::fill(self, y, jac);
-        Ok(true)
+        Ok(jacobian::fill(self, y, jac))
     }
 
     fn rhs(&mut self, _t: f64, y: &[f64], dydt: &mut [f64]) -> Result<()> {
