@@ -122,10 +122,10 @@ fn implicit_euler_keeps_a_thousand_particle_chain_bounded_up_to_k_1e9() {
         assert!(pos(&s, n - 1).x > 0.01, "k = {k}: free end at {}", pos(&s, n - 1));
         if k >= 1e6 {
             // Stiff springs barely stretch: the top link carries the weight of the chain,
-            // 1 kg g over k, a strain of 1e-2 / k... under 1e-4 for k = 1e9.
+            // 9.81 N over k and the 1 cm link, a static strain of 981 / k.
             let springs: Vec<([usize; 2], f64)> = (0..n - 1).map(|i| ([i, i + 1], 0.01)).collect();
             let worst = worst_strain(&s, &springs);
-            assert!(worst < 1e7 / k, "k = {k}: strain {worst}");
+            assert!(worst < 2e3 / k, "k = {k}: strain {worst}");
         }
     }
 }
@@ -162,7 +162,7 @@ fn implicit_methods_keep_a_soft_spring_net_bounded() {
 }
 
 /// Known failure: from k = 1e4 N/m on (h² k / m = 280) Newton stalls on the swinging net
-/// within a few steps (backtracking and Jacobian updates do not make the corrections
+/// within a few steps (and on a 50 x 50 net from k = 1e3 within 20 steps) (backtracking and Jacobian updates do not make the corrections
 /// contract) and the step fails with `SolverFailed` ("reduce dt"); the one-dimensional chain
 /// above converges up to k = 1e9. The cause is not established: compressed springs, which make
 /// the iteration matrix indefinite, are the likely one, but dropping their transverse stiffness
