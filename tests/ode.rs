@@ -363,7 +363,7 @@ impl OdeSystem for SparseChain {
     ) -> kinema::Result<bool> {
         let (n, k) = (self.chain.n, self.chain.k);
         self.calls += 1;
-        let pad = self.padded && self.calls % 2 == 0;
+        let pad = self.padded && self.calls.is_multiple_of(2);
         jac.col_ptr.clear();
         jac.row_idx.clear();
         jac.values.clear();

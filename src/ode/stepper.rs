@@ -272,7 +272,7 @@ impl Stepper {
                 }
                 return Ok(());
             }
-            if last.is_finite() && !(step < last) && fraction > MIN_FRACTION {
+            if last.is_finite() && (step >= last || step.is_nan()) && fraction > MIN_FRACTION {
                 // The update did not shrink the correction computed with the same matrix
                 // (Deuflhard's natural monotonicity test): take back half of it.
                 fraction *= 0.5;

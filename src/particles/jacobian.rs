@@ -245,9 +245,9 @@ pub(super) fn fill(dynamics: &mut Dynamics<'_>, y: &[f64], jac: &mut SparseJacob
                     jac.row_idx.push(3 * j + b);
                     jac.values.push(if free(j) { 1.0 } else { 0.0 });
                 }
-                for s in w.adj_ptr[j]..w.adj_ptr[j + 1] {
-                    let (i, k) = (w.adj[s], scale(w.adj[s]));
-                    let col = blocks[s].col(b);
+                let slots = w.adj_ptr[j]..w.adj_ptr[j + 1];
+                for (&i, block) in w.adj[slots.clone()].iter().zip(&blocks[slots]) {
+                    let (k, col) = (scale(i), block.col(b));
                     for a in 0..3 {
                         jac.row_idx.push(3 * n + 3 * i as usize + a);
                         jac.values.push(k * col[a]);
