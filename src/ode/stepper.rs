@@ -25,13 +25,14 @@ const MIN_FRACTION: f64 = 1.0 / 64.0;
 /// back by halves down to 1/64 (Deuflhard's natural monotonicity test, *Newton Methods for
 /// Nonlinear Problems*, 2004, §3.3). This keeps strongly nonlinear steps (a stiff chain that
 /// swings, k = 1e9 at dt = 1/60) converging, but it is no guarantee: a stiff 2-D spring net
-/// stalls (h² k / m = 280 on 30 x 30 particles), and the step then fails. When the system
-/// offers a sparse Jacobian ([`OdeSystem::sparse_jacobian`]) the iteration matrix `I - γ h J` is assembled in its
-/// pattern and factorised by faer's sparse LU (symbolic analysis once per pattern, numeric
-/// factorisation per Jacobian update); otherwise the Jacobian is dense (analytic, or by
-/// forward differences over every column) with a dense LU factorisation with partial
-/// pivoting, in place. The dense workspaces (`n²` values) are allocated at the first dense
-/// step, so systems with a sparse Jacobian never hold them.
+/// stalls (h² k / m = 280 on 30 x 30 particles), and the step then fails.
+///
+/// When the system offers a sparse Jacobian ([`OdeSystem::sparse_jacobian`]) the iteration
+/// matrix `I - γ h J` is assembled in its pattern and factorised by faer's sparse LU (symbolic
+/// analysis once per pattern, numeric factorisation per Jacobian update); otherwise the
+/// Jacobian is dense (analytic, or by forward differences over every column) with a dense LU
+/// factorisation with partial pivoting, in place. The dense workspaces (`n²` values) are
+/// allocated at the first dense step, so systems with a sparse Jacobian never hold them.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Stepper {
     method: Method,
