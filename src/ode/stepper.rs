@@ -15,6 +15,9 @@ const NEWTON_CONTRACTION: f64 = 0.5;
 /// Smallest fraction of a Newton update kept when backtracking.
 const MIN_FRACTION: f64 = 1.0 / 64.0;
 
+/// A step whose Newton iteration fails is retried as 2, 4, … up to `2^MAX_SPLITS` substeps.
+const MAX_SPLITS: u32 = 4;
+
 /// Advances an [`OdeSystem`] by fixed steps of one [`Method`], allocating nothing per step.
 ///
 /// A step either completes or returns an error and leaves `y` untouched. Implicit methods
@@ -42,6 +45,10 @@ pub struct Stepper {
     y_new: Vec<f64>,
     prev: Vec<f64>,
     prev_h: Option<f64>,
+    /// The state between the substeps of a split implicit step; sized at construction for
+    /// the implicit methods, and after a reload at the first split.
+    #[serde(skip)]
+    sub: Vec<f64>,
     jac: DMatrix<f64>,
     lu: Vec<f64>,
     pivots: Vec<usize>,
@@ -77,6 +84,7 @@ impl Stepper {
             stage: vec![0.0; n],
             y_new: vec![0.0; n],
             prev: vec![0.0; n],
+            sub: vec![0.0; if method.is_implicit() { n } else { 0 }],
             prev_h: None,
             jac: DMatrix::zeros(0, 0),
             lu: Vec::new(),
@@ -197,7 +205,7 @@ impl Stepper {
                 }
             }
             Method::ImplicitEuler | Method::Trapezoidal | Method::Bdf2 => {
-                self.implicit_step(sys, t, y, h)?
+                self.split_implicit_step(sys, t, y, h)?
             }
         }
         if let Some(bad) = self.y_new.iter().position(|x| !x.is_finite()) {
@@ -213,6 +221,55 @@ impl Stepper {
         }
         y.copy_from_slice(&self.y_new);
         Ok(())
+    }
+
+    /// One implicit step of `h` into `y_new`; when Newton fails, the same step as 2, 4, … up to
+    /// `2^MAX_SPLITS` equal substeps, each a step of the method (BDF2 restarts, so its substeps
+    /// are implicit Euler steps), which brings `γ h` down until Newton converges.
+    fn split_implicit_step<S: OdeSystem>(
+        &mut self,
+        sys: &mut S,
+        t: f64,
+        y: &[f64],
+        h: f64,
+    ) -> Result<()> {
+        let mut failure = match self.implicit_step(sys, t, y, h) {
+            Err(e @ Error::SolverFailed { .. }) => e,
+            other => return other,
+        };
+        let mut sub = std::mem::take(&mut self.sub);
+        sub.resize(self.n, 0.0);
+        // No BDF2 history within the substeps (it would describe the state before `y`).
+        let history = self.prev_h.take();
+        for level in 1..=MAX_SPLITS {
+            let parts = 1_u32 << level;
+            let hs = h / f64::from(parts);
+            sub.copy_from_slice(y);
+            let mut result = Ok(());
+            for p in 0..parts {
+                result = self.implicit_step(sys, t + f64::from(p) * hs, &sub, hs);
+                if result.is_err() {
+                    break;
+                }
+                sub.copy_from_slice(&self.y_new);
+            }
+            match result {
+                Err(e @ Error::SolverFailed { .. }) => failure = e,
+                other => {
+                    self.sub = sub;
+                    self.prev_h = history;
+                    return other;
+                }
+            }
+        }
+        self.sub = sub;
+        self.prev_h = history;
+        match failure {
+            Error::SolverFailed { reason } => Err(Error::SolverFailed {
+                reason: format!("{reason} (also in {} substeps)", 1 << MAX_SPLITS),
+            }),
+            other => Err(other),
+        }
     }
 
     /// Solve `y₁ = base + γ h f(t + h, y₁)` for the implicit methods by simplified Newton.

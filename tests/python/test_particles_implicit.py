@@ -80,7 +80,7 @@ def test_sparse_and_dense_newton_give_the_same_steps(method):
 
 @pytest.mark.parametrize("method", ["implicit_euler", "bdf2"])
 def test_a_large_soft_net_steps_with_the_sparse_path(method):
-    # 2500 particles, 15 000 unknowns; k = 100 N/m (stiffer nets stall Newton: docs/ode.md).
+    # 2500 particles, 15 000 unknowns; k = 100 N/m (stiffer nets need substeps: docs/ode.md).
     ps = spring_net(50, 100.0)
     ps.step(DT, 20, method=method)
     x = ps.positions
