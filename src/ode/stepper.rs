@@ -27,8 +27,11 @@ const MAX_SPLITS: u32 = 4;
 /// after which the correction, computed with the same matrix, does not shrink at all is taken
 /// back by halves down to 1/64 (Deuflhard's natural monotonicity test, *Newton Methods for
 /// Nonlinear Problems*, 2004, §3.3). This keeps strongly nonlinear steps (a stiff chain that
-/// swings, k = 1e9 at dt = 1/60) converging, but it is no guarantee: a stiff 2-D spring net
-/// stalls (h² k / m = 280 on 30 x 30 particles), and the step then fails.
+/// swings, k = 1e9 at dt = 1/60) converging, but it is no guarantee: on a stiff 2-D spring net
+/// (h² k / m = 280 on 30 x 30 particles) it stalls. A step whose Newton iteration fails is
+/// then retried as 2, 4, 8 and 16 equal substeps of the method (BDF2 restarting, so its
+/// substeps are implicit Euler steps), which shrink `γ h` until Newton converges; only when 16
+/// substeps fail does the step fail.
 ///
 /// When the system offers a sparse Jacobian ([`OdeSystem::sparse_jacobian`]) the iteration
 /// matrix `I - γ h J` is assembled in its pattern and factorised by faer's sparse LU (symbolic
