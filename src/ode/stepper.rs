@@ -236,53 +236,60 @@ impl Stepper {
         y: &[f64],
         h: f64,
     ) -> Result<()> {
-        let mut failure = match self.implicit_step(sys, t, y, h) {
-            Err(e @ Error::SolverFailed { .. }) => e,
-            other => return other,
+        // A singular iteration matrix is retried too (a smaller `γ h` moves it towards I).
+        let converged = |r: Result<bool>| match r {
+            Err(Error::SolverFailed { .. }) => Ok(false),
+            other => other,
         };
+        if converged(self.implicit_step(sys, t, y, h))? {
+            return Ok(());
+        }
         let mut sub = std::mem::take(&mut self.sub);
         sub.resize(self.n, 0.0);
         // No BDF2 history within the substeps (it would describe the state before `y`).
         let history = self.prev_h.take();
+        let mut result = Ok(false);
         for level in 1..=MAX_SPLITS {
             let parts = 1_u32 << level;
             let hs = h / f64::from(parts);
             sub.copy_from_slice(y);
-            let mut result = Ok(());
             for p in 0..parts {
-                result = self.implicit_step(sys, t + f64::from(p) * hs, &sub, hs);
-                if result.is_err() {
+                result = converged(self.implicit_step(sys, t + f64::from(p) * hs, &sub, hs));
+                if !matches!(result, Ok(true)) {
                     break;
                 }
                 sub.copy_from_slice(&self.y_new);
             }
-            match result {
-                Err(e @ Error::SolverFailed { .. }) => failure = e,
-                other => {
-                    self.sub = sub;
-                    self.prev_h = history;
-                    return other;
-                }
+            if !matches!(result, Ok(false)) {
+                break;
             }
         }
         self.sub = sub;
         self.prev_h = history;
-        match failure {
-            Error::SolverFailed { reason } => Err(Error::SolverFailed {
-                reason: format!("{reason} (also in {} substeps)", 1 << MAX_SPLITS),
+        match result {
+            Ok(true) => Ok(()),
+            Ok(false) => Err(Error::SolverFailed {
+                reason: format!(
+                    "{}: Newton did not converge in {} iterations, nor in {} substeps; reduce dt",
+                    self.method.name(),
+                    self.max_newton,
+                    1 << MAX_SPLITS
+                ),
             }),
-            other => Err(other),
+            Err(e) => Err(e),
         }
     }
 
-    /// Solve `y₁ = base + γ h f(t + h, y₁)` for the implicit methods by simplified Newton.
+    /// Solve `y₁ = base + γ h f(t + h, y₁)` for the implicit methods by Newton into `y_new`;
+    /// `Ok(false)` when the iteration gives up (an error message is built by the caller only
+    /// if the substeps fail too, so that a split step allocates nothing).
     fn implicit_step<S: OdeSystem>(
         &mut self,
         sys: &mut S,
         t: f64,
         y: &[f64],
         h: f64,
-    ) -> Result<()> {
+    ) -> Result<bool> {
         let n = self.n;
         let t1 = t + h;
         // The explicit part `base` (in k[2]) and the weight `gamma` of f(t1, y1).
@@ -331,7 +338,7 @@ impl Stepper {
                 for i in 0..n {
                     self.y_new[i] += self.stage[i];
                 }
-                return Ok(());
+                return Ok(true);
             }
             if last.is_finite() && (step >= last || step.is_nan()) && fraction > MIN_FRACTION {
                 // The update did not shrink the correction computed with the same matrix
@@ -361,13 +368,7 @@ impl Stepper {
             self.k[0].copy_from_slice(&self.stage);
             (last, fraction) = (step, 1.0);
         }
-        Err(Error::SolverFailed {
-            reason: format!(
-                "{}: Newton did not converge in {} iterations; reduce dt",
-                self.method.name(),
-                self.max_newton
-            ),
-        })
+        Ok(false)
     }
 
     /// Evaluate ∂f/∂y at (t, y) and factorise `I - gh J`: sparse if the system offers it
