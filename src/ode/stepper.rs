@@ -60,7 +60,8 @@ pub struct Stepper {
     sparse: SparseNewton,
     /// Newton tolerance: stop when `max|Δy| ≤ newton_tol (1 + max|y|)`. Default 1e-10.
     pub newton_tol: f64,
-    /// Newton iterations before a step fails with [`Error::SolverFailed`]. Default 100.
+    /// Newton iterations before the iteration gives up on a step, which is then retried as
+    /// substeps, and fails with [`Error::SolverFailed`] when they give up too. Default 100.
     pub max_newton: usize,
     /// Right-hand-side evaluations so far.
     pub nfev: usize,
