@@ -3,7 +3,7 @@
 
 use kinema::ode::{
     max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function, Method, OdeSystem,
-    Stepper,
+    SparseJacobian, Stepper,
 };
 use kinema::Error;
 use nalgebra::{Complex, DMatrix};
@@ -338,4 +338,144 @@ fn oscillator_limits_hold_for_overdamped_and_undamped_modes() {
     assert!(max_stable_dt_oscillator(Method::ImplicitEuler, 1e9, 0.0).unwrap().is_infinite());
     assert!(max_stable_dt_oscillator(Method::Rk4, -1.0, 0.0).is_err());
     assert!(max_stable_dt_oscillator(Method::Rk4, 1.0, f64::NAN).is_err());
+}
+
+/// [`SpringChain`] with its analytic Jacobian in compressed sparse columns: `∂x'/∂v = I` and
+/// the tridiagonal `∂v'/∂x`. With `padded`, every other call also stores explicit zeros in
+/// the velocity block (a pattern that changes between calls).
+struct SparseChain {
+    chain: SpringChain,
+    padded: bool,
+    calls: usize,
+}
+impl OdeSystem for SparseChain {
+    fn dim(&self) -> usize {
+        self.chain.dim()
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], f: &mut [f64]) -> kinema::Result<()> {
+        self.chain.rhs(t, y, f)
+    }
+    fn sparse_jacobian(
+        &mut self,
+        _t: f64,
+        _y: &[f64],
+        jac: &mut SparseJacobian,
+    ) -> kinema::Result<bool> {
+        let (n, k) = (self.chain.n, self.chain.k);
+        self.calls += 1;
+        let pad = self.padded && self.calls.is_multiple_of(2);
+        jac.col_ptr.clear();
+        jac.row_idx.clear();
+        jac.values.clear();
+        jac.col_ptr.push(0);
+        for c in 0..n {
+            // Column of x_c: rows of v_{c-1}, v_c, v_{c+1}.
+            for r in c.saturating_sub(1)..(c + 2).min(n) {
+                let value = if r == c { -2.0 * k + if c + 1 == n { k } else { 0.0 } } else { k };
+                jac.row_idx.push(n + r);
+                jac.values.push(value);
+            }
+            jac.col_ptr.push(jac.row_idx.len());
+        }
+        for c in 0..n {
+            jac.row_idx.push(c);
+            jac.values.push(1.0);
+            if pad {
+                jac.row_idx.push(n + c);
+                jac.values.push(0.0);
+            }
+            jac.col_ptr.push(jac.row_idx.len());
+        }
+        Ok(true)
+    }
+}
+
+#[test]
+fn sparse_newton_matches_the_dense_solve_and_the_exact_linear_step() {
+    let (n, k, h) = (40, 1e6, 1.0 / 60.0);
+    let mut y0 = vec![0.0; 2 * n];
+    for i in 0..n {
+        y0[i] = 0.01 * ((i * 7 % 11) as f64 - 5.0);
+        y0[n + i] = 0.1 * ((i * 3 % 5) as f64 - 2.0);
+    }
+    // Implicit Euler on the linear chain: y₁ = (I - h A)⁻¹ y₀ exactly, A dense as an oracle.
+    let mut a = DMatrix::zeros(2 * n, 2 * n);
+    let mut probe = SpringChain { n, k };
+    let (mut e, mut col) = (vec![0.0; 2 * n], vec![0.0; 2 * n]);
+    for c in 0..2 * n {
+        e[c] = 1.0;
+        probe.rhs(0.0, &e, &mut col).unwrap();
+        a.set_column(c, &nalgebra::DVector::from_column_slice(&col));
+        e[c] = 0.0;
+    }
+    let exact = (DMatrix::identity(2 * n, 2 * n) - h * &a)
+        .lu()
+        .solve(&nalgebra::DVector::from_column_slice(&y0))
+        .unwrap();
+    let mut sys = SparseChain { chain: SpringChain { n, k }, padded: false, calls: 0 };
+    let mut stepper = Stepper::new(Method::ImplicitEuler, 2 * n).unwrap();
+    let mut y = y0.clone();
+    stepper.step(&mut sys, 0.0, &mut y, h).unwrap();
+    let scale = exact.amax();
+    let err = y.iter().zip(exact.iter()).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(err <= 1e-10 * scale, "implicit Euler vs (I - hA)⁻¹ y₀: {err:e}");
+    // A linear system: the exact Jacobian converges at once, no Jacobian update.
+    assert_eq!((sys.calls, stepper.njev), (1, 1));
+
+    for method in [Method::ImplicitEuler, Method::Trapezoidal, Method::Bdf2] {
+        let dense = run(&mut SpringChain { n, k }, method, &y0, 1.0, 60).unwrap();
+        for padded in [false, true] {
+            let mut sys = SparseChain { chain: SpringChain { n, k }, padded, calls: 0 };
+            let sparse = run(&mut sys, method, &y0, 1.0, 60).unwrap();
+            let scale = dense.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            let err = sparse.iter().zip(&dense).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            // The differenced Jacobian is good to ~1e-8 relative; Newton removes its error
+            // down to the tolerance.
+            assert!(err <= 1e-8 * scale, "{} padded {padded}: {err:e}", method.name());
+        }
+    }
+}
+
+#[test]
+fn invalid_sparse_jacobians_are_refused_with_the_state_unchanged() {
+    /// The chain's Jacobian spoiled by `spoil`.
+    struct Spoiled(SparseChain, fn(&mut SparseJacobian));
+    impl OdeSystem for Spoiled {
+        fn dim(&self) -> usize {
+            self.0.dim()
+        }
+        fn rhs(&mut self, t: f64, y: &[f64], f: &mut [f64]) -> kinema::Result<()> {
+            self.0.rhs(t, y, f)
+        }
+        fn sparse_jacobian(
+            &mut self,
+            t: f64,
+            y: &[f64],
+            jac: &mut SparseJacobian,
+        ) -> kinema::Result<bool> {
+            self.0.sparse_jacobian(t, y, jac)?;
+            (self.1)(jac);
+            Ok(true)
+        }
+    }
+    let spoilers: [fn(&mut SparseJacobian); 4] = [
+        |j| j.col_ptr.truncate(3), // too few columns
+        |j| j.row_idx.swap(0, 1),  // rows not increasing
+        |j| {
+            j.values.pop(); // a value missing
+        },
+        |j| j.row_idx[0] = 10_000, // row out of range
+    ];
+    for spoil in spoilers {
+        let n = 5;
+        let chain = SparseChain { chain: SpringChain { n, k: 1.0 }, padded: false, calls: 0 };
+        let mut stepper = Stepper::new(Method::ImplicitEuler, 2 * n).unwrap();
+        let mut y = vec![0.5; 2 * n];
+        let result = stepper.step(&mut Spoiled(chain, spoil), 0.0, &mut y, 0.1);
+        assert!(
+            matches!(&result, Err(Error::InvalidInput { arg, .. }) if arg == "jacobian"),
+            "{result:?}"
+        );
+        assert_eq!(y, vec![0.5; 2 * n]);
+    }
 }

@@ -356,13 +356,28 @@ class ParticleSystem:
         against it."""
         return self._stiffest
 
-    def step(self, dt: float, steps: int = 1, method: str = "symplectic_euler") -> None:
+    def step(
+        self,
+        dt: float,
+        steps: int = 1,
+        method: str = "symplectic_euler",
+        sparse_jacobian: bool = True,
+    ) -> None:
         """Advance ``steps`` steps of ``dt`` seconds; on divergence raise
-        ``kinema.SimulationError`` (step and particle named) and keep the last good state."""
+        ``kinema.SimulationError`` (step and particle named) and keep the last good state.
+
+        The implicit methods (``implicit_euler``, ``trapezoidal``, ``bdf2``) solve each step by
+        Newton iterations with the analytic sparse Jacobian of the forces and a sparse LU, whose
+        cost grows about linearly with the particles; ``sparse_jacobian=False`` uses a dense
+        Jacobian by finite differences and a dense LU instead (cost ``O(capacity³)``, for
+        comparison). ``NBodyGravity`` couples every pair, so with it the solve is dense."""
         if not isinstance(steps, (int, np.integer)) or steps < 0:
             raise ValueError(f"steps: expected a non-negative integer, got {steps!r}")
+        if not isinstance(sparse_jacobian, (bool, np.bool_)):
+            raise ValueError(f"sparse_jacobian: expected a bool, got {sparse_jacobian!r}")
+        sparse = bool(sparse_jacobian)
         if not self._fields:
-            self._sys.step(float(dt), int(steps), method)
+            self._sys.step(float(dt), int(steps), method, sparse)
             return
         for _ in range(int(steps)):
             x, v = self.positions, self.velocities
@@ -375,7 +390,7 @@ class ParticleSystem:
                     )
                 total += f
             self._sys.set_external_forces(np.ascontiguousarray(total))
-            self._sys.step(float(dt), 1, method)
+            self._sys.step(float(dt), 1, method, sparse)
 
     @property
     def positions(self) -> np.ndarray:

@@ -233,11 +233,21 @@ impl Particles {
         })?)
     }
 
-    /// Advance `steps` steps of `dt` seconds with `method` (GIL released).
-    fn step(&mut self, py: Python<'_>, dt: f64, steps: usize, method: &str) -> PyResult<()> {
+    /// Advance `steps` steps of `dt` seconds with `method` (GIL released); the implicit
+    /// methods factorise the sparse Newton matrix, or the dense one by differences when
+    /// `sparse_jacobian` is false.
+    #[pyo3(signature = (dt, steps, method, sparse_jacobian=true))]
+    fn step(
+        &mut self,
+        py: Python<'_>,
+        dt: f64,
+        steps: usize,
+        method: &str,
+        sparse_jacobian: bool,
+    ) -> PyResult<()> {
         let method = Method::parse(method)?;
         let system = &mut self.system;
-        detached(py, || system.step(dt, steps, method))
+        detached(py, || system.step_with_jacobian(dt, steps, method, sparse_jacobian))
     }
 
     /// Read-only view (capacity, 3) of the positions (m), updated in place by `step`.

@@ -14,10 +14,12 @@
 //! (symplectic Euler, Störmer–Verlet).
 
 mod adaptive;
+mod sparse;
 mod stability;
 mod stepper;
 
 pub use adaptive::{solve_adaptive, AdaptiveSolution};
+pub use sparse::SparseJacobian;
 pub use stability::{max_stable_dt, max_stable_dt_oscillator, stability_function};
 pub use stepper::Stepper;
 
@@ -39,6 +41,19 @@ pub trait OdeSystem {
     /// # Errors
     /// Whatever the system reports.
     fn jacobian(&mut self, _t: f64, _y: &[f64], _jac: &mut DMatrix<f64>) -> Result<bool> {
+        Ok(false)
+    }
+    /// Write the Jacobian `∂f/∂y` in compressed sparse columns into `jac` and return `true`,
+    /// or return `false` when the system has no sparse Jacobian (the default; implicit methods
+    /// then use [`OdeSystem::jacobian`] or dense finite differences). When offered, implicit
+    /// methods factorise `I - γ h J` by sparse LU in the pattern written here, so large,
+    /// sparsely coupled systems (particles joined by springs) avoid the `dim²` dense matrix
+    /// and the `dim` extra evaluations of differencing. See [`SparseJacobian`] for the layout
+    /// and for patterns that change between calls.
+    ///
+    /// # Errors
+    /// Whatever the system reports.
+    fn sparse_jacobian(&mut self, _t: f64, _y: &[f64], _jac: &mut SparseJacobian) -> Result<bool> {
         Ok(false)
     }
 }

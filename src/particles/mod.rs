@@ -19,11 +19,12 @@
 
 mod explicit;
 mod forces;
+mod jacobian;
 
 pub use forces::{curl_noise, noise_with_gradient, Force};
 
 use crate::error::{Error, Result};
-use crate::ode::{Method, OdeSystem, Stepper};
+use crate::ode::{Method, OdeSystem, SparseJacobian, Stepper};
 use crate::sdf;
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
@@ -146,6 +147,9 @@ pub struct ParticleSystem {
     /// Forces set from outside for the next steps (N, 3 per slot), empty when unused.
     external: Vec<f64>,
     stepper: Option<Stepper>,
+    /// Buffers of the sparse Jacobian for the implicit methods, rebuilt at every evaluation.
+    #[serde(skip)]
+    jacobian: jacobian::JacobianWork,
     time: f64,
     /// Counters of the last step call.
     pub stats: StepStats,
@@ -235,6 +239,7 @@ impl ParticleSystem {
             cells: Vec::with_capacity(n),
             external: Vec::new(),
             stepper: None,
+            jacobian: jacobian::JacobianWork::default(),
             time: 0.0,
             stats: StepStats::default(),
         })
@@ -276,6 +281,7 @@ impl ParticleSystem {
             alive: &self.alive,
             external: &self.external,
             cells: &mut self.cells,
+            jacobian: Some(&mut self.jacobian),
         };
         (dynamics, &mut self.y, &self.inv_mass, &mut self.time)
     }
@@ -519,12 +525,33 @@ impl ParticleSystem {
         e
     }
 
-    /// Advance `steps` steps of `dt` seconds with `method`.
+    /// Advance `steps` steps of `dt` seconds with `method`; the implicit methods factorise
+    /// the sparse Newton matrix (see [`ParticleSystem::step_with_jacobian`]).
     ///
     /// # Errors
     /// A bad `dt`, an integrator failure, or a non-finite state ([`Error::Diverged`] naming the
     /// step and the particle); the system is left at the last good step.
     pub fn step(&mut self, dt: f64, steps: usize, method: Method) -> Result<()> {
+        self.step_with_jacobian(dt, steps, method, true)
+    }
+
+    /// [`ParticleSystem::step`] with the choice of the implicit methods' Newton matrix
+    /// `I - γ h J`: with `sparse`, the analytic sparse Jacobian of the forces and a sparse LU
+    /// (cost growing about linearly with the particles for springs and local forces); without,
+    /// a dense Jacobian by forward differences over all `6 capacity` columns and a dense LU
+    /// (`O(capacity³)` per step, for comparison and for small systems). All-pairs gravity
+    /// ([`Force::NBodyGravity`]) couples every particle, so with it the matrix is dense either
+    /// way. Explicit methods ignore the choice.
+    ///
+    /// # Errors
+    /// As [`ParticleSystem::step`].
+    pub fn step_with_jacobian(
+        &mut self,
+        dt: f64,
+        steps: usize,
+        method: Method,
+        sparse: bool,
+    ) -> Result<()> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(Error::invalid("dt", format!("must be positive and finite, got {dt}")));
         }
@@ -562,7 +589,7 @@ impl ParticleSystem {
                     .par_chunks_mut(6 * CHUNK)
                     .zip(self.y.par_chunks(6 * CHUNK))
                     .for_each(|(b, y)| b.copy_from_slice(y));
-                self.one_step(dt, gravity)
+                self.one_step(dt, gravity, sparse)
             };
             if let Err(e) = result {
                 if !explicit {
@@ -587,7 +614,7 @@ impl ParticleSystem {
         Ok(())
     }
 
-    fn one_step(&mut self, dt: f64, gravity: DVec3) -> Result<()> {
+    fn one_step(&mut self, dt: f64, gravity: DVec3, sparse: bool) -> Result<()> {
         let n = self.n;
         let stepper = self.stepper.as_mut().expect("stepper created in step");
         let mut dynamics = Dynamics {
@@ -598,6 +625,7 @@ impl ParticleSystem {
             alive: &self.alive,
             external: &self.external,
             cells: &mut self.cells,
+            jacobian: sparse.then_some(&mut self.jacobian),
         };
         stepper.step(&mut dynamics, self.time, &mut self.y, dt).map_err(|e| match e {
             Error::Diverged { index, .. } => Error::Diverged {
@@ -607,6 +635,16 @@ impl ParticleSystem {
             },
             other => other,
         })?;
+        if stepper.method().is_implicit() {
+            // Their equations are x' = v' = 0, which the Newton solve meets only to rounding:
+            // pinned and dead particles keep their state exactly.
+            let (xs, vs) = self.y.split_at_mut(3 * n);
+            let (xb, vb) = self.backup.split_at(3 * n);
+            for i in (0..n).filter(|&i| !self.alive[i] || self.inv_mass[i] == 0.0) {
+                xs[3 * i..3 * i + 3].copy_from_slice(&xb[3 * i..3 * i + 3]);
+                vs[3 * i..3 * i + 3].copy_from_slice(&vb[3 * i..3 * i + 3]);
+            }
+        }
         // The integrator checked the state; projection and impulses keep finite values finite.
         self.collide(dt, gravity);
         Ok(())
@@ -943,6 +981,8 @@ pub(crate) struct Dynamics<'a> {
     alive: &'a [bool],
     external: &'a [f64],
     cells: &'a mut Vec<(u64, u32)>,
+    /// Buffers of the sparse Jacobian; `None` offers none (the dense path).
+    jacobian: Option<&'a mut jacobian::JacobianWork>,
 }
 
 fn cell_key(c: [i64; 3]) -> u64 {
@@ -950,9 +990,62 @@ fn cell_key(c: [i64; 3]) -> u64 {
     h(c[0]) ^ h(c[1]).rotate_left(21) ^ h(c[2]).rotate_left(42)
 }
 
+/// Call `f(i, j, d, |d|)` for every pair `i < j` of live particles closer than `radius`
+/// (and not coincident), `d = x_i - x_j`, found with a spatial hash grid of cell size `radius`
+/// kept in `cells`; pairs come in a fixed order.
+fn for_each_close_pair(
+    cells: &mut Vec<(u64, u32)>,
+    n: usize,
+    alive: &[bool],
+    x: &[f64],
+    radius: f64,
+    mut f: impl FnMut(usize, usize, DVec3, f64),
+) {
+    let p = |i: usize| DVec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+    let cell = |q: DVec3| {
+        [
+            (q.x / radius).floor() as i64,
+            (q.y / radius).floor() as i64,
+            (q.z / radius).floor() as i64,
+        ]
+    };
+    cells.clear();
+    cells.extend((0..n).filter(|&i| alive[i]).map(|i| (cell_key(cell(p(i))), i as u32)));
+    cells.sort_unstable();
+    for i in (0..n).filter(|&i| alive[i]) {
+        let c = cell(p(i));
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let key = cell_key([c[0] + dx, c[1] + dy, c[2] + dz]);
+                    let start = cells.partition_point(|e| e.0 < key);
+                    for &(k, j) in &cells[start..] {
+                        if k != key {
+                            break;
+                        }
+                        let j = j as usize;
+                        if j <= i {
+                            continue;
+                        }
+                        let d = p(i) - p(j);
+                        let dist = d.length();
+                        if dist < radius && dist > 0.0 {
+                            f(i, j, d, dist);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 impl OdeSystem for Dynamics<'_> {
     fn dim(&self) -> usize {
         6 * self.n
+    }
+
+    fn sparse_jacobian(&mut self, _t: f64, y: &[f64], jac: &mut SparseJacobian) -> Result<bool> {
+        Ok(jacobian::fill(self, y, jac))
     }
 
     fn rhs(&mut self, _t: f64, y: &[f64], dydt: &mut [f64]) -> Result<()> {
@@ -1004,45 +1097,11 @@ impl OdeSystem for Dynamics<'_> {
                     }
                 }
                 Force::NeighborRepulsion { radius, stiffness } => {
-                    let cell = |q: DVec3| {
-                        [
-                            (q.x / radius).floor() as i64,
-                            (q.y / radius).floor() as i64,
-                            (q.z / radius).floor() as i64,
-                        ]
-                    };
-                    self.cells.clear();
-                    self.cells.extend(
-                        (0..n).filter(|&i| self.alive[i]).map(|i| (cell_key(cell(p(i))), i as u32)),
-                    );
-                    self.cells.sort_unstable();
-                    for i in (0..n).filter(|&i| self.alive[i]) {
-                        let c = cell(p(i));
-                        for dz in -1..=1 {
-                            for dy in -1..=1 {
-                                for dx_ in -1..=1 {
-                                    let key = cell_key([c[0] + dx_, c[1] + dy, c[2] + dz]);
-                                    let start = self.cells.partition_point(|e| e.0 < key);
-                                    for &(k, j) in &self.cells[start..] {
-                                        if k != key {
-                                            break;
-                                        }
-                                        let j = j as usize;
-                                        if j <= i {
-                                            continue;
-                                        }
-                                        let d = p(i) - p(j);
-                                        let dist = d.length();
-                                        if dist < *radius && dist > 0.0 {
-                                            let fi = stiffness * (radius - dist) / dist * d;
-                                            add(f, i, fi);
-                                            add(f, j, -fi);
-                                        }
-                                    }
-                                }
-                            }
-                        }
-                    }
+                    for_each_close_pair(self.cells, n, alive, x, *radius, |i, j, d, dist| {
+                        let fi = stiffness * (radius - dist) / dist * d;
+                        add(f, i, fi);
+                        add(f, j, -fi);
+                    });
                 }
                 Force::NBodyGravity { constant, softening } => {
                     let free = |i: usize| self.alive[i] && self.inv_mass[i] > 0.0;
