@@ -635,15 +635,14 @@ impl ParticleSystem {
             },
             other => other,
         })?;
-        if stepper.method().is_implicit() {
-            // Their equations are x' = v' = 0, which the Newton solve meets only to rounding:
-            // pinned and dead particles keep their state exactly.
-            let (xs, vs) = self.y.split_at_mut(3 * n);
-            let (xb, vb) = self.backup.split_at(3 * n);
-            for i in (0..n).filter(|&i| !self.alive[i] || self.inv_mass[i] == 0.0) {
-                xs[3 * i..3 * i + 3].copy_from_slice(&xb[3 * i..3 * i + 3]);
-                vs[3 * i..3 * i + 3].copy_from_slice(&vb[3 * i..3 * i + 3]);
-            }
+        // Pinned and dead particles keep their state exactly: their equations are
+        // x' = v' = 0, which the Newton solve of the implicit methods meets only to rounding
+        // and which the drifts of the second-order methods (x += h v) do not read.
+        let (xs, vs) = self.y.split_at_mut(3 * n);
+        let (xb, vb) = self.backup.split_at(3 * n);
+        for i in (0..n).filter(|&i| !self.alive[i] || self.inv_mass[i] == 0.0) {
+            xs[3 * i..3 * i + 3].copy_from_slice(&xb[3 * i..3 * i + 3]);
+            vs[3 * i..3 * i + 3].copy_from_slice(&vb[3 * i..3 * i + 3]);
         }
         // The integrator checked the state; projection and impulses keep finite values finite.
         self.collide(dt, gravity);

@@ -171,3 +171,20 @@ def test_capsule_and_moving_colliders():
     assert ps.positions[0, 0] >= center[0] + 0.45 - 1e-12
     with pytest.raises(ValueError, match="velocity"):
         ps.set_collider(0, Sphere([0, 0, 0], 1.0, velocity=[np.nan, 0, 0]))
+
+
+@pytest.mark.parametrize("method", kinema.ode.METHODS)
+def test_a_pinned_particle_stays_put_with_every_method(method):
+    # Infinite mass pins a particle even when it was given a velocity, with gravity and a
+    # spring pulling on it: the drift of the second-order methods must not move it either.
+    ps = ParticleSystem(
+        np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]),
+        velocities=np.array([[1.0, 2.0, 3.0], [0.0, 0.0, 0.0]]),
+        masses=np.array([np.inf, 1.0]),
+    )
+    ps.add(Gravity())
+    ps.add(Springs([[0, 1]], stiffness=10.0, rest=[0.5]))
+    ps.step(0.01, steps=20, method=method)
+    assert np.array_equal(ps.positions[0], [0.0, 0.0, 0.0])
+    assert np.array_equal(ps.velocities[0], [1.0, 2.0, 3.0])
+    assert ps.positions[1, 1] < 0.0  # the free end falls
