@@ -89,9 +89,10 @@ const XPBD_VELOCITY_SWEEPS: usize = 8;
 /// Alternations of a Lagrange velocity projection and a contact sweep when both are present.
 const LAGRANGE_CONTACT_ROUNDS: usize = 4;
 
-/// Contact sweeps in a world without joints stop early once no impulse changes by more than
-/// this (N s): at rest, warm-started contacts converge in a few sweeps, and the rest would be
-/// paid for nothing. (With joints the sweeps are shared with them and always all run.)
+/// Contact sweeps of an island (in a world without joints) stop early once no contact's
+/// speed changes by more than this in a sweep (m/s): at rest, warm-started contacts converge
+/// in a few sweeps, and the rest would be paid for nothing. (With joints the sweeps are
+/// shared with them and always all run.)
 const CONVERGED: f64 = 1e-12;
 
 /// Next-step state, committed only when the whole step succeeded.
@@ -136,6 +137,7 @@ pub struct World {
     // Contact workspaces, reused every step.
     contacts: Vec<Contact>,
     previous: Vec<Contact>,
+    islands: contact::Islands,
     points: Vec<DVec3>,
     omega: Vec<DVec3>,
     placed: Vec<Placed>,
@@ -143,6 +145,10 @@ pub struct World {
     dtheta: Vec<DVec3>,
     order: Vec<usize>,
     touches: Vec<(usize, contact::Touch)>,
+    /// Body pairs whose bounds overlap, `(min, max)`.
+    pairs: Vec<(usize, usize)>,
+    /// Each body's bounding radius grown by its motion over the step (m).
+    reach: Vec<f64>,
     // Joints and their workspaces.
     joints: Vec<Joint>,
     /// Pairs `(min, max)` of bodies joined by a joint, sorted: they do not collide.
@@ -216,6 +222,7 @@ impl World {
             scratch: Box::default(),
             contacts: Vec::new(),
             previous: Vec::new(),
+            islands: contact::Islands::default(),
             points: Vec::new(),
             omega: Vec::new(),
             placed: Vec::new(),
@@ -223,6 +230,8 @@ impl World {
             dtheta: Vec::new(),
             order: Vec::new(),
             touches: Vec::new(),
+            pairs: Vec::new(),
+            reach: Vec::new(),
             joints: Vec::new(),
             jointed: Vec::new(),
             joint_iterations: 20,
@@ -742,7 +751,14 @@ impl World {
                 }
             }
         }
-        for _ in 0..sweeps {
+        if self.joints.is_empty() {
+            let fixed = &self.fixed;
+            self.islands.build(&self.contacts, |i| !fixed[i], n);
+            self.islands.solve(&mut self.contacts, &bodies, sweeps, CONVERGED, v, &mut self.omega);
+        }
+        // With joints the contacts share the sweeps with the impulse joints, all of them.
+        let shared = if self.joints.is_empty() { 0 } else { sweeps };
+        for _ in 0..shared {
             for (ji, j) in self.joints.iter().enumerate() {
                 if j.method == JointMethod::Impulse {
                     let slots = ji * SLOTS..ji * SLOTS + j.slots();
@@ -759,10 +775,7 @@ impl World {
                     );
                 }
             }
-            let change = contact::sweep(&mut self.contacts, &bodies, v, &mut self.omega);
-            if self.joints.is_empty() && change <= CONVERGED {
-                break; // converged: further sweeps would change no impulse
-            }
+            contact::sweep(&mut self.contacts, &bodies, v, &mut self.omega);
         }
         if lagrange && !self.contacts.is_empty() {
             // The contacts changed the velocities after the multipliers: alternate a velocity
@@ -776,7 +789,7 @@ impl World {
                     v,
                     &mut self.omega,
                 )?;
-                let _ = contact::sweep(&mut self.contacts, &bodies, v, &mut self.omega);
+                contact::sweep(&mut self.contacts, &bodies, v, &mut self.omega);
             }
         }
         // Positions from the new velocities.
@@ -934,7 +947,8 @@ impl World {
     }
 
     /// Find the contacts of the scratch state (planes, then body pairs by sweep and prune)
-    /// into `self.contacts`, sorted by key; velocities already include this step's forces.
+    /// into `self.contacts`, in the order of [`contact::warm_start`]; velocities already
+    /// include this step's forces.
     fn detect_contacts(&mut self, h: f64) {
         let (x, v, q, _) = &*self.scratch;
         let n = self.mass.len();
@@ -961,7 +975,9 @@ impl World {
                     t1,
                     t2: nrm.cross(t1),
                     mass: [0.0; 3],
+                    compliance: [0.0; 3],
                     spin: [[DVec3::ZERO; 3]; 2],
+                    coupling: [0.0; 2],
                     target,
                     gap,
                     mu,
@@ -994,41 +1010,51 @@ impl World {
             }
         }
         // Broad phase: sweep and prune along x over bounding spheres grown by the motion.
-        let reach =
-            |i: usize| self.bound[i] + h * (v[i].length() + self.omega[i].length() * self.bound[i]);
+        self.reach.clear();
+        self.reach.extend(
+            (0..n).map(|i| {
+                self.bound[i] + h * (v[i].length() + self.omega[i].length() * self.bound[i])
+            }),
+        );
+        let reach = &self.reach;
         self.order.clear();
         if self.collisions {
             self.order.extend((0..n).filter(|&i| !matches!(self.placed[i], Placed::Other)));
         }
         self.order.sort_unstable_by(|&i, &j| {
-            (x[i].x - reach(i)).total_cmp(&(x[j].x - reach(j))).then(i.cmp(&j))
+            (x[i].x - reach[i]).total_cmp(&(x[j].x - reach[j])).then(i.cmp(&j))
         });
+        self.pairs.clear();
         for (k, &i) in self.order.iter().enumerate() {
             for &j in &self.order[k + 1..] {
-                if x[j].x - reach(j) > x[i].x + reach(i) {
+                if x[j].x - reach[j] > x[i].x + reach[i] {
                     break;
                 }
                 let (a, b) = (i.min(j), i.max(j));
                 if (self.fixed[i] && self.fixed[j])
-                    || (x[i] - x[j]).length() > reach(i) + reach(j)
+                    || (x[i] - x[j]).length() > reach[i] + reach[j]
                     || self.jointed.binary_search(&(a, b)).is_ok()
                 {
                     continue;
                 }
-                let margin = h * (v[a] - v[b]).length().max(resting_speed) + contact::SLOP;
-                self.touches.clear();
-                contact::touches(&self.placed[a], &self.placed[b], margin, &mut self.touches);
-                let e = self.restitution[a].max(self.restitution[b]);
-                let mu = (self.friction[a] * self.friction[b]).sqrt();
-                for &(f, (p, nrm, gap)) in &self.touches {
-                    let (vn, c) = make((a, np + b, f), a, Some(b), p, nrm, gap, e, mu);
-                    if gap <= (-vn * h).max(0.0) + contact::SLOP {
-                        self.contacts.push(c);
-                    }
+                self.pairs.push((a, b));
+            }
+        }
+        // Pairs in order, so the contacts come out sorted for warm starting (planes first).
+        self.pairs.sort_unstable();
+        for &(a, b) in &self.pairs {
+            let margin = h * (v[a] - v[b]).length().max(resting_speed) + contact::SLOP;
+            self.touches.clear();
+            contact::touches(&self.placed[a], &self.placed[b], margin, &mut self.touches);
+            let e = self.restitution[a].max(self.restitution[b]);
+            let mu = (self.friction[a] * self.friction[b]).sqrt();
+            for &(f, (p, nrm, gap)) in &self.touches {
+                let (vn, c) = make((a, np + b, f), a, Some(b), p, nrm, gap, e, mu);
+                if gap <= (-vn * h).max(0.0) + contact::SLOP {
+                    self.contacts.push(c);
                 }
             }
         }
-        self.contacts.sort_unstable_by_key(|c| c.key);
     }
 }
 
