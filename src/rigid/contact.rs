@@ -227,13 +227,9 @@ pub(crate) fn apply_impulses(
     }
 }
 
-/// One sweep of sequential impulses over all contacts, changing the velocities in place: per
-/// contact, friction clamped to the disc of the current normal impulse and applied, then the
-/// normal impulse against the velocities that left, accumulated and kept non-negative. This
-/// is the sweep of worlds with joints, which share their sweeps with the contacts; it is
-/// [`solve`] with each part applied on its own — the same update, rounded differently — kept
-/// because the XPBD chain tests in `tests/rigid_joints.rs` (joints and contacts fighting,
-/// docs/rigid.md) change with the rounding of the contact solve.
+/// One sweep of sequential impulses over all contacts ([`solve`] on each in turn), changing
+/// the velocities in place: the sweep of worlds with joints, which share their sweeps with the
+/// contacts and so do not stop island by island.
 pub(crate) fn sweep(
     contacts: &mut [Contact],
     bodies: &Bodies<'_>,
@@ -241,14 +237,7 @@ pub(crate) fn sweep(
     w: &mut [DVec3],
 ) {
     for c in contacts.iter_mut() {
-        let vel = bodies.relative_velocity(c, v, w);
-        let dt = friction(c, vel);
-        bodies.apply_prepared(c, [0.0, dt[0], dt[1]], v, w);
-        let vn = bodies.relative_velocity(c, v, w).dot(c.n);
-        let new = (c.impulse[0] + c.mass[0] * (c.target - vn)).max(0.0);
-        let dn = new - c.impulse[0];
-        c.impulse[0] = new;
-        bodies.apply_prepared(c, [dn, 0.0, 0.0], v, w);
+        solve(c, bodies, v, w);
     }
 }
 
