@@ -19,7 +19,6 @@
 //! sum or the difference of the outer angles is defined; the third angle is set to 0 and the
 //! first carries the rest, and the lock is reported to the caller.
 
-use super::trig::atan2;
 use crate::error::{ensure_finite, Error, Result};
 use glam::{DQuat, DVec3};
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -138,8 +137,8 @@ impl EulerSequence {
         };
         // |q| <= sqrt(2) here, so the plain norms cannot overflow; an underflow to 0 changes β
         // by less than 1e-150.
-        let beta = 2.0 * atan2((c * c + d * d).sqrt(), (a * a + b * b).sqrt());
-        let (plus, minus) = (atan2(b, a), atan2(d, c));
+        let beta = 2.0 * (c * c + d * d).sqrt().atan2((a * a + b * b).sqrt());
+        let (plus, minus) = (b.atan2(a), d.atan2(c));
         let low = beta <= GIMBAL_LOCK_TOL;
         let high = beta >= PI - GIMBAL_LOCK_TOL;
         // first: angle about i (applied first); last: angle about k in the proper frame.

@@ -19,7 +19,6 @@ mod quat;
 mod rotvec;
 mod slerp;
 mod transform;
-mod trig;
 
 pub use euler::{EulerSequence, GIMBAL_LOCK_TOL};
 pub use matrix::{

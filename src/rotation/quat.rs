@@ -1,7 +1,6 @@
 //! Unit quaternions at the array boundary: checked construction from `(w, x, y, z)`,
 //! normalisation that neither overflows nor underflows, the canonical sign, the angle.
 
-use super::trig::atan2;
 use crate::error::{ensure_finite, Error, Result};
 use glam::DQuat;
 
@@ -56,7 +55,7 @@ pub fn canonical(q: DQuat) -> DQuat {
 /// `2 atan2(|v|, |w|)`, accurate for tiny angles (down to subnormal ones: `|v|` is formed
 /// with `hypot`, which does not underflow) and near pi alike.
 pub fn rotation_angle(q: DQuat) -> f64 {
-    2.0 * atan2(q.x.hypot(q.y).hypot(q.z), q.w.abs())
+    2.0 * q.x.hypot(q.y).hypot(q.z).atan2(q.w.abs())
 }
 
 #[cfg(test)]

@@ -6,7 +6,6 @@
 //! evaluated so that they stay accurate for `θ` down to 0 and up to pi: the small-angle
 //! factor `sin(θ/2)/θ` uses its Taylor series below `θ = 1e-3`, and `atan2` needs no series.
 
-use super::trig::{atan2, sin_cos};
 use crate::error::{ensure_finite, Error, Result};
 use glam::{DQuat, DVec3};
 
@@ -26,7 +25,7 @@ pub fn quat_from_rotvec(v: &[f64; 3]) -> Result<DQuat> {
         m * (v / m).length()
     };
     let half = 0.5 * theta;
-    let (sin, cos) = sin_cos(half);
+    let (sin, cos) = half.sin_cos();
     // sin(θ/2)/θ; the series error at θ = 1e-3 is below θ⁶/322560 ≈ 3e-24.
     let k = if theta < 1e-3 {
         let t2 = theta * theta;
@@ -43,7 +42,7 @@ pub fn quat_to_rotvec(q: DQuat) -> [f64; 3] {
     let u = q.xyz();
     let s = u.length();
     // θ/|u| = 2 atan2(s, w)/s is well conditioned for every s > 0; at s = 0 its limit is 2/w.
-    let k = if s > 0.0 { 2.0 * atan2(s, q.w) / s } else { 2.0 / q.w };
+    let k = if s > 0.0 { 2.0 * s.atan2(q.w) / s } else { 2.0 / q.w };
     (u * k).to_array()
 }
 
@@ -62,7 +61,7 @@ pub fn quat_from_axis_angle(axis: &[f64; 3], angle: f64) -> Result<DQuat> {
         return Err(Error::invalid("axis", "is the zero vector"));
     }
     let a = (a / m).normalize();
-    let (s, c) = sin_cos(0.5 * angle);
+    let (s, c) = (0.5 * angle).sin_cos();
     Ok(DQuat::from_xyzw(a.x * s, a.y * s, a.z * s, c))
 }
 
@@ -74,6 +73,6 @@ pub fn quat_to_axis_angle(q: DQuat) -> ([f64; 3], f64) {
     if s == 0.0 {
         ([1.0, 0.0, 0.0], 0.0)
     } else {
-        ((u / s).to_array(), 2.0 * atan2(s, q.w))
+        ((u / s).to_array(), 2.0 * s.atan2(q.w))
     }
 }

@@ -2,7 +2,6 @@
 //! curves", SIGGRAPH): `slerp(q0, q1, t) = q0 (q0* q1)^t`, a constant-angular-speed path on
 //! the great circle through `q0` and `q1`.
 
-use super::trig::{atan2, sin_cos};
 use glam::DQuat;
 
 /// The rotation at parameter `t` on the great arc from `q0` (`t = 0`) to `q1` (`t = 1`).
@@ -22,7 +21,7 @@ pub fn slerp(q0: DQuat, q1: DQuat, t: f64, shortest: bool) -> DQuat {
     }
     let u = rel.xyz();
     let s = u.length();
-    let half = atan2(s, rel.w); // half the rotation angle of `rel`, in [0, pi]
+    let half = s.atan2(rel.w); // half the rotation angle of `rel`, in [0, pi]
     let axis = if s > 0.0 {
         u / s
     } else if rel.w < 0.0 {
@@ -30,6 +29,6 @@ pub fn slerp(q0: DQuat, q1: DQuat, t: f64, shortest: bool) -> DQuat {
     } else {
         return q0;
     };
-    let (sn, cs) = sin_cos(t * half);
+    let (sn, cs) = (t * half).sin_cos();
     (q0 * DQuat::from_xyzw(axis.x * sn, axis.y * sn, axis.z * sn, cs)).normalize()
 }
