@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use rayon::prelude::*;
 
 /// Rows per parallel chunk; batches shorter than this run on the calling thread.
-const CHUNK: usize = 8192;
+pub const CHUNK: usize = 8192;
 
 /// The length of a result broadcast from two batches: equal lengths, or one of them 1.
 pub fn broadcast_len(a: (&str, usize), b: (&str, usize)) -> Result<usize> {

@@ -196,3 +196,53 @@ fn bad_input_is_an_error_not_a_nan() {
     let singular = transform_from_parts(DQuat::IDENTITY, &[0.0; 3], &[1.0, 0.0, 1.0]).unwrap();
     assert!(transform_invert(&singular).is_err());
 }
+
+#[test]
+fn batched_euler_angles_equal_the_row_by_row_ones_bitwise() {
+    // 20 011 rows (not a multiple of the lane block or the parallel chunk): random unit
+    // quaternions, some scaled (normalised first), some at and near gimbal lock, so the SIMD
+    // lanes, the row-by-row fallback and the chunk edges all occur.
+    let mut s = 7u64;
+    let mut rnd = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    for seq in all_sequences() {
+        let quats: Vec<[f64; 4]> = (0..20_011)
+            .map(|r| {
+                let q = DQuat::from_xyzw(rnd(), rnd(), rnd(), rnd()).normalize();
+                let q = match r % 97 {
+                    0 => seq
+                        .to_quat(&[rnd(), if seq.is_proper() { 0.0 } else { FRAC_PI_2 }, 0.3])
+                        .unwrap(),
+                    1 => seq
+                        .to_quat(&[rnd(), if seq.is_proper() { PI } else { -FRAC_PI_2 }, 0.0])
+                        .unwrap(),
+                    _ => q,
+                };
+                let scale = if r % 13 == 0 { 3.5 } else { 1.0 };
+                quat_to_wxyz(q).map(|c| c * scale)
+            })
+            .collect();
+        let mut out = vec![[0.0; 3]; quats.len()];
+        let locked = seq.from_quats(&quats, &mut out).unwrap();
+        let mut expected_locked = 0;
+        for (q, o) in quats.iter().zip(&out) {
+            let (angles, lock) = seq.from_quat(quat_from_wxyz(q).unwrap());
+            assert_eq!(angles.map(f64::to_bits), o.map(f64::to_bits), "{seq:?} {q:?}");
+            expected_locked += usize::from(lock);
+        }
+        assert_eq!(locked, expected_locked);
+        assert!(locked >= 2 * 20_011 / 97, "{seq:?}: {locked} locked");
+    }
+    // The lowest bad row is reported, whatever the chunking.
+    let seq = EulerSequence::parse("xyz").unwrap();
+    let mut quats = vec![[1.0, 0.0, 0.0, 0.0]; 50_000];
+    quats[30_001] = [0.0; 4];
+    quats[12_345] = [f64::NAN, 0.0, 0.0, 0.0];
+    let mut out = vec![[0.0; 3]; quats.len()];
+    let err = seq.from_quats(&quats, &mut out).unwrap_err().to_string();
+    assert!(err.contains("12345"), "{err}");
+}

@@ -143,17 +143,12 @@ fn quat_to_euler<'py>(
 ) -> PyResult<(Array<'py>, usize)> {
     let seq = EulerSequence::parse(seq)?;
     let input = rows::<4>(&quat, "quat", &[4])?;
-    let locked = std::sync::atomic::AtomicUsize::new(0);
+    let mut locked = 0;
     let angles = compute(py, input.len(), &[3], |out| {
-        map(input, out, |r| {
-            let (angles, lock) = seq.from_quat(q(r)?);
-            if lock {
-                locked.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            }
-            Ok(angles)
-        })
+        locked = seq.from_quats(input, out)?;
+        Ok(())
     })?;
-    Ok((angles, locked.into_inner()))
+    Ok((angles, locked))
 }
 
 /// Whether Euler angles (N, 3) in `seq` are within `atol` of gimbal lock: (N, 1) of 0.0/1.0.

@@ -19,8 +19,12 @@
 //! sum or the difference of the outer angles is defined; the third angle is set to 0 and the
 //! first carries the rest, and the lock is reported to the caller.
 
+use super::quat::quat_from_wxyz;
+use super::trig::atan2_finite;
+use crate::batch::CHUNK;
 use crate::error::{ensure_finite, Error, Result};
 use glam::{DQuat, DVec3};
+use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Distance (radians) of the middle angle from its singular value within which a
@@ -122,28 +126,14 @@ impl EulerSequence {
     /// Ranges: first and third angle in `(-pi, pi]`; the middle one in `[-pi/2, pi/2]` for
     /// Tait–Bryan sequences and in `[0, pi]` for proper Euler sequences.
     pub fn from_quat(&self, q: DQuat) -> ([f64; 3], bool) {
-        // Work with the extrinsic order of application: first about i, then j, last about k.
-        let [i, j, k] =
-            if self.intrinsic { [self.axes[2], self.axes[1], self.axes[0]] } else { self.axes };
-        let proper = i == k;
-        let m = 3 - i - j; // the axis that is neither i nor j
-        let parity = if j == (i + 1) % 3 { 1.0 } else { -1.0 }; // e_i × e_j = parity e_m
-        let v = [q.x, q.y, q.z];
-        let (a, b, c, d) = if proper {
-            (q.w, v[i], v[j], parity * v[m])
-        } else {
-            // q' = (1 + e_j) q ∝ q_j(pi/2) q turns ijk into the proper sequence iji.
-            (q.w - v[j], v[i] + parity * v[m], v[j] + q.w, parity * v[m] - v[i])
-        };
-        // |q| <= sqrt(2) here, so the plain norms cannot overflow; an underflow to 0 changes β
-        // by less than 1e-150.
-        let beta = 2.0 * (c * c + d * d).sqrt().atan2((a * a + b * b).sqrt());
-        let (plus, minus) = (b.atan2(a), d.atan2(c));
+        let l = self.layout();
+        let [a, b, c, d] = l.reduce(q.w, [q.x, q.y, q.z]);
+        let [beta, plus, minus] = half_angles(a, b, c, d);
         let low = beta <= GIMBAL_LOCK_TOL;
         let high = beta >= PI - GIMBAL_LOCK_TOL;
         // first: angle about i (applied first); last: angle about k in the proper frame.
         let (first, last) = match (low, high, self.intrinsic) {
-            (false, false, _) => (plus - minus, plus + minus),
+            (false, false, _) => return (l.angles(beta, plus - minus, plus + minus), false),
             // Locked: the output's third angle is zero. Extrinsic output is (first, β, last),
             // intrinsic output is (last, β, first).
             (true, _, false) => (2.0 * plus, 0.0),
@@ -151,10 +141,51 @@ impl EulerSequence {
             (true, _, true) => (0.0, 2.0 * plus),
             (_, true, true) => (0.0, 2.0 * minus),
         };
-        let (last, beta) = if proper { (last, beta) } else { (parity * last, beta - FRAC_PI_2) };
-        let (first, last) = (wrap(first), wrap(last));
-        let angles = if self.intrinsic { [last, beta, first] } else { [first, beta, last] };
-        (angles, low || high)
+        (l.angles(beta, first, last), true)
+    }
+
+    /// [`Self::from_quat`] of every quaternion `(w, x, y, z)` of `quats` (normalised as
+    /// [`quat_from_wxyz`] does) into `out`, in parallel; returns how many are gimbal-locked.
+    /// Bitwise the same as row by row: blocks of unit quaternions far from lock run the same
+    /// arithmetic lane by lane, which compiles to SIMD (the branch-free `atan2` of `trig`;
+    /// AVX2 where the CPU has it, chosen at run time by `pulp`), any other block row by row.
+    ///
+    /// # Errors
+    /// The lowest row that is zero or not finite, or `out` of another length.
+    pub fn from_quats(&self, quats: &[[f64; 4]], out: &mut [[f64; 3]]) -> Result<usize> {
+        if quats.len() != out.len() {
+            return Err(Error::invalid("out", "must have as many rows as the input"));
+        }
+        let arch = pulp::Arch::new();
+        let chunks: Vec<(usize, Result<usize>)> = out
+            .par_chunks_mut(CHUNK)
+            .zip(quats.par_chunks(CHUNK))
+            .enumerate()
+            .map(|(c, (out, quats))| {
+                (c, arch.dispatch(EulerBlocks { seq: self, start: c * CHUNK, quats, out }))
+            })
+            .collect();
+        let mut locked = 0;
+        for (_, r) in chunks {
+            locked += r?;
+        }
+        Ok(locked)
+    }
+
+    /// The axes of the sequence in the order the reduction needs them.
+    #[inline(always)]
+    fn layout(&self) -> Layout {
+        // Work with the extrinsic order of application: first about i, then j, last about k.
+        let [i, j, k] =
+            if self.intrinsic { [self.axes[2], self.axes[1], self.axes[0]] } else { self.axes };
+        Layout {
+            i,
+            j,
+            m: 3 - i - j, // the axis that is neither i nor j
+            proper: i == k,
+            parity: if j == (i + 1) % 3 { 1.0 } else { -1.0 }, // e_i × e_j = parity e_m
+            intrinsic: self.intrinsic,
+        }
     }
 
     /// Whether `angles` in this sequence are at gimbal lock, where the first and third axes
@@ -165,6 +196,112 @@ impl EulerSequence {
         let b = angles[1];
         let distance = if self.is_proper() { b.sin().abs() } else { b.cos().abs() };
         distance <= atol
+    }
+}
+
+/// Rotations per lane block of [`EulerSequence::from_quats`].
+const LANES: usize = 8;
+
+/// A sequence's axes as the reduction of Bernardes & Viollet uses them.
+#[derive(Clone, Copy)]
+struct Layout {
+    i: usize,
+    j: usize,
+    m: usize,
+    proper: bool,
+    parity: f64,
+    intrinsic: bool,
+}
+
+impl Layout {
+    /// `(a, b, c, d)` of the equivalent proper sequence `iji` from the quaternion `w, v`.
+    #[inline(always)]
+    fn reduce(&self, w: f64, v: [f64; 3]) -> [f64; 4] {
+        let (i, j, m, p) = (self.i, self.j, self.m, self.parity);
+        if self.proper {
+            [w, v[i], v[j], p * v[m]]
+        } else {
+            // q' = (1 + e_j) q ∝ q_j(pi/2) q turns ijk into the proper sequence iji.
+            [w - v[j], v[i] + p * v[m], v[j] + w, p * v[m] - v[i]]
+        }
+    }
+
+    /// The output angles from the middle angle and the first and last of the proper frame.
+    #[inline(always)]
+    fn angles(&self, beta: f64, first: f64, last: f64) -> [f64; 3] {
+        let (last, beta) =
+            if self.proper { (last, beta) } else { (self.parity * last, beta - FRAC_PI_2) };
+        let (first, last) = (wrap(first), wrap(last));
+        if self.intrinsic {
+            [last, beta, first]
+        } else {
+            [first, beta, last]
+        }
+    }
+}
+
+/// `β`, `θ₊ = atan2(b, a)` and `θ₋ = atan2(d, c)` of the reduced quaternion.
+#[inline(always)]
+fn half_angles(a: f64, b: f64, c: f64, d: f64) -> [f64; 3] {
+    // |q| <= sqrt(2) here, so the plain norms cannot overflow; an underflow to 0 changes β
+    // by less than 1e-150.
+    let beta = 2.0 * atan2_finite((c * c + d * d).sqrt(), (a * a + b * b).sqrt());
+    [beta, atan2_finite(b, a), atan2_finite(d, c)]
+}
+
+/// One parallel chunk of [`EulerSequence::from_quats`], compiled for the SIMD instruction set
+/// found at run time.
+struct EulerBlocks<'a> {
+    seq: &'a EulerSequence,
+    start: usize,
+    quats: &'a [[f64; 4]],
+    out: &'a mut [[f64; 3]],
+}
+
+impl pulp::WithSimd for EulerBlocks<'_> {
+    type Output = Result<usize>;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Result<usize> {
+        let EulerBlocks { seq, start, quats, out } = self;
+        let l = seq.layout();
+        let mut locked = 0;
+        for (b, (qs, os)) in quats.chunks(LANES).zip(out.chunks_mut(LANES)).enumerate() {
+            let mut fast = qs.len() == LANES;
+            let mut h = [[0.0; LANES]; 3];
+            if fast {
+                // Lanes: unit quaternions (as quat_from_wxyz takes them unchanged) far from
+                // lock. The reduction gathers by axis; the half angles are pure arithmetic
+                // over contiguous lanes, the part that vectorises.
+                let (mut r, mut n2) = ([[0.0; LANES]; 4], [0.0; LANES]);
+                for (k, q) in qs.iter().enumerate() {
+                    n2[k] = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+                    [r[0][k], r[1][k], r[2][k], r[3][k]] = l.reduce(q[0], [q[1], q[2], q[3]]);
+                }
+                for k in 0..LANES {
+                    [h[0][k], h[1][k], h[2][k]] = half_angles(r[0][k], r[1][k], r[2][k], r[3][k]);
+                }
+                fast = (0..LANES).all(|k| {
+                    (n2[k] - 1.0).abs() <= 4.0 * f64::EPSILON
+                        && h[0][k] > GIMBAL_LOCK_TOL
+                        && h[0][k] < PI - GIMBAL_LOCK_TOL
+                });
+            }
+            if fast {
+                for (k, o) in os.iter_mut().enumerate() {
+                    let (beta, plus, minus) = (h[0][k], h[1][k], h[2][k]);
+                    *o = l.angles(beta, plus - minus, plus + minus);
+                }
+            } else {
+                for (k, (q, o)) in qs.iter().zip(os.iter_mut()).enumerate() {
+                    let q = quat_from_wxyz(q).map_err(|e| e.at(start + b * LANES + k))?;
+                    let (angles, lock) = seq.from_quat(q);
+                    *o = angles;
+                    locked += usize::from(lock);
+                }
+            }
+        }
+        Ok(locked)
     }
 }
 

@@ -19,6 +19,7 @@ mod quat;
 mod rotvec;
 mod slerp;
 mod transform;
+mod trig;
 
 pub use euler::{EulerSequence, GIMBAL_LOCK_TOL};
 pub use matrix::{
