@@ -246,3 +246,63 @@ fn batched_euler_angles_equal_the_row_by_row_ones_bitwise() {
     let err = seq.from_quats(&quats, &mut out).unwrap_err().to_string();
     assert!(err.contains("12345"), "{err}");
 }
+
+#[test]
+fn batched_rotation_vectors_equal_the_row_by_row_ones_bitwise() {
+    // Rows of every size class: tiny (series), ordinary, many turns (libm's reduction beyond
+    // 2e6 rad), overflowing squares, zero; 10 007 rows so blocks and chunks have ragged ends.
+    let mut s = 11u64;
+    let mut rnd = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let scales = [0.0, 1e-300, 1e-6, 1e-3, 1.0, 3.0, 100.0, 1e5, 1e7, 1e200];
+    let vs: Vec<[f64; 3]> = (0..10_007)
+        .map(|r| {
+            let m = if r % 5 == 0 { scales[(r / 5) % scales.len()] } else { 3.0 };
+            [m * rnd(), m * rnd(), m * rnd()]
+        })
+        .collect();
+    let mut out = vec![[0.0; 4]; vs.len()];
+    quats_from_rotvecs(&vs, &mut out).unwrap();
+    for (v, o) in vs.iter().zip(&out) {
+        let q = quat_to_wxyz(quat_from_rotvec(v).unwrap());
+        assert_eq!(q.map(f64::to_bits), o.map(f64::to_bits), "{v:?}");
+        assert!((o.iter().map(|c| c * c).sum::<f64>() - 1.0).abs() < 1e-15, "{v:?}");
+    }
+    let mut bad = vs.clone();
+    bad[9_000] = [f64::INFINITY, 0.0, 0.0];
+    bad[4_321] = [0.0, f64::NAN, 0.0];
+    let err = quats_from_rotvecs(&bad, &mut out).unwrap_err().to_string();
+    assert!(err.contains("4321") && err.contains("rotvec"), "{err}");
+}
+
+#[test]
+fn batched_matrices_equal_the_row_by_row_ones_bitwise() {
+    let mut s = 5u64;
+    let mut rnd = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    // Unit rows, scaled rows (normalised first) and a ragged end.
+    let quats: Vec<[f64; 4]> = (0..10_007)
+        .map(|r| {
+            let q = quat_to_wxyz(DQuat::from_xyzw(rnd(), rnd(), rnd(), rnd()).normalize());
+            q.map(|c| if r % 11 == 0 { 1e-200 * c } else { c })
+        })
+        .collect();
+    let mut out = vec![[0.0; 9]; quats.len()];
+    quats_to_matrices(&quats, &mut out).unwrap();
+    for (q, o) in quats.iter().zip(&out) {
+        let m = quat_to_matrix(quat_from_wxyz(q).unwrap());
+        assert_eq!(m.map(f64::to_bits), o.map(f64::to_bits), "{q:?}");
+    }
+    let mut bad = quats.clone();
+    bad[777] = [0.0; 4];
+    let err = quats_to_matrices(&bad, &mut out).unwrap_err().to_string();
+    assert!(err.contains("777"), "{err}");
+}

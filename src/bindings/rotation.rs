@@ -55,7 +55,7 @@ fn quat_to_matrix<'py>(
     quat: PyReadonlyArrayDyn<'py, f64>,
 ) -> PyResult<Array<'py>> {
     let input = rows::<4>(&quat, "quat", &[4])?;
-    compute(py, input.len(), &[3, 3], |out| map(input, out, |r| Ok(rot::quat_to_matrix(q(r)?))))
+    compute(py, input.len(), &[3, 3], |out| rot::quats_to_matrices(input, out))
 }
 
 /// Quaternions (N, 4) of rotation matrices (N, 3, 3); non-rotations are refused unless
@@ -89,7 +89,7 @@ fn rotvec_to_quat<'py>(
     rotvec: PyReadonlyArrayDyn<'py, f64>,
 ) -> PyResult<Array<'py>> {
     let input = rows::<3>(&rotvec, "rotvec", &[3])?;
-    compute(py, input.len(), &[4], |out| map(input, out, |v| Ok(wxyz(rot::quat_from_rotvec(v)?))))
+    compute(py, input.len(), &[4], |out| rot::quats_from_rotvecs(input, out))
 }
 
 /// Quaternions (N, 4) of axes (N, 3) and angles (N, 1), broadcast one against N.

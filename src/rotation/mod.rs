@@ -23,10 +23,13 @@ mod trig;
 
 pub use euler::{EulerSequence, GIMBAL_LOCK_TOL};
 pub use matrix::{
-    is_rotation_matrix, orthonormalize, quat_from_matrix, quat_to_matrix, ROTATION_MATRIX_TOL,
+    is_rotation_matrix, orthonormalize, quat_from_matrix, quat_to_matrix, quats_to_matrices,
+    ROTATION_MATRIX_TOL,
 };
 pub use quat::{canonical, quat_from_wxyz, quat_to_wxyz, rotation_angle};
-pub use rotvec::{quat_from_axis_angle, quat_from_rotvec, quat_to_axis_angle, quat_to_rotvec};
+pub use rotvec::{
+    quat_from_axis_angle, quat_from_rotvec, quat_to_axis_angle, quat_to_rotvec, quats_from_rotvecs,
+};
 pub use slerp::slerp;
 pub use transform::{
     transform_apply_direction, transform_apply_point, transform_compose, transform_from_parts,
