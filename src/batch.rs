@@ -82,6 +82,67 @@ pub fn map2<const A: usize, const B: usize, const O: usize>(
     fill(out, |i| f(item(a, i), item(b, i)))
 }
 
+/// Rows per block of [`lanes`].
+pub const LANES: usize = 8;
+
+/// A kernel on blocks of [`LANES`] rows for [`lanes`].
+pub trait LaneKernel<const I: usize, const O: usize>: Sync {
+    /// Fill `out` from `rows` (at most [`LANES`]; `first` is the index of the first row) and
+    /// return a count to be summed over the blocks. Implementations are `#[inline(always)]`,
+    /// so that they are compiled inside the SIMD context of [`lanes`].
+    ///
+    /// # Errors
+    /// A bad row, with its index.
+    fn block(&self, first: usize, rows: &[[f64; I]], out: &mut [[f64; O]]) -> Result<usize>;
+}
+
+/// `kernel.block` on every block of [`LANES`] rows (the last one may be shorter), in parallel
+/// chunks of [`CHUNK`] rows, each chunk compiled for the SIMD instruction set found at run
+/// time (AVX2 through `pulp`), so that a block's loops over its rows vectorise. Returns the
+/// sum of the blocks' counts, or the error of the lowest failing block (independent of the
+/// thread count).
+pub fn lanes<const I: usize, const O: usize>(
+    input: &[[f64; I]],
+    out: &mut [[f64; O]],
+    kernel: &impl LaneKernel<I, O>,
+) -> Result<usize> {
+    if input.len() != out.len() {
+        return Err(Error::invalid("out", "must have as many rows as the input"));
+    }
+    let arch = pulp::Arch::new();
+    let chunks: Vec<Result<usize>> = out
+        .par_chunks_mut(CHUNK)
+        .zip(input.par_chunks(CHUNK))
+        .enumerate()
+        .map(|(c, (out, input))| arch.dispatch(LaneChunk { start: c * CHUNK, input, out, kernel }))
+        .collect();
+    chunks.into_iter().sum()
+}
+
+/// One parallel chunk of [`lanes`].
+struct LaneChunk<'a, const I: usize, const O: usize, K> {
+    start: usize,
+    input: &'a [[f64; I]],
+    out: &'a mut [[f64; O]],
+    kernel: &'a K,
+}
+
+impl<const I: usize, const O: usize, K: LaneKernel<I, O>> pulp::WithSimd
+    for LaneChunk<'_, I, O, K>
+{
+    type Output = Result<usize>;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) -> Result<usize> {
+        let LaneChunk { start, input, out, kernel } = self;
+        let mut count = 0;
+        for (b, (rows, out)) in input.chunks(LANES).zip(out.chunks_mut(LANES)).enumerate() {
+            count += kernel.block(start + b * LANES, rows, out)?;
+        }
+        Ok(count)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

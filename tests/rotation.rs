@@ -197,18 +197,22 @@ fn bad_input_is_an_error_not_a_nan() {
     assert!(transform_invert(&singular).is_err());
 }
 
+/// A fixed stream of numbers in [-1, 1) (xorshift64).
+fn xorshift(mut s: u64) -> impl FnMut() -> f64 {
+    move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+}
+
 #[test]
 fn batched_euler_angles_equal_the_row_by_row_ones_bitwise() {
     // 20 011 rows (not a multiple of the lane block or the parallel chunk): random unit
     // quaternions, some scaled (normalised first), some at and near gimbal lock, so the SIMD
     // lanes, the row-by-row fallback and the chunk edges all occur.
-    let mut s = 7u64;
-    let mut rnd = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
+    let mut rnd = xorshift(7);
     for seq in all_sequences() {
         let quats: Vec<[f64; 4]> = (0..20_011)
             .map(|r| {
@@ -251,13 +255,7 @@ fn batched_euler_angles_equal_the_row_by_row_ones_bitwise() {
 fn batched_rotation_vectors_equal_the_row_by_row_ones_bitwise() {
     // Rows of every size class: tiny (series), ordinary, many turns (libm's reduction beyond
     // 2e6 rad), overflowing squares, zero; 10 007 rows so blocks and chunks have ragged ends.
-    let mut s = 11u64;
-    let mut rnd = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
+    let mut rnd = xorshift(11);
     let scales = [0.0, 1e-300, 1e-6, 1e-3, 1.0, 3.0, 100.0, 1e5, 1e7, 1e200];
     let vs: Vec<[f64; 3]> = (0..10_007)
         .map(|r| {
@@ -281,13 +279,7 @@ fn batched_rotation_vectors_equal_the_row_by_row_ones_bitwise() {
 
 #[test]
 fn batched_matrices_equal_the_row_by_row_ones_bitwise() {
-    let mut s = 5u64;
-    let mut rnd = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
+    let mut rnd = xorshift(5);
     // Unit rows, scaled rows (normalised first) and a ragged end.
     let quats: Vec<[f64; 4]> = (0..10_007)
         .map(|r| {

@@ -21,10 +21,9 @@
 
 use super::quat::quat_from_wxyz;
 use super::trig::atan2_finite;
-use crate::batch::CHUNK;
+use crate::batch::{lanes, LaneKernel, LANES};
 use crate::error::{ensure_finite, Error, Result};
 use glam::{DQuat, DVec3};
-use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Distance (radians) of the middle angle from its singular value within which a
@@ -153,23 +152,7 @@ impl EulerSequence {
     /// # Errors
     /// The lowest row that is zero or not finite, or `out` of another length.
     pub fn from_quats(&self, quats: &[[f64; 4]], out: &mut [[f64; 3]]) -> Result<usize> {
-        if quats.len() != out.len() {
-            return Err(Error::invalid("out", "must have as many rows as the input"));
-        }
-        let arch = pulp::Arch::new();
-        let chunks: Vec<(usize, Result<usize>)> = out
-            .par_chunks_mut(CHUNK)
-            .zip(quats.par_chunks(CHUNK))
-            .enumerate()
-            .map(|(c, (out, quats))| {
-                (c, arch.dispatch(EulerBlocks { seq: self, start: c * CHUNK, quats, out }))
-            })
-            .collect();
-        let mut locked = 0;
-        for (_, r) in chunks {
-            locked += r?;
-        }
-        Ok(locked)
+        lanes(quats, out, &ToEuler { seq: self, l: self.layout() })
     }
 
     /// The axes of the sequence in the order the reduction needs them.
@@ -199,8 +182,52 @@ impl EulerSequence {
     }
 }
 
-/// Rotations per lane block of [`EulerSequence::from_quats`].
-const LANES: usize = 8;
+/// The lane kernel of [`EulerSequence::from_quats`].
+struct ToEuler<'a> {
+    seq: &'a EulerSequence,
+    l: Layout,
+}
+
+impl LaneKernel<4, 3> for ToEuler<'_> {
+    #[inline(always)]
+    fn block(&self, first: usize, qs: &[[f64; 4]], os: &mut [[f64; 3]]) -> Result<usize> {
+        let mut locked = 0;
+        let mut fast = qs.len() == LANES;
+        let mut h = [[0.0; LANES]; 3];
+        if fast {
+            // Lanes: unit quaternions (as quat_from_wxyz takes them unchanged) far from
+            // lock. The reduction gathers by axis; the half angles are pure arithmetic
+            // over contiguous lanes, the part that vectorises.
+            let (mut r, mut n2) = ([[0.0; LANES]; 4], [0.0; LANES]);
+            for (k, q) in qs.iter().enumerate() {
+                n2[k] = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+                [r[0][k], r[1][k], r[2][k], r[3][k]] = self.l.reduce(q[0], [q[1], q[2], q[3]]);
+            }
+            for k in 0..LANES {
+                [h[0][k], h[1][k], h[2][k]] = half_angles(r[0][k], r[1][k], r[2][k], r[3][k]);
+            }
+            fast = (0..LANES).all(|k| {
+                (n2[k] - 1.0).abs() <= 4.0 * f64::EPSILON
+                    && h[0][k] > GIMBAL_LOCK_TOL
+                    && h[0][k] < PI - GIMBAL_LOCK_TOL
+            });
+        }
+        if fast {
+            for (k, o) in os.iter_mut().enumerate() {
+                let (beta, plus, minus) = (h[0][k], h[1][k], h[2][k]);
+                *o = self.l.angles(beta, plus - minus, plus + minus);
+            }
+        } else {
+            for (k, (q, o)) in qs.iter().zip(os.iter_mut()).enumerate() {
+                let q = quat_from_wxyz(q).map_err(|e| e.at(first + k))?;
+                let (angles, lock) = self.seq.from_quat(q);
+                *o = angles;
+                locked += usize::from(lock);
+            }
+        }
+        Ok(locked)
+    }
+}
 
 /// A sequence's axes as the reduction of Bernardes & Viollet uses them.
 #[derive(Clone, Copy)]
@@ -247,62 +274,6 @@ fn half_angles(a: f64, b: f64, c: f64, d: f64) -> [f64; 3] {
     // by less than 1e-150.
     let beta = 2.0 * atan2_finite((c * c + d * d).sqrt(), (a * a + b * b).sqrt());
     [beta, atan2_finite(b, a), atan2_finite(d, c)]
-}
-
-/// One parallel chunk of [`EulerSequence::from_quats`], compiled for the SIMD instruction set
-/// found at run time.
-struct EulerBlocks<'a> {
-    seq: &'a EulerSequence,
-    start: usize,
-    quats: &'a [[f64; 4]],
-    out: &'a mut [[f64; 3]],
-}
-
-impl pulp::WithSimd for EulerBlocks<'_> {
-    type Output = Result<usize>;
-
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) -> Result<usize> {
-        let EulerBlocks { seq, start, quats, out } = self;
-        let l = seq.layout();
-        let mut locked = 0;
-        for (b, (qs, os)) in quats.chunks(LANES).zip(out.chunks_mut(LANES)).enumerate() {
-            let mut fast = qs.len() == LANES;
-            let mut h = [[0.0; LANES]; 3];
-            if fast {
-                // Lanes: unit quaternions (as quat_from_wxyz takes them unchanged) far from
-                // lock. The reduction gathers by axis; the half angles are pure arithmetic
-                // over contiguous lanes, the part that vectorises.
-                let (mut r, mut n2) = ([[0.0; LANES]; 4], [0.0; LANES]);
-                for (k, q) in qs.iter().enumerate() {
-                    n2[k] = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
-                    [r[0][k], r[1][k], r[2][k], r[3][k]] = l.reduce(q[0], [q[1], q[2], q[3]]);
-                }
-                for k in 0..LANES {
-                    [h[0][k], h[1][k], h[2][k]] = half_angles(r[0][k], r[1][k], r[2][k], r[3][k]);
-                }
-                fast = (0..LANES).all(|k| {
-                    (n2[k] - 1.0).abs() <= 4.0 * f64::EPSILON
-                        && h[0][k] > GIMBAL_LOCK_TOL
-                        && h[0][k] < PI - GIMBAL_LOCK_TOL
-                });
-            }
-            if fast {
-                for (k, o) in os.iter_mut().enumerate() {
-                    let (beta, plus, minus) = (h[0][k], h[1][k], h[2][k]);
-                    *o = l.angles(beta, plus - minus, plus + minus);
-                }
-            } else {
-                for (k, (q, o)) in qs.iter().zip(os.iter_mut()).enumerate() {
-                    let q = quat_from_wxyz(q).map_err(|e| e.at(start + b * LANES + k))?;
-                    let (angles, lock) = seq.from_quat(q);
-                    *o = angles;
-                    locked += usize::from(lock);
-                }
-            }
-        }
-        Ok(locked)
-    }
 }
 
 #[cfg(test)]

@@ -2,11 +2,10 @@
 //! rotation to an arbitrary matrix.
 
 use super::quat::quat_from_wxyz;
-use crate::batch::CHUNK;
+use crate::batch::{lanes, LaneKernel, LANES};
 use crate::error::{ensure_finite, Error, Result};
 use glam::DQuat;
 use nalgebra::Matrix3;
-use rayon::prelude::*;
 
 /// Largest entry of `|RᵀR - I|` (and `|det R - 1|`) accepted for a rotation matrix.
 ///
@@ -43,55 +42,32 @@ pub fn quat_to_matrix(q: DQuat) -> [f64; 9] {
 /// # Errors
 /// The lowest row that is zero or not finite, or `out` of another length.
 pub fn quats_to_matrices(quats: &[[f64; 4]], out: &mut [[f64; 9]]) -> Result<()> {
-    if quats.len() != out.len() {
-        return Err(Error::invalid("out", "must have as many rows as the input"));
-    }
-    let arch = pulp::Arch::new();
-    let chunks: Vec<Result<()>> = out
-        .par_chunks_mut(CHUNK)
-        .zip(quats.par_chunks(CHUNK))
-        .enumerate()
-        .map(|(c, (out, quats))| arch.dispatch(MatrixBlocks { start: c * CHUNK, quats, out }))
-        .collect();
-    chunks.into_iter().collect()
+    lanes(quats, out, &ToMatrices)?;
+    Ok(())
 }
 
-/// Rows per lane block of [`quats_to_matrices`].
-const LANES: usize = 8;
+/// The lane kernel of [`quats_to_matrices`].
+struct ToMatrices;
 
-/// One parallel chunk of [`quats_to_matrices`], compiled for the SIMD instruction set found at
-/// run time.
-struct MatrixBlocks<'a> {
-    start: usize,
-    quats: &'a [[f64; 4]],
-    out: &'a mut [[f64; 9]],
-}
-
-impl pulp::WithSimd for MatrixBlocks<'_> {
-    type Output = Result<()>;
-
+impl LaneKernel<4, 9> for ToMatrices {
     #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) -> Result<()> {
-        let MatrixBlocks { start, quats, out } = self;
-        for (b, (qs, os)) in quats.chunks(LANES).zip(out.chunks_mut(LANES)).enumerate() {
-            // Unit to rounding: quat_from_wxyz would take them unchanged.
-            let unit = qs.len() == LANES
-                && qs.iter().all(|q| {
-                    let n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
-                    (n2 - 1.0).abs() <= 4.0 * f64::EPSILON
-                });
-            if unit {
-                for (q, o) in qs.iter().zip(os.iter_mut()) {
-                    *o = quat_to_matrix(DQuat::from_xyzw(q[1], q[2], q[3], q[0]));
-                }
-            } else {
-                for (k, (q, o)) in qs.iter().zip(os.iter_mut()).enumerate() {
-                    let q = quat_from_wxyz(q).map_err(|e| e.at(start + b * LANES + k))?;
-                    *o = quat_to_matrix(q);
-                }
+    fn block(&self, first: usize, qs: &[[f64; 4]], os: &mut [[f64; 9]]) -> Result<usize> {
+        // Unit to rounding: quat_from_wxyz would take them unchanged.
+        let unit = qs.len() == LANES
+            && qs.iter().all(|q| {
+                let n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+                (n2 - 1.0).abs() <= 4.0 * f64::EPSILON
+            });
+        if unit {
+            for (q, o) in qs.iter().zip(os.iter_mut()) {
+                *o = quat_to_matrix(DQuat::from_xyzw(q[1], q[2], q[3], q[0]));
+            }
+        } else {
+            for (k, (q, o)) in qs.iter().zip(os.iter_mut()).enumerate() {
+                *o = quat_to_matrix(quat_from_wxyz(q).map_err(|e| e.at(first + k))?);
             }
         }
-        Ok(())
+        Ok(0)
     }
 }
 

@@ -7,10 +7,9 @@
 //! factor `sin(θ/2)/θ` uses its Taylor series below `θ = 1e-3`, and `atan2` needs no series.
 
 use super::trig::{sin_cos_reduced, SIN_COS_LIMIT};
-use crate::batch::CHUNK;
+use crate::batch::{lanes, LaneKernel, LANES};
 use crate::error::{ensure_finite, Error, Result};
 use glam::{DQuat, DVec3};
-use rayon::prelude::*;
 
 /// Unit quaternion of rotation vector `v` (axis times angle in radians).
 ///
@@ -57,54 +56,32 @@ fn exp_map(v: &[f64; 3], theta: f64) -> [f64; 4] {
 /// # Errors
 /// The lowest row with a non-finite component, or `out` of another length.
 pub fn quats_from_rotvecs(rotvecs: &[[f64; 3]], out: &mut [[f64; 4]]) -> Result<()> {
-    if rotvecs.len() != out.len() {
-        return Err(Error::invalid("out", "must have as many rows as the input"));
-    }
-    let arch = pulp::Arch::new();
-    let chunks: Vec<Result<()>> = out
-        .par_chunks_mut(CHUNK)
-        .zip(rotvecs.par_chunks(CHUNK))
-        .enumerate()
-        .map(|(c, (out, rotvecs))| arch.dispatch(ExpBlocks { start: c * CHUNK, rotvecs, out }))
-        .collect();
-    chunks.into_iter().collect()
+    lanes(rotvecs, out, &FromRotvecs)?;
+    Ok(())
 }
 
-/// Rows per lane block of [`quats_from_rotvecs`].
-const LANES: usize = 8;
+/// The lane kernel of [`quats_from_rotvecs`].
+struct FromRotvecs;
 
-/// One parallel chunk of [`quats_from_rotvecs`], compiled for the SIMD instruction set found
-/// at run time.
-struct ExpBlocks<'a> {
-    start: usize,
-    rotvecs: &'a [[f64; 3]],
-    out: &'a mut [[f64; 4]],
-}
-
-impl pulp::WithSimd for ExpBlocks<'_> {
-    type Output = Result<()>;
-
+impl LaneKernel<3, 4> for FromRotvecs {
     #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) -> Result<()> {
-        let ExpBlocks { start, rotvecs, out } = self;
-        for (b, (vs, os)) in rotvecs.chunks(LANES).zip(out.chunks_mut(LANES)).enumerate() {
-            let mut theta = [0.0; LANES];
-            for (t, v) in theta.iter_mut().zip(vs) {
-                *t = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    fn block(&self, first: usize, vs: &[[f64; 3]], os: &mut [[f64; 4]]) -> Result<usize> {
+        let mut theta = [0.0; LANES];
+        for (t, v) in theta.iter_mut().zip(vs) {
+            *t = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        }
+        // NaN fails the comparison, so non-finite rows go row by row (and fail there).
+        if vs.len() == LANES && theta.iter().all(|&t| t <= 2.0 * SIN_COS_LIMIT) {
+            for ((o, v), &t) in os.iter_mut().zip(vs).zip(&theta) {
+                *o = exp_map(v, t);
             }
-            // NaN fails the comparison, so non-finite rows go row by row (and fail there).
-            if vs.len() == LANES && theta.iter().all(|&t| t <= 2.0 * SIN_COS_LIMIT) {
-                for ((o, v), &t) in os.iter_mut().zip(vs).zip(&theta) {
-                    *o = exp_map(v, t);
-                }
-            } else {
-                for (k, (v, o)) in vs.iter().zip(os.iter_mut()).enumerate() {
-                    let q = quat_from_rotvec(v).map_err(|e| e.at(start + b * LANES + k))?;
-                    *o = [q.w, q.x, q.y, q.z];
-                }
+        } else {
+            for (k, (v, o)) in vs.iter().zip(os.iter_mut()).enumerate() {
+                let q = quat_from_rotvec(v).map_err(|e| e.at(first + k))?;
+                *o = [q.w, q.x, q.y, q.z];
             }
         }
-        Ok(())
+        Ok(0)
     }
 }
 
