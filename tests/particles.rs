@@ -310,10 +310,10 @@ fn fused_symplectic_path_is_bitwise_the_general_path() {
             .unwrap();
         }
         s.step(1e-2, 100, Method::SymplecticEuler).unwrap();
-        (s.positions().to_vec(), s.velocities().to_vec(), s.stats.contacts)
+        (s.positions().to_vec(), s.velocities().to_vec(), s.ages().to_vec(), s.stats.contacts)
     };
     let (fused, general) = (build(false), build(true));
-    assert!(fused.2 > 0);
+    assert!(fused.3 > 0);
     assert_eq!(fused, general);
 }
 
@@ -485,8 +485,8 @@ fn explicit_kernel_failure_keeps_the_last_good_step() {
     let mut reference = system();
     reference.step(1.0, 3, Method::SymplecticEuler).unwrap();
 
-    // In one call: steps 0 to 2 are written, the look-ahead of step 2 finds step 3 not
-    // finite and the read-only pass names the particle.
+    // In one call: step 3 goes non-finite, so the state at the start of the call is restored
+    // and steps 0 to 2 are stepped again.
     let mut s = system();
     let err = s.step(1.0, 10, Method::SymplecticEuler).unwrap_err();
     assert!(matches!(err, kinema::Error::Diverged { step: 3, index: 30_000, .. }), "{err}");
@@ -495,8 +495,7 @@ fn explicit_kernel_failure_keeps_the_last_good_step() {
     assert_eq!(s.ages(), reference.ages());
     assert_eq!(s.time(), reference.time());
 
-    // Across calls (the first step of a call is checked by the read-only pass, the second one
-    // by the look-ahead of the first).
+    // Across calls (the second step of the second call fails).
     let mut s = system();
     s.step(1.0, 2, Method::SymplecticEuler).unwrap();
     let err = s.step(1.0, 10, Method::SymplecticEuler).unwrap_err();
@@ -507,4 +506,101 @@ fn explicit_kernel_failure_keeps_the_last_good_step() {
     assert!(s.step(1.0, 1, Method::SymplecticEuler).is_err());
     assert_eq!(s.positions(), reference.positions());
     s.step(1e-3, 1, Method::SymplecticEuler).unwrap();
+}
+
+/// `live` particles (room for `capacity`) above a ground plane under gravity, some falling
+/// onto it, and one, `runaway`, moving along x so fast that its position overflows in step
+/// `fail` of 1 ms (counting from 0).
+fn runaway(live: usize, capacity: usize, runaway: usize, fail: usize) -> ParticleSystem {
+    let dx = 1e304; // metres per step
+    let mut x: Vec<DVec3> = (0..live)
+        .map(|i| DVec3::new((i % 101) as f64 * 0.01, 0.001 * (i % 7) as f64, (i / 101) as f64))
+        .collect();
+    let mut v: Vec<DVec3> =
+        (0..live).map(|i| DVec3::new(0.5, -((i % 3) as f64), 0.1 * (i % 5) as f64)).collect();
+    x[runaway].x = f64::MAX - (fail as f64 + 0.5) * dx;
+    v[runaway] = DVec3::new(dx / 1e-3, 0.0, 0.0);
+    let mut s = ParticleSystem::new(&x, &v, &vec![2.0; live], capacity).unwrap();
+    s.add_force(Force::Gravity { g: G }).unwrap();
+    s.add_force(Force::Damping { rate: 0.1 }).unwrap();
+    s.add_collider(Collider::Plane {
+        point: DVec3::ZERO,
+        normal: DVec3::Y,
+        restitution: 0.5,
+        friction: 0.3,
+    })
+    .unwrap();
+    s
+}
+
+/// Whether two systems hold bitwise the same state, ages, flags, masses, time and counters.
+fn same_state(a: &ParticleSystem, b: &ParticleSystem) -> bool {
+    let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    bits(a.positions()) == bits(b.positions())
+        && bits(a.velocities()) == bits(b.velocities())
+        && bits(a.ages()) == bits(b.ages())
+        && bits(a.masses()) == bits(b.masses())
+        && a.alive() == b.alive()
+        && a.time().to_bits() == b.time().to_bits()
+        && a.stats == b.stats
+}
+
+#[test]
+fn explicit_kernel_failure_in_any_step_rolls_back_to_the_last_good_step() {
+    // (live particles, runaway particle, step that fails, steps in the call): the first step,
+    // a middle step, the last step of the call, and the runaway in the last, partial block
+    // (10_003 = 312 blocks of 32 and 19).
+    for (live, index, fail, steps) in [
+        (40_000, 30_000, 0, 5),
+        (40_000, 123, 4, 10),
+        (40_000, 39_999, 6, 7),
+        (10_003, 10_002, 2, 9),
+    ] {
+        let mut s = runaway(live, live, index, fail + 2);
+        s.step(1e-3, 2, Method::SymplecticEuler).unwrap(); // an earlier call
+        let mut reference = s.clone();
+        reference.step(1e-3, fail, Method::SymplecticEuler).unwrap();
+        let err = s.step(1e-3, steps, Method::SymplecticEuler).unwrap_err();
+        assert!(
+            matches!(err, kinema::Error::Diverged { step, index: i, .. } if step == fail && i == index),
+            "{err}"
+        );
+        assert!(same_state(&s, &reference), "live {live}, fail {fail}");
+        if fail > 2 {
+            assert!(s.stats.contacts > 0);
+        }
+        // Smaller steps go on from there.
+        s.step(1e-6, 2, Method::SymplecticEuler).unwrap();
+        reference.step(1e-6, 2, Method::SymplecticEuler).unwrap();
+        assert!(same_state(&s, &reference));
+    }
+}
+
+#[test]
+fn explicit_kernel_failure_with_emitters_restores_slots_and_emitters() {
+    // Emitted particles live three steps, so slots die and are emitted into again within
+    // the failing call; the emitter's accumulator and random state must come back too.
+    let mut s = runaway(2000, 2600, 1500, 9);
+    s.add_emitter(Emitter {
+        rate: 45_500.0,
+        position: DVec3::new(0.0, 1.0, 0.0),
+        position_spread: 0.2,
+        velocity: DVec3::new(0.0, 3.0, 0.0),
+        velocity_spread: 1.0,
+        lifespan: 0.003,
+        mass: 0.25,
+        seed: 11,
+    })
+    .unwrap();
+    s.step(1e-3, 4, Method::SymplecticEuler).unwrap();
+    let mut reference = s.clone();
+    reference.step(1e-3, 5, Method::SymplecticEuler).unwrap();
+    assert!(reference.stats.emitted > 0 && reference.stats.expired > 0);
+    let err = s.step(1e-3, 20, Method::SymplecticEuler).unwrap_err();
+    assert!(matches!(err, kinema::Error::Diverged { step: 5, index: 1500, .. }), "{err}");
+    assert!(same_state(&s, &reference));
+    s.step(1e-4, 3, Method::SymplecticEuler).unwrap();
+    reference.step(1e-4, 3, Method::SymplecticEuler).unwrap();
+    assert!(s.stats.emitted > 0);
+    assert!(same_state(&s, &reference));
 }

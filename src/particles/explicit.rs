@@ -14,16 +14,13 @@
 //! time where the CPU has it (safe code; no fused multiply-add is introduced, so the results do
 //! not depend on the instruction set either).
 //!
-//! A step either completes or leaves the state as it was, and no copy of the state is kept:
-//! a step is written only when it is known to stay finite. The first step of a call of
-//! [`super::ParticleSystem::step`] is checked by a read-only pass ([`check`]). The pass that
-//! writes step `s` ([`commit`]) also computes step `s + 1` of each block from the values it
-//! has just written, still in the cache, and only checks it; when another step of the call
-//! follows and that look-ahead found every value finite, step `s + 1` is written directly
-//! (only the particles emitted in between are checked first), otherwise the read-only pass
-//! decides. A call of `k` steps thus streams the state `k` times (read and written in place)
-//! plus one read, and computes each step twice. (Nothing outside can change the system between
-//! the steps of one call, so no look-ahead outlives the call.)
+//! A step either completes or leaves the state as it was, and each step is computed once:
+//! [`commit`] writes every block and reports the first particle that came out non-finite.
+//! The first step of a call of [`super::ParticleSystem::step`] also copies the state it reads
+//! (the copy costs one write of the state per call, not a computation); when a step of the
+//! call fails, the caller restores that copy and replays the good steps of the call, which
+//! gives bitwise the state after the last good step since a step depends on nothing but the
+//! state and the model.
 
 use super::{respond, surface, Collider, Force};
 use glam::DVec3;
@@ -52,6 +49,26 @@ pub(super) struct Model<'a> {
 
 /// Three coordinates of every particle of a block, one array per axis.
 type Vectors = [[f64; BLOCK]; 3];
+
+/// The vectors of a whole block, `x, y, z` per particle, as one array per axis.
+#[inline(always)]
+fn split(xyz: &[f64; 3 * BLOCK], to: &mut Vectors) {
+    for k in 0..BLOCK {
+        for c in 0..3 {
+            to[c][k] = xyz[3 * k + c];
+        }
+    }
+}
+
+/// The inverse of [`split`].
+#[inline(always)]
+fn interleave(from: &Vectors, xyz: &mut [f64; 3 * BLOCK]) {
+    for k in 0..BLOCK {
+        for c in 0..3 {
+            xyz[3 * k + c] = from[c][k];
+        }
+    }
+}
 
 /// One block of particles as a structure of arrays.
 struct Block {
@@ -99,10 +116,15 @@ impl Block {
         let len = xs.len() / 3;
         (self.start, self.len) = (start, len);
         let [x, ..] = &mut self.x;
-        for (k, (p, u)) in xs.chunks_exact(3).zip(vs.chunks_exact(3)).enumerate() {
-            for c in 0..3 {
-                x[c][k] = p[c];
-                self.v[c][k] = u[c];
+        if let (Ok(xs), Ok(vs)) = (xs.try_into(), vs.try_into()) {
+            split(xs, x);
+            split(vs, &mut self.v);
+        } else {
+            for (k, (p, u)) in xs.chunks_exact(3).zip(vs.chunks_exact(3)).enumerate() {
+                for c in 0..3 {
+                    x[c][k] = p[c];
+                    self.v[c][k] = u[c];
+                }
             }
         }
         let slots = start..start + len;
@@ -119,10 +141,15 @@ impl Block {
     #[inline(always)]
     fn store(&self, xs: &mut [f64], vs: &mut [f64]) {
         let [_, x] = &self.x;
-        for (k, (p, u)) in xs.chunks_exact_mut(3).zip(vs.chunks_exact_mut(3)).enumerate() {
-            for c in 0..3 {
-                p[c] = x[c][k];
-                u[c] = self.v[c][k];
+        if let (Ok(xs), Ok(vs)) = (xs.try_into(), vs.try_into()) {
+            interleave(x, xs);
+            interleave(&self.v, vs);
+        } else {
+            for (k, (p, u)) in xs.chunks_exact_mut(3).zip(vs.chunks_exact_mut(3)).enumerate() {
+                for c in 0..3 {
+                    p[c] = x[c][k];
+                    u[c] = self.v[c][k];
+                }
             }
         }
     }
@@ -306,56 +333,7 @@ impl Block {
     }
 }
 
-/// The first of the particles from `start` on (positions `xs`, velocities `vs`, `3 count`
-/// values each, alive flags `alive`) whose step of `model.dt` would not stay finite, without
-/// writing anything.
-pub(super) fn check(
-    model: &Model,
-    start: usize,
-    xs: &[f64],
-    vs: &[f64],
-    alive: &[bool],
-) -> Option<usize> {
-    let arch = pulp::Arch::new();
-    xs.par_chunks(3 * TASK)
-        .zip(vs.par_chunks(3 * TASK))
-        .zip(alive.par_chunks(TASK))
-        .enumerate()
-        .map(|(t, ((xs, vs), alive))| {
-            arch.dispatch(Check { model, start: start + t * TASK, xs, vs, alive })
-        })
-        .reduce(|| None, |a, b| a.into_iter().chain(b).min())
-}
-
-/// [`check`] of one task's particles, compiled for the SIMD instruction set found at run time.
-struct Check<'a> {
-    model: &'a Model<'a>,
-    start: usize,
-    xs: &'a [f64],
-    vs: &'a [f64],
-    alive: &'a [bool],
-}
-
-impl pulp::WithSimd for Check<'_> {
-    type Output = Option<usize>;
-
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) -> Option<usize> {
-        let Check { model, start, xs, vs, alive } = self;
-        let mut block = Block::new();
-        let blocks = xs.chunks(3 * BLOCK).zip(vs.chunks(3 * BLOCK)).zip(alive.chunks(BLOCK));
-        for (b, ((xb, vb), alive)) in blocks.enumerate() {
-            block.load(model, start + b * BLOCK, xb, vb, alive);
-            block.advance(model, 0);
-            if let Some(i) = block.first_bad(1) {
-                return Some(i);
-            }
-        }
-        None
-    }
-}
-
-/// The particles' ages, to advance by each step written.
+/// The slots' ages, to advance by each step written.
 pub(super) struct Aging<'a> {
     /// Alive flags, cleared when a particle reaches its lifespan.
     pub(super) alive: &'a mut [bool],
@@ -363,46 +341,54 @@ pub(super) struct Aging<'a> {
     pub(super) age: &'a mut [f64],
     /// Lifespans (s).
     pub(super) lifespan: &'a [f64],
+    /// Whether the step ages the particles ([`super::age_slots`]); without emitters the
+    /// caller ages them once after the call instead ([`super::age_live`]).
+    pub(super) now: bool,
 }
 
 /// What [`commit`] found.
 pub(super) struct Committed {
-    /// Contacts of the step written.
+    /// Contacts of the step.
     pub(super) contacts: usize,
     /// Particles retired at the end of their lifespan.
     pub(super) expired: usize,
-    /// Whether the look-ahead was asked for and found that the next step from the state
-    /// written, with the same model, stays finite.
-    pub(super) next_finite: bool,
+    /// The first live particle whose position or velocity came out non-finite, if any: the
+    /// step must then be undone.
+    pub(super) bad: Option<usize>,
 }
 
 /// Write one step of all particles (positions `xs`, velocities `vs`, `3 capacity` values each)
-/// in place and age them ([`super::age_slots`]); the step must be known to stay finite
-/// ([`check`]). With `look_ahead`, also finds whether the next step stays finite.
+/// in place, and age them when `aging.now`; with `keep`, copy the state before the step into
+/// `kept` (positions then velocities, as `xs` and `vs`). Every block is written even when
+/// one goes bad, so that a step that fails can be undone from the copy.
 pub(super) fn commit(
     model: &Model,
     xs: &mut [f64],
     vs: &mut [f64],
     aging: Aging,
-    look_ahead: bool,
+    kept: &mut [f64],
+    keep: bool,
 ) -> Committed {
     let arch = pulp::Arch::new();
-    let Aging { alive, age, lifespan } = aging;
+    let Aging { alive, age, lifespan, now } = aging;
+    let (kept_x, kept_v) = kept.split_at_mut(xs.len());
     xs.par_chunks_mut(3 * TASK)
         .zip(vs.par_chunks_mut(3 * TASK))
+        .zip(kept_x.par_chunks_mut(3 * TASK).zip(kept_v.par_chunks_mut(3 * TASK)))
         .zip(alive.par_chunks_mut(TASK).zip(age.par_chunks_mut(TASK)))
         .zip(lifespan.par_chunks(TASK))
         .enumerate()
-        .map(|(t, (((xs, vs), (alive, age)), lifespan))| {
-            let aging = Aging { alive, age, lifespan };
-            arch.dispatch(Commit { model, start: t * TASK, xs, vs, aging, look_ahead })
+        .map(|(t, ((((xs, vs), kept), (alive, age)), lifespan))| {
+            let aging = Aging { alive, age, lifespan, now };
+            let kept = keep.then_some(kept);
+            arch.dispatch(Commit { model, start: t * TASK, xs, vs, aging, kept })
         })
         .reduce(
-            || Committed { contacts: 0, expired: 0, next_finite: look_ahead },
+            || Committed { contacts: 0, expired: 0, bad: None },
             |a, b| Committed {
                 contacts: a.contacts + b.contacts,
                 expired: a.expired + b.expired,
-                next_finite: a.next_finite && b.next_finite,
+                bad: a.bad.into_iter().chain(b.bad).min(),
             },
         )
 }
@@ -414,7 +400,8 @@ struct Commit<'a> {
     xs: &'a mut [f64],
     vs: &'a mut [f64],
     aging: Aging<'a>,
-    look_ahead: bool,
+    /// Where to copy the positions and velocities before the step, if asked.
+    kept: Option<(&'a mut [f64], &'a mut [f64])>,
 }
 
 impl pulp::WithSimd for Commit<'_> {
@@ -422,9 +409,13 @@ impl pulp::WithSimd for Commit<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> Committed {
-        let Commit { model, start, xs, vs, aging, look_ahead } = self;
+        let Commit { model, start, xs, vs, aging, kept } = self;
+        if let Some((kept_x, kept_v)) = kept {
+            kept_x.copy_from_slice(xs);
+            kept_v.copy_from_slice(vs);
+        }
         let mut block = Block::new();
-        let mut done = Committed { contacts: 0, expired: 0, next_finite: look_ahead };
+        let mut done = Committed { contacts: 0, expired: 0, bad: None };
         let blocks = xs
             .chunks_mut(3 * BLOCK)
             .zip(vs.chunks_mut(3 * BLOCK))
@@ -433,16 +424,10 @@ impl pulp::WithSimd for Commit<'_> {
         for (b, (((xb, vb), (alive, age)), lifespan)) in blocks.enumerate() {
             block.load(model, start + b * BLOCK, xb, vb, alive);
             done.contacts += block.advance(model, 0);
-            debug_assert!(block.first_bad(1).is_none(), "a step written must have been checked");
+            done.bad = done.bad.or_else(|| block.first_bad(1));
             block.store(xb, vb);
-            done.expired += super::age_slots(model.dt, alive, age, lifespan, vb);
-            if done.next_finite {
-                // Retired particles no longer move.
-                for (live, &alive) in block.live.iter_mut().zip(&*alive) {
-                    *live &= alive;
-                }
-                block.advance(model, 1);
-                done.next_finite = block.first_bad(0).is_none();
+            if aging.now {
+                done.expired += super::age_slots(model.dt, alive, age, lifespan, vb);
             }
         }
         done

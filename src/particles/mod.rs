@@ -28,7 +28,6 @@ use crate::ode::{Method, OdeSystem, SparseJacobian, Stepper};
 use crate::sdf;
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
-use std::ops::Range;
 
 /// Particles per parallel chunk.
 const CHUNK: usize = 4096;
@@ -129,12 +128,31 @@ pub struct StepStats {
     pub contacts: usize,
 }
 
+/// What a call of the explicit kernel restores when one of its steps fails
+/// ([`ParticleSystem::explicit_steps`]).
+#[derive(Clone, Debug, Default)]
+struct Rollback {
+    /// Positions then velocities (`6 capacity` values), copied by the call's first step.
+    y: Vec<f64>,
+    /// With emitters: every slot's alive flag, age, lifespan, mass and inverse mass, and each
+    /// emitter's accumulator and random state, copied before the call.
+    alive: Vec<bool>,
+    age: Vec<f64>,
+    lifespan: Vec<f64>,
+    mass: Vec<f64>,
+    inv_mass: Vec<f64>,
+    emitters: Vec<(f64, u64)>,
+}
+
 /// A fixed-capacity particle system.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct ParticleSystem {
     n: usize,
     y: Vec<f64>,
     backup: Vec<f64>,
+    /// The state at the start of a call of the explicit kernel, rebuilt by each call.
+    #[serde(skip)]
+    rollback: Rollback,
     mass: Vec<f64>,
     inv_mass: Vec<f64>,
     age: Vec<f64>,
@@ -227,6 +245,7 @@ impl ParticleSystem {
         Ok(ParticleSystem {
             n,
             backup: Vec::new(),
+            rollback: Rollback::default(),
             y,
             inv_mass: mass.iter().map(|m| if m.is_finite() { 1.0 / m } else { 0.0 }).collect(),
             mass,
@@ -572,29 +591,18 @@ impl ParticleSystem {
                     | Force::NBodyGravity { .. }
             )
         });
-        let explicit = method == Method::SymplecticEuler && !pairwise;
-        // For the explicit kernel: whether the look-ahead of the step before found this one
-        // finite, and the slots emitted since (which it did not see).
-        let (mut checked, mut fresh) = (false, None);
+        if method == Method::SymplecticEuler && !pairwise {
+            return self.explicit_steps(dt, steps, gravity);
+        }
         for s in 0..steps {
-            // The explicit kernel writes only a step known to stay finite; the general path
-            // keeps a copy of the state to restore.
-            let result = if explicit {
-                let look_ahead = s + 1 < steps;
-                self.explicit_step(dt, gravity, checked, fresh.take(), look_ahead)
-                    .map(|next_finite| checked = next_finite)
-            } else {
-                self.backup.resize(self.y.len(), 0.0);
-                self.backup
-                    .par_chunks_mut(6 * CHUNK)
-                    .zip(self.y.par_chunks(6 * CHUNK))
-                    .for_each(|(b, y)| b.copy_from_slice(y));
-                self.one_step(dt, gravity, sparse)
-            };
-            if let Err(e) = result {
-                if !explicit {
-                    self.y.copy_from_slice(&self.backup);
-                }
+            // Keep a copy of the state to restore.
+            self.backup.resize(self.y.len(), 0.0);
+            self.backup
+                .par_chunks_mut(6 * CHUNK)
+                .zip(self.y.par_chunks(6 * CHUNK))
+                .for_each(|(b, y)| b.copy_from_slice(y));
+            if let Err(e) = self.one_step(dt, gravity, sparse) {
+                self.y.copy_from_slice(&self.backup);
                 if let Some(st) = self.stepper.as_mut() {
                     st.reset();
                 }
@@ -605,11 +613,9 @@ impl ParticleSystem {
                     other => other,
                 });
             }
-            if !explicit {
-                self.age(dt); // the explicit kernel ages the particles as it writes them
-            }
+            self.age(dt);
             self.time += dt;
-            fresh = self.emit(dt);
+            self.emit(dt);
         }
         Ok(())
     }
@@ -682,52 +688,99 @@ impl ParticleSystem {
             .sum::<usize>();
     }
 
-    /// One step of symplectic Euler with the collision response by the explicit kernel
-    /// (module `explicit`), for systems without forces between particles: checked first by a
-    /// read-only pass unless the look-ahead of the step before found it finite (`checked`; then
-    /// only the slots emitted since, `fresh`, are checked), then written in place. With
-    /// `look_ahead` (another step of the same call follows), returns whether the next step
-    /// stays finite.
-    fn explicit_step(
-        &mut self,
-        dt: f64,
-        gravity: DVec3,
-        checked: bool,
-        fresh: Option<Range<usize>>,
-        look_ahead: bool,
-    ) -> Result<bool> {
+    /// `steps` steps of symplectic Euler with the collision response by the explicit kernel
+    /// (module `explicit`), for systems without forces between particles. Each step is
+    /// computed once and written in place; the first also copies the positions and velocities
+    /// it reads into `rollback` (with emitters, the slots and the emitters' state are copied
+    /// before it too). When a step fails, the copy is restored and the good steps before it
+    /// are stepped again, which gives bitwise the state they had written (a step reads nothing
+    /// but the state and the model, and the kernel's results do not depend on the threads).
+    fn explicit_steps(&mut self, dt: f64, steps: usize, gravity: DVec3) -> Result<()> {
         let n = self.n;
-        let model = explicit::Model {
-            forces: &self.forces,
-            colliders: &self.colliders,
-            mass: &self.mass,
-            inv_mass: &self.inv_mass,
-            external: &self.external,
-            dt,
-            gravity,
+        self.rollback.y.resize(6 * n, 0.0);
+        // Without emitters no slot is born, and none dies (lifespans are infinite: only
+        // emitted particles have finite ones), so the ages can be advanced after the call.
+        let age_each_step = !self.emitters.is_empty();
+        let time = self.time;
+        if age_each_step {
+            let r = &mut self.rollback;
+            r.alive.clone_from(&self.alive);
+            r.age.clone_from(&self.age);
+            r.lifespan.clone_from(&self.lifespan);
+            r.mass.clone_from(&self.mass);
+            r.inv_mass.clone_from(&self.inv_mass);
+            r.emitters.clear();
+            r.emitters.extend(self.emitters.iter().map(|(_, accum, rng)| (*accum, *rng)));
+        }
+        let Err((step, index)) = self.explicit_run(dt, steps, gravity, age_each_step, true) else {
+            return Ok(());
         };
-        let (xs, vs) = self.y.split_at_mut(3 * n);
-        let unchecked = if checked { fresh } else { Some(0..n) };
-        if let Some(slots) = unchecked {
-            let state = (&xs[3 * slots.start..3 * slots.end], &vs[3 * slots.start..3 * slots.end]);
-            let alive = &self.alive[slots.clone()];
-            if let Some(index) = explicit::check(&model, slots.start, state.0, state.1, alive) {
-                return Err(Error::Diverged {
-                    step: 0,
-                    index,
-                    reason: "non-finite particle state".into(),
-                });
+        let r = &self.rollback;
+        self.y.par_chunks_mut(6 * CHUNK).zip(r.y.par_chunks(6 * CHUNK)).for_each(|(y, r)| {
+            y.copy_from_slice(r);
+        });
+        if age_each_step {
+            self.alive.copy_from_slice(&r.alive);
+            self.age.copy_from_slice(&r.age);
+            self.lifespan.copy_from_slice(&r.lifespan);
+            self.mass.copy_from_slice(&r.mass);
+            self.inv_mass.copy_from_slice(&r.inv_mass);
+            for ((_, accum, rng), kept) in self.emitters.iter_mut().zip(&r.emitters) {
+                (*accum, *rng) = *kept;
             }
         }
-        let aging = explicit::Aging {
-            alive: &mut self.alive,
-            age: &mut self.age,
-            lifespan: &self.lifespan,
-        };
-        let done = explicit::commit(&model, xs, vs, aging, look_ahead);
-        self.stats.contacts += done.contacts;
-        self.stats.expired += done.expired;
-        Ok(done.next_finite)
+        self.time = time;
+        self.stats = StepStats::default();
+        let replayed = self.explicit_run(dt, step, gravity, age_each_step, false);
+        debug_assert!(replayed.is_ok(), "steps that were good are good again");
+        Err(Error::Diverged { step, index, reason: "non-finite particle state".into() })
+    }
+
+    /// `steps` steps of the explicit kernel (see [`ParticleSystem::explicit_steps`]), the
+    /// first of which copies the state into `rollback` when `keep`; stops at the first step
+    /// that goes non-finite and returns it with the first particle that did.
+    fn explicit_run(
+        &mut self,
+        dt: f64,
+        steps: usize,
+        gravity: DVec3,
+        age_each_step: bool,
+        keep: bool,
+    ) -> std::result::Result<(), (usize, usize)> {
+        let n = self.n;
+        for s in 0..steps {
+            let model = explicit::Model {
+                forces: &self.forces,
+                colliders: &self.colliders,
+                mass: &self.mass,
+                inv_mass: &self.inv_mass,
+                external: &self.external,
+                dt,
+                gravity,
+            };
+            let (xs, vs) = self.y.split_at_mut(3 * n);
+            let aging = explicit::Aging {
+                alive: &mut self.alive,
+                age: &mut self.age,
+                lifespan: &self.lifespan,
+                now: age_each_step,
+            };
+            let kept = &mut self.rollback.y;
+            let done = explicit::commit(&model, xs, vs, aging, kept, keep && s == 0);
+            if let Some(index) = done.bad {
+                return Err((s, index));
+            }
+            self.stats.contacts += done.contacts;
+            self.stats.expired += done.expired;
+            self.time += dt;
+            if age_each_step {
+                self.emit(dt);
+            }
+        }
+        if !age_each_step {
+            age_live(dt, steps, &self.alive, &mut self.age);
+        }
+        Ok(())
     }
 
     /// Age the particles and retire those past their lifespan ([`age_slots`]).
@@ -741,12 +794,10 @@ impl ParticleSystem {
             .sum::<usize>();
     }
 
-    /// Emit new particles into dead slots; returns the range of the slots emitted into, if
-    /// any.
-    fn emit(&mut self, dt: f64) -> Option<Range<usize>> {
+    /// Emit new particles into dead slots.
+    fn emit(&mut self, dt: f64) {
         let n = self.n;
         let mut cursor = 0;
-        let mut emitted: Option<Range<usize>> = None;
         for (emitter, accum, rng) in &mut self.emitters {
             *accum += emitter.rate * dt;
             while *accum >= 1.0 {
@@ -769,13 +820,11 @@ impl ParticleSystem {
                 self.mass[i] = emitter.mass;
                 self.inv_mass[i] = 1.0 / emitter.mass;
                 self.stats.emitted += 1;
-                emitted = Some(emitted.map_or(i..i + 1, |r| r.start.min(i)..i + 1));
             }
         }
         if self.stats.emitted > 0 || self.stats.expired > 0 {
             self.state_changed();
         }
-        emitted
     }
 }
 
@@ -933,7 +982,8 @@ fn respond(
 }
 
 /// Age the live slots of `alive` by `dt` and retire those that reach their `lifespan`
-/// (velocities `vs`, three per slot, set to zero); returns how many retired.
+/// (velocities `vs`, three per slot, set to zero); returns how many retired. A particle with
+/// an infinite lifespan never retires, even if its age overflows to infinity.
 #[inline(always)]
 fn age_slots(
     dt: f64,
@@ -946,20 +996,39 @@ fn age_slots(
     for k in 0..alive.len() {
         let older = age[k] + dt;
         age[k] = if alive[k] { older } else { age[k] };
-        expiring |= alive[k] & (age[k] >= lifespan[k]);
+        expiring |= alive[k] & (age[k] >= lifespan[k]) & (lifespan[k] < f64::INFINITY);
     }
     if !expiring {
         return 0;
     }
     let mut expired = 0;
     for k in 0..alive.len() {
-        if alive[k] && age[k] >= lifespan[k] {
+        if alive[k] && age[k] >= lifespan[k] && lifespan[k] < f64::INFINITY {
             alive[k] = false;
             expired += 1;
             vs[3 * k..3 * k + 3].fill(0.0);
         }
     }
     expired
+}
+
+/// Age the live slots of `alive` by `steps` steps of `dt`: bitwise [`age_slots`] called
+/// `steps` times when no lifespan is finite.
+fn age_live(dt: f64, steps: usize, alive: &[bool], age: &mut [f64]) {
+    // Eight slots at a time, each added to `steps` times in registers.
+    const LANES: usize = 8;
+    age.par_chunks_mut(CHUNK).zip(alive.par_chunks(CHUNK)).for_each(|(age, alive)| {
+        for (age, alive) in age.chunks_mut(LANES).zip(alive.chunks(LANES)) {
+            let mut older = [0.0; LANES];
+            older.iter_mut().zip(&*age).for_each(|(o, a)| *o = *a);
+            for _ in 0..steps {
+                older.iter_mut().for_each(|o| *o += dt);
+            }
+            for ((a, older), &live) in age.iter_mut().zip(older).zip(alive) {
+                *a = if live { older } else { *a };
+            }
+        }
+    });
 }
 
 /// The externally set force on slot `i` (zero when none is set).
