@@ -45,6 +45,10 @@ pub(super) struct Model<'a> {
     pub(super) dt: f64,
     /// The sum of the uniform gravity fields (m/s²), for resting contacts.
     pub(super) gravity: DVec3,
+    /// `(mass, inverse mass)` when every slot is alive and moves with this same mass (and
+    /// nothing emits or retires during the call): then `mass`, `inv_mass` and the alive flags
+    /// are not read per particle.
+    pub(super) uniform: Option<(f64, f64)>,
 }
 
 /// Three coordinates of every particle of a block, one array per axis.
@@ -93,17 +97,18 @@ struct Block {
 }
 
 impl Block {
-    fn new() -> Self {
+    fn new(model: &Model) -> Self {
         let z = [0.0; BLOCK];
+        let (m, inv_m) = model.uniform.unwrap_or((0.0, 0.0));
         Block {
             start: 0,
             len: 0,
             x: [[z; 3]; 2],
             v: [z; 3],
             f: [z; 3],
-            m: z,
-            inv_m: z,
-            live: [false; BLOCK],
+            m: [m; BLOCK],
+            inv_m: [inv_m; BLOCK],
+            live: [model.uniform.is_some(); BLOCK],
             d: z,
         }
     }
@@ -126,6 +131,11 @@ impl Block {
                     self.v[c][k] = u[c];
                 }
             }
+        }
+        if model.uniform.is_some() {
+            // Masses and flags were set by `Block::new`; only the last block may be short.
+            self.live[len..].fill(false);
+            return;
         }
         let slots = start..start + len;
         self.m[..len].copy_from_slice(&model.mass[slots.clone()]);
@@ -317,13 +327,12 @@ impl Block {
     fn first_bad(&self, at: usize) -> Option<usize> {
         let Block { x, v, live, .. } = self;
         let x = &x[at];
-        // Finite values have a finite sum of products with zero; others give NaN. (Slots that
-        // do not move are skipped below.)
+        // A sum `s` of finite values has `0 s = 0` unless it overflows; a non-finite value
+        // makes it NaN. (The exact test below also skips the slots that do not move.)
         let mut bad = 0;
         for k in 0..BLOCK {
-            let s = 0.0 * x[0][k] + 0.0 * x[1][k] + 0.0 * x[2][k];
-            let s = s + 0.0 * v[0][k] + 0.0 * v[1][k] + 0.0 * v[2][k];
-            bad += usize::from(s != 0.0);
+            let s = x[0][k] + x[1][k] + x[2][k] + v[0][k] + v[1][k] + v[2][k];
+            bad += usize::from(0.0 * s != 0.0);
         }
         if bad == 0 {
             return None;
@@ -414,7 +423,7 @@ impl pulp::WithSimd for Commit<'_> {
             kept_x.copy_from_slice(xs);
             kept_v.copy_from_slice(vs);
         }
-        let mut block = Block::new();
+        let mut block = Block::new(model);
         let mut done = Committed { contacts: 0, expired: 0, bad: None };
         let blocks = xs
             .chunks_mut(3 * BLOCK)

@@ -748,6 +748,11 @@ impl ParticleSystem {
         keep: bool,
     ) -> std::result::Result<(), (usize, usize)> {
         let n = self.n;
+        let uniform = if age_each_step {
+            None
+        } else {
+            uniform_mass(&self.mass, &self.inv_mass, &self.alive)
+        };
         for s in 0..steps {
             let model = explicit::Model {
                 forces: &self.forces,
@@ -757,6 +762,7 @@ impl ParticleSystem {
                 external: &self.external,
                 dt,
                 gravity,
+                uniform,
             };
             let (xs, vs) = self.y.split_at_mut(3 * n);
             let aging = explicit::Aging {
@@ -1010,6 +1016,23 @@ fn age_slots(
         }
     }
     expired
+}
+
+/// `(mass, inverse mass)` of every slot if all are alive, movable and of the same mass.
+fn uniform_mass(mass: &[f64], inv_mass: &[f64], alive: &[bool]) -> Option<(f64, f64)> {
+    let (&m, &inv_m) = (mass.first()?, inv_mass.first()?);
+    let same = mass
+        .par_chunks(CHUNK)
+        .zip(inv_mass.par_chunks(CHUNK))
+        .zip(alive.par_chunks(CHUNK))
+        .all(|((mass, inv_mass), alive)| {
+            let differ =
+                mass.iter().zip(inv_mass).zip(alive).fold(false, |differ, ((&a, &b), &live)| {
+                    differ | (a != m) | (b != inv_m) | !live
+                });
+            !differ
+        });
+    (same && inv_m != 0.0).then_some((m, inv_m))
 }
 
 /// Age the live slots of `alive` by `steps` steps of `dt`: bitwise [`age_slots`] called
