@@ -356,9 +356,9 @@ fn oriented_box_distance_matches_brute_force() {
 
 /// A scene for the explicit symplectic-Euler kernel: `n` particles on a grid above a tilted
 /// ground under gravity, quadratic drag with wind, a vortex, a sphere and an emitter whose
-/// particles expire, and a few pinned particles (at rest: the general path moves a pinned
-/// particle with its velocity, the kernel keeps it in place).
-fn kernel_scene(n: usize) -> ParticleSystem {
+/// particles expire (if `emitter`), and a few pinned particles (at rest: the general path
+/// moves a pinned particle with its velocity, the kernel keeps it in place).
+fn kernel_scene(n: usize, emitter: bool) -> ParticleSystem {
     let live = n - n / 4; // room for the emitter
     let x: Vec<DVec3> = (0..live)
         .map(|i| {
@@ -400,17 +400,19 @@ fn kernel_scene(n: usize) -> ParticleSystem {
         velocity: DVec3::ZERO,
     })
     .unwrap();
-    s.add_emitter(Emitter {
-        rate: 20_000.0,
-        position: DVec3::new(0.0, 1.0, 0.0),
-        position_spread: 0.2,
-        velocity: DVec3::new(0.0, 3.0, 0.0),
-        velocity_spread: 1.0,
-        lifespan: 0.05,
-        mass: 0.5,
-        seed: 7,
-    })
-    .unwrap();
+    if emitter {
+        s.add_emitter(Emitter {
+            rate: 20_000.0,
+            position: DVec3::new(0.0, 1.0, 0.0),
+            position_spread: 0.2,
+            velocity: DVec3::new(0.0, 3.0, 0.0),
+            velocity_spread: 1.0,
+            lifespan: 0.05,
+            mass: 0.5,
+            seed: 7,
+        })
+        .unwrap();
+    }
     s
 }
 
@@ -418,47 +420,54 @@ fn kernel_scene(n: usize) -> ParticleSystem {
 fn explicit_kernel_matches_the_general_path_bitwise() {
     // Symplectic Euler without forces between particles runs the blocked SIMD kernel; a spring
     // set without pairs sends the same system down the general path (Stepper + collide_one).
-    let mut fast = kernel_scene(20_000);
-    let mut general = kernel_scene(20_000);
-    general
-        .add_force(Force::Springs { pairs: vec![], rest: vec![], stiffness: 1.0, damping: 0.0 })
-        .unwrap();
-    for _ in 0..4 {
-        fast.step(1e-3, 25, Method::SymplecticEuler).unwrap();
-        general.step(1e-3, 25, Method::SymplecticEuler).unwrap();
-        assert_eq!(fast.stats, general.stats);
-        assert!(fast
-            .positions()
-            .iter()
-            .zip(general.positions())
-            .all(|(a, b)| a.to_bits() == b.to_bits()));
-        assert!(fast
-            .velocities()
-            .iter()
-            .zip(general.velocities())
-            .all(|(a, b)| a.to_bits() == b.to_bits()));
-        assert_eq!(fast.alive(), general.alive());
-        assert_eq!(fast.ages(), general.ages());
+    // Without the emitter the kernel ages the particles once per call.
+    for emitter in [true, false] {
+        let mut fast = kernel_scene(20_000, emitter);
+        let mut general = kernel_scene(20_000, emitter);
+        general
+            .add_force(Force::Springs { pairs: vec![], rest: vec![], stiffness: 1.0, damping: 0.0 })
+            .unwrap();
+        for _ in 0..4 {
+            fast.step(1e-3, 25, Method::SymplecticEuler).unwrap();
+            general.step(1e-3, 25, Method::SymplecticEuler).unwrap();
+            assert_eq!(fast.stats, general.stats);
+            assert!(fast
+                .positions()
+                .iter()
+                .zip(general.positions())
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+            assert!(fast
+                .velocities()
+                .iter()
+                .zip(general.velocities())
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+            assert_eq!(fast.alive(), general.alive());
+            assert_eq!(fast.ages(), general.ages());
+        }
+        assert!(fast.stats.contacts > 0);
+        assert_eq!(fast.stats.expired > 0 && fast.stats.emitted > 0, emitter);
     }
-    assert!(fast.stats.contacts > 0 && fast.stats.expired > 0 && fast.stats.emitted > 0);
 }
 
 #[test]
 fn explicit_kernel_does_not_depend_on_the_thread_count() {
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| {
-            let mut s = kernel_scene(50_000);
-            s.step(1e-3, 60, Method::SymplecticEuler).unwrap();
-            (s.positions().to_vec(), s.velocities().to_vec(), s.stats)
-        })
-    };
-    let one = run(1);
-    for threads in [2, 3] {
-        let other = run(threads);
-        assert!(one.0.iter().zip(&other.0).all(|(a, b)| a.to_bits() == b.to_bits()));
-        assert!(one.1.iter().zip(&other.1).all(|(a, b)| a.to_bits() == b.to_bits()));
-        assert_eq!(one.2, other.2);
+    // With an emitter, and with one mass for all (masses and flags not read per particle).
+    let scenes: [fn() -> ParticleSystem; 2] =
+        [|| kernel_scene(50_000, true), || runaway(50_000, 50_000, 7, 1000)];
+    for scene in scenes {
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut s = scene();
+                s.step(1e-3, 60, Method::SymplecticEuler).unwrap();
+                s
+            })
+        };
+        let one = run(1);
+        assert!(one.stats.contacts > 0);
+        for threads in [2, 3] {
+            assert!(same_state(&one, &run(threads)));
+        }
     }
 }
 
