@@ -18,13 +18,18 @@
 //! no fused multiply-add is introduced, so the results do not depend on the instruction set
 //! either).
 //!
-//! A step either completes or leaves the state as it was, and each step is computed once:
-//! [`commit`] writes every block and reports the first particle that came out non-finite.
-//! The first step of a call of [`super::ParticleSystem::step`] also copies the state it reads
-//! (the copy costs one write of the state per call, not a computation); when a step of the
-//! call fails, the caller restores that copy and replays the good steps of the call, which
-//! gives bitwise the state after the last good step since a step depends on nothing but the
-//! state and the model.
+//! Without emitters nothing happens between the steps of a call of
+//! [`super::ParticleSystem::step`] but the steps, and the particles do not interact, so
+//! [`commit`] takes each block through all the steps of the call while it is in the cache: the
+//! state is read and written once per call instead of once per step. With emitters it is
+//! called once per step.
+//!
+//! A call either completes or leaves the state at its last good step, and each step is
+//! computed once: [`commit`] writes every block and reports the first step, and the first
+//! particle in it, that came out non-finite. Its first step also copies the state it reads
+//! (one write of the state per call, not a computation); when a step fails, the caller
+//! restores that copy and takes the good steps again, which gives bitwise the state they had
+//! written since a step depends on nothing but the state and the model.
 
 use super::{respond, surface, Collider, Force};
 use glam::DVec3;
@@ -233,10 +238,10 @@ impl Block {
         self.live[len..].fill(false);
     }
 
-    /// Copy the positions `x[1]` out to `xs` and the velocities to `vs`.
+    /// Copy the positions `x[at]` out to `xs` and the velocities to `vs`.
     #[inline(always)]
-    fn store(&self, xs: &mut [f64], vs: &mut [f64]) {
-        let [_, x] = &self.x;
+    fn store(&self, at: usize, xs: &mut [f64], vs: &mut [f64]) {
+        let x = &self.x[at];
         if let (Ok(xs), Ok(vs)) = (xs.try_into(), vs.try_into()) {
             self.transpose.interleave(x, xs);
             self.transpose.interleave(&self.v, vs);
@@ -443,19 +448,22 @@ pub(super) struct Aging<'a> {
 
 /// What [`commit`] found.
 pub(super) struct Committed {
-    /// Contacts of the step.
+    /// Contacts of the steps.
     pub(super) contacts: usize,
     /// Particles retired at the end of their lifespan.
     pub(super) expired: usize,
-    /// The first live particle whose position or velocity came out non-finite, if any: the
-    /// step must then be undone.
-    pub(super) bad: Option<usize>,
+    /// The first step (from 0) in which a live particle's position or velocity came out
+    /// non-finite, and the first such particle, if any: the steps must then be undone.
+    pub(super) bad: Option<(usize, usize)>,
 }
 
-/// Write one step of all particles (positions `xs`, velocities `vs`, `3 capacity` values each)
-/// in place, and age them when `aging.now`; with `keep`, copy the state before the step into
-/// `kept` (positions then velocities, as `xs` and `vs`). Every block is written even when
-/// one goes bad, so that a step that fails can be undone from the copy.
+/// Write `steps` steps of all particles (positions `xs`, velocities `vs`, `3 capacity` values
+/// each) in place, each block going through all of them while it is in the cache (the
+/// particles do not interact, and nothing else happens between the steps; with
+/// `aging.now`, `steps` must be 1), and age them when `aging.now`; with `keep`, copy the
+/// state before the steps into `kept` (positions then velocities, as `xs` and `vs`). Every
+/// block is written even when one goes bad, so that steps that fail can be undone from the
+/// copy.
 pub(super) fn commit(
     model: &Model,
     xs: &mut [f64],
@@ -463,7 +471,9 @@ pub(super) fn commit(
     aging: Aging,
     kept: &mut [f64],
     keep: bool,
+    steps: usize,
 ) -> Committed {
+    debug_assert!(steps == 1 || !aging.now, "ages are advanced by one step at a time");
     let arch = pulp::Arch::new();
     let Aging { alive, age, lifespan, now } = aging;
     let (kept_x, kept_v) = kept.split_at_mut(xs.len());
@@ -476,7 +486,7 @@ pub(super) fn commit(
         .map(|(t, ((((xs, vs), kept), (alive, age)), lifespan))| {
             let aging = Aging { alive, age, lifespan, now };
             let kept = keep.then_some(kept);
-            arch.dispatch(Commit { model, start: t * TASK, xs, vs, aging, kept })
+            arch.dispatch(Commit { model, start: t * TASK, xs, vs, aging, kept, steps })
         })
         .reduce(
             || Committed { contacts: 0, expired: 0, bad: None },
@@ -495,8 +505,9 @@ struct Commit<'a> {
     xs: &'a mut [f64],
     vs: &'a mut [f64],
     aging: Aging<'a>,
-    /// Where to copy the positions and velocities before the step, if asked.
+    /// Where to copy the positions and velocities before the steps, if asked.
     kept: Option<(&'a mut [f64], &'a mut [f64])>,
+    steps: usize,
 }
 
 impl pulp::WithSimd for Commit<'_> {
@@ -504,7 +515,7 @@ impl pulp::WithSimd for Commit<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> Committed {
-        let Commit { model, start, xs, vs, aging, kept } = self;
+        let Commit { model, start, xs, vs, aging, kept, steps } = self;
         if let Some((kept_x, kept_v)) = kept {
             kept_x.copy_from_slice(xs);
             kept_v.copy_from_slice(vs);
@@ -524,9 +535,16 @@ impl pulp::WithSimd for Commit<'_> {
             block.transpose.prefetch(ahead_x.wrapping_add(ahead));
             block.transpose.prefetch(ahead_v.wrapping_add(ahead));
             block.load(model, start + b * BLOCK, xb, vb, alive);
-            done.contacts += block.advance(model, 0);
-            done.bad = done.bad.or_else(|| block.first_bad(1));
-            block.store(xb, vb);
+            let mut at = 0; // the positions of the last step are `block.x[at]`
+            for s in 0..steps {
+                done.contacts += block.advance(model, at);
+                at = 1 - at;
+                if let Some(i) = block.first_bad(at) {
+                    done.bad = Some(done.bad.map_or((s, i), |bad| bad.min((s, i))));
+                    break;
+                }
+            }
+            block.store(at, xb, vb);
             if aging.now {
                 done.expired += super::age_slots(model.dt, alive, age, lifespan, vb);
             }

@@ -693,8 +693,9 @@ impl ParticleSystem {
     /// computed once and written in place; the first also copies the positions and velocities
     /// it reads into `rollback` (with emitters, the slots and the emitters' state are copied
     /// before it too). When a step fails, the copy is restored and the good steps before it
-    /// are stepped again, which gives bitwise the state they had written (a step reads nothing
-    /// but the state and the model, and the kernel's results do not depend on the threads).
+    /// are taken again, which gives bitwise the state they had written (a step reads nothing
+    /// but the state and the model, and the kernel's results depend neither on the threads
+    /// nor on how many steps it takes at once).
     fn explicit_steps(&mut self, dt: f64, steps: usize, gravity: DVec3) -> Result<()> {
         let n = self.n;
         self.rollback.y.resize(6 * n, 0.0);
@@ -738,7 +739,9 @@ impl ParticleSystem {
 
     /// `steps` steps of the explicit kernel (see [`ParticleSystem::explicit_steps`]), the
     /// first of which copies the state into `rollback` when `keep`; stops at the first step
-    /// that goes non-finite and returns it with the first particle that did.
+    /// that goes non-finite and returns it with the first particle that did. With emitters
+    /// the kernel runs once per step (emission comes between the steps); without, once for
+    /// all of them, each block of particles taking every step while it is in the cache.
     fn explicit_run(
         &mut self,
         dt: f64,
@@ -747,13 +750,17 @@ impl ParticleSystem {
         age_each_step: bool,
         keep: bool,
     ) -> std::result::Result<(), (usize, usize)> {
+        if steps == 0 {
+            return Ok(());
+        }
         let n = self.n;
         let uniform = if age_each_step {
             None
         } else {
             uniform_mass(&self.mass, &self.inv_mass, &self.alive)
         };
-        for s in 0..steps {
+        let (runs, each) = if age_each_step { (steps, 1) } else { (1, steps) };
+        for run in 0..runs {
             let model = explicit::Model {
                 forces: &self.forces,
                 colliders: &self.colliders,
@@ -772,13 +779,15 @@ impl ParticleSystem {
                 now: age_each_step,
             };
             let kept = &mut self.rollback.y;
-            let done = explicit::commit(&model, xs, vs, aging, kept, keep && s == 0);
-            if let Some(index) = done.bad {
-                return Err((s, index));
+            let done = explicit::commit(&model, xs, vs, aging, kept, keep && run == 0, each);
+            if let Some((s, index)) = done.bad {
+                return Err((run + s, index));
             }
             self.stats.contacts += done.contacts;
             self.stats.expired += done.expired;
-            self.time += dt;
+            for _ in 0..each {
+                self.time += dt;
+            }
             if age_each_step {
                 self.emit(dt);
             }
