@@ -89,7 +89,9 @@ pub const LANES: usize = 8;
 pub trait LaneKernel<const I: usize, const O: usize>: Sync {
     /// Fill `out` from `rows` (at most [`LANES`]; `first` is the index of the first row) and
     /// return a count to be summed over the blocks. Implementations are `#[inline(always)]`,
-    /// so that they are compiled inside the SIMD context of [`lanes`].
+    /// so that they are compiled inside the SIMD context of [`lanes`], and gather the rows
+    /// into one array per component before the arithmetic: loops over the interleaved rows
+    /// themselves compiled to scalar code (checked in the disassembly of a release build).
     ///
     /// # Errors
     /// A bad row, with its index.
@@ -98,7 +100,7 @@ pub trait LaneKernel<const I: usize, const O: usize>: Sync {
 
 /// `kernel.block` on every block of [`LANES`] rows (the last one may be shorter), in parallel
 /// chunks of [`CHUNK`] rows, each chunk compiled for the SIMD instruction set found at run
-/// time (AVX2 through `pulp`), so that a block's loops over its rows vectorise. Returns the
+/// time (AVX2 through `pulp`), so that a block's loops over its lanes vectorise. Returns the
 /// sum of the blocks' counts, or the error of the lowest failing block (independent of the
 /// thread count).
 pub fn lanes<const I: usize, const O: usize>(

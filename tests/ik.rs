@@ -3,34 +3,16 @@
 //! method (success rates asserted at the levels measured), unreachable targets, limits,
 //! singular configurations, the null-space objective, bad input, and no allocation per solve.
 
+mod common;
+use common::thread_allocations;
+
 use glam::{DQuat, DVec3};
 use kinema::ik::{self, Method, Options, Solver, Target};
 use kinema::mocap::{parse_amc, parse_asf, Motion, Skeleton};
 use kinema::Error;
 use proptest::prelude::*;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::PathBuf;
-
-// Allocations counted per thread, so tests running in parallel do not disturb each other.
-struct Counting;
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-// The one unsafe code of the crate's tests: a global allocator must implement an unsafe trait.
-#[allow(unsafe_code)]
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|a| a.set(a.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-#[global_allocator]
-static GLOBAL: Counting = Counting;
 
 /// SplitMix64: a small deterministic generator for the random poses.
 struct Rng(u64);
@@ -552,9 +534,9 @@ fn a_solver_allocates_nothing_per_solve() {
         let opts = Options { method, ..Options::default() };
         let mut solver = Solver::new(&sk, &t, &opts).unwrap();
         let mut pose = mid_pose(&sk, 3);
-        let before = ALLOCATIONS.with(|a| a.get());
+        let before = thread_allocations();
         let r = solver.solve(&mut pose, &t).unwrap();
-        assert_eq!(ALLOCATIONS.with(|a| a.get()), before, "{method:?} allocated");
+        assert_eq!(thread_allocations(), before, "{method:?} allocated");
         assert!(r.iterations > 0);
     }
 }

@@ -1,34 +1,12 @@
 //! Particles with the implicit methods: the sparse Newton path against the dense one, stiff
 //! spring chains and nets at dt = 1/60 up to k = 1e9, and no allocation per step.
 
+mod common;
+use common::thread_allocations;
+
 use glam::DVec3;
 use kinema::ode::Method;
 use kinema::particles::{Force, ParticleSystem};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
-// Allocations counted per thread, so tests running in parallel do not disturb each other.
-struct Counting;
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-// A global allocator must implement an unsafe trait (as in tests/ik.rs).
-#[allow(unsafe_code)]
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|a| a.set(a.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> usize {
-    ALLOCATIONS.with(Cell::get)
-}
 
 const G: DVec3 = DVec3::new(0.0, -9.81, 0.0);
 const DT: f64 = 1.0 / 60.0;
@@ -207,8 +185,8 @@ fn sparse_implicit_steps_allocate_nothing_after_the_first() {
     for method in [Method::ImplicitEuler, Method::Trapezoidal, Method::Bdf2] {
         let mut s = hanging_chain(1000, 1e6);
         s.step(DT, 1, method).unwrap();
-        let before = allocations();
+        let before = thread_allocations();
         s.step(DT, 10, method).unwrap();
-        assert_eq!(allocations() - before, 0, "{}", method.name());
+        assert_eq!(thread_allocations() - before, 0, "{}", method.name());
     }
 }

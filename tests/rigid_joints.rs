@@ -588,3 +588,20 @@ fn a_motor_opens_a_door_against_its_limit_without_bouncing() {
         );
     }
 }
+
+#[test]
+fn penalty_joints_beyond_their_stable_step_fail_with_a_hint_and_keep_the_last_good_state() {
+    // The chain's penalty springs are stable below ≈ 2.2 ms (docs/rigid.md); 1/240 s is not.
+    let mut w = chain(JointMethod::Penalty);
+    for _ in 0..4000 {
+        let before: Vec<(DVec3, DVec3)> = (0..5).map(|i| (w.position(i), w.velocity(i))).collect();
+        if let Err(e) = w.step(1.0 / 240.0, 1) {
+            assert!(e.to_string().contains("penalty joints are explicit springs"), "{e}");
+            let after: Vec<(DVec3, DVec3)> =
+                (0..5).map(|i| (w.position(i), w.velocity(i))).collect();
+            assert_eq!(after, before);
+            return;
+        }
+    }
+    panic!("the penalty chain survived 4000 steps of 1/240 s");
+}

@@ -293,7 +293,14 @@ def work_precision(
     are skipped on first-order problems. Wall time includes the Python callback of ``f``;
     ``nfev`` is the cost measure that does not depend on the machine.
     """
-    prob = PROBLEMS[problem]() if isinstance(problem, str) else problem
+    if isinstance(problem, str):
+        if problem not in PROBLEMS:
+            raise ValueError(f"problem: {problem!r} is not one of {', '.join(PROBLEMS)}")
+        prob = PROBLEMS[problem]()
+    elif isinstance(problem, Problem):
+        prob = problem
+    else:
+        raise ValueError(f"problem: expected a name or a Problem, got {type(problem).__name__}")
     exact = prob.exact(prob.t_span[1])
     calls = [0]
 

@@ -1175,8 +1175,10 @@ impl Cloth {
                 reason: "non-finite cloth state".into(),
             });
         }
-        let (mut xp, mut vp) =
-            history.unwrap_or_else(|| (vec![DVec3::ZERO; n], vec![DVec3::ZERO; n]));
+        // The buffers of the history are reused (implicit Euler leaves them in place).
+        let (mut xp, mut vp) = history
+            .or_else(|| self.history.take())
+            .unwrap_or_else(|| (vec![DVec3::ZERO; n], vec![DVec3::ZERO; n]));
         xp.copy_from_slice(&self.x);
         vp.copy_from_slice(&self.v);
         self.history = Some((xp, vp));

@@ -251,6 +251,9 @@ struct Work {
     diag: Vec<f64>,
     scratch: Vec<f64>,
     cg: [Vec<f64>; 4],
+    /// The state being built by a projection step.
+    #[serde(skip)]
+    next: Vec<f64>,
     #[serde(skip)] // rebuilt by `prepare` (same pattern, same factor)
     chol: Option<SparseCholesky>,
     values: Vec<f64>,
@@ -548,13 +551,29 @@ impl ConstrainedSystem {
         }
         let n = particles.capacity();
         self.prepare(n)?;
-        let mut next = vec![0.0; 6 * n];
+        let mut next = std::mem::take(&mut self.work.next);
+        next.resize(6 * n, 0.0);
+        let result = self.projection_steps(particles, dt, steps, &mut next);
+        self.work.next = next;
+        result
+    }
+
+    /// The steps of [`Self::step_projection`], with `next` (`6 n` values) for the state being
+    /// built.
+    fn projection_steps(
+        &mut self,
+        particles: &mut ParticleSystem,
+        dt: f64,
+        steps: usize,
+        next: &mut [f64],
+    ) -> Result<()> {
+        let n = particles.capacity();
         let (mut system, y, time) = assemble(self, particles);
         system.ks = 0.0;
         system.kd = 0.0;
         for s in 0..steps {
             // next = [v; a_free]; v* = v + h a_free.
-            system.free.rhs(*time, y, &mut next)?;
+            system.free.rhs(*time, y, next)?;
             for k in 0..3 * n {
                 next[3 * n + k] = y[3 * n + k] + dt * next[3 * n + k];
             }
@@ -585,7 +604,7 @@ impl ConstrainedSystem {
             // Post-stabilisation (Cline & Pai 2003): Gauss–Newton projection of the positions
             // back onto C = 0, mass-weighted: (J W Jᵀ) δ = -C, x += W Jᵀ δ.
             for _ in 0..PROJECTION_ITERATIONS {
-                evaluate(system.constraints, &system.work.curves, &next, n, &mut system.work.rows)?;
+                evaluate(system.constraints, &system.work.curves, next, n, &mut system.work.rows)?;
                 let w = &mut *system.work;
                 let worst = w.rows.rows.iter().fold(0.0_f64, |a, r| a.max(r.c.abs()));
                 if worst <= PROJECTION_TOL {
@@ -614,8 +633,8 @@ impl ConstrainedSystem {
             }
             // On failure the tracked parameters may have moved on: they are only the starting
             // guesses of the closest-point search, so the particles' state is what is kept.
-            track_curves(system.constraints, &next, &mut system.work.curves)?;
-            y.copy_from_slice(&next);
+            track_curves(system.constraints, next, &mut system.work.curves)?;
+            y.copy_from_slice(next);
             *time += dt;
         }
         Ok(())

@@ -597,10 +597,17 @@ impl World {
                 }
             }
             if let Some(i) = self.first_non_finite() {
+                let penalty = self.joints.iter().any(|j| j.method == JointMethod::Penalty);
+                let hint = if penalty {
+                    "; penalty joints are explicit springs, stable only below a step of about \
+                     2/ω of their stiffest coupling: reduce dt, or use another joint method"
+                } else {
+                    ""
+                };
                 return Err(Error::Diverged {
                     step: s,
                     index: i,
-                    reason: "non-finite body state".into(),
+                    reason: format!("non-finite body state{hint}"),
                 });
             }
             let (x, v, q, pi) = &mut *self.scratch;

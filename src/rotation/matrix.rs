@@ -52,20 +52,35 @@ struct ToMatrices;
 impl LaneKernel<4, 9> for ToMatrices {
     #[inline(always)]
     fn block(&self, first: usize, qs: &[[f64; 4]], os: &mut [[f64; 9]]) -> Result<usize> {
-        // Unit to rounding: quat_from_wxyz would take them unchanged.
-        let unit = qs.len() == LANES
-            && qs.iter().all(|q| {
-                let n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
-                (n2 - 1.0).abs() <= 4.0 * f64::EPSILON
-            });
-        if unit {
-            for (q, o) in qs.iter().zip(os.iter_mut()) {
-                *o = quat_to_matrix(DQuat::from_xyzw(q[1], q[2], q[3], q[0]));
+        if qs.len() == LANES {
+            // Gathered by component, so that the arithmetic runs over contiguous lanes.
+            let mut c = [[0.0; LANES]; 4];
+            for (k, q) in qs.iter().enumerate() {
+                [c[0][k], c[1][k], c[2][k], c[3][k]] = *q;
             }
-        } else {
-            for (k, (q, o)) in qs.iter().zip(os.iter_mut()).enumerate() {
-                *o = quat_to_matrix(quat_from_wxyz(q).map_err(|e| e.at(first + k))?);
+            let mut off = [0.0; LANES];
+            for k in 0..LANES {
+                let n2 =
+                    c[0][k] * c[0][k] + c[1][k] * c[1][k] + c[2][k] * c[2][k] + c[3][k] * c[3][k];
+                off[k] = (n2 - 1.0).abs();
             }
+            // Unit to rounding: quat_from_wxyz would take them unchanged.
+            if off.iter().all(|&d| d <= 4.0 * f64::EPSILON) {
+                let mut m = [[0.0; LANES]; 9];
+                for k in 0..LANES {
+                    let q = DQuat::from_xyzw(c[1][k], c[2][k], c[3][k], c[0][k]);
+                    for (lane, v) in m.iter_mut().zip(quat_to_matrix(q)) {
+                        lane[k] = v;
+                    }
+                }
+                for (k, o) in os.iter_mut().enumerate() {
+                    *o = std::array::from_fn(|e| m[e][k]);
+                }
+                return Ok(0);
+            }
+        }
+        for (k, (q, o)) in qs.iter().zip(os.iter_mut()).enumerate() {
+            *o = quat_to_matrix(quat_from_wxyz(q).map_err(|e| e.at(first + k))?);
         }
         Ok(0)
     }

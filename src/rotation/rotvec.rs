@@ -19,8 +19,8 @@ pub fn quat_from_rotvec(v: &[f64; 3]) -> Result<DQuat> {
     ensure_finite("rotvec", v)?;
     let theta = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     if theta <= 2.0 * SIN_COS_LIMIT {
-        let [w, x, y, z] = exp_map(v, theta);
-        return Ok(DQuat::from_xyzw(x, y, z, w));
+        let (w, k) = exp_factors(theta);
+        return Ok(DQuat::from_xyzw(k * v[0], k * v[1], k * v[2], w));
     }
     // Many turns, or components beyond ~1e154 whose squares overflow (then scaled by the
     // largest): libm's sin_cos with its exact reduction.
@@ -36,17 +36,16 @@ pub fn quat_from_rotvec(v: &[f64; 3]) -> Result<DQuat> {
     Ok(DQuat::from_xyzw(k * v.x, k * v.y, k * v.z, cos))
 }
 
-/// `exp(v)` as `(w, x, y, z)` for `θ = |v| <= 2·10^6` (given), without branches so that
-/// loops over lanes vectorise; `sin(θ/2)/θ` by its series below `θ = 1e-3` (error below
-/// `θ⁶/322560 ≈ 3e-24`).
+/// `(cos(θ/2), sin(θ/2)/θ)` for `θ = |v| <= 2·10^6`, so that `exp(v) = (w, k v)`; without
+/// branches so that loops over lanes vectorise; `sin(θ/2)/θ` by its series below `θ = 1e-3`
+/// (error below `θ⁶/322560 ≈ 3e-24`).
 #[inline(always)]
-fn exp_map(v: &[f64; 3], theta: f64) -> [f64; 4] {
+fn exp_factors(theta: f64) -> (f64, f64) {
     let (sin, cos) = sin_cos_reduced(0.5 * theta);
     let t2 = theta * theta;
     let series = 0.5 - t2 / 48.0 + t2 * t2 / 3840.0;
     let ratio = sin / theta; // 0/0 at θ = 0: the series is taken there
-    let k = if theta < 1e-3 { series } else { ratio };
-    [cos, k * v[0], k * v[1], k * v[2]]
+    (cos, if theta < 1e-3 { series } else { ratio })
 }
 
 /// [`quat_from_rotvec`] of every row of `rotvecs` into `out` as `(w, x, y, z)`, in parallel;
@@ -66,20 +65,31 @@ struct FromRotvecs;
 impl LaneKernel<3, 4> for FromRotvecs {
     #[inline(always)]
     fn block(&self, first: usize, vs: &[[f64; 3]], os: &mut [[f64; 4]]) -> Result<usize> {
-        let mut theta = [0.0; LANES];
-        for (t, v) in theta.iter_mut().zip(vs) {
-            *t = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        if vs.len() == LANES {
+            // Gathered by component, so that the arithmetic runs over contiguous lanes.
+            let mut c = [[0.0; LANES]; 3];
+            for (k, v) in vs.iter().enumerate() {
+                [c[0][k], c[1][k], c[2][k]] = *v;
+            }
+            let mut theta = [0.0; LANES];
+            for k in 0..LANES {
+                theta[k] = (c[0][k] * c[0][k] + c[1][k] * c[1][k] + c[2][k] * c[2][k]).sqrt();
+            }
+            // NaN fails the comparison, so non-finite rows go row by row (and fail there).
+            if theta.iter().all(|&t| t <= 2.0 * SIN_COS_LIMIT) {
+                let (mut w, mut f) = ([0.0; LANES], [0.0; LANES]);
+                for k in 0..LANES {
+                    (w[k], f[k]) = exp_factors(theta[k]);
+                }
+                for (k, o) in os.iter_mut().enumerate() {
+                    *o = [w[k], f[k] * c[0][k], f[k] * c[1][k], f[k] * c[2][k]];
+                }
+                return Ok(0);
+            }
         }
-        // NaN fails the comparison, so non-finite rows go row by row (and fail there).
-        if vs.len() == LANES && theta.iter().all(|&t| t <= 2.0 * SIN_COS_LIMIT) {
-            for ((o, v), &t) in os.iter_mut().zip(vs).zip(&theta) {
-                *o = exp_map(v, t);
-            }
-        } else {
-            for (k, (v, o)) in vs.iter().zip(os.iter_mut()).enumerate() {
-                let q = quat_from_rotvec(v).map_err(|e| e.at(first + k))?;
-                *o = [q.w, q.x, q.y, q.z];
-            }
+        for (k, (v, o)) in vs.iter().zip(os.iter_mut()).enumerate() {
+            let q = quat_from_rotvec(v).map_err(|e| e.at(first + k))?;
+            *o = [q.w, q.x, q.y, q.z];
         }
         Ok(0)
     }

@@ -90,3 +90,9 @@ def test_bad_input_and_errors():
         ode.max_stable_dt("rk4", [1.0])
     with pytest.raises(ValueError, match="even length"):
         ode.solve(lambda t, y: y, [1.0], (0, 1), dt=0.1, method="symplectic_euler")
+    with pytest.raises(ValueError, match="problem: 'harmonic' is not one of decay, oscillator"):
+        ode.work_precision("harmonic", ["rk4"], [0.1])
+    with pytest.raises(ValueError, match="problem: expected a name or a Problem"):
+        ode.work_precision(3, ["rk4"], [0.1])
+    with pytest.raises(ValueError, match="method"):
+        ode.work_precision("decay", ["rk45"], [0.1])

@@ -1,0 +1,217 @@
+//! The rule "no allocation in a step", checked for every system and its main paths: once a
+//! scene has taken its first steps (which size the work buffers), further steps allocate
+//! nothing, in any thread. One test, so that no other test allocates while it counts.
+
+mod common;
+use common::process_allocations;
+
+use glam::{DQuat, DVec3};
+use kinema::cloth::{self, Cloth, Material, Mesh, Model, SolveOptions, Solver, Triangulation};
+use kinema::constraints::{ConstrainedSystem, Constraint, ConstraintSolver};
+use kinema::ode::Method;
+use kinema::particles::{Collider, Emitter, Force, ParticleSystem};
+use kinema::rigid::{
+    BodyDesc, JointDesc, JointKind, JointMethod, RotationIntegrator, Shape, World, PENALTY_DAMPING,
+    PENALTY_STIFFNESS,
+};
+
+const G: DVec3 = DVec3::new(0.0, -9.81, 0.0);
+
+/// Allocations made by `step` after `warm_up` calls of it.
+fn allocations(warm_up: usize, mut step: impl FnMut()) -> usize {
+    for _ in 0..warm_up {
+        step();
+    }
+    let before = process_allocations();
+    step();
+    process_allocations() - before
+}
+
+/// `n` particles in a 1 m cube above the ground, moving.
+fn particles(n: usize) -> ParticleSystem {
+    let x: Vec<DVec3> = (0..n)
+        .map(|i| DVec3::new((i % 97) as f64, (i % 89) as f64 + 1.0, (i % 83) as f64) / 97.0)
+        .collect();
+    let v: Vec<DVec3> = (0..n).map(|i| DVec3::new(1.0, (i % 7) as f64 - 3.0, 0.5)).collect();
+    ParticleSystem::new(&x, &v, &vec![1.0; n], n + 1000).unwrap()
+}
+
+fn ground() -> Collider {
+    Collider::Plane { point: DVec3::ZERO, normal: DVec3::Y, restitution: 0.5, friction: 0.3 }
+}
+
+fn particle_scenes() -> Vec<(String, usize)> {
+    let mut found = Vec::new();
+    // The blocked explicit kernel, on enough particles to run on several threads.
+    let mut s = particles(100_000);
+    s.add_force(Force::Gravity { g: G }).unwrap();
+    s.add_force(Force::Drag { linear: 0.0, quadratic: 0.01, wind: DVec3::ZERO }).unwrap();
+    s.add_collider(ground()).unwrap();
+    found.push((
+        "particles, symplectic Euler kernel".into(),
+        allocations(2, || s.step(1e-3, 3, Method::SymplecticEuler).unwrap()),
+    ));
+    // The general path: springs, a neighbour force, fields, an emitter, a sphere.
+    for method in [Method::Rk4, Method::VelocityVerlet, Method::SymplecticEuler] {
+        let mut s = particles(2000);
+        s.add_force(Force::Gravity { g: G }).unwrap();
+        let pairs = (0..1999).map(|i| [i, i + 1]).collect();
+        s.add_force(Force::Springs {
+            pairs,
+            rest: vec![0.01; 1999],
+            stiffness: 10.0,
+            damping: 0.1,
+        })
+        .unwrap();
+        s.add_force(Force::NeighborRepulsion { radius: 0.02, stiffness: 10.0 }).unwrap();
+        s.add_force(Force::Turbulence { strength: 1.0, scale: 0.5, seed: 3 }).unwrap();
+        s.add_collider(ground()).unwrap();
+        s.add_collider(Collider::Sphere {
+            center: DVec3::new(0.5, 0.5, 0.5),
+            radius: 0.2,
+            inside: false,
+            restitution: 0.2,
+            friction: 0.5,
+            velocity: DVec3::ZERO,
+        })
+        .unwrap();
+        s.add_emitter(Emitter {
+            rate: 5000.0,
+            position: DVec3::new(0.5, 1.0, 0.5),
+            position_spread: 0.1,
+            velocity: DVec3::Y,
+            velocity_spread: 0.5,
+            lifespan: 0.05,
+            mass: 1.0,
+            seed: 1,
+        })
+        .unwrap();
+        found.push((
+            format!("particles, {} with every kind of force", method.name()),
+            allocations(30, || s.step(1e-3, 2, method).unwrap()),
+        ));
+    }
+    found
+}
+
+fn cloth_scenes() -> Vec<(String, usize)> {
+    let mut found = Vec::new();
+    let runs = [
+        (Model::BaraffWitkin, Method::ImplicitEuler, Solver::Pcg),
+        (Model::BaraffWitkin, Method::ImplicitEuler, Solver::Cholesky),
+        (Model::BaraffWitkin, Method::Bdf2, Solver::Pcg),
+        (Model::MassSpring, Method::ImplicitEuler, Solver::Pcg),
+    ];
+    for (model, method, solver) in runs {
+        let mesh = Mesh::grid(16, 16, 1.0, 1.0, Triangulation::Alternating).unwrap();
+        let mut c = Cloth::new(mesh, model, Material::default(), G).unwrap();
+        c.pin(&[0, 15], None).unwrap();
+        c.add_collider(cloth::Collider {
+            shape: cloth::Shape::Sphere { center: DVec3::new(0.5, -0.3, 0.5), radius: 0.25 },
+            velocity: DVec3::ZERO,
+            friction: 0.3,
+        })
+        .unwrap();
+        let options = SolveOptions { solver, ..SolveOptions::default() };
+        found.push((
+            format!("cloth, {model:?} {} {solver:?}", method.name()),
+            allocations(5, || c.step(1.0 / 60.0, 1, method, options).unwrap()),
+        ));
+    }
+    found
+}
+
+fn rigid_scenes() -> Vec<(String, usize)> {
+    let body = |shape, position| BodyDesc {
+        shape,
+        density: None,
+        mass: Some(0.5),
+        position,
+        orientation: DQuat::from_rotation_z(0.1),
+        velocity: DVec3::ZERO,
+        angular_velocity: DVec3::ZERO,
+        fixed: false,
+        restitution: 0.2,
+        friction: 0.6,
+    };
+    let mut found = Vec::new();
+    // Boxes falling onto the ground and onto each other: contacts come and go.
+    let mut w = World::new(G, RotationIntegrator::Splitting);
+    w.add_plane(DVec3::Y, 0.0, 0.2, 0.6).unwrap();
+    for i in 0..27 {
+        let p = DVec3::new((i % 3) as f64 * 0.25, 0.2 + (i / 3) as f64 * 0.3, (i % 2) as f64 * 0.1);
+        w.add_body(&body(Shape::Box { half_extents: DVec3::splat(0.1) }, p)).unwrap();
+    }
+    found.push((
+        "rigid, boxes in contact".into(),
+        allocations(240, || w.step(1.0 / 240.0, 4).unwrap()),
+    ));
+    // A hinged chain that falls onto the ground, in every joint formulation.
+    for method in
+        [JointMethod::Penalty, JointMethod::Lagrange, JointMethod::Impulse, JointMethod::Xpbd]
+    {
+        let mut w = World::new(G, RotationIntegrator::Splitting);
+        w.add_plane(DVec3::Y, 0.0, 0.2, 0.6).unwrap();
+        for i in 0..5 {
+            let half = DVec3::new(0.2, 0.02, 0.02);
+            w.add_body(&body(
+                Shape::Box { half_extents: half },
+                DVec3::new(0.2 + 0.4 * i as f64, 0.3, 0.0),
+            ))
+            .unwrap();
+            w.add_joint(&JointDesc {
+                kind: JointKind::Hinge { limits: Some((-1.0, 1.0)), motor: None },
+                method,
+                a: i,
+                b: if i == 0 { None } else { Some(i - 1) },
+                anchor: DVec3::new(0.4 * i as f64, 0.3, 0.0),
+                axis: DVec3::Z,
+                stiffness: PENALTY_STIFFNESS,
+                damping: PENALTY_DAMPING,
+            })
+            .unwrap();
+        }
+        // Penalty springs are explicit forces: stable for this chain below ≈ 2.2 ms.
+        let dt = if method == JointMethod::Penalty { 1e-3 } else { 1.0 / 240.0 };
+        found.push((
+            format!("rigid, hinged chain ({method:?})"),
+            allocations(240, || w.step(dt, 4).unwrap()),
+        ));
+    }
+    found
+}
+
+fn constrained_scenes() -> Vec<(String, usize)> {
+    let mut found = Vec::new();
+    for solver in [ConstraintSolver::Cholesky, ConstraintSolver::ConjugateGradient] {
+        let xs: Vec<DVec3> = (0..20).map(|i| DVec3::new(0.05 * i as f64, 0.0, 0.0)).collect();
+        let mut masses = vec![1.0; 20];
+        masses[0] = f64::INFINITY;
+        let mut p = ParticleSystem::new(&xs, &vec![DVec3::ZERO; 20], &masses, 20).unwrap();
+        p.add_force(Force::Gravity { g: G }).unwrap();
+        let mut c = ConstrainedSystem::new(100.0, 20.0, solver).unwrap();
+        for i in 0..19 {
+            c.add(&p, Constraint::Distance { i, j: i + 1, length: 0.05 }).unwrap();
+        }
+        found.push((
+            format!("constraints, rope ({solver:?})"),
+            allocations(5, || c.step(&mut p, 1e-3, 2, Method::Rk4).unwrap()),
+        ));
+        found.push((
+            format!("constraints, rope by projection ({solver:?})"),
+            allocations(5, || c.step_projection(&mut p, 1.0 / 60.0, 1).unwrap()),
+        ));
+    }
+    found
+}
+
+#[test]
+fn steps_allocate_nothing_once_warmed_up() {
+    let found: Vec<(String, usize)> =
+        [particle_scenes(), cloth_scenes(), rigid_scenes(), constrained_scenes()]
+            .into_iter()
+            .flatten()
+            .collect();
+    let allocating: Vec<&(String, usize)> = found.iter().filter(|(_, n)| *n > 0).collect();
+    assert!(allocating.is_empty(), "steps that allocated (scene, allocations): {allocating:?}");
+}
