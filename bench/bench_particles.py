@@ -5,6 +5,9 @@ they are installed, in one process. Prints steps per second, the ratios, the CPU
 (all threads; on a shared machine the wall clock also counts waiting for the CPU), and the
 rate at which the bytes a step must touch move, against the machine's memory bandwidth measured
 with an in-place stream over as many bytes (numpy on one thread, and Taichi on all threads).
+kinema is timed in one call of all the steps (the first row: without emitters it takes each
+block of particles through every step while it is in the cache, so the state crosses memory
+once per call) and in one call per step (the second row, the memory traffic of the peers).
 
 Run: python bench/bench_particles.py [--quick] [--n 1000000] [--steps 20]
 (--quick: N = 10^5, 10 steps.)
@@ -218,6 +221,14 @@ def main() -> None:
     ps.add(Plane(restitution=E, friction=MU))
     ps.step(DT)  # warm-up
     timings = [("kinema (Rust)", *timed(lambda k: ps.step(DT, k), steps))]
+
+    def kinema_one_by_one(k: int) -> None:
+        for _ in range(k):
+            ps.step(DT)
+
+    # One call per step, as Taichi and Warp launch one kernel per step: kinema then reads and
+    # writes the state every step (in one call of many steps it does so once per call).
+    timings.append(("kinema, 1 step per call", *timed(kinema_one_by_one, steps)))
 
     x, v = x0.copy(), v0.copy()
     numpy_step(x, v)

@@ -193,7 +193,8 @@ class Capsule:
 @dataclass(frozen=True)
 class Emitter:
     """Emits ``rate`` particles/s from a ball of ``position_spread`` around ``position`` with
-    velocities ``velocity`` ± a ball of ``velocity_spread``; they live ``lifespan`` seconds."""
+    velocities ``velocity`` ± a ball of ``velocity_spread``; they live ``lifespan`` seconds
+    (forever when infinite)."""
 
     rate: float
     position: Any = (0.0, 0.0, 0.0)

@@ -107,7 +107,7 @@ pub struct Emitter {
     pub velocity: DVec3,
     /// Radius of the ball of velocity perturbations (m/s).
     pub velocity_spread: f64,
-    /// Lifespan of emitted particles (s).
+    /// Lifespan of emitted particles (s); infinite: they never expire.
     pub lifespan: f64,
     /// Mass of emitted particles (kg).
     pub mass: f64,
