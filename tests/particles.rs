@@ -612,4 +612,10 @@ fn explicit_kernel_failure_with_emitters_restores_slots_and_emitters() {
     reference.step(1e-4, 3, Method::SymplecticEuler).unwrap();
     assert!(s.stats.emitted > 0);
     assert!(same_state(&s, &reference));
+    // A call of one step that fails (the slots are not copied then: the aging and the
+    // emission come after the step) leaves everything as it was, counters reset.
+    let err = s.step(1e-3, 1, Method::SymplecticEuler).unwrap_err();
+    assert!(matches!(err, kinema::Error::Diverged { step: 0, index: 1500, .. }), "{err}");
+    reference.stats = Default::default();
+    assert!(same_state(&s, &reference));
 }

@@ -7,8 +7,8 @@
 //! blocks ahead prefetched); each force is then one loop over the block (forces outer,
 //! particles inner: no dispatch per particle, and the simple forces vectorise), the block is
 //! integrated, the colliders are met in turn (a plane first finds its penetrating particles
-//! with one vectorised loop) and the block is written back, and aged ([`super::age_slots`])
-//! when the system has emitters (otherwise the caller ages all particles once per call). When
+//! with one vectorised loop) and the block is written back (the caller ages the particles
+//! after each step when the system has emitters, otherwise once per call). When
 //! every slot is alive with one mass ([`Model::uniform`]), masses and alive flags are not
 //! read per particle. Per particle the arithmetic is that of [`super::particle_force`], of
 //! the symplectic Euler of [`crate::ode`] and of [`super::collide_one`], in the same order, so
@@ -433,66 +433,45 @@ impl Block {
     }
 }
 
-/// The slots' ages, to advance by each step written.
-pub(super) struct Aging<'a> {
-    /// Alive flags, cleared when a particle reaches its lifespan.
-    pub(super) alive: &'a mut [bool],
-    /// Ages (s).
-    pub(super) age: &'a mut [f64],
-    /// Lifespans (s).
-    pub(super) lifespan: &'a [f64],
-    /// Whether the step ages the particles ([`super::age_slots`]); without emitters the
-    /// caller ages them once after the call instead ([`super::age_live`]).
-    pub(super) now: bool,
-}
-
 /// What [`commit`] found.
 pub(super) struct Committed {
     /// Contacts of the steps.
     pub(super) contacts: usize,
-    /// Particles retired at the end of their lifespan.
-    pub(super) expired: usize,
     /// The first step (from 0) in which a live particle's position or velocity came out
     /// non-finite, and the first such particle, if any: the steps must then be undone.
     pub(super) bad: Option<(usize, usize)>,
 }
 
 /// Write `steps` steps of all particles (positions `xs`, velocities `vs`, `3 capacity` values
-/// each) in place, each block going through all of them while it is in the cache (the
-/// particles do not interact, and nothing else happens between the steps; with
-/// `aging.now`, `steps` must be 1), and age them when `aging.now`; with `keep`, copy the
-/// state before the steps into `kept` (positions then velocities, as `xs` and `vs`). Every
-/// block is written even when one goes bad, so that steps that fail can be undone from the
-/// copy.
+/// each, alive flags `alive`) in place, each block going through all of them while it is in
+/// the cache (the particles do not interact; the caller makes sure that nothing else happens
+/// between the steps); with `keep`, copy the state before the steps into `kept` (positions
+/// then velocities, as `xs` and `vs`). Every block is written even when one goes bad, so that
+/// steps that fail can be undone from the copy.
 pub(super) fn commit(
     model: &Model,
     xs: &mut [f64],
     vs: &mut [f64],
-    aging: Aging,
+    alive: &[bool],
     kept: &mut [f64],
     keep: bool,
     steps: usize,
 ) -> Committed {
-    debug_assert!(steps == 1 || !aging.now, "ages are advanced by one step at a time");
     let arch = pulp::Arch::new();
-    let Aging { alive, age, lifespan, now } = aging;
     let (kept_x, kept_v) = kept.split_at_mut(xs.len());
     xs.par_chunks_mut(3 * TASK)
         .zip(vs.par_chunks_mut(3 * TASK))
         .zip(kept_x.par_chunks_mut(3 * TASK).zip(kept_v.par_chunks_mut(3 * TASK)))
-        .zip(alive.par_chunks_mut(TASK).zip(age.par_chunks_mut(TASK)))
-        .zip(lifespan.par_chunks(TASK))
+        .zip(alive.par_chunks(TASK))
         .enumerate()
-        .map(|(t, ((((xs, vs), kept), (alive, age)), lifespan))| {
-            let aging = Aging { alive, age, lifespan, now };
+        .map(|(t, (((xs, vs), kept), alive))| {
             let kept = keep.then_some(kept);
-            arch.dispatch(Commit { model, start: t * TASK, xs, vs, aging, kept, steps })
+            arch.dispatch(Commit { model, start: t * TASK, xs, vs, alive, kept, steps })
         })
         .reduce(
-            || Committed { contacts: 0, expired: 0, bad: None },
+            || Committed { contacts: 0, bad: None },
             |a, b| Committed {
                 contacts: a.contacts + b.contacts,
-                expired: a.expired + b.expired,
                 bad: a.bad.into_iter().chain(b.bad).min(),
             },
         )
@@ -504,7 +483,7 @@ struct Commit<'a> {
     start: usize,
     xs: &'a mut [f64],
     vs: &'a mut [f64],
-    aging: Aging<'a>,
+    alive: &'a [bool],
     /// Where to copy the positions and velocities before the steps, if asked.
     kept: Option<(&'a mut [f64], &'a mut [f64])>,
     steps: usize,
@@ -515,7 +494,7 @@ impl pulp::WithSimd for Commit<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> Committed {
-        let Commit { model, start, xs, vs, aging, kept, steps } = self;
+        let Commit { model, start, xs, vs, alive, kept, steps } = self;
         if let Some((kept_x, kept_v)) = kept {
             kept_x.copy_from_slice(xs);
             kept_v.copy_from_slice(vs);
@@ -524,13 +503,10 @@ impl pulp::WithSimd for Commit<'_> {
         // Where the task's state starts, to prefetch the blocks ahead (the pointers are not
         // dereferenced).
         let (ahead_x, ahead_v) = (xs.as_ptr(), vs.as_ptr());
-        let mut done = Committed { contacts: 0, expired: 0, bad: None };
-        let blocks = xs
-            .chunks_mut(3 * BLOCK)
-            .zip(vs.chunks_mut(3 * BLOCK))
-            .zip(aging.alive.chunks_mut(BLOCK).zip(aging.age.chunks_mut(BLOCK)))
-            .zip(aging.lifespan.chunks(BLOCK));
-        for (b, (((xb, vb), (alive, age)), lifespan)) in blocks.enumerate() {
+        let mut done = Committed { contacts: 0, bad: None };
+        let blocks =
+            xs.chunks_mut(3 * BLOCK).zip(vs.chunks_mut(3 * BLOCK)).zip(alive.chunks(BLOCK));
+        for (b, ((xb, vb), alive)) in blocks.enumerate() {
             let ahead = 3 * BLOCK * (b + PREFETCH);
             block.transpose.prefetch(ahead_x.wrapping_add(ahead));
             block.transpose.prefetch(ahead_v.wrapping_add(ahead));
@@ -545,9 +521,6 @@ impl pulp::WithSimd for Commit<'_> {
                 }
             }
             block.store(at, xb, vb);
-            if aging.now {
-                done.expired += super::age_slots(model.dt, alive, age, lifespan, vb);
-            }
         }
         done
     }

@@ -134,8 +134,8 @@ pub struct StepStats {
 struct Rollback {
     /// Positions then velocities (`6 capacity` values), copied by the call's first step.
     y: Vec<f64>,
-    /// With emitters: every slot's alive flag, age, lifespan, mass and inverse mass, and each
-    /// emitter's accumulator and random state, copied before the call.
+    /// With emitters and more than one step: every slot's alive flag, age, lifespan, mass and
+    /// inverse mass, and each emitter's accumulator and random state, copied before the call.
     alive: Vec<bool>,
     age: Vec<f64>,
     lifespan: Vec<f64>,
@@ -691,8 +691,8 @@ impl ParticleSystem {
     /// `steps` steps of symplectic Euler with the collision response by the explicit kernel
     /// (module `explicit`), for systems without forces between particles. Each step is
     /// computed once and written in place; the first also copies the positions and velocities
-    /// it reads into `rollback` (with emitters, the slots and the emitters' state are copied
-    /// before it too). When a step fails, the copy is restored and the good steps before it
+    /// it reads into `rollback` (with emitters and more than one step, the slots and the
+    /// emitters' state are copied before it too: they change after each good step). When a step fails, the copy is restored and the good steps before it
     /// are taken again, which gives bitwise the state they had written (a step reads nothing
     /// but the state and the model, and the kernel's results depend neither on the threads
     /// nor on how many steps it takes at once).
@@ -703,7 +703,10 @@ impl ParticleSystem {
         // emitted particles have finite ones), so the ages can be advanced after the call.
         let age_each_step = !self.emitters.is_empty();
         let time = self.time;
-        if age_each_step {
+        // Aging and emission follow each good step: a call's first step changes nothing but
+        // positions and velocities before it is known good.
+        let keep_slots = age_each_step && steps > 1;
+        if keep_slots {
             let r = &mut self.rollback;
             r.alive.clone_from(&self.alive);
             r.age.clone_from(&self.age);
@@ -720,7 +723,7 @@ impl ParticleSystem {
         self.y.par_chunks_mut(6 * CHUNK).zip(r.y.par_chunks(6 * CHUNK)).for_each(|(y, r)| {
             y.copy_from_slice(r);
         });
-        if age_each_step {
+        if keep_slots {
             self.alive.copy_from_slice(&r.alive);
             self.age.copy_from_slice(&r.age);
             self.lifespan.copy_from_slice(&r.lifespan);
@@ -772,23 +775,17 @@ impl ParticleSystem {
                 uniform,
             };
             let (xs, vs) = self.y.split_at_mut(3 * n);
-            let aging = explicit::Aging {
-                alive: &mut self.alive,
-                age: &mut self.age,
-                lifespan: &self.lifespan,
-                now: age_each_step,
-            };
             let kept = &mut self.rollback.y;
-            let done = explicit::commit(&model, xs, vs, aging, kept, keep && run == 0, each);
+            let done = explicit::commit(&model, xs, vs, &self.alive, kept, keep && run == 0, each);
             if let Some((s, index)) = done.bad {
                 return Err((run + s, index));
             }
             self.stats.contacts += done.contacts;
-            self.stats.expired += done.expired;
             for _ in 0..each {
                 self.time += dt;
             }
             if age_each_step {
+                self.age(dt);
                 self.emit(dt);
             }
         }
