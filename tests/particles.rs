@@ -586,6 +586,22 @@ fn explicit_kernel_failure_in_any_step_rolls_back_to_the_last_good_step() {
 }
 
 #[test]
+fn explicit_kernel_failure_names_the_first_step_then_the_first_particle() {
+    // Particle 123 (first block) would overflow in step 6, particle 30_000 in step 4: the
+    // error names step 4 and particle 30_000 although a block before it fails too, later.
+    let mut s = runaway(40_000, 40_000, 30_000, 4);
+    let y = s.state_mut();
+    y[3 * 123] = f64::MAX - 6.5 * 1e304;
+    y[3 * 40_000 + 3 * 123] = 1e304 / 1e-3;
+    s.state_changed();
+    let mut reference = s.clone();
+    reference.step(1e-3, 4, Method::SymplecticEuler).unwrap();
+    let err = s.step(1e-3, 10, Method::SymplecticEuler).unwrap_err();
+    assert!(matches!(err, kinema::Error::Diverged { step: 4, index: 30_000, .. }), "{err}");
+    assert!(same_state(&s, &reference));
+}
+
+#[test]
 fn explicit_kernel_failure_with_emitters_restores_slots_and_emitters() {
     // Emitted particles live three steps, so slots die and are emitted into again within
     // the failing call; the emitter's accumulator and random state must come back too.
