@@ -570,10 +570,9 @@ fn explicit_kernel_failure_in_any_step_rolls_back_to_the_last_good_step() {
         let mut reference = s.clone();
         reference.step(1e-3, fail, Method::SymplecticEuler).unwrap();
         let err = s.step(1e-3, steps, Method::SymplecticEuler).unwrap_err();
-        assert!(
-            matches!(err, kinema::Error::Diverged { step, index: i, .. } if step == fail && i == index),
-            "{err}"
-        );
+        let named = matches!(err, kinema::Error::Diverged { step, index: i, .. }
+            if step == fail && i == index);
+        assert!(named, "{err}");
         assert!(same_state(&s, &reference), "live {live}, fail {fail}");
         if fail > 2 {
             assert!(s.stats.contacts > 0);

@@ -692,10 +692,11 @@ impl ParticleSystem {
     /// (module `explicit`), for systems without forces between particles. Each step is
     /// computed once and written in place; the first also copies the positions and velocities
     /// it reads into `rollback` (with emitters and more than one step, the slots and the
-    /// emitters' state are copied before it too: they change after each good step). When a step fails, the copy is restored and the good steps before it
-    /// are taken again, which gives bitwise the state they had written (a step reads nothing
-    /// but the state and the model, and the kernel's results depend neither on the threads
-    /// nor on how many steps it takes at once).
+    /// emitters' state are copied before it too: they change after each good step). When a
+    /// step fails, the copy is restored and the good steps before it are taken again, which
+    /// gives bitwise the state they had written (a step reads nothing but the state and the
+    /// model, and the kernel's results depend neither on the threads nor on how many steps it
+    /// takes at once).
     fn explicit_steps(&mut self, dt: f64, steps: usize, gravity: DVec3) -> Result<()> {
         let n = self.n;
         self.rollback.y.resize(6 * n, 0.0);
