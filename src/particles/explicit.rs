@@ -163,6 +163,58 @@ impl Transpose {
     }
 }
 
+/// Something to do with the per-particle function of a force ([`with_force`]).
+trait WithForce {
+    fn call(self, force: impl Fn(DVec3, DVec3, f64) -> DVec3);
+}
+
+/// Call `then` with the force on one particle, `(x, v, m) -> f`, of `force` (zero for the
+/// forces between particles, which take another path).
+#[inline(always)]
+fn with_force(force: &Force, then: impl WithForce) {
+    match *force {
+        Force::Gravity { g } => then.call(|_, _, m| super::gravity(g, m)),
+        Force::Drag { linear, quadratic, wind } => {
+            then.call(|_, v, _| super::drag(linear, quadratic, wind, v))
+        }
+        Force::Damping { rate } => then.call(|_, v, m| super::damping(rate, m, v)),
+        Force::Attractor { center, strength, softening } => {
+            then.call(|x, _, m| super::attractor(center, strength, softening, x, m))
+        }
+        Force::Vortex { center, axis, strength, core } => {
+            then.call(|x, _, m| super::vortex(center, axis, strength, core, x, m))
+        }
+        Force::Turbulence { strength, scale, seed } => {
+            then.call(|x, _, m| super::turbulence(strength, scale, seed, x, m))
+        }
+        Force::Springs { .. } | Force::NeighborRepulsion { .. } | Force::NBodyGravity { .. } => {
+            then.call(|_, _, _| DVec3::ZERO)
+        }
+    }
+}
+
+/// Add a force to a block's accumulator ([`Block::add`]).
+struct Add<'a> {
+    block: &'a mut Block,
+    from: usize,
+    /// Whether it is the first force (the accumulator starts from zero).
+    first: bool,
+    /// Uniform gravity (m/s²) to add before it in the same loop, if any.
+    gravity: Option<DVec3>,
+}
+
+impl WithForce for Add<'_> {
+    #[inline(always)]
+    fn call(self, force: impl Fn(DVec3, DVec3, f64) -> DVec3) {
+        let Add { block, from, first, gravity } = self;
+        if first {
+            block.add::<true>(from, gravity, force);
+        } else {
+            block.add::<false>(from, gravity, force);
+        }
+    }
+}
+
 /// One block of particles as a structure of arrays.
 struct Block {
     /// Index of the block's first particle.
@@ -256,9 +308,16 @@ impl Block {
     }
 
     /// Add `force(x, v, m)` of every slot, at positions `x[from]`, to the force accumulator,
-    /// or set the accumulator to it (`0 + force`, as a sum from zero) when `FIRST`.
+    /// or set the accumulator to it (`0 + force`, as a sum from zero) when `FIRST`; with
+    /// `gravity`, set the accumulator to `(0 + m gravity) + force` instead (gravity added
+    /// first, then `force`, in one loop).
     #[inline(always)]
-    fn add<const FIRST: bool>(&mut self, from: usize, force: impl Fn(DVec3, DVec3, f64) -> DVec3) {
+    fn add<const FIRST: bool>(
+        &mut self,
+        from: usize,
+        gravity: Option<DVec3>,
+        force: impl Fn(DVec3, DVec3, f64) -> DVec3,
+    ) {
         let Block { x, v, f, m, .. } = self;
         let x = &x[from];
         for k in 0..BLOCK {
@@ -267,19 +326,15 @@ impl Block {
                 DVec3::new(v[0][k], v[1][k], v[2][k]),
                 m[k],
             );
+            let before = gravity.map(|g| DVec3::ZERO + super::gravity(g, m[k]));
             for (c, a) in [a.x, a.y, a.z].into_iter().enumerate() {
-                f[c][k] = if FIRST { 0.0 } else { f[c][k] } + a;
+                let sum = match before {
+                    Some(b) => b[c],
+                    None if FIRST => 0.0,
+                    None => f[c][k],
+                };
+                f[c][k] = sum + a;
             }
-        }
-    }
-
-    /// Add `force` (see [`Block::add`]), as the first one when `first`.
-    #[inline(always)]
-    fn add_force(&mut self, from: usize, first: bool, force: impl Fn(DVec3, DVec3, f64) -> DVec3) {
-        if first {
-            self.add::<true>(from, force);
-        } else {
-            self.add::<false>(from, force);
         }
     }
 
@@ -287,35 +342,16 @@ impl Block {
     /// new velocities; returns the number of contacts.
     #[inline(always)]
     fn advance(&mut self, model: &Model, from: usize) -> usize {
-        for (i, force) in model.forces.iter().enumerate() {
-            let first = i == 0;
-            match *force {
-                Force::Gravity { g } => self.add_force(from, first, |_, _, m| super::gravity(g, m)),
-                Force::Drag { linear, quadratic, wind } => {
-                    self.add_force(from, first, |_, v, _| super::drag(linear, quadratic, wind, v))
-                }
-                Force::Damping { rate } => {
-                    self.add_force(from, first, |_, v, m| super::damping(rate, m, v))
-                }
-                Force::Attractor { center, strength, softening } => {
-                    self.add_force(from, first, |x, _, m| {
-                        super::attractor(center, strength, softening, x, m)
-                    })
-                }
-                Force::Vortex { center, axis, strength, core } => {
-                    self.add_force(from, first, |x, _, m| {
-                        super::vortex(center, axis, strength, core, x, m)
-                    })
-                }
-                Force::Turbulence { strength, scale, seed } => {
-                    self.add_force(from, first, |x, _, m| {
-                        super::turbulence(strength, scale, seed, x, m)
-                    })
-                }
-                Force::Springs { .. }
-                | Force::NeighborRepulsion { .. }
-                | Force::NBodyGravity { .. } => self.add_force(from, first, |_, _, _| DVec3::ZERO),
-            }
+        // Gravity followed by another force: both in one loop.
+        let (mut forces, gravity) = match model.forces {
+            [Force::Gravity { g }, _, ..] => (&model.forces[1..], Some(*g)),
+            all => (all, None),
+        };
+        let mut first = true;
+        while let [force, rest @ ..] = forces {
+            let add = Add { block: self, from, first, gravity: gravity.filter(|_| first) };
+            with_force(force, add);
+            (forces, first) = (rest, false);
         }
         if model.forces.is_empty() {
             self.f = [[0.0; BLOCK]; 3];
