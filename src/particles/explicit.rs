@@ -5,7 +5,8 @@
 //! on the stack (positions, velocities, forces, masses: small enough for the L1 cache; with
 //! AVX shuffles where the CPU has them, [`Transpose`], and the state of the blocks a few
 //! blocks ahead prefetched); each force is then one loop over the block (forces outer,
-//! particles inner: no dispatch per particle, and the simple forces vectorise), the block is
+//! particles inner: no dispatch per particle, and the simple forces vectorise; gravity shares
+//! its loop with the force after it), the block is
 //! integrated, the colliders are met in turn (a plane first finds its penetrating particles
 //! with one vectorised loop) and the block is written back (the caller ages the particles
 //! after each step when the system has emitters, otherwise once per call). When
