@@ -45,7 +45,6 @@ use crate::error::{Error, Result};
 use crate::linalg::SparseCholesky;
 use crate::ode::{Method, OdeSystem, Stepper};
 use crate::sdf;
-use bsr::{columns, dot, from_lanes, lanes, mul_cols, LaneMat, Lanes};
 use glam::{DMat3, DQuat, DVec3};
 use model::{Accumulator, Hinge, Spring, Triangle};
 use std::time::Instant;
@@ -313,20 +312,16 @@ struct Scratch {
     u: Vec<DVec3>,
     b: Vec<DVec3>,
     dv: Vec<DVec3>,
+    r: Vec<DVec3>,
+    c: Vec<DVec3>,
     q: Vec<DVec3>,
+    s: Vec<DVec3>,
+    t: Vec<DVec3>,
     filter: Vec<DMat3>,
     z: Vec<DVec3>,
     y: Vec<DVec3>,
-    /// PCG's vectors and preconditioner in the substitutions' layout ([`bsr::UpperRows`]).
-    upper: bsr::UpperRows,
-    x: Vec<Lanes>,
-    r: Vec<Lanes>,
-    c: Vec<Lanes>,
-    s: Vec<Lanes>,
-    t: Vec<Lanes>,
-    w: Vec<Lanes>,
-    precond: Vec<LaneMat>,
-    dhat: Vec<LaneMat>,
+    precond: Vec<DMat3>,
+    dhat: Vec<DMat3>,
     constrained: Vec<usize>,
     /// Contacts of the step: vertex, normal, collider velocity, friction coefficient, normal
     /// impulse estimate (N s).
@@ -525,19 +520,16 @@ impl Cloth {
             u: zero.clone(),
             b: zero.clone(),
             dv: zero.clone(),
+            r: zero.clone(),
+            c: zero.clone(),
             q: zero.clone(),
+            s: zero.clone(),
+            t: zero.clone(),
             filter: vec![DMat3::IDENTITY; n],
             z: zero.clone(),
             y: zero.clone(),
-            upper: bsr::UpperRows::new(&matrix),
-            x: vec![[0.0; 4]; n],
-            r: vec![[0.0; 4]; n],
-            c: vec![[0.0; 4]; n],
-            s: vec![[0.0; 4]; n],
-            t: vec![[0.0; 4]; n],
-            w: vec![[0.0; 4]; n],
-            precond: vec![[[0.0; 4]; 3]; n],
-            dhat: vec![[[0.0; 4]; 3]; n],
+            precond: vec![DMat3::IDENTITY; n],
+            dhat: vec![DMat3::IDENTITY; n],
             constrained: Vec::with_capacity(n),
             contact_normal: Vec::with_capacity(n),
             states: vec![ContactState::Free; n],
@@ -1088,7 +1080,7 @@ impl Cloth {
         self.matrix.blocks.iter_mut().for_each(|b| *b = DMat3::ZERO);
         let diagonal = 1.0 + h_eff * self.material.air_damping;
         for i in 0..n {
-            self.matrix.blocks[self.matrix.diag[i]] =
+            self.matrix.blocks[i] =
                 DMat3::from_diagonal(DVec3::splat(self.mass[i] * diagonal));
         }
         let mut blocks = std::mem::take(&mut self.matrix.blocks);
@@ -1256,42 +1248,40 @@ impl Cloth {
         let n = self.x.len();
         let a = &self.matrix;
         let omega = ssor_omega(n);
-        s.upper.fill(a);
         let mut delta_b = 0.0;
         for i in 0..n {
-            let (d, f) = (a.blocks[a.diag[i]], s.filter[i]);
+            let (d, f) = (a.blocks[i], s.filter[i]);
             let inverse = d.inverse();
             // Rounding floor: bᵀ D⁻¹ b of the unfiltered right-hand side.
             delta_b += s.b[i].dot(inverse * s.b[i]);
-            s.precond[i] = columns(if f == DMat3::IDENTITY {
+            s.precond[i] = if f == DMat3::IDENTITY {
                 inverse * omega
             } else {
                 f * (f * d * f + DMat3::IDENTITY - f).inverse() * f * omega
-            });
-            s.dhat[i] = columns(f * d * (1.0 / omega));
+            };
+            s.dhat[i] = f * d * (1.0 / omega);
         }
         for i in 0..n {
             s.dv[i] = s.z[i] + s.filter[i] * s.dv[i];
         }
         // δ₀ = ‖(D/ω + L)⁻¹ S b‖²_{D/ω}.
         for i in 0..n {
-            s.t[i] = lanes(s.filter[i] * s.b[i]);
+            s.t[i] = s.filter[i] * s.b[i];
         }
-        s.upper.solve_lower(&s.precond, &mut s.t, &mut s.w);
-        let delta0: f64 = (0..n).map(|i| dot(s.w[i], mul_cols(&s.dhat[i], s.w[i]))).sum();
+        a.solve_lower(&s.precond, &mut s.t, &mut s.q);
+        let delta0: f64 = (0..n).map(|i| s.q[i].dot(s.dhat[i] * s.q[i])).sum();
         // r̃ = (D/ω + L)⁻¹ S (b - A Δv₀), z = (D/ω) r̃ (the first p̂, with β = 0).
         a.mul(&s.dv, &mut s.q);
         for i in 0..n {
-            s.t[i] = lanes(s.filter[i] * (s.b[i] - s.q[i]));
+            s.t[i] = s.filter[i] * (s.b[i] - s.q[i]);
         }
-        s.upper.solve_lower(&s.precond, &mut s.t, &mut s.r);
+        a.solve_lower(&s.precond, &mut s.t, &mut s.r);
         let mut delta_new = 0.0;
         for i in 0..n {
-            let z = mul_cols(&s.dhat[i], s.r[i]);
+            let z = s.dhat[i] * s.r[i];
             s.s[i] = z;
-            s.c[i] = [0.0; 4];
-            s.x[i] = lanes(s.dv[i]);
-            delta_new += dot(s.r[i], z);
+            s.c[i] = DVec3::ZERO;
+            delta_new += s.r[i].dot(z);
         }
         // Stop at ε² δ₀, or at the rounding floor of the unfiltered right-hand side when the
         // filter cancels nearly all of it (e.g. a cloth held by friction).
@@ -1301,9 +1291,9 @@ impl Cloth {
         let mut beta = 0.0;
         while delta_new > target && iterations < options.max_iterations {
             // p̂ = z + β p̂ (in `c`, with z = (D/ω) r̃ in `s`), p = (D/ω + U)⁻¹ p̂ (in `s`), then
-            // q̃ = (D/ω + L)⁻¹ Â p = p + (D/ω + L)⁻¹ (U p + (1 - 1/ω) D p) (in `w`).
-            s.upper.solve_upper(&s.precond, &mut s.s, &mut s.c, beta, &mut s.t, omega - 1.0);
-            let pq = s.upper.solve_lower_add(&s.precond, &mut s.t, &s.s, &s.c, &mut s.w);
+            // q̃ = (D/ω + L)⁻¹ Â p = p + (D/ω + L)⁻¹ (U p + (1 - 1/ω) D p).
+            a.solve_upper(&s.precond, &mut s.s, &mut s.c, beta, &mut s.t, omega - 1.0);
+            let pq = a.solve_lower_add(&s.precond, &mut s.t, &s.s, &s.c, &mut s.q);
             if pq <= 0.0 || !pq.is_finite() {
                 return Err(Error::SolverFailed {
                     reason: format!(
@@ -1312,16 +1302,22 @@ impl Cloth {
                 });
             }
             let alpha = delta_new / pq;
-            let delta_next = bsr::cg_update(alpha, &mut s.x, &mut s.r, &mut s.s, &s.w, &s.dhat);
+            let mut delta_next = 0.0;
+            // Values are kept in registers: reading back a vector just stored in parts stalls.
+            for i in 0..n {
+                s.dv[i] += alpha * s.s[i];
+                let r = s.r[i] - alpha * s.q[i];
+                let z = s.dhat[i] * r;
+                s.r[i] = r;
+                s.s[i] = z;
+                delta_next += r.dot(z);
+            }
             beta = delta_next / delta_new;
             delta_new = delta_next;
             iterations += 1;
             if delta_new <= 0.0 {
                 break;
             }
-        }
-        for i in 0..n {
-            s.dv[i] = from_lanes(s.x[i]);
         }
         let residual = if delta0 > 0.0 { (delta_new.max(0.0) / delta0).sqrt() } else { 0.0 };
         Ok((iterations, residual, delta_new <= target))
@@ -1347,15 +1343,15 @@ impl Cloth {
         st.blocks.copy_from_slice(&a.blocks);
         if !s.constrained.is_empty() {
             for i in 0..n {
-                for slot in a.row_ptr[i]..a.row_ptr[i + 1] {
-                    let j = a.cols[slot];
+                for slot in std::iter::once(i).chain(a.row_ptr[i]..a.row_ptr[i + 1]) {
+                    let j = a.cols[slot] as usize;
                     if s.filter[i] != DMat3::IDENTITY || s.filter[j] != DMat3::IDENTITY {
                         st.blocks[slot] = s.filter[i] * st.blocks[slot] * s.filter[j];
                     }
                 }
             }
             for &i in &s.constrained {
-                st.blocks[a.diag[i]] += DMat3::IDENTITY - s.filter[i];
+                st.blocks[i] += DMat3::IDENTITY - s.filter[i];
             }
         }
         for (value, &(slot, k)) in st.values.iter_mut().zip(&st.source) {
