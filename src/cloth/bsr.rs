@@ -142,7 +142,9 @@ impl BlockMatrix {
         for (i, (((range, dinv), c), t)) in rows.enumerate().rev() {
             let mut acc = DVec3::ZERO;
             let (start, end) = (range[0], range[1]);
-            for (&j, b) in self.cols[start..end].iter().zip(&self.blocks[start..end]) {
+            // Farthest column first: `x[i + 1]`, just computed, enters last, so the sum over
+            // the other blocks is off the chain of dependent rows (the sweep's bound).
+            for (&j, b) in self.cols[start..end].iter().zip(&self.blocks[start..end]).rev() {
                 acc += *b * x[j as usize];
             }
             let y = x[i] + beta * *c;
