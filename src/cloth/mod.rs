@@ -320,7 +320,7 @@ struct Scratch {
     filter: Vec<DMat3>,
     z: Vec<DVec3>,
     y: Vec<DVec3>,
-    precond: Vec<DMat3>,
+    precond: bsr::SweepDiagonal,
     dhat: Vec<DMat3>,
     constrained: Vec<usize>,
     /// Contacts of the step: vertex, normal, collider velocity, friction coefficient, normal
@@ -528,7 +528,7 @@ impl Cloth {
             filter: vec![DMat3::IDENTITY; n],
             z: zero.clone(),
             y: zero.clone(),
-            precond: vec![DMat3::IDENTITY; n],
+            precond: bsr::SweepDiagonal::new(n),
             dhat: vec![DMat3::IDENTITY; n],
             constrained: Vec::with_capacity(n),
             contact_normal: Vec::with_capacity(n),
@@ -1080,8 +1080,7 @@ impl Cloth {
         self.matrix.blocks.iter_mut().for_each(|b| *b = DMat3::ZERO);
         let diagonal = 1.0 + h_eff * self.material.air_damping;
         for i in 0..n {
-            self.matrix.blocks[i] =
-                DMat3::from_diagonal(DVec3::splat(self.mass[i] * diagonal));
+            self.matrix.blocks[i] = DMat3::from_diagonal(DVec3::splat(self.mass[i] * diagonal));
         }
         let mut blocks = std::mem::take(&mut self.matrix.blocks);
         {
@@ -1254,13 +1253,14 @@ impl Cloth {
             let inverse = d.inverse();
             // Rounding floor: bᵀ D⁻¹ b of the unfiltered right-hand side.
             delta_b += s.b[i].dot(inverse * s.b[i]);
-            s.precond[i] = if f == DMat3::IDENTITY {
+            s.precond.inverse[i] = if f == DMat3::IDENTITY {
                 inverse * omega
             } else {
                 f * (f * d * f + DMat3::IDENTITY - f).inverse() * f * omega
             };
             s.dhat[i] = f * d * (1.0 / omega);
         }
+        s.precond.update(a);
         for i in 0..n {
             s.dv[i] = s.z[i] + s.filter[i] * s.dv[i];
         }
