@@ -1,15 +1,14 @@
 //! A symmetric block-sparse matrix of 3x3 blocks (one block row per vertex) whose pattern is
 //! built once from the elements' vertex sets. Only the upper triangle (blocks `(i, j)` with
 //! `j >= i`) is stored: a product reads each block once, which halves the memory traffic of
-//! the conjugate-gradient iterations (they are bound by it), and runs sequentially so results
-//! do not depend on the thread count.
+//! the conjugate-gradient iterations (and matters once the matrix leaves the cache, from about
+//! 256² vertices), and runs sequentially so results do not depend on the thread count.
 
 use glam::{DMat3, DVec3};
 
 /// Block compressed sparse rows of the upper triangle, 3x3 blocks: the `n` diagonal blocks
 /// first (block `i` is `(i, i)`), then the strict upper blocks row by row, so that the
-/// triangular substitutions stream the blocks they read without the diagonal ones in between
-/// (they are bound by memory traffic, not by arithmetic).
+/// triangular substitutions stream the blocks they read without the diagonal ones in between.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct BlockMatrix {
     /// Start of each block row's strict upper blocks in `cols` / `blocks` (length `n + 1`,
