@@ -97,8 +97,9 @@ impl BlockMatrix {
     /// through `d` and `L` its strict lower triangle (the transposes of the stored blocks). `y`
     /// is overwritten with partial sums.
     ///
-    /// A substitution is bound by the chain of dependent rows, not by its arithmetic or memory
-    /// traffic (its time per row is the same from 16² to 128² vertices). When row `i - 1` is
+    /// A substitution is a chain of dependent rows, which with its arithmetic per row sets its
+    /// speed (not the memory traffic: its time per row is the same from 16² to 128² vertices,
+    /// and was so before the chain was shortened). When row `i - 1` is
     /// linked to row `i` ([`Self::linked`]), `xᵢ = Dᵢ⁻¹ yᵢ - (Dᵢ⁻¹ Aᵢ₋₁,ᵢᵀ) xᵢ₋₁` with the
     /// product precomputed in `d`, `yᵢ` having everything else: one matrix-vector product on
     /// the chain, from a register, instead of a scatter into `yᵢ`, its reload and a product.
@@ -136,7 +137,7 @@ impl BlockMatrix {
         dot
     }
 
-    /// `y[j] -= Aᵢⱼᵀ xᵢ` over row `i`'s strict upper blocks, but for the block `(i, i + 1)`
+    /// `y[j] -= Aᵢⱼᵀ xᵢ` over row `i`'s strict upper blocks, except the block `(i, i + 1)`
     /// of a linked row, which the next row takes through [`SweepDiagonal`].
     #[inline(always)]
     fn scatter(&self, i: usize, xi: DVec3, y: &mut [DVec3]) {
