@@ -99,8 +99,8 @@ impl BlockMatrix {
     ///
     /// A substitution is a chain of dependent rows, which with its arithmetic per row sets its
     /// speed (not the memory traffic: its time per row is the same from 16² to 128² vertices,
-    /// and was so before the chain was shortened). When row `i - 1` is
-    /// linked to row `i` ([`Self::linked`]), `xᵢ = Dᵢ⁻¹ yᵢ - (Dᵢ⁻¹ Aᵢ₋₁,ᵢᵀ) xᵢ₋₁` with the
+    /// and was so before the chain was shortened). When row `i - 1` is linked to row `i` (its
+    /// first upper block is `(i - 1, i)`), `xᵢ = Dᵢ⁻¹ yᵢ - (Dᵢ⁻¹ Aᵢ₋₁,ᵢᵀ) xᵢ₋₁` with the
     /// product precomputed in `d`, `yᵢ` having everything else: one matrix-vector product on
     /// the chain, from a register, instead of a scatter into `yᵢ`, its reload and a product.
     pub fn solve_lower(&self, d: &SweepDiagonal, y: &mut [DVec3], x: &mut [DVec3]) {

@@ -37,7 +37,7 @@ mod bsr;
 mod mesh;
 mod model;
 
-pub use bsr::BlockMatrix;
+pub use bsr::{BlockMatrix, SweepDiagonal};
 pub use mesh::{parse_obj, uv_from_shape, write_obj, Mesh, Topology, Triangulation};
 pub use model::dihedral_angle;
 
