@@ -37,7 +37,7 @@ mod bsr;
 mod mesh;
 mod model;
 
-pub use bsr::BlockMatrix;
+pub use bsr::{BlockMatrix, SweepDiagonal};
 pub use mesh::{parse_obj, uv_from_shape, write_obj, Mesh, Topology, Triangulation};
 pub use model::dihedral_angle;
 
@@ -320,7 +320,7 @@ struct Scratch {
     filter: Vec<DMat3>,
     z: Vec<DVec3>,
     y: Vec<DVec3>,
-    precond: Vec<DMat3>,
+    precond: bsr::SweepDiagonal,
     dhat: Vec<DMat3>,
     constrained: Vec<usize>,
     /// Contacts of the step: vertex, normal, collider velocity, friction coefficient, normal
@@ -528,7 +528,7 @@ impl Cloth {
             filter: vec![DMat3::IDENTITY; n],
             z: zero.clone(),
             y: zero.clone(),
-            precond: vec![DMat3::IDENTITY; n],
+            precond: bsr::SweepDiagonal::new(n),
             dhat: vec![DMat3::IDENTITY; n],
             constrained: Vec::with_capacity(n),
             contact_normal: Vec::with_capacity(n),
@@ -1080,8 +1080,7 @@ impl Cloth {
         self.matrix.blocks.iter_mut().for_each(|b| *b = DMat3::ZERO);
         let diagonal = 1.0 + h_eff * self.material.air_damping;
         for i in 0..n {
-            self.matrix.blocks[self.matrix.diag[i]] =
-                DMat3::from_diagonal(DVec3::splat(self.mass[i] * diagonal));
+            self.matrix.blocks[i] = DMat3::from_diagonal(DVec3::splat(self.mass[i] * diagonal));
         }
         let mut blocks = std::mem::take(&mut self.matrix.blocks);
         {
@@ -1252,17 +1251,18 @@ impl Cloth {
         let omega = ssor_omega(n);
         let mut delta_b = 0.0;
         for i in 0..n {
-            let (d, f) = (a.blocks[a.diag[i]], s.filter[i]);
+            let (d, f) = (a.blocks[i], s.filter[i]);
             let inverse = d.inverse();
             // Rounding floor: bᵀ D⁻¹ b of the unfiltered right-hand side.
             delta_b += s.b[i].dot(inverse * s.b[i]);
-            s.precond[i] = if f == DMat3::IDENTITY {
+            s.precond.inverse[i] = if f == DMat3::IDENTITY {
                 inverse * omega
             } else {
                 f * (f * d * f + DMat3::IDENTITY - f).inverse() * f * omega
             };
             s.dhat[i] = f * d * (1.0 / omega);
         }
+        s.precond.update(a);
         for i in 0..n {
             s.dv[i] = s.z[i] + s.filter[i] * s.dv[i];
         }
@@ -1345,15 +1345,15 @@ impl Cloth {
         st.blocks.copy_from_slice(&a.blocks);
         if !s.constrained.is_empty() {
             for i in 0..n {
-                for slot in a.row_ptr[i]..a.row_ptr[i + 1] {
-                    let j = a.cols[slot];
+                for slot in std::iter::once(i).chain(a.row_ptr[i]..a.row_ptr[i + 1]) {
+                    let j = a.cols[slot] as usize;
                     if s.filter[i] != DMat3::IDENTITY || s.filter[j] != DMat3::IDENTITY {
                         st.blocks[slot] = s.filter[i] * st.blocks[slot] * s.filter[j];
                     }
                 }
             }
             for &i in &s.constrained {
-                st.blocks[a.diag[i]] += DMat3::IDENTITY - s.filter[i];
+                st.blocks[i] += DMat3::IDENTITY - s.filter[i];
             }
         }
         for (value, &(slot, k)) in st.values.iter_mut().zip(&st.source) {
