@@ -98,6 +98,19 @@ pub trait LaneKernel<const I: usize, const O: usize>: Sync {
     fn block(&self, first: usize, rows: &[[f64; I]], out: &mut [[f64; O]]) -> Result<usize>;
 }
 
+/// The rows of a block gathered by component, `c[j][k]` = component `j` of row `k` (rows past
+/// `rows.len()` zero), for the arithmetic over contiguous lanes of a [`LaneKernel`].
+#[inline(always)]
+pub fn by_component<const I: usize>(rows: &[[f64; I]]) -> [[f64; LANES]; I] {
+    let mut c = [[0.0; LANES]; I];
+    for (k, row) in rows.iter().enumerate() {
+        for (lane, &v) in c.iter_mut().zip(row) {
+            lane[k] = v;
+        }
+    }
+    c
+}
+
 /// `kernel.block` on every block of [`LANES`] rows (the last one may be shorter), in parallel
 /// chunks of [`CHUNK`] rows, each chunk compiled for the SIMD instruction set found at run
 /// time (AVX2 through `pulp`), so that a block's loops over its lanes vectorise. Returns the

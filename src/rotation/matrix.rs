@@ -2,7 +2,7 @@
 //! rotation to an arbitrary matrix.
 
 use super::quat::quat_from_wxyz;
-use crate::batch::{lanes, LaneKernel, LANES};
+use crate::batch::{by_component, lanes, LaneKernel, LANES};
 use crate::error::{ensure_finite, Error, Result};
 use glam::DQuat;
 use nalgebra::Matrix3;
@@ -53,11 +53,7 @@ impl LaneKernel<4, 9> for ToMatrices {
     #[inline(always)]
     fn block(&self, first: usize, qs: &[[f64; 4]], os: &mut [[f64; 9]]) -> Result<usize> {
         if qs.len() == LANES {
-            // Gathered by component, so that the arithmetic runs over contiguous lanes.
-            let mut c = [[0.0; LANES]; 4];
-            for (k, q) in qs.iter().enumerate() {
-                [c[0][k], c[1][k], c[2][k], c[3][k]] = *q;
-            }
+            let c = by_component(qs);
             let mut off = [0.0; LANES];
             for k in 0..LANES {
                 let n2 =

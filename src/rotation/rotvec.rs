@@ -7,7 +7,7 @@
 //! factor `sin(θ/2)/θ` uses its Taylor series below `θ = 1e-3`, and `atan2` needs no series.
 
 use super::trig::{sin_cos_reduced, SIN_COS_LIMIT};
-use crate::batch::{lanes, LaneKernel, LANES};
+use crate::batch::{by_component, lanes, LaneKernel, LANES};
 use crate::error::{ensure_finite, Error, Result};
 use glam::{DQuat, DVec3};
 
@@ -66,11 +66,7 @@ impl LaneKernel<3, 4> for FromRotvecs {
     #[inline(always)]
     fn block(&self, first: usize, vs: &[[f64; 3]], os: &mut [[f64; 4]]) -> Result<usize> {
         if vs.len() == LANES {
-            // Gathered by component, so that the arithmetic runs over contiguous lanes.
-            let mut c = [[0.0; LANES]; 3];
-            for (k, v) in vs.iter().enumerate() {
-                [c[0][k], c[1][k], c[2][k]] = *v;
-            }
+            let c = by_component(vs);
             let mut theta = [0.0; LANES];
             for k in 0..LANES {
                 theta[k] = (c[0][k] * c[0][k] + c[1][k] * c[1][k] + c[2][k] * c[2][k]).sqrt();
