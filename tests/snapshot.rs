@@ -90,7 +90,8 @@ fn particles_resume_bit_for_bit_with_emitters_and_collisions() {
         s,
         |s: &mut ParticleSystem| s.step(1.0 / 120.0, 1, Method::Bdf2).unwrap(),
         |s: &ParticleSystem| {
-            let mut v = bits(s.positions().iter().chain(s.velocities()).chain(s.ages()).copied());
+            let mut v =
+                bits(s.positions().iter().chain(s.velocities()).chain(s.ages().iter()).copied());
             v.extend(s.alive().iter().map(|&a| a as u64));
             v
         },

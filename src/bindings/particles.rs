@@ -312,7 +312,7 @@ impl Particles {
     fn ages<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let a = self.system.ages();
         compute::<1>(py, a.len(), &[1], |out| {
-            out.iter_mut().zip(a).for_each(|(o, v)| o[0] = *v);
+            out.iter_mut().zip(a.iter()).for_each(|(o, v)| o[0] = *v);
             Ok(())
         })
     }
@@ -321,7 +321,7 @@ impl Particles {
     fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let a = self.system.masses();
         compute::<1>(py, a.len(), &[1], |out| {
-            out.iter_mut().zip(a).for_each(|(o, v)| o[0] = *v);
+            out.iter_mut().zip(a.iter()).for_each(|(o, v)| o[0] = *v);
             Ok(())
         })
     }

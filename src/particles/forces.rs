@@ -239,7 +239,9 @@ pub fn noise_with_gradient(seed: u64, p: DVec3) -> (f64, DVec3) {
     let mut grad = DVec3::ZERO;
     for c in 0..8 {
         let (di, dj, dk) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
-        let g = gradient(seed, i0 + di as i64, j0 + dj as i64, k0 + dk as i64);
+        // Wrapping: the lattice indices of far points (|p| >= 2^63) saturate.
+        let (i, j, k) = (i0.wrapping_add(di), j0.wrapping_add(dj), k0.wrapping_add(dk));
+        let g = gradient(seed, i, j, k);
         let d = f - DVec3::new(di as f64, dj as f64, dk as f64);
         let dot = g.dot(d);
         let wx = if di == 1 { u.x } else { 1.0 - u.x };

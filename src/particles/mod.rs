@@ -144,6 +144,55 @@ struct Rollback {
     emitters: Vec<(f64, u64)>,
 }
 
+/// What the explicit kernel would otherwise read every slot for in every call, kept between
+/// calls; not part of a snapshot (each part is rebuilt when unknown).
+#[derive(Clone, Debug, Default)]
+struct Summary {
+    /// A bound on |component| of the position and velocity of every live, movable particle
+    /// (m, m/s), known after a call of the explicit kernel and forgotten when the state is
+    /// handed out for writing or stepped by another path.
+    state: Option<f64>,
+    /// The slots' masses.
+    masses: Option<Masses>,
+    /// The largest |component| of the external forces (N).
+    external: Option<f64>,
+}
+
+/// The slots' masses as the explicit kernel needs them.
+#[derive(Clone, Copy, Debug)]
+struct Masses {
+    /// `(mass, inverse mass)` when every slot is alive and moves with this same mass.
+    uniform: Option<(f64, f64)>,
+    /// The largest mass (kg) and inverse mass (1/kg) of a slot that moves or of a particle an
+    /// emitter makes: bounds that stay true as particles die and are emitted.
+    largest: (f64, f64),
+}
+
+impl Masses {
+    fn of(
+        mass: &[f64],
+        inv_mass: &[f64],
+        alive: &[bool],
+        emitters: &[(Emitter, f64, u64)],
+    ) -> Self {
+        let movable =
+            |(&m, &inv_m): (&f64, &f64)| if inv_m != 0.0 { (m, inv_m) } else { (0.0, 0.0) };
+        let largest = mass
+            .par_chunks(CHUNK)
+            .zip(inv_mass.par_chunks(CHUNK))
+            .map(|(m, inv_m)| {
+                m.iter()
+                    .zip(inv_m)
+                    .map(movable)
+                    .fold((0.0, 0.0), |(a, b), (m, inv_m)| (f64::max(a, m), f64::max(b, inv_m)))
+            })
+            .reduce(|| (0.0, 0.0), |(a, b), (c, d)| (a.max(c), b.max(d)));
+        let largest =
+            emitters.iter().fold(largest, |(a, b), (e, ..)| (a.max(e.mass), b.max(1.0 / e.mass)));
+        Masses { uniform: uniform_mass(mass, inv_mass, alive), largest }
+    }
+}
+
 /// A fixed-capacity particle system.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct ParticleSystem {
@@ -153,9 +202,15 @@ pub struct ParticleSystem {
     /// The state at the start of a call of the explicit kernel, rebuilt by each call.
     #[serde(skip)]
     rollback: Rollback,
+    #[serde(skip)]
+    summary: Summary,
     mass: Vec<f64>,
     inv_mass: Vec<f64>,
     age: Vec<f64>,
+    /// Steps `(dt, count)` not yet added to the ages of the live slots: without emitters
+    /// nothing reads the ages between calls, so the calls leave them to the next reader
+    /// ([`ParticleSystem::settle_ages`]) instead of passing over them.
+    age_pending: (f64, usize),
     lifespan: Vec<f64>,
     alive: Vec<bool>,
     forces: Vec<Force>,
@@ -246,10 +301,12 @@ impl ParticleSystem {
             n,
             backup: Vec::new(),
             rollback: Rollback::default(),
+            summary: Summary::default(),
             y,
             inv_mass: mass.iter().map(|m| if m.is_finite() { 1.0 / m } else { 0.0 }).collect(),
             mass,
             age: vec![0.0; n],
+            age_pending: (0.0, 0),
             lifespan: vec![f64::INFINITY; n],
             alive: (0..n).map(|i| i < live).collect(),
             forces: Vec::new(),
@@ -286,12 +343,14 @@ impl ParticleSystem {
 
     /// The whole state `[x; v]` for writing; call [`ParticleSystem::state_changed`] after.
     pub fn state_mut(&mut self) -> &mut [f64] {
+        self.summary.state = None;
         &mut self.y
     }
 
     /// The free (unconstrained) equations of motion, the state and the inverse masses, for
     /// systems that step the particles themselves (constraints).
     pub(crate) fn parts(&mut self) -> (Dynamics<'_>, &mut [f64], &[f64], &mut f64) {
+        self.summary.state = None;
         let dynamics = Dynamics {
             n: self.n,
             forces: &self.forces,
@@ -327,6 +386,7 @@ impl ParticleSystem {
         }
         self.external.clear();
         self.external.extend_from_slice(forces);
+        self.summary.external = None;
         Ok(())
     }
 
@@ -342,9 +402,24 @@ impl ParticleSystem {
         &self.alive
     }
 
-    /// Age of each slot (s).
-    pub fn ages(&self) -> &[f64] {
-        &self.age
+    /// Age of each slot (s): borrowed, or computed when steps are still to be added to the
+    /// ages (see [`ParticleSystem::step`]: calls without emitters leave that to the reader).
+    pub fn ages(&self) -> std::borrow::Cow<'_, [f64]> {
+        let (dt, steps) = self.age_pending;
+        if steps == 0 {
+            return std::borrow::Cow::Borrowed(&self.age);
+        }
+        let mut age = self.age.clone();
+        age_live(dt, steps, &self.alive, &mut age);
+        std::borrow::Cow::Owned(age)
+    }
+
+    /// Add the pending steps to the ages of the live slots ([`age_live`]).
+    fn settle_ages(&mut self) {
+        let (dt, steps) = std::mem::take(&mut self.age_pending);
+        if steps > 0 {
+            age_live(dt, steps, &self.alive, &mut self.age);
+        }
     }
 
     /// Mass of each slot (kg; infinite when pinned).
@@ -485,6 +560,7 @@ impl ParticleSystem {
         }
         let seed = emitter.seed;
         self.emitters.push((emitter, 0.0, seed));
+        self.summary.masses = None;
         Ok(())
     }
 
@@ -594,6 +670,8 @@ impl ParticleSystem {
         if method == Method::SymplecticEuler && !pairwise {
             return self.explicit_steps(dt, steps, gravity);
         }
+        self.summary.state = None;
+        self.settle_ages();
         for s in 0..steps {
             // Keep a copy of the state to restore.
             self.backup.resize(self.y.len(), 0.0);
@@ -690,23 +768,28 @@ impl ParticleSystem {
 
     /// `steps` steps of symplectic Euler with the collision response by the explicit kernel
     /// (module `explicit`), for systems without forces between particles. Each step is
-    /// computed once and written in place; the first also copies the positions and velocities
-    /// it reads into `rollback` (with emitters and more than one step, the slots and the
-    /// emitters' state are copied before it too: they change after each good step). When a
-    /// step fails, the copy is restored and the good steps before it are taken again, which
-    /// gives bitwise the state they had written (a step reads nothing but the state and the
-    /// model, and the kernel's results depend neither on the threads nor on how many steps it
-    /// takes at once).
+    /// computed once and written in place. Unless the steps are certified not to go
+    /// non-finite ([`ParticleSystem::certified`]), the first also copies the positions and
+    /// velocities it reads into `rollback` (with emitters and more than one step, the slots
+    /// and the emitters' state are copied before it too: they change after each good step).
+    /// When a step fails, the copy is restored and the good steps before it are taken again,
+    /// which gives bitwise the state they had written (a step reads nothing but the state and
+    /// the model, and the kernel's results depend neither on the threads nor on how many steps
+    /// it takes at once).
     fn explicit_steps(&mut self, dt: f64, steps: usize, gravity: DVec3) -> Result<()> {
         let n = self.n;
-        self.rollback.y.resize(6 * n, 0.0);
         // Without emitters no slot is born, and none dies (lifespans are infinite: only
         // emitted particles have finite ones), so the ages can be advanced after the call.
         let age_each_step = !self.emitters.is_empty();
-        let time = self.time;
+        if age_each_step {
+            self.settle_ages();
+        }
+        let (time, bound) = (self.time, self.summary.state);
+        let keep = !self.certified(dt, steps, gravity);
         // Aging and emission follow each good step: a call's first step changes nothing but
         // positions and velocities before it is known good.
-        let keep_slots = age_each_step && steps > 1;
+        let keep_slots = keep && age_each_step && steps > 1;
+        self.rollback.y.resize(6 * n, 0.0);
         if keep_slots {
             let r = &mut self.rollback;
             r.alive.clone_from(&self.alive);
@@ -717,9 +800,16 @@ impl ParticleSystem {
             r.emitters.clear();
             r.emitters.extend(self.emitters.iter().map(|(_, accum, rng)| (*accum, *rng)));
         }
-        let Err((step, index)) = self.explicit_run(dt, steps, gravity, age_each_step, true) else {
+        let Err((step, index)) = self.explicit_run(dt, steps, gravity, age_each_step, keep) else {
             return Ok(());
         };
+        let diverged = Error::Diverged { step, index, reason: "non-finite particle state".into() };
+        if !keep {
+            // Unreachable if `step_bound` is right: there is no copy to restore.
+            debug_assert!(false, "a certified step came out non-finite");
+            self.summary.state = None;
+            return Err(diverged);
+        }
         let r = &self.rollback;
         self.y.par_chunks_mut(6 * CHUNK).zip(r.y.par_chunks(6 * CHUNK)).for_each(|(y, r)| {
             y.copy_from_slice(r);
@@ -733,17 +823,59 @@ impl ParticleSystem {
             for ((_, accum, rng), kept) in self.emitters.iter_mut().zip(&r.emitters) {
                 (*accum, *rng) = *kept;
             }
+            if let Some(masses) = &mut self.summary.masses {
+                masses.uniform = None;
+            }
         }
-        self.time = time;
+        (self.time, self.summary.state) = (time, bound);
         self.stats = StepStats::default();
         let replayed = self.explicit_run(dt, step, gravity, age_each_step, false);
         debug_assert!(replayed.is_ok(), "steps that were good are good again");
-        Err(Error::Diverged { step, index, reason: "non-finite particle state".into() })
+        Err(diverged)
     }
 
-    /// `steps` steps of the explicit kernel (see [`ParticleSystem::explicit_steps`]), the
-    /// first of which copies the state into `rollback` when `keep`; stops at the first step
-    /// that goes non-finite and returns it with the first particle that did. With emitters
+    /// The most steps of a call that [`ParticleSystem::certified`] tries to certify (a copy of
+    /// the state costs less than one step, a small part of the time of a longer call).
+    const MOST_CERTIFIED: usize = 64;
+
+    /// Whether `steps` steps of `dt` from the current state cannot come out non-finite, so
+    /// that a call needs no copy to undo them: the bound on the state kept from the last call
+    /// carried through each step by [`explicit::step_bound`], with the particles the emitters
+    /// may make after each step.
+    fn certified(&mut self, dt: f64, steps: usize, gravity: DVec3) -> bool {
+        let Some(mut bound) = self.summary.state.filter(|_| steps <= Self::MOST_CERTIFIED) else {
+            return false;
+        };
+        let masses = self.mass_summary();
+        let external = *self.summary.external.get_or_insert_with(|| {
+            self.external.par_iter().map(|f| f.abs()).reduce(|| 0.0, f64::max)
+        });
+        let extremes =
+            explicit::Extremes { mass: masses.largest.0, inv_mass: masses.largest.1, external };
+        let emitted = emitted_bound(&self.emitters);
+        for _ in 0..steps {
+            let (forces, colliders) = (&self.forces, &self.colliders);
+            bound = explicit::step_bound(forces, colliders, dt, gravity, extremes, bound);
+            bound = bound.max(emitted);
+            if bound == f64::INFINITY {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// The slots' masses ([`Masses`]), from the summary or computed into it.
+    fn mass_summary(&mut self) -> Masses {
+        *self.summary.masses.get_or_insert_with(|| {
+            Masses::of(&self.mass, &self.inv_mass, &self.alive, &self.emitters)
+        })
+    }
+
+    /// `steps` steps of the explicit kernel (see [`ParticleSystem::explicit_steps`]). With
+    /// `keep`, the first copies the state into `rollback` and each is checked: the run stops
+    /// at the first step that goes non-finite and returns it with the first particle that
+    /// did; without, the steps are known not to (certified, or taken before) and are not
+    /// checked. With emitters
     /// the kernel runs once per step (emission comes between the steps); without, once for
     /// all of them, each block of particles taking every step while it is in the cache.
     fn explicit_run(
@@ -758,11 +890,7 @@ impl ParticleSystem {
             return Ok(());
         }
         let n = self.n;
-        let uniform = if age_each_step {
-            None
-        } else {
-            uniform_mass(&self.mass, &self.inv_mass, &self.alive)
-        };
+        let uniform = if age_each_step { None } else { self.mass_summary().uniform };
         let (runs, each) = if age_each_step { (steps, 1) } else { (1, steps) };
         for run in 0..runs {
             let model = explicit::Model {
@@ -777,10 +905,16 @@ impl ParticleSystem {
             };
             let (xs, vs) = self.y.split_at_mut(3 * n);
             let kept = &mut self.rollback.y;
-            let done = explicit::commit(&model, xs, vs, &self.alive, kept, keep && run == 0, each);
+            let guard = match (keep, run) {
+                (false, _) => explicit::Guard::Certified,
+                (true, 0) => explicit::Guard::Copy,
+                (true, _) => explicit::Guard::Check,
+            };
+            let done = explicit::commit(&model, xs, vs, &self.alive, kept, guard, each);
             if let Some((s, index)) = done.bad {
                 return Err((run + s, index));
             }
+            self.summary.state = Some(done.bound);
             self.stats.contacts += done.contacts;
             for _ in 0..each {
                 self.time += dt;
@@ -791,7 +925,11 @@ impl ParticleSystem {
             }
         }
         if !age_each_step {
-            age_live(dt, steps, &self.alive, &mut self.age);
+            // Added by `settle_ages`, with the pending steps of another `dt` first.
+            if self.age_pending.1 > 0 && self.age_pending.0.to_bits() != dt.to_bits() {
+                self.settle_ages();
+            }
+            self.age_pending = (dt, self.age_pending.1 + steps);
         }
         Ok(())
     }
@@ -805,6 +943,9 @@ impl ParticleSystem {
             .zip(self.age.par_chunks_mut(CHUNK).zip(self.lifespan.par_chunks(CHUNK)))
             .map(|((vs, alive), (age, lifespan))| age_slots(dt, alive, age, lifespan, vs))
             .sum::<usize>();
+        if let Some(masses) = self.summary.masses.as_mut().filter(|_| self.stats.expired > 0) {
+            masses.uniform = None;
+        }
     }
 
     /// Emit new particles into dead slots.
@@ -837,6 +978,10 @@ impl ParticleSystem {
         }
         if self.stats.emitted > 0 || self.stats.expired > 0 {
             self.state_changed();
+        }
+        if self.stats.emitted > 0 {
+            let emitted = emitted_bound(&self.emitters);
+            self.summary.state = self.summary.state.map(|b| b.max(emitted));
         }
     }
 }
@@ -1023,6 +1168,15 @@ fn age_slots(
         }
     }
     expired
+}
+
+/// A bound on |component| of the position and velocity of any particle the emitters make
+/// (m, m/s).
+fn emitted_bound(emitters: &[(Emitter, f64, u64)]) -> f64 {
+    let mag = |v: DVec3| v.abs().max_element();
+    emitters.iter().fold(0.0, |b, (e, ..)| {
+        b.max(mag(e.position) + e.position_spread).max(mag(e.velocity) + e.velocity_spread)
+    })
 }
 
 /// `(mass, inverse mass)` of every slot if all are alive, movable and of the same mass.
@@ -1232,5 +1386,44 @@ impl OdeSystem for Dynamics<'_> {
             },
         );
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A call of one step is certified once a call has bounded the state, and no longer
+    /// when the state is handed out for writing or the forces leave the certificate's range.
+    #[test]
+    fn one_step_calls_are_certified_from_a_bounded_state() {
+        let x = [DVec3::new(0.0, 1.0, 0.0), DVec3::new(2.0, 0.5, -1.0)];
+        let v = [DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, -3.0, 0.5)];
+        let mut s = ParticleSystem::new(&x, &v, &[1.0, 2.0], 3).unwrap();
+        let g = DVec3::new(0.0, -9.81, 0.0);
+        s.add_force(Force::Gravity { g }).unwrap();
+        s.add_force(Force::Drag { linear: 0.0, quadratic: 1e-3, wind: DVec3::ZERO }).unwrap();
+        s.add_collider(Collider::Plane {
+            point: DVec3::ZERO,
+            normal: DVec3::Y,
+            restitution: 0.5,
+            friction: 0.3,
+        })
+        .unwrap();
+        assert!(!s.certified(1e-3, 1, g), "nothing is known before the first call");
+        s.step(1e-3, 1, Method::SymplecticEuler).unwrap();
+        let bound = s.summary.state.unwrap();
+        let largest = s.positions()[..6].iter().chain(&s.velocities()[..6]);
+        assert_eq!(bound, largest.fold(0.0f64, |m, v| m.max(v.abs())), "live slots only");
+        assert!(s.certified(1e-3, 1, g) && s.certified(1e-3, 4, g));
+        s.state_mut()[0] = 1e200;
+        assert!(!s.certified(1e-3, 1, g), "the state was handed out for writing");
+        s.step(1e-3, 1, Method::SymplecticEuler).unwrap();
+        assert!(!s.certified(1e-3, 1, g), "1e200 m is beyond the certificate");
+        s.state_mut()[0] = 0.0;
+        s.step(1e-3, 1, Method::SymplecticEuler).unwrap();
+        assert!(s.certified(1e-3, 1, g));
+        s.set_external_forces(&[1e305; 9]).unwrap();
+        assert!(!s.certified(1e-3, 1, g), "forces beyond the certificate");
     }
 }
