@@ -644,7 +644,7 @@ impl Magnitudes {
 }
 
 /// The largest |component| of `v`.
-fn mag(v: DVec3) -> f64 {
+pub(super) fn mag(v: DVec3) -> f64 {
     v.abs().max_element()
 }
 

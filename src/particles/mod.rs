@@ -1173,7 +1173,7 @@ fn age_slots(
 /// A bound on |component| of the position and velocity of any particle the emitters make
 /// (m, m/s).
 fn emitted_bound(emitters: &[(Emitter, f64, u64)]) -> f64 {
-    let mag = |v: DVec3| v.abs().max_element();
+    let mag = explicit::mag;
     emitters.iter().fold(0.0, |b, (e, ..)| {
         b.max(mag(e.position) + e.position_spread).max(mag(e.velocity) + e.velocity_spread)
     })
