@@ -127,6 +127,29 @@ def test_bad_input_names_the_argument_and_failures_roll_back():
     np.testing.assert_array_equal(boom.velocities, before)
 
 
+def test_one_step_calls_still_roll_back_a_failed_step():
+    # After a first call, calls of one step from a bounded state are certified not to go
+    # non-finite and take no copy of the state; a step the certificate cannot vouch for (a
+    # field of 1e300 N) copies again, and when it does go non-finite it is undone.
+    rng = np.random.default_rng(3)
+    ps = ParticleSystem(rng.uniform(0.0, 1.0, (100, 3)), rng.normal(size=(100, 3)))
+    ps.add(Gravity())
+    ps.add(Plane(restitution=0.5, friction=0.3))
+    for _ in range(10):
+        ps.step(1e-3)
+    x, v, ages = ps.positions.copy(), ps.velocities.copy(), ps.ages.copy()
+    age = 0.0
+    for _ in range(10):
+        age += 1e-3  # the steps added one by one
+    np.testing.assert_array_equal(ages, np.full(100, age))
+    ps.add(Field(lambda t, x, v: np.full_like(x, 1e300)))
+    with pytest.raises(kinema.SimulationError, match="step 0"):
+        ps.step(1e10)
+    np.testing.assert_array_equal(ps.positions, x)
+    np.testing.assert_array_equal(ps.velocities, v)
+    np.testing.assert_array_equal(ps.ages, ages)
+
+
 def test_python_field_acts_like_the_builtin_force():
     x0, v0 = [[0.0, 0.0, 0.0], [1.0, 2.0, 0.0]], [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
     a = ParticleSystem(x0, v0, masses=[1.0, 2.0])
