@@ -416,17 +416,22 @@ fn kernel_scene(n: usize, emitter: bool) -> ParticleSystem {
     s
 }
 
+/// The kernel scene twice: symplectic Euler without forces between particles runs the
+/// blocked SIMD kernel on the first; a spring set without pairs sends the second down the
+/// general path (Stepper + collide_one).
+fn kernel_and_general(emitter: bool) -> (ParticleSystem, ParticleSystem) {
+    let mut general = kernel_scene(20_000, emitter);
+    general
+        .add_force(Force::Springs { pairs: vec![], rest: vec![], stiffness: 1.0, damping: 0.0 })
+        .unwrap();
+    (kernel_scene(20_000, emitter), general)
+}
+
 #[test]
 fn explicit_kernel_matches_the_general_path_bitwise() {
-    // Symplectic Euler without forces between particles runs the blocked SIMD kernel; a spring
-    // set without pairs sends the same system down the general path (Stepper + collide_one).
-    // Without the emitter the kernel ages the particles once per call.
+    // Without the emitter the ages are left pending until read.
     for emitter in [true, false] {
-        let mut fast = kernel_scene(20_000, emitter);
-        let mut general = kernel_scene(20_000, emitter);
-        general
-            .add_force(Force::Springs { pairs: vec![], rest: vec![], stiffness: 1.0, damping: 0.0 })
-            .unwrap();
+        let (mut fast, mut general) = kernel_and_general(emitter);
         for _ in 0..4 {
             fast.step(1e-3, 25, Method::SymplecticEuler).unwrap();
             general.step(1e-3, 25, Method::SymplecticEuler).unwrap();
@@ -642,11 +647,7 @@ fn one_step_calls_match_the_general_path_and_still_roll_back() {
     // Such calls give bitwise the general path's results, and a step that does overflow
     // (external forces far beyond anything certified) is still undone.
     for emitter in [false, true] {
-        let mut fast = kernel_scene(20_000, emitter);
-        let mut general = kernel_scene(20_000, emitter);
-        general
-            .add_force(Force::Springs { pairs: vec![], rest: vec![], stiffness: 1.0, damping: 0.0 })
-            .unwrap();
+        let (mut fast, mut general) = kernel_and_general(emitter);
         for _ in 0..40 {
             fast.step(1e-3, 1, Method::SymplecticEuler).unwrap();
             general.step(1e-3, 1, Method::SymplecticEuler).unwrap();

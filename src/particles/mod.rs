@@ -804,9 +804,9 @@ impl ParticleSystem {
             return Ok(());
         };
         let diverged = Error::Diverged { step, index, reason: "non-finite particle state".into() };
+        debug_assert!(keep, "a certified step came out non-finite");
         if !keep {
             // Unreachable if `step_bound` is right: there is no copy to restore.
-            debug_assert!(false, "a certified step came out non-finite");
             self.summary.state = None;
             return Err(diverged);
         }
