@@ -64,6 +64,11 @@ impl Triangle {
     }
 
     /// `(w_u, w_v)` at positions `x`.
+    ///
+    /// Inlined: called out of line it returned its 3-vectors through memory in pieces the
+    /// caller read back across two stores, and each such read waits for the stores to
+    /// retire (a failed store-to-load forward).
+    #[inline(always)]
     pub fn warp(&self, x: &[DVec3]) -> (DVec3, DVec3) {
         let p = self.verts.map(|i| x[i]);
         let wu = p[0] * self.du[0] + p[1] * self.du[1] + p[2] * self.du[2];
@@ -108,7 +113,9 @@ pub struct Spring {
 /// The angle is `atan2((m̂₁ × m̂₂)·ê, m̂₁·m̂₂)` of the unit normals; `atan2` does not change when
 /// both arguments are scaled by the same positive factor, here `|n₁| |n₂| |e|`, so it is
 /// taken of the unnormalised normals: one square root and three divisions a hinge instead
-/// of three and nineteen (the divisions and roots were most of its time).
+/// of three and nineteen (the divisions and roots were most of its time). Inlined, so that
+/// its arguments and results stay in registers (see [`Triangle::warp`]).
+#[inline(always)]
 pub fn dihedral_angle(a: DVec3, b: DVec3, p: DVec3, q: DVec3) -> (f64, [DVec3; 4]) {
     let e = b - a;
     let e_len = e.length();
@@ -236,7 +243,8 @@ pub fn triangle(
     acc: &mut Accumulator,
 ) {
     let (wu, wv) = t.warp(x);
-    let (a, du, dv) = (t.area, t.du, t.dv);
+    // By reference: a copy of the arrays to the stack is read back across two stores.
+    let (a, du, dv) = (t.area, &t.du, &t.dv);
     let v = t.verts.map(|i| acc.v[i]);
     // ẇ_u, ẇ_v.
     let (vu, vv) =
@@ -270,7 +278,7 @@ pub fn triangle(
     // Curvature part Σ s ∂²C/∂w∂w: a (I - ŵŵᵀ)/‖w‖ for stretch (positive semidefinite,
     // eigenvalues up to a |d|²/‖w‖ per unit s), a I between w_u and w_v for shear
     // (indefinite, eigenvalues a (du·dv ± |du||dv|)).
-    let dot3 = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
+    let dot3 = |p: &[f64; 3], q: &[f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
     let keep =
         |s: f64, psd: bool, bound: f64| (psd && s >= 0.0) || beta * s.abs() * bound <= t.mass_share;
     let projector = |h: DVec3, inv_len: f64| (DMat3::IDENTITY - outer(h, h)) * (a * inv_len);
