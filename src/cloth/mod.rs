@@ -287,7 +287,7 @@ impl Default for SolveOptions {
 /// The elements' contributions (`Cloth::add_elements`), compiled twice through
 /// [`pulp::Arch::dispatch`]: for the baseline instruction set and for AVX2, taken at run time
 /// where the CPU has it. The AVX2 build has three-operand instructions (no register copies)
-/// and wider vectors: 64² assembly 1.07–1.09 ms instead of 1.29–1.31 ms. No fused
+/// and wider vectors: 64² assembly 1.07–1.09 ms instead of 1.29–1.37 ms. No fused
 /// multiply-add is introduced, so the results are bit for bit the same on either build.
 struct Elements<'a, 'b> {
     cloth: &'a Cloth,
