@@ -4,7 +4,8 @@
 //! A system restored from its snapshot continues bit for bit as the original would have: every
 //! field that influences a later step is stored (`f64` as its exact IEEE-754 bits, by
 //! [postcard](https://docs.rs/postcard)); only factorisations that are rebuilt identically from
-//! the stored pattern are left out. Workspaces are stored too, which keeps the rule simple (no
+//! the stored pattern, and the cloth PCG's workspace that every solve overwrites before
+//! reading, are left out. Workspaces are stored too, which keeps the rule simple (no
 //! field is forgotten) at the price of larger files.
 //!
 //! Layout: `b"kinema:"`, the type's tag (e.g. `b"Cloth"`), `b":"`, [`VERSION`] as 4 bytes
@@ -18,7 +19,7 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 
 /// Version of the snapshot layout; raised whenever a stored type changes its fields.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 
 /// A type that can be stored as a snapshot, under a tag naming it.
 pub trait Snapshot: Serialize + DeserializeOwned {
