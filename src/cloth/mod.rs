@@ -1275,12 +1275,11 @@ impl Cloth {
             let (d, f) = (a.blocks[i], filter[i]);
             let inverse = d.inverse();
             delta_b += b[i].dot(inverse * b[i]);
-            let inverse = if f == DMat3::IDENTITY {
-                inverse
+            if f == DMat3::IDENTITY {
+                (inverse * omega, d * (1.0 / omega))
             } else {
-                f * (f * d * f + DMat3::IDENTITY - f).inverse() * f
-            };
-            (inverse * omega, f * d * (1.0 / omega))
+                (f * (f * d * f + DMat3::IDENTITY - f).inverse() * f * omega, f * d * (1.0 / omega))
+            }
         });
         // Warm start Δv₀ = z + S Δv_last; the solve starts from r = S (b - A Δv₀) and, for
         // δ₀, from S b.
