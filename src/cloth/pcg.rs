@@ -2,10 +2,11 @@
 //! §5.3) with the block SSOR preconditioner applied through Eisenstat's trick (see
 //! `Cloth::solve_pcg` for the method), on 3-vectors held in four lanes.
 //!
-//! The kernels are written once, in the four-lane arithmetic of [`Arith`], and compiled twice:
-//! for AVX2 registers (taken at run time where the CPU has them, through `pulp`) and for
-//! plain arrays. Both builds perform the same IEEE operations in the same order (no fused
-//! multiply-add), so their results are equal bit for bit (tested).
+//! The kernels are written once, in the four-lane arithmetic of [`Arith`], and compiled for
+//! AVX2 registers (taken at run time where the CPU has them, through `pulp`; with AVX-512
+//! enabled too where it has that) and for plain arrays. Every build performs the same IEEE
+//! operations in the same order (no fused multiply-add), so their results are equal bit for
+//! bit (tested).
 //!
 //! Why four lanes: an iteration is two triangular substitutions whose cost is mostly the 3x3
 //! block products. Written on scalars, each product is 9 multiplications and 9 additions and
@@ -162,8 +163,15 @@ pub fn solve(
 ) -> Result<Outcome> {
     let run = Run { m, work, tol, max_iterations, floor, kappa };
     #[cfg(target_arch = "x86_64")]
-    if let Some(simd) = pulp::x86::V3::try_new() {
-        return simd.vectorize(Dispatch { run, arith: Avx(simd) });
+    {
+        // The same AVX2 kernels, compiled with AVX-512 enabled where the CPU has it (the
+        // compiler then folds the broadcasts into the multiplications and has 32 registers).
+        if let Some(simd) = pulp::x86::V4::try_new() {
+            return simd.vectorize(Dispatch { run, arith: Avx(*simd) });
+        }
+        if let Some(simd) = pulp::x86::V3::try_new() {
+            return simd.vectorize(Dispatch { run, arith: Avx(simd) });
+        }
     }
     run.iterate(Portable)
 }
