@@ -113,7 +113,7 @@ pub fn by_component<const I: usize>(rows: &[[f64; I]]) -> [[f64; LANES]; I] {
 
 /// `kernel.block` on every block of [`LANES`] rows (the last one may be shorter), in parallel
 /// chunks of [`CHUNK`] rows, each chunk compiled for the SIMD instruction set found at run
-/// time (AVX2 through `pulp`), so that a block's loops over its lanes vectorise. Returns the
+/// time (AVX2 or AVX-512 through `pulp`), so that a block's loops over its lanes vectorise. Returns the
 /// sum of the blocks' counts, or the error of the lowest failing block (independent of the
 /// thread count).
 pub fn lanes<const I: usize, const O: usize>(

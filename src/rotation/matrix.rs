@@ -36,7 +36,7 @@ pub fn quat_to_matrix(q: DQuat) -> [f64; 9] {
 
 /// [`quat_to_matrix`] of every quaternion `(w, x, y, z)` of `quats` (normalised as
 /// [`quat_from_wxyz`] does) into `out`, in parallel; bitwise the same as row by row (blocks
-/// of 8 unit quaternions run lane by lane, which vectorises: AVX2 through `pulp` where the
+/// of 8 unit quaternions run lane by lane, which vectorises: AVX2 or AVX-512 through `pulp` where the
 /// CPU has it; other blocks row by row).
 ///
 /// # Errors

@@ -50,7 +50,7 @@ fn exp_factors(theta: f64) -> (f64, f64) {
 
 /// [`quat_from_rotvec`] of every row of `rotvecs` into `out` as `(w, x, y, z)`, in parallel;
 /// bitwise the same as row by row (blocks of 8 rows of finite vectors up to `2·10^6` rad run
-/// lane by lane, which vectorises: AVX2 through `pulp` where the CPU has it).
+/// lane by lane, which vectorises: AVX2 or AVX-512 through `pulp` where the CPU has it).
 ///
 /// # Errors
 /// The lowest row with a non-finite component, or `out` of another length.

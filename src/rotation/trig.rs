@@ -1,9 +1,9 @@
 //! Branch-free `atan2` and `sin_cos` for the batched rotation kernels, within 3 and 2 units
 //! in the last place (ulp) of libm. Written as selects instead of branches, so that a loop
-//! over lanes of rotations compiles to SIMD (SSE2, or AVX2 where the CPU has it), which libm's
-//! scalar, branching functions cannot; as plain scalar replacements they are no faster than
-//! glibc's (measured), so they serve the lane kernels and the row-by-row functions those must
-//! equal bitwise.
+//! over lanes of rotations compiles to SIMD (SSE2, or AVX2 or AVX-512 where the CPU has
+//! it), which libm's scalar, branching functions cannot; as plain scalar replacements they
+//! are no faster than glibc's (measured), so they serve the lane kernels and the row-by-row
+//! functions those must equal bitwise.
 //!
 //! `atan2`: the octant is folded into `t = min(|x|, |y|) / max(|x|, |y|)` in `[0, 1]`, then
 //! `atan t = a_k + atan((t - c_k) / (1 + t c_k))` with `a_k = k pi/8`, `c_k = tan a_k`
