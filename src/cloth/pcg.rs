@@ -11,7 +11,9 @@
 //! Why four lanes: an iteration is two triangular substitutions whose cost is mostly the 3x3
 //! block products. Written on scalars, each product is 9 multiplications and 9 additions and
 //! the substitutions ran at the core's instruction throughput (about 6.5 instructions a cycle,
-//! 500 a row at 64²); on four-lane registers a product is 3 of each.
+//! 500 a row at 64²); on four-lane registers a product is 3 of each. An iteration became 17–25%
+//! faster at 32² and 64² and 12% at 128², where memory traffic bounds it (about 28 MB an
+//! iteration from L3; `bench/RESULTS.md`).
 //!
 //! The backward substitution takes a row's blocks in broadcast form (`Σ column × x_k`), the
 //! forward one pulls each row's sum from the finished rows above it through a column index
@@ -174,19 +176,6 @@ pub fn solve(
         }
     }
     run.iterate(Portable)
-}
-
-/// The same solve in the array build whatever the CPU (for the test of equal results).
-#[cfg(test)]
-pub fn solve_portable(
-    m: &BlockMatrix,
-    work: &mut Work,
-    tol: f64,
-    max_iterations: usize,
-    floor: f64,
-    kappa: f64,
-) -> Result<Outcome> {
-    Run { m, work, tol, max_iterations, floor, kappa }.iterate(Portable)
 }
 
 struct Run<'a> {
@@ -690,7 +679,15 @@ mod tests {
         };
         let (mut a, mut b) = (work(), work());
         let one = solve(m, &mut a, 1e-6, 1000, 0.0, omega - 1.0).unwrap();
-        let other = solve_portable(m, &mut b, 1e-6, 1000, 0.0, omega - 1.0).unwrap();
+        let run = Run {
+            m,
+            work: &mut b,
+            tol: 1e-6,
+            max_iterations: 1000,
+            floor: 0.0,
+            kappa: omega - 1.0,
+        };
+        let other = run.iterate(Portable).unwrap();
         assert!(one.0 > 10 && one.2, "a real solve: {one:?}");
         assert_eq!((one.0, one.1.to_bits(), one.2), (other.0, other.1.to_bits(), other.2));
         assert!(a.dv == b.dv);
