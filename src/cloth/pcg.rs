@@ -268,11 +268,17 @@ impl Run<'_> {
     }
 }
 
-/// `m x` in broadcast form: `Σₖ columnₖ xₖ`.
+/// `Σₖ columnₖ xₖ`: a 3x3 matrix given by its columns times `x`, in broadcast form.
+#[inline(always)]
+fn combine<L: Arith>(l: L, [c0, c1, c2]: [L::V; 3], x: L::V) -> L::V {
+    let (x0, x1, x2) = (l.lane::<0>(x), l.lane::<1>(x), l.lane::<2>(x));
+    l.add(l.add(l.mul(c0, x0), l.mul(c1, x1)), l.mul(c2, x2))
+}
+
+/// `m x` for a per-row matrix.
 #[inline(always)]
 fn mat<L: Arith>(l: L, m: &Columns, x: L::V) -> L::V {
-    let (x0, x1, x2) = (l.lane::<0>(x), l.lane::<1>(x), l.lane::<2>(x));
-    l.add(l.add(l.mul(l.load(&m[0]), x0), l.mul(l.load(&m[1]), x1)), l.mul(l.load(&m[2]), x2))
+    combine(l, [l.load(&m[0]), l.load(&m[1]), l.load(&m[2])], x)
 }
 
 /// `w - m x`, with two operations after `x` (the chain of dependent rows runs through it).
@@ -292,12 +298,10 @@ fn block<L: Arith>(l: L, flat: &[f64], slot: usize) -> [L::V; 3] {
     [l.array(four(0)), l.array(four(3)), l.array(four(6))]
 }
 
-/// `Σₖ columnₖ xₖ` for block `slot` of `flat`; the fourth lane is not cleared.
+/// Block `slot` of `flat` times `x`; the fourth lane is not cleared.
 #[inline(always)]
 fn product<L: Arith>(l: L, flat: &[f64], slot: usize, x: L::V) -> L::V {
-    let [c0, c1, c2] = block(l, flat, slot);
-    let (x0, x1, x2) = (l.lane::<0>(x), l.lane::<1>(x), l.lane::<2>(x));
-    l.add(l.add(l.mul(c0, x0), l.mul(c1, x1)), l.mul(c2, x2))
+    combine(l, block(l, flat, slot), x)
 }
 
 /// What the forward substitution does with each finished row (a trait rather than a
@@ -344,8 +348,8 @@ impl<L: Arith> Row<L> for Add<'_, L> {
     }
 }
 
-/// Forward substitution `x = (D/ω + L)⁻¹ y` in place (`y` becomes `x`), calling
-/// `each(i, xᵢ)` as each row is done. Row `i` pulls `Σ_j A_jiᵀ x_j` over its column's
+/// Forward substitution `x = (D/ω + L)⁻¹ y` in place (`y` becomes `x`), handing each
+/// finished row to `each` ([`Row`]). Row `i` pulls `Σ_j A_jiᵀ x_j` over its column's
 /// entries; when row `i - 1` is linked to row `i`, `xᵢ = D̂ᵢ⁻¹ (yᵢ - pulled) - (D̂ᵢ⁻¹
 /// Aᵢ₋₁,ᵢᵀ) xᵢ₋₁`, one product on the chain of dependent rows, from a register.
 #[inline(always)]
