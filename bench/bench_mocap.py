@@ -18,7 +18,7 @@ import numpy as np
 
 from kinema import mocap
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "mocap"
+DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "mocap"
 
 
 def rotation(axis: str, degrees: float) -> np.ndarray:

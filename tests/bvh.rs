@@ -1,4 +1,4 @@
-//! Biovision BVH: the CMU 01_01 conversion in ../shared/data/mocap (header, cross-check against
+//! Biovision BVH: the CMU 01_01 conversion in tests/data/mocap (header, cross-check against
 //! the original ASF/AMC, read → write → read), hand-made files with closed-form answers, and
 //! broken input with the line of the fault.
 //!
@@ -12,7 +12,7 @@ use kinema::Error;
 use std::path::PathBuf;
 
 fn read(name: &str) -> String {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/mocap");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap");
     assert!(dir.is_dir(), "the motion-capture data is expected at {}", dir.display());
     String::from_utf8_lossy(&std::fs::read(dir.join(name)).unwrap()).into_owned()
 }

@@ -1,5 +1,5 @@
 //! Inverse kinematics on a 7-dof arm, a 20-joint chain and the limbs of a CMU skeleton
-//! (../shared/data/mocap): the Jacobian against finite differences, reachable targets per
+//! (tests/data/mocap): the Jacobian against finite differences, reachable targets per
 //! method (success rates asserted at the levels measured), unreachable targets, limits,
 //! singular configurations, the null-space objective, bad input, and no allocation per solve.
 
@@ -44,7 +44,7 @@ fn chain20() -> Skeleton {
 }
 
 fn data(name: &str) -> String {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/mocap");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap");
     assert!(dir.is_dir(), "the motion-capture data is expected at {}", dir.display());
     String::from_utf8_lossy(&std::fs::read(dir.join(name)).unwrap()).into_owned()
 }

@@ -1,4 +1,4 @@
-//! Acclaim ASF/AMC on the real CMU files in ../shared/data/mocap, on hand-made skeletons with
+//! Acclaim ASF/AMC on the real CMU files in tests/data/mocap, on hand-made skeletons with
 //! closed-form answers, and on broken input.
 
 use kinema::mocap::{parse_amc, parse_asf, Edit, Motion, Skeleton};
@@ -6,7 +6,7 @@ use kinema::Error;
 use std::path::PathBuf;
 
 fn data(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/mocap");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap");
     assert!(dir.is_dir(), "the motion-capture data is expected at {}", dir.display());
     dir.join(name)
 }

@@ -5,7 +5,7 @@ use kinema::mocap::{parse_amc, parse_asf, Edit, Motion, Skeleton};
 use std::path::PathBuf;
 
 fn load(asf: &str, amc: &str) -> (Skeleton, Motion) {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/mocap");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap");
     let text = |n: &str| String::from_utf8_lossy(&std::fs::read(dir.join(n)).unwrap()).into_owned();
     let sk = parse_asf(&text(asf), asf).unwrap();
     let m = parse_amc(&text(amc), amc, &sk).unwrap();
@@ -154,7 +154,7 @@ fn warp_passes_through_its_keys_and_keeps_the_ends() {
 #[test]
 fn bvh_motions_are_edited_the_same_way() {
     use kinema::mocap::{parse_bvh, BvhSkeleton};
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/mocap");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap");
     let text = String::from_utf8_lossy(&std::fs::read(dir.join("01_01.bvh")).unwrap()).into_owned();
     let (sk, m): (BvhSkeleton, Motion) = parse_bvh(&text, "01_01.bvh").unwrap();
     let m = m.slice(1, 601).unwrap(); // frame 0 is the added T-pose

@@ -1,4 +1,4 @@
-"""kinema.mocap BVH reader and writer, on the CMU 01_01 conversion in ../shared/data/mocap
+"""kinema.mocap BVH reader and writer, on the CMU 01_01 conversion in tests/data/mocap
 (from facebookresearch/fairmotion; data from mocap.cs.cmu.edu, created with funding from NSF
 EIA-0196217) and on hand-made files."""
 
@@ -12,7 +12,7 @@ import pytest
 import kinema
 from kinema import mocap
 
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
+DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
 
 CHAIN = """HIERARCHY
 ROOT r

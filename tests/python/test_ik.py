@@ -1,4 +1,4 @@
-"""kinema.ik on a 7-dof arm, a 20-joint chain and the CMU skeleton (../shared/data/mocap)."""
+"""kinema.ik on a 7-dof arm, a 20-joint chain and the CMU skeleton (tests/data/mocap)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from kinema import Rotation, ik, mocap
 
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
+DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
 H = np.pi / 2
 ARM_LIMITS = [(-H, H), (-H, H), (-H, H), (0.0, 2.6), (-H, H), (-0.8, 0.8), (-0.8, 0.8)]
 

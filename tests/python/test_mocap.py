@@ -1,4 +1,4 @@
-"""kinema.mocap on the CMU files in ../shared/data/mocap."""
+"""kinema.mocap on the CMU files in tests/data/mocap."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 import kinema
 from kinema import mocap
 
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
+DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
 
 
 @pytest.fixture(scope="module")

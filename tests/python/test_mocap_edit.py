@@ -10,7 +10,7 @@ import pytest
 
 from kinema import mocap
 
-DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "mocap"
+DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
 
 
 @pytest.fixture(scope="module")
