@@ -39,8 +39,13 @@ except ImportError:
     sp = None
 
 MATERIAL = {"density": 0.1, "stretch": 1e3, "shear": 1e2, "bend": 1e-5, "damping": 1e-3}
+"""The speed tables' material: the library's default material, written out."""
+COTTON = {"density": 1.0, "stretch": 1e4, "shear": 1e3, "bend": 1e-3, "damping": 0.1}
+"""A cotton-like cloth (areal density 1 kg/m², as in issue #21), for the at-the-defaults table."""
 DT = 1.0 / 60.0
 TOL = 1e-3
+"""The speed tables' PCG tolerance (with step subdivision off); the defaults are tol 1e-6 and
+max_strain_change 0.01 (subdivision on), measured in `at_defaults`."""
 
 
 def kinema_cloth(n: int) -> Cloth:
@@ -224,6 +229,28 @@ def time_pbd(n: int, steps: int) -> float | None:
     return (time.perf_counter() - start) / steps
 
 
+def at_defaults(n: int, material: dict[str, float], steps: int) -> tuple[float, float, float]:
+    """ms per step, CG iterations per step and the largest edge stretch (length / rest length)
+    of an n x n cloth pinned at two corners, stepped with ``step(dt)`` and no other option: the
+    step settings a new user gets (PCG, tol 1e-6, max_strain_change 0.01)."""
+    cloth = Cloth.grid(n, n, 1.0, 1.0, **material)
+    cloth.pin([0, n - 1])
+    cloth.step(DT, 10)
+    iterations = 0
+    start = time.perf_counter()
+    for _ in range(steps):
+        cloth.step(DT)
+        iterations += cloth.stats["iterations"]
+    elapsed = (time.perf_counter() - start) / steps
+    x = cloth.positions
+    edges = np.concatenate([cloth.triangles[:, [a, b]] for a, b in ((0, 1), (1, 2), (2, 0))])
+    rest = kinema_cloth(n).positions
+    stretch = np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1) / np.linalg.norm(
+        rest[edges[:, 0]] - rest[edges[:, 1]], axis=1
+    )
+    return elapsed, iterations / steps, float(stretch.max())
+
+
 def solver_trade(n: int, steps: int) -> list[tuple[str, float, float]]:
     """Time per step and the distance (m) from the Cholesky solution after ``steps`` steps."""
     runs = [("cholesky", 0.0)] + [("pcg", tol) for tol in (1e-1, 1e-2, 1e-3, 1e-4, 1e-6)]
@@ -276,6 +303,28 @@ def main() -> None:
     kinema.set_num_threads(1)
     if sp is None:
         print("scipy: not installed, no numpy/scipy reference")
+    print(
+        "Threads: kinema 1 (set_num_threads(1)), numpy/scipy 1 (OPENBLAS_NUM_THREADS=1), pypbd its own."
+    )
+    print()
+    print(
+        f"At the defaults a new user gets (`step(dt)`: PCG, tol 1e-6, max_strain_change 0.01),"
+        f" dt = 1/60 s, pinned at two corners, {base_steps} steps after 10 (1/3 as many from 128²):"
+    )
+    print("| grid | material | ms/step | CG its/step | largest edge stretch |")
+    print("|---|---|---:|---:|---:|")
+    for n in sizes:
+        steps = max(2, base_steps if n <= 64 else base_steps // 3)
+        for name, material in (
+            ("default (0.1 kg/m², stretch 1e3)", MATERIAL),
+            ("cotton-like (1 kg/m², stretch 1e4)", COTTON),
+        ):
+            elapsed, its, stretch = at_defaults(n, material, steps)
+            print(f"| {n}² | {name} | {1e3 * elapsed:.1f} | {its:.0f} | {stretch:.3f} |")
+    print()
+    print(
+        f"Speed at tol {TOL:g}, subdivision off (max_strain_change=inf), default material, dt = 1/60 s:"
+    )
     print(
         "| grid | IE + PCG (ms) | CG its | IE + Cholesky (ms) | BDF2 + PCG (ms) | numpy/scipy (ms) | CG its"
         " | ratio numpy / kinema PCG | PBD, pypbd (ms) |"

@@ -13,7 +13,7 @@
 //! the substitutions ran at the core's instruction throughput (about 6.5 instructions a cycle,
 //! 500 a row at 64²); on four-lane registers a product is 3 of each. An iteration became 17–25%
 //! faster at 32² and 64² and 12% at 128², where memory traffic bounds it (about 28 MB an
-//! iteration from L3; `bench/RESULTS.md`).
+//! iteration from L3; `docs/performance-notes.md`).
 //!
 //! The backward substitution takes a row's blocks in broadcast form (`Σ column × x_k`), the
 //! forward one pulls each row's sum from the finished rows above it through a column index
