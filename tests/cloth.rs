@@ -224,7 +224,10 @@ fn cloth_pinned_at_two_corners_comes_to_rest_with_decreasing_energy() {
         .fold(0.0, f64::max);
     assert!(worst < 1e-4, "residual force / weight = {worst}");
     assert!(cloth.velocities().iter().all(|v| v.length() < 1e-4));
-    assert_eq!(cloth.positions()[0], DVec3::new(-0.5, 0.0, -0.5));
+    // The pins' filter removes every velocity change but the prescribed one (the step then
+    // writes their positions, so positions alone would prove nothing).
+    assert_eq!(cloth.velocities()[0], DVec3::ZERO);
+    assert_eq!(cloth.velocities()[n - 1], DVec3::ZERO);
     assert!(cloth.positions().iter().all(|p| p.is_finite()));
 }
 
@@ -261,11 +264,11 @@ fn large_steps_stay_stable_where_explicit_needs_far_smaller_ones() {
     };
     let big = 1.0 / 30.0;
     assert!(!stable(big / 100.0), "explicit stable at dt/100");
-    let mut dt = big / 100.0;
-    while !stable(dt) {
-        dt /= 2.0;
-    }
-    assert!(dt < big / 100.0);
+    // ... and it is a matter of the step: explicit integration does work at a smaller one.
+    let dt = (1..=12)
+        .map(|k| big / 100.0 / f64::from(1 << k))
+        .find(|&dt| stable(dt))
+        .expect("symplectic Euler stable at no step down to dt/409600");
     eprintln!("explicit symplectic Euler stable at dt = {dt:.2e} (implicit at {big:.3})");
 }
 
@@ -299,20 +302,25 @@ fn pcg_and_cholesky_agree_and_constraints_hold_to_machine_precision() {
         for _ in 0..20 {
             cloth.step(1.0 / 60.0, 1, Method::ImplicitEuler, options).unwrap();
             let x = cloth.positions();
-            assert_eq!(x[0], start[0]);
-            assert_eq!(x[n - 1], start[n - 1]);
+            // Pinned: the filter leaves no velocity (the step then writes the pin's position,
+            // so only the velocity shows what the solve did).
+            assert_eq!(cloth.velocities()[0], DVec3::ZERO);
+            assert_eq!(cloth.velocities()[n - 1], DVec3::ZERO);
             assert!((x[3].z - start[3].z).abs() < 1e-15, "plane drift {}", x[3].z - start[3].z);
             assert!((x[4].x - start[4].x).abs() < 1e-15 && (x[4].z - start[4].z).abs() < 1e-15);
         }
         assert!(cloth.stats().converged);
         cloth.positions().to_vec()
     };
-    let tol = 1e-10;
-    let a = run(pcg(tol));
-    let b = run(cholesky());
-    let diff = a.iter().zip(&b).map(|(p, q)| (*p - *q).length()).fold(0.0, f64::max);
+    let distance = |a: &[DVec3], b: &[DVec3]| {
+        a.iter().zip(b).map(|(p, q)| (*p - *q).length()).fold(0.0, f64::max)
+    };
+    let exact = run(cholesky());
+    let diff = distance(&run(pcg(1e-10)), &exact);
     assert!(diff < 1e-8, "PCG vs Cholesky: {diff}");
-    assert!(diff > 0.0 || tol > 0.0);
+    // Two different solvers (not one solver twice) whose difference follows the tolerance.
+    let loose = distance(&run(pcg(1e-3)), &exact);
+    assert!(diff > 0.0 && loose > 100.0 * diff, "PCG at 1e-10: {diff:e}, at 1e-3: {loose:e}");
 }
 
 #[test]
@@ -368,6 +376,37 @@ fn bdf2_is_second_order_and_damps_less_than_implicit_euler() {
     let (lost_ie, lost_bdf2) =
         (start - energy(Method::ImplicitEuler), start - energy(Method::Bdf2));
     assert!(lost_bdf2 < 0.8 * lost_ie, "energy lost: BDF2 {lost_bdf2}, implicit Euler {lost_ie}");
+}
+
+/// Steps alternating h, h/2, h, ... (every step changes the step size): the variable-step
+/// BDF2 coefficients keep second order, where the constant-step formula is inconsistent and a
+/// restart from implicit Euler at each change is first order.
+#[test]
+fn bdf2_stays_second_order_when_the_step_alternates() {
+    let material =
+        Material { stretch: 20.0, shear: 2.0, bend: 1e-4, damping: 0.0, ..Material::default() };
+    let options = SolveOptions { max_strain_change: f64::INFINITY, ..pcg(1e-12) };
+    let swinging = || {
+        let mut cloth = grid(5, Model::BaraffWitkin, material);
+        cloth.pin(&[0, 1, 2, 3, 4], None).unwrap();
+        cloth
+    };
+    let t = 0.4;
+    let mut reference = swinging();
+    reference.step(t / 5120.0, 5120, Method::Bdf2, options).unwrap();
+    let error = |h: f64| {
+        let mut cloth = swinging();
+        for _ in 0..(t / (1.5 * h)).round() as usize {
+            cloth.step(h, 1, Method::Bdf2, options).unwrap();
+            cloth.step(0.5 * h, 1, Method::Bdf2, options).unwrap();
+        }
+        assert!((cloth.time() - t).abs() < 1e-12);
+        let x = cloth.positions();
+        x.iter().zip(reference.positions()).map(|(p, q)| (*p - *q).length()).fold(0.0, f64::max)
+    };
+    let (e1, e2) = (error(1.0 / 150.0), error(1.0 / 300.0));
+    let order = (e1 / e2).log2();
+    assert!((order - 2.0).abs() < 0.2, "BDF2 observed order {order} ({e1:.2e}, {e2:.2e})");
 }
 
 #[test]

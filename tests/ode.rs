@@ -2,8 +2,8 @@
 //! stiff problems, long-run energy behaviour, failures that leave the state unchanged.
 
 use kinema::ode::{
-    max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function, Method, OdeSystem,
-    SparseJacobian, Stepper,
+    bdf2_weights, max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function,
+    Method, OdeSystem, SparseJacobian, Stepper,
 };
 use kinema::Error;
 use nalgebra::{Complex, DMatrix};
@@ -164,7 +164,7 @@ fn stability_functions_at_known_points() {
     let z = |re: f64, im: f64| Complex::new(re, im);
     assert!((stability_function(Method::ImplicitEuler, z(-1e12, 0.0))).norm() < 1e-11);
     assert!((stability_function(Method::Trapezoidal, z(-1e12, 0.0)) + 1.0).norm() < 1e-11);
-    assert!((stability_function(Method::Trapezoidal, z(0.0, 7.0))).norm() - 1.0 < 1e-15);
+    assert!(((stability_function(Method::Trapezoidal, z(0.0, 7.0))).norm() - 1.0).abs() < 1e-15);
     // BDF2 is L-stable: its dominant root vanishes at -inf, and at z = 0 it is 1.
     assert!(stability_function(Method::Bdf2, z(-1e12, 0.0)).norm() < 1e-5);
     assert!((stability_function(Method::Bdf2, z(0.0, 0.0)) - 1.0).norm() < 1e-15);
@@ -477,5 +477,247 @@ fn invalid_sparse_jacobians_are_refused_with_the_state_unchanged() {
             "{result:?}"
         );
         assert_eq!(y, vec![0.5; 2 * n]);
+    }
+}
+
+/// `x'' = -x³ - x x' + g(t)` with `g` chosen so that `x = sin t` solves it, as `y = [x; v]`:
+/// nonlinear in `x` and `v` and time-dependent, so the Runge–Kutta methods of one order (the
+/// midpoint rule and Heun) differ, and a stage evaluated at the wrong time loses an order.
+struct Manufactured;
+impl Manufactured {
+    fn exact(t: f64) -> [f64; 2] {
+        [t.sin(), t.cos()]
+    }
+}
+impl OdeSystem for Manufactured {
+    fn dim(&self) -> usize {
+        2
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], f: &mut [f64]) -> kinema::Result<()> {
+        let (s, c) = t.sin_cos();
+        let g = -s + s.powi(3) + s * c;
+        f[0] = y[1];
+        f[1] = -y[0].powi(3) - y[0] * y[1] + g;
+        Ok(())
+    }
+}
+
+/// The error at `t1` of a run over `steps` whose step sizes repeat `pattern` (relative sizes),
+/// started from the exact solution.
+fn manufactured_error(method: Method, t1: f64, steps: usize, pattern: &[f64]) -> f64 {
+    let total: f64 = (0..steps).map(|s| pattern[s % pattern.len()]).sum();
+    let mut stepper = Stepper::new(method, 2).unwrap();
+    let (mut t, mut y) = (0.0, Manufactured::exact(0.0));
+    for s in 0..steps {
+        let h = t1 * pattern[s % pattern.len()] / total;
+        stepper.step(&mut Manufactured, t, &mut y, h).unwrap();
+        t += h;
+    }
+    let e = Manufactured::exact(t1);
+    (y[0] - e[0]).hypot(y[1] - e[1])
+}
+
+#[test]
+fn observed_orders_on_a_nonlinear_time_dependent_problem() {
+    for method in Method::ALL {
+        let (coarse, fine) = if method == Method::Rk4 { (40, 80) } else { (400, 800) };
+        let (e1, e2) = (
+            manufactured_error(method, 2.0, coarse, &[1.0]),
+            manufactured_error(method, 2.0, fine, &[1.0]),
+        );
+        let observed = (e1 / e2).log2();
+        assert!(
+            (observed - f64::from(method.order())).abs() < 0.1,
+            "{}: observed order {observed} ({e1:.2e}, {e2:.2e})",
+            method.name()
+        );
+    }
+    // Midpoint and Heun are different methods here (on linear autonomous problems they agree).
+    let (a, b) = (
+        manufactured_error(Method::Midpoint, 2.0, 400, &[1.0]),
+        manufactured_error(Method::Heun, 2.0, 400, &[1.0]),
+    );
+    assert!((a - b).abs() > 0.1 * a.max(b), "midpoint {a:e}, Heun {b:e}");
+}
+
+#[test]
+fn bdf2_is_second_order_with_alternating_steps() {
+    // Steps h, h/2, h, h/2, ...: every step changes the step size (ratio 1/2, then 2).
+    for pattern in [[1.0, 0.5], [1.0, 2.0]] {
+        let (e1, e2) = (
+            manufactured_error(Method::Bdf2, 2.0, 400, &pattern),
+            manufactured_error(Method::Bdf2, 2.0, 800, &pattern),
+        );
+        let observed = (e1 / e2).log2();
+        assert!((observed - 2.0).abs() < 0.1, "{pattern:?}: observed order {observed}");
+    }
+}
+
+#[test]
+fn bdf2_weights_are_exact_on_quadratics() {
+    // Second order: y = t² (f = 2t) is reproduced exactly from y(t - h₋) and y(t) for any
+    // step ratio the formula takes; the constant-step weights are 1/3 and 2/3.
+    assert_eq!(bdf2_weights(0.1, Some(0.1)), Some((1.0 / 3.0, 2.0 / 3.0)));
+    let y = |t: f64| t * t;
+    for (h, hp) in [(0.1, 0.1), (0.05, 0.1), (0.2, 0.1), (0.013, 0.02)] {
+        let t = 0.7;
+        let (c, gamma) = bdf2_weights(h, Some(hp)).unwrap();
+        let next = y(t) + c * (y(t) - y(t - hp)) + gamma * h * 2.0 * (t + h);
+        assert!((next - y(t + h)).abs() < 1e-15, "h {h}, h₋ {hp}: {next} vs {}", y(t + h));
+    }
+    // No history, or a step that grows beyond the zero-stable ratios: restart.
+    assert_eq!(bdf2_weights(0.1, None), None);
+    assert_eq!(bdf2_weights(0.3, Some(0.1)), None);
+}
+
+/// `y' = λ y` for complex `λ`, as `y = [Re y, Im y]`, with its Jacobian.
+struct ComplexDecay(Complex<f64>);
+impl OdeSystem for ComplexDecay {
+    fn dim(&self) -> usize {
+        2
+    }
+    fn rhs(&mut self, _t: f64, y: &[f64], f: &mut [f64]) -> kinema::Result<()> {
+        let (a, b) = (self.0.re, self.0.im);
+        f[0] = a * y[0] - b * y[1];
+        f[1] = b * y[0] + a * y[1];
+        Ok(())
+    }
+    fn jacobian(&mut self, _t: f64, _y: &[f64], j: &mut DMatrix<f64>) -> kinema::Result<bool> {
+        let (a, b) = (self.0.re, self.0.im);
+        j.copy_from_slice(&[a, b, -b, a]); // column-major
+        Ok(true)
+    }
+}
+
+/// The growth factor of one step of `h` of the real stepper on `y' = λy` from `y = 1`.
+fn measured_amplification(method: Method, lambda: Complex<f64>, h: f64) -> Complex<f64> {
+    let mut y = [1.0, 0.0];
+    Stepper::new(method, 2).unwrap().step(&mut ComplexDecay(lambda), 0.0, &mut y, h).unwrap();
+    Complex::new(y[0], y[1])
+}
+
+#[test]
+fn stability_functions_match_the_steppers_measured_amplification() {
+    let points = [(-0.1, 0.0), (-0.5, 0.0), (0.0, 0.3), (-0.2, 0.4), (-3.0, 2.0), (-40.0, 0.0)];
+    // One-step methods: one step from y = 1 multiplies it by R(z).
+    for method in [
+        Method::ExplicitEuler,
+        Method::Midpoint,
+        Method::Heun,
+        Method::Rk4,
+        Method::ImplicitEuler,
+        Method::Trapezoidal,
+    ] {
+        for (re, im) in points {
+            let z = Complex::new(re, im);
+            let measured = measured_amplification(method, z, 1.0);
+            let r = stability_function(method, z);
+            assert!(
+                (measured - r).norm() <= 1e-13 * r.norm().max(1.0),
+                "{method:?} z {z}: {measured} vs {r}"
+            );
+        }
+    }
+    // BDF2: the ratio of successive steps tends to the dominant root (the other is at most
+    // about half of it at these z; at z = -1/2 the two coincide).
+    for (re, im) in [(-0.1, 0.0), (-0.3, 0.0), (0.0, 0.3), (-0.2, 0.4)] {
+        let z = Complex::new(re, im);
+        let mut stepper = Stepper::new(Method::Bdf2, 2).unwrap();
+        let mut y = [1.0, 0.0];
+        let mut last = Complex::new(1.0, 0.0);
+        let mut ratio = last;
+        for _ in 0..80 {
+            stepper.step(&mut ComplexDecay(z), 0.0, &mut y, 1.0).unwrap();
+            let now = Complex::new(y[0], y[1]);
+            ratio = now / last;
+            last = now;
+        }
+        let r = stability_function(Method::Bdf2, z);
+        assert!((ratio - r).norm() <= 1e-12, "BDF2 z {z}: {ratio} vs {r}");
+    }
+    // Second-order methods on the oscillator with eigenvalues λ, conj(λ): the amplification
+    // matrix measured by stepping the unit states, its dominant eigenvalue against R.
+    for method in [Method::SymplecticEuler, Method::VelocityVerlet] {
+        for (re, im) in [(0.0, 1.0), (-0.1, 0.5), (-0.3, 1.5), (-2.0, 0.0)] {
+            let lambda = Complex::new(re, im);
+            let (omega2, c) = (lambda.norm_sqr(), -2.0 * re);
+            struct Mode(f64, f64);
+            impl OdeSystem for Mode {
+                fn dim(&self) -> usize {
+                    2
+                }
+                fn rhs(&mut self, _t: f64, y: &[f64], f: &mut [f64]) -> kinema::Result<()> {
+                    f[0] = y[1];
+                    f[1] = -self.0 * y[0] - self.1 * y[1];
+                    Ok(())
+                }
+            }
+            let mut stepper = Stepper::new(method, 2).unwrap();
+            let (mut a, mut b) = ([1.0, 0.0], [0.0, 1.0]);
+            stepper.step(&mut Mode(omega2, c), 0.0, &mut a, 1.0).unwrap();
+            stepper.step(&mut Mode(omega2, c), 0.0, &mut b, 1.0).unwrap();
+            let (trace, det) = (a[0] + b[1], a[0] * b[1] - b[0] * a[1]);
+            let disc = Complex::new(trace * trace - 4.0 * det, 0.0).sqrt();
+            let roots = [(trace + disc) / 2.0, (trace - disc) / 2.0];
+            let r = stability_function(method, lambda);
+            let measured = roots.iter().map(|m| m.norm()).fold(0.0, f64::max);
+            assert!(
+                (measured - r.norm()).abs() <= 1e-13,
+                "{method:?} λ {lambda}: {measured} vs {r}"
+            );
+        }
+    }
+}
+
+/// The largest stable step along `λ`'s ray measured with the real stepper: `|R|` of one step
+/// from `y = 1` on a geometric grid of ratio 1.001 from `|hλ| = 1e-9` (so no stable interval
+/// longer than 0.1% is stepped over), then bisected between the last stable and first
+/// unstable grid points.
+fn measured_limit(method: Method, lambda: Complex<f64>) -> f64 {
+    let grows = |h: f64| measured_amplification(method, lambda, h).norm() > 1.0;
+    let mut h = 1e-9 / lambda.norm();
+    if grows(h) {
+        return 0.0;
+    }
+    while !grows(h * 1.001) {
+        h *= 1.001;
+    }
+    let (mut lo, mut hi) = (h, h * 1.001);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if grows(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    lo
+}
+
+#[test]
+fn max_stable_dt_is_exact_near_the_imaginary_axis() {
+    // Explicit Euler: |1 + hλ| ≤ 1 up to h = 2|Re λ| / |λ|².
+    for (re, im) in
+        [(-1e-4, 1.0), (-1e-4, -1.0), (-3.0, 0.0), (-1.0, 2.0), (-1e-12, 1e6), (-5.0, 1e-3)]
+    {
+        let lambda = Complex::new(re, im);
+        let h = max_stable_dt(Method::ExplicitEuler, &[lambda]).unwrap();
+        let exact = -2.0 * re / lambda.norm_sqr();
+        assert!((h - exact).abs() <= 1e-12 * exact, "λ {lambda}: {h:e} vs {exact:e}");
+    }
+    assert_eq!(max_stable_dt(Method::ExplicitEuler, &[Complex::new(0.0, 3.0)]).unwrap(), 0.0);
+    // RK2 and RK4 against the limit measured by stepping.
+    for method in [Method::ExplicitEuler, Method::Midpoint, Method::Heun, Method::Rk4] {
+        for (re, im) in
+            [(-1e-4, 1.0), (-2e-3, 1.5), (-1e-3, 2.8), (-0.5, 2.0), (-2.0, 0.0), (-0.05, 40.0)]
+        {
+            let lambda = Complex::new(re, im);
+            let h = max_stable_dt(method, &[lambda, lambda.conj()]).unwrap();
+            let measured = measured_limit(method, lambda);
+            assert!(
+                (h - measured).abs() <= 1e-7 * measured,
+                "{method:?} λ {lambda}: {h:e}, measured {measured:e}"
+            );
+        }
     }
 }

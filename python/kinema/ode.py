@@ -12,7 +12,7 @@ name                          order  notes
 ``velocity_verlet``           2      second-order systems; symplectic, reversible
 ``implicit_euler``            1      L-stable; Newton with ``jac`` or differences
 ``trapezoidal``               2      A-stable (Crank–Nicolson)
-``bdf2``                      2      A-stable two-step BDF
+``bdf2``                      2      A-stable two-step BDF (variable step)
 ``dopri5``                    5(4)   adaptive, ``rtol``/``atol`` instead of ``dt``
 ============================  =====  =============================================
 

@@ -6,7 +6,9 @@
 //! `A = M - h ∂f/∂v - h² ∂f/∂x`, `b = h (f₀ + ∂f/∂x (h v₀ + y))` (Baraff & Witkin 1998,
 //! eqs. 15–18; `y` is the collision position correction of §6), assembled into a block-sparse
 //! matrix ([`bsr::BlockMatrix`]) whose pattern is built once. BDF2 solves the same system
-//! with `h` replaced by `2h/3` and the history terms of Choi & Ko (2002), eq. 12.
+//! with `h` replaced by `2h/3` and the history terms of Choi & Ko (2002), eq. 12, at a
+//! constant step, and with the variable-step coefficients of [`crate::ode::bdf2_weights`]
+//! (`γh` and `c (x - x₋)`) after a change of step.
 //!
 //! Constraints are imposed by mass modification (§5.3): each vertex has a filter `S_i`
 //! (identity when free, `I - n̂n̂ᵀ` on a plane, `d̂d̂ᵀ` on a line, 0 when pinned) and a
@@ -44,7 +46,7 @@ pub use model::dihedral_angle;
 
 use crate::error::{Error, Result};
 use crate::linalg::SparseCholesky;
-use crate::ode::{Method, OdeSystem, Stepper};
+use crate::ode::{bdf2_weights, Method, OdeSystem, Stepper};
 use crate::sdf;
 use glam::{DMat3, DQuat, DVec3};
 use model::{Accumulator, Hinge, Spring, Triangle};
@@ -358,7 +360,8 @@ struct Scratch {
     states: Vec<ContactState>,
     x_new: Vec<DVec3>,
     v_new: Vec<DVec3>,
-    /// BDF2 history terms `(x - x₋)/3`, `(v - v₋)/3` (zero for implicit Euler).
+    /// BDF2 history terms `c (x - x₋)`, `c (v - v₋)` with `c` of [`crate::ode::bdf2_weights`]
+    /// (`1/3` at a constant step; zero for implicit Euler).
     hx: Vec<DVec3>,
     hv: Vec<DVec3>,
     flat: Vec<f64>,
@@ -377,8 +380,8 @@ pub struct Cloth {
     x: Vec<DVec3>,
     v: Vec<DVec3>,
     mass: Vec<f64>,
-    /// Positions and velocities of the previous step (BDF2 history), if valid.
-    history: Option<(Vec<DVec3>, Vec<DVec3>)>,
+    /// Positions, velocities and length (s) of the previous step (BDF2 history), if valid.
+    history: Option<(Vec<DVec3>, Vec<DVec3>, f64)>,
     time: f64,
     elements: Vec<Triangle>,
     hinges: Vec<Hinge>,
@@ -1022,8 +1025,9 @@ impl Cloth {
     }
 
     /// An implicit step of `h`, redone as two half steps (recursively, at most five times)
-    /// when it changes a stretch ratio by more than `options.max_strain_change`. Subdivided
-    /// BDF2 restarts from implicit Euler (its history assumes a constant step).
+    /// when it changes a stretch ratio by more than `options.max_strain_change`. BDF2 keeps its
+    /// history through the halving: halving and the steps after it change the step by a ratio
+    /// of 1/2 or 2, which the variable-step coefficients take.
     fn step_adaptive(
         &mut self,
         h: f64,
@@ -1035,7 +1039,6 @@ impl Cloth {
         if self.step_implicit(h, bdf2, options, depth < MAX_HALVINGS)? {
             return Ok(());
         }
-        self.history = None;
         self.step_adaptive(0.5 * h, bdf2, options, depth + 1)?;
         self.step_adaptive(0.5 * h, bdf2, options, depth + 1)
     }
@@ -1073,12 +1076,16 @@ impl Cloth {
         let n = self.x.len();
         let t0 = Instant::now();
         let history = if bdf2 { self.history.take() } else { None };
-        let h_eff = if history.is_some() { 2.0 * h / 3.0 } else { h };
-        // BDF2 (Choi & Ko 2002): x₊ = x + (x - x₋)/3 + (2h/3) v₊, v₊ = v + (v - v₋)/3 + (2h/3) M⁻¹ f₊.
+        // Variable-step BDF2 (Choi & Ko 2002, eq. 12, at a constant step): with (c, γ) of
+        // `bdf2_weights`, x₊ = x + c (x - x₋) + γh v₊, v₊ = v + c (v - v₋) + γh M⁻¹ f₊.
+        let weights = history.as_ref().and_then(|&(_, _, hp)| bdf2_weights(h, Some(hp)));
+        let h_eff = weights.map_or(h, |(_, gamma)| gamma * h);
         for i in 0..n {
-            (self.scratch.hx[i], self.scratch.hv[i]) = match &history {
-                Some((xp, vp)) => ((self.x[i] - xp[i]) / 3.0, (self.v[i] - vp[i]) / 3.0),
-                None => (DVec3::ZERO, DVec3::ZERO),
+            (self.scratch.hx[i], self.scratch.hv[i]) = match (&history, weights) {
+                (Some((xp, vp, _)), Some((c, _))) => {
+                    (c * (self.x[i] - xp[i]), c * (self.v[i] - vp[i]))
+                }
+                _ => (DVec3::ZERO, DVec3::ZERO),
             };
         }
         self.build_constraints(h, h_eff);
@@ -1190,12 +1197,12 @@ impl Cloth {
             });
         }
         // The buffers of the history are reused (implicit Euler leaves them in place).
-        let (mut xp, mut vp) = history
+        let (mut xp, mut vp, _) = history
             .or_else(|| self.history.take())
-            .unwrap_or_else(|| (vec![DVec3::ZERO; n], vec![DVec3::ZERO; n]));
+            .unwrap_or_else(|| (vec![DVec3::ZERO; n], vec![DVec3::ZERO; n], h));
         xp.copy_from_slice(&self.x);
         vp.copy_from_slice(&self.v);
-        self.history = Some((xp, vp));
+        self.history = Some((xp, vp, h));
         // Copies, not swaps: the state buffers never move, so Python views stay valid.
         self.x.copy_from_slice(&scratch.x_new);
         self.v.copy_from_slice(&scratch.v_new);

@@ -58,6 +58,26 @@ pub trait OdeSystem {
     }
 }
 
+/// Largest step ratio `ω = h / h₋` at which BDF2 keeps its history: the variable-step formula
+/// is zero-stable for ratios below `1 + √2` (Grigorieff 1983; Hairer & Wanner, *Solving ODEs
+/// II*, §III.5); a step that grows by more restarts with one implicit Euler step.
+pub const BDF2_MAX_RATIO: f64 = 2.0;
+
+/// The variable-step BDF2 step from `y₋` (at `t - h₋`) and `y` (at `t`) to `y₊` (at `t + h`),
+/// `y₊ - (1+ω)²/(1+2ω) y + ω²/(1+2ω) y₋ = h (1+ω)/(1+2ω) f(t + h, y₊)` with `ω = h / h₋`
+/// (Hairer & Wanner, *Solving ODEs II*, §III.5, eq. 5.9; Crouzeix & Lisbona 1984), written as
+/// `y₊ = y + c (y - y₋) + γ h f(t + h, y₊)`: returns `(c, γ) = (ω²/(1+2ω), (1+ω)/(1+2ω))`,
+/// which are `(1/3, 2/3)` at a constant step. `None` (restart with implicit Euler,
+/// `y₊ = y + h f(t + h, y₊)`) without a previous step `prev_h` or when `ω` exceeds
+/// [`BDF2_MAX_RATIO`].
+pub fn bdf2_weights(h: f64, prev_h: Option<f64>) -> Option<(f64, f64)> {
+    let ratio = h / prev_h?;
+    (ratio <= BDF2_MAX_RATIO).then(|| {
+        let d = 1.0 + 2.0 * ratio;
+        (ratio * ratio / d, (1.0 + ratio) / d)
+    })
+}
+
 /// A fixed-step integration method.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Method {
@@ -81,7 +101,9 @@ pub enum Method {
     /// Trapezoidal rule (Crank–Nicolson), order 2, A-stable, `R(z) = (1 + z/2)/(1 - z/2)`.
     Trapezoidal,
     /// Two-step backward differentiation formula, order 2, A-stable:
-    /// `y₂ - 4/3 y₁ + 1/3 y₀ = 2/3 h f(t₂, y₂)`, started with one backward Euler step.
+    /// `y₂ - 4/3 y₁ + 1/3 y₀ = 2/3 h f(t₂, y₂)` at a constant step, the variable-step
+    /// coefficients of [`bdf2_weights`] after a change of step; started (and restarted after
+    /// a step more than [`BDF2_MAX_RATIO`] times the last) with one backward Euler step.
     Bdf2,
 }
 

@@ -294,21 +294,23 @@ impl Stepper {
         let n = self.n;
         let t1 = t + h;
         // The explicit part `base` (in k[2]) and the weight `gamma` of f(t1, y1).
-        let bdf2 =
-            self.method == Method::Bdf2 && self.prev_h.is_some_and(|p| (p - h).abs() <= 1e-12 * h);
-        let gamma = match self.method {
-            Method::Trapezoidal => {
+        let bdf2 = match self.method {
+            Method::Bdf2 => super::bdf2_weights(h, self.prev_h),
+            _ => None,
+        };
+        let gamma = match (self.method, bdf2) {
+            (Method::Trapezoidal, _) => {
                 self.eval(sys, t, 0, Some(y))?;
                 for i in 0..n {
                     self.k[2][i] = y[i] + 0.5 * h * self.k[0][i];
                 }
                 0.5
             }
-            _ if bdf2 => {
+            (_, Some((c, gamma))) => {
                 for i in 0..n {
-                    self.k[2][i] = (4.0 * y[i] - self.prev[i]) / 3.0;
+                    self.k[2][i] = y[i] + c * (y[i] - self.prev[i]);
                 }
-                2.0 / 3.0
+                gamma
             }
             _ => {
                 self.k[2].copy_from_slice(y);

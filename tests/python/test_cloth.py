@@ -45,7 +45,9 @@ def test_hanging_cloth_rests_and_pins_hold() -> None:
         e = cloth.energy()
         energies.append(e["kinetic"] + e["potential"] + e["elastic"])
     assert np.all(np.diff(energies) <= 1e-9)
+    # The step writes the pins' positions; their velocities show that the solve held them.
     np.testing.assert_array_equal(cloth.positions[[0, 7]], start)
+    np.testing.assert_array_equal(cloth.velocities[[0, 7]], 0.0)
     f = cloth.forces()
     weight = cloth.masses * 9.81
     free = np.setdiff1d(np.arange(64), [0, 7])
@@ -58,13 +60,22 @@ def test_moving_pins_and_plane_constraints() -> None:
     cloth.constrain([30, 35], plane_normal=(0, 0, 1))
     z_before = cloth.positions[[30, 35], 2].copy()
     target = cloth.positions[[0, 5]] + [0.0, 0.3, 0.0]
+    start = cloth.positions[[0, 5]].copy()
     cloth.pin([0, 5], target)
     cloth.step(1 / 60, 10, solver="cholesky")
+    # The step writes the pins' positions, so the velocities are what shows the solve: held.
     np.testing.assert_array_equal(cloth.positions[[0, 5]], target)
+    np.testing.assert_array_equal(cloth.velocities[[0, 5]], 0.0)
     np.testing.assert_allclose(cloth.positions[[30, 35], 2], z_before, atol=1e-14)
     cloth.free([0, 5, 30, 35])
     cloth.step(1 / 60)
     assert cloth.positions[0, 1] < target[0, 1]
+    # One step that is not subdivided takes the pins to a new target with the velocity that
+    # gets them there.
+    moved = Cloth.grid(6, 6)
+    moved.pin([0, 5], target)
+    moved.step(1 / 60, solver="cholesky", max_strain_change=float("inf"))
+    np.testing.assert_allclose(moved.velocities[[0, 5]], (target - start) * 60, rtol=1e-12)
 
 
 def test_prescribed_velocities_are_followed_exactly() -> None:

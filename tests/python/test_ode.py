@@ -20,6 +20,24 @@ def test_observed_order_on_the_damped_spring(method):
     assert abs(observed - ode.METHODS[method]) < 0.15, observed
 
 
+def _manufactured(t: float, y: np.ndarray) -> list[float]:
+    """``x'' = -x³ - x x' + g(t)`` solved by ``x = sin t``: nonlinear and time-dependent, so the
+    midpoint rule and Heun differ and a stage taken at the wrong time loses an order."""
+    s, c = math.sin(t), math.cos(t)
+    return [y[1], -(y[0] ** 3) - y[0] * y[1] - s + s**3 + s * c]
+
+
+@pytest.mark.parametrize("method", sorted(ode.METHODS))
+def test_observed_order_on_a_nonlinear_time_dependent_problem(method):
+    def error(dt: float) -> float:
+        _, y = ode.solve(_manufactured, [0.0, 1.0], (0, 2), dt=dt, method=method)
+        return float(np.hypot(y[-1, 0] - math.sin(2), y[-1, 1] - math.cos(2)))
+
+    dt = 0.05 if method == "rk4" else 0.005
+    observed = math.log2(error(dt) / error(dt / 2))
+    assert abs(observed - ode.METHODS[method]) < 0.1, observed
+
+
 def test_dopri5_agrees_with_scipy_on_kepler():
     prob = ode.PROBLEMS["kepler"]()
     t, y = ode.solve(prob.f, prob.y0, prob.t_span, method="dopri5", rtol=1e-10, atol=1e-12)
@@ -40,13 +58,49 @@ def test_implicit_methods_on_the_stiff_chain_with_and_without_jacobian():
         assert np.max(np.abs(with_jac[-1] - exact)) < bound
 
 
+def _steps_of_decay(method: str, z: complex, steps: int) -> np.ndarray:
+    """``steps`` steps of 1 of the real stepper on ``y' = z y`` from ``y = 1``, as complex."""
+    a, b = z.real, z.imag
+    _, y = ode.solve(
+        lambda t, y: [a * y[0] - b * y[1], b * y[0] + a * y[1]],
+        [1.0, 0.0],
+        (0, steps),
+        dt=1.0,
+        method=method,
+        jac=lambda t, y: [[a, -b], [b, a]],
+    )
+    return y[:, 0] + 1j * y[:, 1]
+
+
+@pytest.mark.parametrize(
+    "method", ["explicit_euler", "heun", "rk4", "implicit_euler", "trapezoidal"]
+)
+def test_stability_function_is_the_steppers_measured_amplification(method):
+    for z in [-1.0, 0.3j, -2 + 1j, -0.2 + 0.4j, -40.0]:
+        measured = _steps_of_decay(method, z, 1)[-1]
+        assert abs(measured - ode.stability_function(method, z)) < 1e-13 * max(1, abs(measured))
+
+
+def test_bdf2_stability_function_is_the_measured_growth_per_step():
+    # After many steps the growth per step is the dominant root (the other is at most about
+    # half of it at these z; at z = -1/2 the two roots coincide).
+    for z in [-0.1, -0.3, 0.3j, -0.2 + 0.4j]:
+        y = _steps_of_decay("bdf2", z, 80)
+        assert abs(y[-1] / y[-2] - ode.stability_function("bdf2", z)) < 1e-12
+
+
 def test_stability_function_and_limits():
     assert ode.stability_function("explicit_euler", -1.5) == pytest.approx(-0.5)
     z = np.array([-1.0, 1j, -2 + 1j])
     np.testing.assert_allclose(
         ode.stability_function("rk4", z), 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
     )
-    np.testing.assert_allclose(ode.stability_function("implicit_euler", z), 1 / (1 - z))
+    # Explicit Euler near the imaginary axis: stable up to 2 |Re λ| / |λ|².
+    lam = -1e-4 + 1j
+    limit = ode.max_stable_dt("explicit_euler", [lam])
+    assert limit == pytest.approx(2e-4 / abs(lam) ** 2, rel=1e-12)
+    assert abs(_steps_of_decay("explicit_euler", lam * 0.99 * limit, 1)[-1]) <= 1.0
+    assert abs(_steps_of_decay("explicit_euler", lam * 1.01 * limit, 1)[-1]) > 1.0
     assert ode.max_stable_dt("explicit_euler", [-4.0]) == pytest.approx(0.5, rel=1e-12)
     assert ode.max_stable_dt("rk4", [3j, -3j]) == pytest.approx(math.sqrt(8) / 3, rel=1e-10)
     assert ode.max_stable_dt("velocity_verlet", [10j]) == pytest.approx(0.2, rel=1e-10)
