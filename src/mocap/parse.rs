@@ -65,6 +65,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
     let mut sk = Skeleton {
         name: String::new(),
         length_unit: 1.0,
+        mass_unit: 1.0,
         degrees: true,
         root_order: Vec::new(),
         root_axis: EulerSequence::parse("xyz")?,
@@ -115,8 +116,9 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
             "skip" => {}
             "units" => match toks[0] {
                 "length" => sk.length_unit = number(file, ln, toks.get(1).copied().unwrap_or(""))?,
+                "mass" => sk.mass_unit = number(file, ln, toks.get(1).copied().unwrap_or(""))?,
                 "angle" => sk.degrees = toks.get(1).is_some_and(|u| u.starts_with("deg")),
-                _ => {} // mass and vendor extras
+                _ => {} // vendor extras
             },
             "root" => match toks[0] {
                 "order" => {
