@@ -111,14 +111,14 @@ impl PySkeleton {
             let ok = sk.within_limits(&m.get().motion)?;
             return Ok(PyArray1::from_vec(py, ok).into_any());
         }
-        let bad =
-            || crate::Error::invalid("motion", "expected a motion, one pose or (N, stride) poses");
-        if let Ok(pose) = motion.extract::<PyArrayLike1<'py, f64, AllowTypeChange>>() {
+        // Two dimensions first: an empty (0, stride) batch also converts to an empty pose.
+        let Ok(poses) = motion.extract::<numpy::PyArrayLike2<'py, f64, AllowTypeChange>>() else {
+            let pose: PyArrayLike1<'py, f64, AllowTypeChange> = motion.extract().map_err(|_| {
+                crate::Error::invalid("motion", "expected a motion, one pose or (N, stride) poses")
+            })?;
             let ok = sk.pose_within_limits(pose_values(&pose, "motion")?).map_err(renamed)?;
             return Ok(pyo3::types::PyBool::new(py, ok).to_owned().into_any());
-        }
-        let poses: numpy::PyArrayLike2<'py, f64, AllowTypeChange> =
-            motion.extract().map_err(|_| bad())?;
+        };
         let view = poses.as_array();
         let ok = view
             .rows()

@@ -84,14 +84,18 @@ def test_resample_to_30_hz(walk):
 def test_within_limits_takes_a_motion_a_pose_or_a_batch_of_poses(walk):
     sk, motion = walk
     per_frame = sk.within_limits(motion)
-    assert not per_frame[100] and per_frame.any()
+    assert not per_frame[100]  # lowerneck at -20.4° against -20°
+    rest = np.zeros(sk.stride)  # the rest pose is within every limit
     # One pose (stride,): a bool; a batch (N, stride): (N,) bools, the same answers.
     assert sk.within_limits(motion.pose(100)) is False
-    good = int(np.flatnonzero(per_frame)[0])
-    assert sk.within_limits(motion.pose(good)) is True
-    batch = sk.within_limits(motion.values()[90:110])
-    assert batch.shape == (20,) and batch.dtype == np.bool_
-    np.testing.assert_array_equal(batch, per_frame[90:110])
+    assert sk.within_limits(rest) is True
+    nudged = rest.copy()
+    nudged[sk.stride - 1] = 1e3  # far outside the last bone's last limit
+    assert sk.within_limits(nudged) is False
+    batch = sk.within_limits(np.vstack([rest, motion.pose(100), nudged, rest]))
+    assert batch.shape == (4,) and batch.dtype == np.bool_
+    np.testing.assert_array_equal(batch, [True, False, False, True])
+    np.testing.assert_array_equal(sk.within_limits(motion.values()[90:110]), per_frame[90:110])
     assert sk.within_limits(np.zeros((0, sk.stride))).shape == (0,)
     with pytest.raises(ValueError, match=r"motion.*62 values, got 3"):
         sk.within_limits([0.0, 1.0, 2.0])
