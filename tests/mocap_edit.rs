@@ -190,3 +190,29 @@ fn bvh_motions_are_edited_the_same_way() {
         assert!(rigid(edited));
     }
 }
+
+#[test]
+fn warp_offsets_across_the_pi_seam_take_the_short_way() {
+    // One bone turning about z, held at 170°; the key asks for -170° (= 190°) at frame 10: a
+    // turn of +20°, not of -340° through 0°.
+    let asf = ":units\n  length 1\n  angle deg\n:root\n  order TX TY TZ RX RY RZ\n  axis XYZ\n  position 0 0 0\n  orientation 0 0 0\n:bonedata\n  begin\n    name arm\n    direction 1 0 0\n    length 1\n    axis 0 0 0 XYZ\n    dof rz\n  end\n:hierarchy\n  begin\n    root arm\n  end\n";
+    let sk = parse_asf(asf, "seam.asf").unwrap();
+    let amc: String = (1..=21).map(|f| format!("{f}\nroot 0 0 0 0 0 0\narm 170\n")).collect();
+    let m = parse_amc(&amc, "seam.amc", &sk).unwrap();
+    let deg = std::f64::consts::PI / 180.0;
+    let mut key = m.values[10 * m.stride..11 * m.stride].to_vec();
+    key[6] = -170.0 * deg;
+    let w = sk.warp(&m, &[(10, key)]).unwrap();
+    let angles: Vec<f64> = (0..m.frames).map(|f| w.values[f * m.stride + 6] / deg).collect();
+    // Every frame turns between 170° and 190°, the key frame by exactly 190° (the same
+    // rotation as -170°, continuous with its neighbours), the ends unchanged.
+    assert!(angles.iter().all(|a| (170.0 - 1e-9..=190.0 + 1e-9).contains(a)), "{angles:?}");
+    assert!((angles[10] - 190.0).abs() < 1e-12, "{}", angles[10]);
+    assert!(angles[9] > 180.0 && angles[11] > 180.0, "{angles:?}");
+    assert_eq!((angles[0], angles[20]), (170.0, 170.0));
+    // A key within the half turn is still copied exactly.
+    let mut near = m.values[10 * m.stride..11 * m.stride].to_vec();
+    near[6] = 150.0 * deg;
+    let w = sk.warp(&m, &[(10, near.clone())]).unwrap();
+    assert_eq!(&w.values[10 * m.stride..11 * m.stride], &near[..]);
+}

@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 use kinema::ode::Method;
-use kinema::particles::{curl_noise, Collider, Emitter, Force, ParticleSystem};
+use kinema::particles::{curl_noise, Appearance, Collider, Emitter, Force, ParticleSystem};
 
 const G: DVec3 = DVec3::new(0.0, -9.81, 0.0);
 
@@ -194,6 +194,7 @@ fn emitters_recycle_dead_slots() {
         lifespan: 0.3,
         mass: 0.01,
         seed: 1,
+        appearance: Appearance::default(),
     })
     .unwrap();
     let mut emitted = 0;
@@ -216,6 +217,7 @@ fn emitters_recycle_dead_slots() {
         lifespan: 1.0,
         mass: 1.0,
         seed: 2,
+        appearance: Appearance::default(),
     })
     .unwrap();
     s.step(0.01, 1, Method::SymplecticEuler).unwrap();
@@ -410,6 +412,7 @@ fn kernel_scene(n: usize, emitter: bool) -> ParticleSystem {
             lifespan: 0.05,
             mass: 0.5,
             seed: 7,
+            appearance: Appearance::default(),
         })
         .unwrap();
     }
@@ -608,6 +611,7 @@ fn explicit_kernel_failure_with_emitters_restores_slots_and_emitters() {
         lifespan: 0.003,
         mass: 0.25,
         seed: 11,
+        appearance: Appearance::default(),
     })
     .unwrap();
     s.step(1e-3, 4, Method::SymplecticEuler).unwrap();

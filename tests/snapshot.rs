@@ -5,7 +5,7 @@
 use glam::{DQuat, DVec3};
 use kinema::cloth::{Cloth, Material, Mesh, Model, SolveOptions, Solver, Triangulation};
 use kinema::ode::Method;
-use kinema::particles::{Collider, Emitter, Force, ParticleSystem};
+use kinema::particles::{Appearance, Collider, Emitter, Force, ParticleSystem};
 use kinema::rigid::{
     BodyDesc, JointDesc, JointKind, JointMethod, RotationIntegrator, Shape, World,
 };
@@ -84,6 +84,7 @@ fn particles_resume_bit_for_bit_with_emitters_and_collisions() {
         lifespan: 0.3,
         mass: 0.01,
         seed: 7,
+        appearance: Appearance::default(),
     })
     .unwrap();
     resume_matches(

@@ -9,7 +9,7 @@ use glam::{DQuat, DVec3};
 use kinema::cloth::{self, Cloth, Material, Mesh, Model, SolveOptions, Solver, Triangulation};
 use kinema::constraints::{ConstrainedSystem, Constraint, ConstraintSolver};
 use kinema::ode::Method;
-use kinema::particles::{Collider, Emitter, Force, ParticleSystem};
+use kinema::particles::{Appearance, Collider, Emitter, Force, ParticleSystem};
 use kinema::rigid::{
     BodyDesc, JointDesc, JointKind, JointMethod, RotationIntegrator, Shape, World, PENALTY_DAMPING,
     PENALTY_STIFFNESS,
@@ -84,6 +84,7 @@ fn particle_scenes() -> Vec<(String, usize)> {
             lifespan: 0.05,
             mass: 1.0,
             seed: 1,
+            appearance: Appearance::default(),
         })
         .unwrap();
         found.push((

@@ -1,10 +1,24 @@
 """kinema: physically based animation with a fast Rust core.
 
-Subjects live in submodules (``kinema.rotation`` so far); the most used names are
-re-exported here. See README.md and ARCHITECTURE.md.
+One submodule per subject, each loaded on first use (``import kinema; kinema.cloth`` works,
+PEP 562): :mod:`kinema.rotation` (rotations, Euler angles, slerp, transforms),
+:mod:`kinema.ode` (integrators and stability), :mod:`kinema.particles` (forces, colliders,
+emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`kinema.rigid`
+(rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.anim`
+(keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
+editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.scene` (scenes coupling them,
+checkpoints), :mod:`kinema.scenefile` (scenes from TOML), :mod:`kinema.plot` (pictures and
+animations), :mod:`kinema.demos` and the ``kinema`` command line (:mod:`kinema.cli`).
+
+The most used names are re-exported here: :class:`Rotation`, :class:`Transform`,
+:func:`slerp`, :class:`Scene`, the exceptions :class:`ParseError` and
+:class:`SimulationError`, and the thread pool's :func:`num_threads` / :func:`set_num_threads`.
+SI units, +Y up, quaternions ``(w, x, y, z)``; see README.md and ARCHITECTURE.md.
 """
 
+import importlib as _importlib
 import os as _os
+from typing import Any as _Any
 
 from kinema._kinema import ParseError, SimulationError, __version__, num_threads, set_num_threads
 from kinema.rotation import GimbalLockWarning, Rotation, Transform, slerp
@@ -28,3 +42,33 @@ __all__ = [
     "set_num_threads",
     "slerp",
 ]
+
+_SUBMODULES = frozenset(
+    {
+        "anim",
+        "cli",
+        "cloth",
+        "constraints",
+        "demos",
+        "ik",
+        "mocap",
+        "ode",
+        "particles",
+        "plot",
+        "rigid",
+        "rotation",
+        "scene",
+        "scenefile",
+    }
+)
+
+
+def __getattr__(name: str) -> _Any:
+    """Import submodule ``name`` on first access (PEP 562), as scipy does."""
+    if name in _SUBMODULES:
+        return _importlib.import_module(f"kinema.{name}")
+    raise AttributeError(f"module 'kinema' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | _SUBMODULES)

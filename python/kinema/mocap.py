@@ -12,7 +12,11 @@ docs/mocap.md. Malformed files raise :class:`kinema.ParseError` with the file an
 ``motion.frame_rate`` is in Hz (``read_amc(..., frame_rate=120.0)``: AMC files store none;
 CMU is 120 Hz). ``motion.resample(to_rate)`` changes the frame rate (slerp for three-dof
 rotations; CMU clips are captured at 120 Hz, which the files do not store);
-``skeleton.within_limits(motion)`` checks the ASF limits per frame; ``motion.slice(a, b)``.
+``skeleton.within_limits(x)`` checks the ASF limits of a motion (``(frames,)`` bools), one
+pose (``(stride,)`` values: a bool) or a batch of poses (``(N, stride)``: ``(N,)`` bools);
+``motion.slice(a, b)``. ``skeleton.length_unit`` and ``skeleton.mass_unit`` keep ``:units``
+as read. Bone ``dof`` lines may list ``tx ty tz`` (a slide along the bone frame's axes) and
+``l`` (a change of length) besides rotations; forward kinematics applies them.
 
 ``read_bvh(path)`` returns ``(skeleton, motion)`` from one BVH file: a :class:`BvhSkeleton`
 (``joint_names``, ``parents``, ``offsets``, ``channels``, ``end_sites``, ``frame_time``,
@@ -66,8 +70,8 @@ SAMPLE_DIR = Path(__file__).resolve().parent / "data"
 slow walk, 120 Hz; see ``README.md`` in that folder for the source and licence)."""
 
 Skeleton = _kinema.AsfSkeleton
-"""An Acclaim skeleton (joint_names, parents, bone_lengths, length_unit, metres_per_unit,
-forward_kinematics(motion))."""
+"""An Acclaim skeleton (joint_names, parents, bone_lengths, length_unit, mass_unit,
+metres_per_unit, stride, within_limits(motion or poses), forward_kinematics(motion))."""
 
 BvhSkeleton = _kinema.BvhSkeleton
 """A BVH hierarchy (joint_names, parents, offsets, channels, end_sites, frame_time,
@@ -166,8 +170,8 @@ def stitch(skeleton: Any, a: Any, b: Any, transition: int = 0) -> Any:
 def warp(skeleton: Any, motion: Any, keys: dict[int, Any]) -> Any:
     """Motion warping (Witkin & Popović 1995): the motion plus a smooth displacement that
     makes it pass exactly through ``keys`` ``{frame: pose}`` while keeping its detail. The
-    displacement (``pose - frame`` per value; rotation dofs as angle differences in radians)
-    is zero at the first and last frame unless keyed and is interpolated over frames by the
+    displacement (``pose - frame`` per value; rotation dofs as angle differences in radians,
+    wrapped to (-π, π] so that an edit across the ±π seam turns the short way) is zero at the first and last frame unless keyed and is interpolated over frames by the
     monotone cubic of Fritsch & Carlson 1980 (scipy's ``PchipInterpolator``), so it stays
     within the keyed span."""
     if not isinstance(keys, dict) or not keys:

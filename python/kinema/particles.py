@@ -194,7 +194,14 @@ class Capsule:
 class Emitter:
     """Emits ``rate`` particles/s from a ball of ``position_spread`` around ``position`` with
     velocities ``velocity`` ± a ball of ``velocity_spread``; they live ``lifespan`` seconds
-    (forever when infinite)."""
+    (forever when infinite).
+
+    Each particle also gets the rendering properties of Reeves 1983 ("Particle systems"): a
+    ``color`` (linear RGB or RGBA in [0, 1], alpha 1 when omitted) with each of R, G, B drawn
+    uniformly within ± ``color_spread`` (clamped to [0, 1]; alpha kept), and a ``size``
+    (diameter, m) drawn uniformly within ± ``size_spread`` (``0 <= size_spread < size``).
+    The spreads draw from the emitter's ``seed`` after the position and velocity, and only when
+    not zero. Read them as :attr:`ParticleSystem.colors` and :attr:`ParticleSystem.sizes`."""
 
     rate: float
     position: Any = (0.0, 0.0, 0.0)
@@ -204,6 +211,21 @@ class Emitter:
     lifespan: float = math.inf
     mass: float = 1.0
     seed: int = 0
+    color: Any = (1.0, 1.0, 1.0, 1.0)
+    color_spread: float = 0.0
+    size: float = 0.01
+    size_spread: float = 0.0
+
+
+def _rgba(color: Any, name: str) -> list[float]:
+    """One colour as four floats: RGB gets alpha 1."""
+    try:
+        c = np.asarray(color, dtype=np.float64).ravel()
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{name}: cannot convert to float64 numbers ({e})") from None
+    if c.shape not in ((3,), (4,)):
+        raise ValueError(f"{name}: expected RGB or RGBA (3 or 4 numbers), got shape {c.shape}")
+    return [*c.tolist(), 1.0] if len(c) == 3 else c.tolist()
 
 
 def _collider(c: Plane | Sphere | Capsule | Box) -> tuple[str, list[float]]:
@@ -249,10 +271,21 @@ def _collider(c: Plane | Sphere | Capsule | Box) -> tuple[str, list[float]]:
 class ParticleSystem:
     """Particles with positions ``(N, 3)`` (m), velocities ``(N, 3)`` (m/s, default 0) and
     masses (kg; a scalar or ``(N,)``; ``inf`` pins a particle), with room for ``capacity``
-    particles in all (default N; emitters fill dead slots)."""
+    particles in all (default N; emitters fill dead slots).
+
+    ``colors`` (one RGB(A) colour or ``(N, 3)`` / ``(N, 4)``, linear, in [0, 1]) and ``sizes``
+    (diameters in m: a scalar or ``(N,)``) give the N particles their rendering properties;
+    by default opaque white and 1 cm, as for the empty slots. Emitted particles take theirs
+    from their :class:`Emitter`."""
 
     def __init__(
-        self, positions: Any, velocities: Any = None, masses: Any = 1.0, capacity: int | None = None
+        self,
+        positions: Any,
+        velocities: Any = None,
+        masses: Any = 1.0,
+        capacity: int | None = None,
+        colors: Any = None,
+        sizes: Any = None,
     ) -> None:
         x, _ = as_batch(positions, "positions", (3,))
         v, _ = as_batch(np.zeros_like(x) if velocities is None else velocities, "velocities", (3,))
@@ -261,6 +294,24 @@ class ParticleSystem:
             m = np.full((len(x), 1), m[0, 0])
         cap = len(x) if capacity is None else int(capacity)
         self._sys = _kinema.Particles(x, v, m, cap)
+        if colors is not None or sizes is not None:
+            c = np.ones((cap, 4))
+            s = np.full((cap, 1), 0.01)
+            if colors is not None:
+                rows = np.asarray(colors, dtype=np.float64)
+                rows = rows.reshape(1, -1) if rows.ndim == 1 else rows
+                if rows.ndim != 2 or rows.shape[1] not in (3, 4) or len(rows) not in (1, len(x)):
+                    raise ValueError(
+                        f"colors: expected one RGB(A) colour or ({len(x)}, 3|4), "
+                        f"got shape {np.shape(colors)}"
+                    )
+                c[: len(x), : rows.shape[1]] = rows
+            if sizes is not None:
+                sz, _ = as_scalars(sizes, "sizes")
+                if len(sz) not in (1, len(x)):
+                    raise ValueError(f"sizes: expected a scalar or ({len(x)},), got {len(sz)}")
+                s[: len(x)] = sz
+            self._sys.set_appearance(c, s)
         self._fields: list[Field] = []
         self._colliders = 0
         self._stiffest = 0.0  # largest k (1/m_i + 1/m_j) of any spring, 1/s²
@@ -338,6 +389,10 @@ class ParticleSystem:
                     float(item.velocity_spread),
                     float(item.lifespan),
                     float(item.mass),
+                    *_rgba(item.color, "color"),
+                    float(item.color_spread),
+                    float(item.size),
+                    float(item.size_spread),
                 ],
                 int(item.seed),
             )
@@ -417,6 +472,18 @@ class ParticleSystem:
     def masses(self) -> np.ndarray:
         """Mass of each slot (kg, inf when pinned), ``(capacity,)``."""
         return self._sys.masses()[:, 0]
+
+    @property
+    def colors(self) -> np.ndarray:
+        """Read-only view ``(capacity, 4)`` of the colours (linear RGBA in [0, 1]), set by the
+        constructor or by the emitter of each particle; slots are never reordered, so a
+        particle keeps its row while others die."""
+        return self._sys.colors
+
+    @property
+    def sizes(self) -> np.ndarray:
+        """Read-only view ``(capacity,)`` of the sizes (diameters, m)."""
+        return self._sys.sizes
 
     @property
     def time(self) -> float:

@@ -35,6 +35,16 @@ pub(super) fn pose_values<'a>(
     pose.as_slice().map_err(|_| crate::Error::invalid(arg, "must be a contiguous 1-D array").into())
 }
 
+/// A core error about `pose` as one about the Python argument `motion`.
+fn renamed(e: Error) -> Error {
+    match e {
+        Error::InvalidInput { index, reason, .. } => {
+            Error::InvalidInput { arg: "motion".into(), index, reason }
+        }
+        other => other,
+    }
+}
+
 #[pymethods]
 impl PySkeleton {
     /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
@@ -63,6 +73,12 @@ impl PySkeleton {
         self.skeleton.length_unit
     }
 
+    /// `:units mass` as read (1.0 when absent; kept and written back, never applied).
+    #[getter]
+    fn mass_unit(&self) -> f64 {
+        self.skeleton.mass_unit
+    }
+
     /// Metres per file unit under the CMU reading (never applied automatically).
     #[getter]
     fn metres_per_unit(&self) -> f64 {
@@ -83,9 +99,42 @@ impl PySkeleton {
             .collect()
     }
 
-    /// Per frame, whether every dof is within the ASF limits.
-    fn within_limits(&self, motion: &PyMotion) -> PyResult<Vec<bool>> {
-        Ok(self.skeleton.within_limits(&motion.motion)?)
+    /// Whether every dof is within the ASF limits: for a motion, per frame, `(F,)` bool; for
+    /// one pose `(stride,)`, a bool; for a batch of poses `(N, stride)`, `(N,)` bool.
+    fn within_limits<'py>(
+        &self,
+        py: Python<'py>,
+        motion: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let sk = &self.skeleton;
+        if let Ok(m) = motion.cast::<PyMotion>() {
+            let ok = sk.within_limits(&m.get().motion)?;
+            return Ok(PyArray1::from_vec(py, ok).into_any());
+        }
+        // Two dimensions first: an empty (0, stride) batch also converts to an empty pose.
+        let Ok(poses) = motion.extract::<numpy::PyArrayLike2<'py, f64, AllowTypeChange>>() else {
+            let pose: PyArrayLike1<'py, f64, AllowTypeChange> = motion.extract().map_err(|_| {
+                crate::Error::invalid("motion", "expected a motion, one pose or (N, stride) poses")
+            })?;
+            let ok = sk.pose_within_limits(pose_values(&pose, "motion")?).map_err(renamed)?;
+            return Ok(pyo3::types::PyBool::new(py, ok).to_owned().into_any());
+        };
+        let view = poses.as_array();
+        let ok = view
+            .rows()
+            .into_iter()
+            .enumerate()
+            .map(|(i, row)| {
+                let row: Vec<f64> = row.iter().copied().collect();
+                sk.pose_within_limits(&row).map_err(|e| match renamed(e) {
+                    Error::InvalidInput { arg, reason, .. } => {
+                        Error::InvalidInput { arg, index: Some(i), reason }
+                    }
+                    other => other,
+                })
+            })
+            .collect::<Result<Vec<bool>, Error>>()?;
+        Ok(PyArray1::from_vec(py, ok).into_any())
     }
 
     /// Values per pose (per frame): root dofs then each bone's dofs.

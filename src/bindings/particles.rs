@@ -5,11 +5,11 @@ use super::error::detached;
 use super::error::{reduce, Reduced};
 use crate::error::Error;
 use crate::ode::Method;
-use crate::particles::{Collider, Emitter, Force, ParticleSystem};
+use crate::particles::{Appearance, Collider, Emitter, Force, ParticleSystem};
 use crate::snapshot::Snapshot;
 use glam::{DQuat, DVec3};
-use numpy::ndarray::ArrayView2;
-use numpy::{PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
+use numpy::ndarray::{ArrayView1, ArrayView2};
+use numpy::{PyArray1, PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -92,6 +92,33 @@ impl Particles {
         // system's state buffer has a fixed capacity and is never reallocated, only written in
         // place by `step` and `set_state`, so the pointer stays valid for the array's lifetime.
         let array = unsafe { PyArray2::borrow_from_array(&view, slf.clone().into_any()) };
+        drop(this);
+        array.readwrite().make_nonwriteable();
+        Ok(array)
+    }
+
+    /// A read-only numpy view `(capacity, 4)` of the colours owned by `slf`.
+    #[allow(unsafe_code)]
+    fn colors_view<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let this = slf.borrow();
+        let data = this.system.colors().as_flattened();
+        let view = ArrayView2::from_shape((this.system.capacity(), 4), data)
+            .map_err(|e| Error::invalid("colors", e.to_string()))?;
+        // SAFETY: as in `view`: the colour buffer has the fixed capacity and is only written
+        // in place (emission, rollback, `set_appearance`), never reallocated.
+        let array = unsafe { PyArray2::borrow_from_array(&view, slf.clone().into_any()) };
+        drop(this);
+        array.readwrite().make_nonwriteable();
+        Ok(array)
+    }
+
+    /// A read-only numpy view `(capacity,)` of the sizes owned by `slf`.
+    #[allow(unsafe_code)]
+    fn sizes_view<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let this = slf.borrow();
+        let view = ArrayView1::from(this.system.sizes());
+        // SAFETY: as in `colors_view`.
+        let array = unsafe { PyArray1::borrow_from_array(&view, slf.clone().into_any()) };
         drop(this);
         array.readwrite().make_nonwriteable();
         Ok(array)
@@ -218,9 +245,9 @@ impl Particles {
     }
 
     /// Add an emitter: (rate, position 3, position_spread, velocity 3, velocity_spread,
-    /// lifespan, mass) and a seed.
+    /// lifespan, mass, color 4, color_spread, size, size_spread) and a seed.
     fn add_emitter(&mut self, p: Vec<f64>, seed: u64) -> PyResult<()> {
-        params(&p, 11, "emitter")?;
+        params(&p, 18, "emitter")?;
         Ok(self.system.add_emitter(Emitter {
             rate: p[0],
             position: v3(&p, 1),
@@ -230,6 +257,12 @@ impl Particles {
             lifespan: p[9],
             mass: p[10],
             seed,
+            appearance: Appearance {
+                color: [p[11], p[12], p[13], p[14]],
+                color_spread: p[15],
+                size: p[16],
+                size_spread: p[17],
+            },
         })?)
     }
 
@@ -260,6 +293,29 @@ impl Particles {
     #[getter]
     fn velocities<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         Self::view(slf, true)
+    }
+
+    /// Read-only view (capacity, 4) of the colours (linear RGBA in [0, 1]).
+    #[getter]
+    fn colors<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        Self::colors_view(slf)
+    }
+
+    /// Read-only view (capacity,) of the sizes (diameters, m).
+    #[getter]
+    fn sizes<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        Self::sizes_view(slf)
+    }
+
+    /// Overwrite the colours (capacity, 4) and sizes (capacity, 1) of every slot.
+    fn set_appearance(
+        &mut self,
+        colors: PyReadonlyArrayDyn<'_, f64>,
+        sizes: PyReadonlyArrayDyn<'_, f64>,
+    ) -> PyResult<()> {
+        let c = rows::<4>(&colors, "colors", &[4])?;
+        let s: Vec<f64> = rows::<1>(&sizes, "sizes", &[1])?.iter().map(|r| r[0]).collect();
+        Ok(self.system.set_appearance(c, &s)?)
     }
 
     /// Overwrite positions and velocities (capacity, 3) of every slot.

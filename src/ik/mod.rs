@@ -195,7 +195,7 @@ pub fn solve(
 /// position, length units per radian) followed, with `orientation`, by `3` rows of its angular
 /// velocity (radians per radian), and the pose indices of the columns: every rotational bone
 /// dof and, with `free_root`, the root's dofs, in pose order. Columns are
-/// `w × (p - p_base)` and `w` (world axis `w`), zero for dofs that do not move the joint.
+/// `w × (p - p_pivot)` and `w` (world axis `w`, pivot the base of the dof's bone), zero for dofs that do not move the joint.
 ///
 /// # Errors
 /// A pose of the wrong length or with NaN, an unknown joint.
@@ -214,15 +214,15 @@ pub fn jacobian(
     vars.sort_by_key(|v| v.index);
     let joints_n = 1 + skeleton.bones.len();
     let (mut pos, mut rot) = (vec![DVec3::ZERO; joints_n], vec![DQuat::IDENTITY; joints_n]);
-    let mut axis = vec![DVec3::ZERO; pose.len()];
-    model::forward(skeleton, pose, &mut pos, &mut rot, &mut axis);
+    let (mut axis, mut pivot) = (vec![DVec3::ZERO; pose.len()], vec![DVec3::ZERO; pose.len()]);
+    model::forward(skeleton, pose, &mut pos, &mut rot, &mut axis, &mut pivot);
     let per = if orientation { 6 } else { 3 };
     let n = vars.len();
     let mut jac = vec![0.0; joints.len() * per * n];
     for (e, &j) in joints.iter().enumerate() {
         for (c, v) in vars.iter().enumerate() {
             if model::is_ancestor_or_self(skeleton, v.joint, j) {
-                let (lin, ang) = model::column(v, pos[j], &pos, &axis);
+                let (lin, ang) = model::column(v, pos[j], &pivot, &axis);
                 for d in 0..3 {
                     jac[(e * per + d) * n + c] = lin[d];
                     if orientation {
@@ -306,6 +306,7 @@ pub fn chain(lengths: &[f64], dofs: &[&str], limits: Option<&[(f64, f64)]>) -> R
     Ok(Skeleton {
         name: "chain".into(),
         length_unit: 0.0254,
+        mass_unit: 1.0,
         degrees: false,
         root_order: Vec::new(),
         root_axis: EulerSequence::parse("xyz")?,

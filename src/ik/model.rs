@@ -17,8 +17,9 @@ use glam::{DQuat, DVec3};
 /// What a joint variable does.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum Kind {
-    /// Rotation about its world axis through the position of joint `base`.
-    Rotation { base: usize },
+    /// Rotation about its world axis through its pivot (the base of its bone, the root
+    /// position for the root's).
+    Rotation,
     /// Root translation along its world axis.
     Translation,
 }
@@ -90,13 +91,7 @@ pub(crate) fn all_vars(sk: &Skeleton, free_root: bool, joint_limits: bool) -> Ve
                     Some(&l) if joint_limits => l,
                     _ => (f64::NEG_INFINITY, f64::INFINITY),
                 };
-                vars.push(Var {
-                    index: offset[b] + i,
-                    joint: b + 1,
-                    kind: Kind::Rotation { base: parent_joint(sk, b + 1) },
-                    lo,
-                    hi,
-                });
+                vars.push(Var { index: offset[b] + i, joint: b + 1, kind: Kind::Rotation, lo, hi });
             }
         }
     }
@@ -115,13 +110,7 @@ pub(crate) fn all_vars(sk: &Skeleton, free_root: bool, joint_limits: bool) -> Ve
         }
         for axis in root_factors(sk).into_iter().rev() {
             if let Some(i) = sk.root_order.iter().position(|d| *d == Dof::Rotation(axis)) {
-                vars.push(Var {
-                    index: i,
-                    joint: 0,
-                    kind: Kind::Rotation { base: 0 },
-                    lo: free.0,
-                    hi: free.1,
-                });
+                vars.push(Var { index: i, joint: 0, kind: Kind::Rotation, lo: free.0, hi: free.1 });
             }
         }
     }
@@ -129,14 +118,17 @@ pub(crate) fn all_vars(sk: &Skeleton, free_root: bool, joint_limits: bool) -> Ve
 }
 
 /// Forward kinematics of pose `q`: joint positions and orientations (`1 + bones` each) and, in
-/// `axis` (one slot per pose value), the world axis of every rotation and translation dof.
-/// Agrees with [`Skeleton::forward_kinematics`] to rounding.
+/// `axis` and `pivot` (one slot per pose value), the world axis of every rotation and
+/// translation dof and the point a rotation turns about. Bone translation and length dofs
+/// move the bones as in [`Skeleton::forward_kinematics`] (they are not IK variables), with
+/// which this agrees to rounding.
 pub(crate) fn forward(
     sk: &Skeleton,
     q: &[f64],
     pos: &mut [DVec3],
     rot: &mut [DQuat],
     axis: &mut [DVec3],
+    pivot: &mut [DVec3],
 ) {
     let mut t = sk.root_position;
     let mut angles = [0.0; 3];
@@ -158,6 +150,7 @@ pub(crate) fn forward(
     for a in root_factors(sk) {
         if let Some(k) = slot[a] {
             axis[k] = r * DVec3::AXES[a];
+            pivot[k] = t;
         }
         r *= elementary(a, angles[a]);
     }
@@ -166,26 +159,37 @@ pub(crate) fn forward(
     let mut k = sk.root_order.len();
     for (b, bone) in sk.bones.iter().enumerate() {
         let parent = bone.parent.map_or(0, |p| p + 1);
-        let mut r = rot[parent] * bone.axis;
+        let frame = rot[parent] * bone.axis;
+        let (mut shift, mut stretch) = (DVec3::ZERO, 0.0);
+        for (i, dof) in bone.dofs.iter().enumerate() {
+            match *dof {
+                Dof::Translation(a) => shift[a] = q[k + i],
+                Dof::Length => stretch = q[k + i],
+                Dof::Rotation(_) => {}
+            }
+        }
+        let base = pos[parent] + frame * shift;
+        let mut r = frame;
         for (i, dof) in bone.dofs.iter().enumerate().rev() {
             if let Dof::Rotation(a) = *dof {
                 axis[k + i] = r * DVec3::AXES[a];
+                pivot[k + i] = base;
                 r *= elementary(a, q[k + i]);
             }
         }
         k += bone.dofs.len();
         let r = (r * bone.axis.conjugate()).normalize();
         rot[b + 1] = r;
-        pos[b + 1] = pos[parent] + bone.length * (r * bone.direction);
+        pos[b + 1] = base + (bone.length + stretch) * (r * bone.direction);
     }
 }
 
 /// Jacobian column of variable `v` for an end effector at `p`: (position part, orientation
-/// part), from the world axes and positions of [`forward`].
-pub(crate) fn column(v: &Var, p: DVec3, pos: &[DVec3], axis: &[DVec3]) -> (DVec3, DVec3) {
+/// part), from the world axes and pivots of [`forward`].
+pub(crate) fn column(v: &Var, p: DVec3, pivot: &[DVec3], axis: &[DVec3]) -> (DVec3, DVec3) {
     let w = axis[v.index];
     match v.kind {
-        Kind::Rotation { base } => (w.cross(p - pos[base]), w),
+        Kind::Rotation => (w.cross(p - pivot[v.index]), w),
         Kind::Translation => (w, DVec3::ZERO),
     }
 }

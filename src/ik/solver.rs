@@ -81,6 +81,7 @@ pub struct Solver<'a> {
     pos: Vec<DVec3>,
     rot: Vec<DQuat>,
     axis: Vec<DVec3>,
+    pivot: Vec<DVec3>,
     trial: Vec<f64>,
     jac: Vec<f64>,
     err: Vec<f64>,
@@ -180,6 +181,7 @@ impl<'a> Solver<'a> {
             pos: vec![DVec3::ZERO; joints],
             rot: vec![DQuat::IDENTITY; joints],
             axis: vec![DVec3::ZERO; stride],
+            pivot: vec![DVec3::ZERO; stride],
             trial: vec![0.0; stride],
             jac: vec![0.0; rows * n],
             err: vec![0.0; rows],
@@ -231,7 +233,7 @@ impl<'a> Solver<'a> {
 
     /// Forward kinematics of `q` into the workspace.
     fn forward(&mut self, q: &[f64]) {
-        model::forward(self.sk, q, &mut self.pos, &mut self.rot, &mut self.axis);
+        model::forward(self.sk, q, &mut self.pos, &mut self.rot, &mut self.axis, &mut self.pivot);
     }
 
     /// Fill `err` (task vector, orientation rows weighted by the reach) from the workspace
@@ -265,7 +267,7 @@ impl<'a> Solver<'a> {
         for (e, &(j, has_o)) in self.effectors.iter().enumerate() {
             for (c, v) in self.vars.iter().enumerate() {
                 if self.affects[e * n + c] {
-                    let (lin, ang) = model::column(v, self.pos[j], &self.pos, &self.axis);
+                    let (lin, ang) = model::column(v, self.pos[j], &self.pivot, &self.axis);
                     for d in 0..3 {
                         self.jac[(r + d) * n + c] = lin[d];
                         if has_o {
@@ -503,8 +505,8 @@ impl<'a> Solver<'a> {
                 let v = self.vars[c];
                 let w = self.axis[v.index];
                 match v.kind {
-                    Kind::Rotation { base } => {
-                        let centre = self.pos[base];
+                    Kind::Rotation => {
+                        let centre = self.pivot[v.index];
                         let (mut k1, mut k2, mut k3) = (0.0, 0.0, 0.0);
                         for (e, t) in targets.iter().enumerate() {
                             if !self.affects[e * n + c] {
@@ -744,6 +746,10 @@ fn two_bone_plan(sk: &Skeleton, targets: &[Target], joint_limits: bool) -> Resul
     let upper = model::parent_joint(sk, effector);
     if upper == 0 {
         return bad("needs the effector's parent to be a bone");
+    }
+    let rigid = |j: usize| sk.bones[j - 1].dofs.iter().all(|d| matches!(d, Dof::Rotation(_)));
+    if !rigid(effector) || !rigid(upper) {
+        return bad("needs its two bones without translation or length dofs");
     }
     let up = rotations(upper);
     if up.len() != 3 || up[1].0 != up[0].0 + 1 || up[2].0 != up[1].0 + 1 {

@@ -273,7 +273,8 @@ pub trait Edit: Sync {
 
     /// Motion warping: the motion plus a smooth displacement of every value that makes it
     /// pass through the key poses exactly, `keys` as `(frame, pose)`. The displacement
-    /// (`pose - frame`, per value; rotation dofs as angle differences in radians) is known at
+    /// (`pose - frame`, per value; rotation dofs as angle differences in radians, wrapped to
+    /// `(-π, π]` so that an edit across the ±π seam takes the shorter turn) is known at
     /// the keys, zero at the first and the last frame unless they are keyed, and interpolated
     /// in between over the frame index by the monotone cubic of Fritsch & Carlson (1980; the
     /// tangents of scipy's `PchipInterpolator`): C1, never beyond its keys, and exactly zero
@@ -306,6 +307,12 @@ pub trait Edit: Sync {
                 ));
             }
         }
+        let rotation: Vec<bool> = self
+            .joint_dofs()
+            .into_iter()
+            .flatten()
+            .map(|d| matches!(d, Dof::Rotation(_)))
+            .collect();
         let (mut times, mut offsets) = (Vec::new(), Vec::new());
         let last = motion.frames - 1;
         if keys[0].0 != 0 {
@@ -315,7 +322,13 @@ pub trait Edit: Sync {
         for (f, pose) in &keys {
             times.push(*f as f64);
             let row = &motion.values[f * stride..(f + 1) * stride];
-            offsets.extend(pose.iter().zip(row).map(|(p, v)| p - v));
+            offsets.extend(pose.iter().zip(row).zip(&rotation).map(|((p, v), &r)| {
+                if r {
+                    wrap_angle(p - v)
+                } else {
+                    p - v
+                }
+            }));
         }
         if keys[keys.len() - 1].0 != last {
             times.push(last as f64);
@@ -335,12 +348,29 @@ pub trait Edit: Sync {
             track.eval(f as f64, 0, &mut d);
             row.iter_mut().zip(&d).for_each(|(v, d)| *v += d);
         });
-        // Exact at the keys (the spline passes through them up to rounding).
+        // Exact at the keys (the spline passes through them up to rounding), except where a
+        // rotation's displacement was wrapped: there the key's angle plus the multiple of 2π
+        // that keeps the value continuous with its neighbours.
         for (f, pose) in &keys {
-            values[f * stride..(f + 1) * stride].copy_from_slice(pose);
+            let row = &mut values[f * stride..(f + 1) * stride];
+            let original = &motion.values[f * stride..(f + 1) * stride];
+            for c in 0..stride {
+                let d = pose[c] - original[c];
+                row[c] = if !rotation[c] || wrap_angle(d) == d {
+                    pose[c]
+                } else {
+                    original[c] + wrap_angle(d)
+                };
+            }
         }
         Ok(Motion { values, stride, frames: motion.frames, frame_rate: motion.frame_rate })
     }
+}
+
+/// `a` wrapped to `(-π, π]`: the shorter turn of an angle difference.
+fn wrap_angle(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    a - TAU * ((a - PI) / TAU).ceil()
 }
 
 /// Slopes of the monotone piecewise cubic through `(t_k, y_k)` per channel (`y` is

@@ -11,8 +11,10 @@
 //!
 //! `R_bone = R_parent · C · M · C⁻¹`
 //!
-//! and its tip is at `p_parent_tip + length · R_bone · direction`. The root's translation and
-//! rotation come from the AMC in the root's `order`, its rotation order from the root `axis`.
+//! and its tip is at `p_parent_tip + length · R_bone · direction` (moved by the bone's
+//! translation and length dofs when it has them, see [`Skeleton::forward_kinematics`]). The
+//! root's translation and rotation come from the AMC in the root's `order`, its rotation order
+//! from the root `axis`.
 //!
 //! Lengths and root translations stay in the file's units (`Skeleton::length_unit` keeps the
 //! `:units length` value as read); [`Skeleton::metres_per_unit`] documents the CMU reading
@@ -51,8 +53,8 @@ pub struct Bone {
     pub axis: DQuat,
     /// The `axis` angles as written (file angle units) and their order, e.g. `"XYZ"`.
     pub axis_as_read: ([f64; 3], String),
-    /// Degrees of freedom in file order: (axis 0/1/2, is_translation). `l` (length) dofs are
-    /// read and ignored in the pose.
+    /// Degrees of freedom in file order; a frame's values for them compose as described in
+    /// [`Skeleton::forward_kinematics`].
     pub dofs: Vec<Dof>,
     /// Limits per dof (lower, upper), in radians for rotations, as read.
     pub limits: Vec<(f64, f64)>,
@@ -63,9 +65,12 @@ pub struct Bone {
 pub enum Dof {
     /// Rotation about axis 0 (x), 1 (y) or 2 (z).
     Rotation(usize),
-    /// Translation along axis 0, 1 or 2.
+    /// Translation along axis 0, 1 or 2 (file length units): of the root along the global
+    /// axes; of a bone along the axes of its frame `C`, moving its base (and so its tip and
+    /// everything below it) away from the parent's tip.
     Translation(usize),
-    /// Bone length change (`l`), read and ignored.
+    /// Change of a bone's length (`l`, file length units, added to `length`: 0 is the rest
+    /// length).
     Length,
 }
 
@@ -76,6 +81,9 @@ pub struct Skeleton {
     pub name: String,
     /// `:units length` as read (CMU files: 0.45).
     pub length_unit: f64,
+    /// `:units mass` as read (1.0 when absent; the multiplier of the file's mass unit,
+    /// never applied: nothing in an ASF skeleton is a mass but `bodymass`, not read).
+    pub mass_unit: f64,
     /// Angles in degrees (`:units angle deg`) rather than radians.
     pub degrees: bool,
     /// Root dofs in the order of `:root order`.
@@ -131,8 +139,8 @@ impl Motion {
 }
 
 impl Skeleton {
-    /// Whether each frame of `motion` keeps every bone's dofs within the ASF limits (to
-    /// `1e-9`; bones without limits are unconstrained).
+    /// Whether each frame of `motion` keeps every bone's dofs within the ASF limits
+    /// ([`Skeleton::pose_within_limits`] per frame).
     ///
     /// # Errors
     /// A motion made for another skeleton.
@@ -140,21 +148,39 @@ impl Skeleton {
         if motion.stride != self.stride() {
             return Err(Error::invalid("motion", "was not made for this skeleton"));
         }
-        Ok((0..motion.frames)
-            .map(|f| {
-                let row = &motion.values[f * motion.stride..(f + 1) * motion.stride];
-                let mut k = self.root_order.len();
-                self.bones.iter().all(|b| {
-                    let ok = b
-                        .limits
-                        .iter()
-                        .zip(&row[k..k + b.dofs.len()])
-                        .all(|(l, v)| *v >= l.0 - 1e-9 && *v <= l.1 + 1e-9);
-                    k += b.dofs.len();
-                    ok
-                })
-            })
-            .collect())
+        motion.values.chunks(motion.stride.max(1)).map(|p| self.pose_within_limits(p)).collect()
+    }
+
+    /// Whether `pose` (one frame's values: root dofs, then each bone's) keeps every bone's
+    /// dofs within the ASF limits (radians for rotations, file units otherwise; to `1e-9`;
+    /// bones without limits are unconstrained).
+    ///
+    /// # Errors
+    /// A pose of the wrong length or with a NaN or infinite value (argument `"pose"`).
+    pub fn pose_within_limits(&self, pose: &[f64]) -> Result<bool> {
+        if pose.len() != self.stride() {
+            return Err(Error::invalid(
+                "pose",
+                format!("needs {} values, got {}", self.stride(), pose.len()),
+            ));
+        }
+        if let Some(i) = pose.iter().position(|v| !v.is_finite()) {
+            return Err(Error::InvalidInput {
+                arg: "pose".into(),
+                index: Some(i),
+                reason: "contains NaN or infinity".into(),
+            });
+        }
+        let mut k = self.root_order.len();
+        Ok(self.bones.iter().all(|b| {
+            let ok = b
+                .limits
+                .iter()
+                .zip(&pose[k..k + b.dofs.len()])
+                .all(|(l, v)| *v >= l.0 - 1e-9 && *v <= l.1 + 1e-9);
+            k += b.dofs.len();
+            ok
+        }))
     }
 
     /// Joint names: `"root"` then the bones in order.
@@ -179,6 +205,12 @@ impl Skeleton {
     /// Forward kinematics of every frame: positions `(frames, 1 + bones, 3)` of the root and
     /// of every bone's tip (file units) and orientations `(frames, 1 + bones, 4)` (`w, x, y, z`,
     /// global), in parallel over frames.
+    ///
+    /// A bone's rotation dofs make `M` (composed in the order listed, about fixed axes), its
+    /// translation dofs a vector `t` in its frame `C` and its `l` dof a length change `δ`
+    /// (Acclaim ASF 1.10, `dof rx ry rz tx ty tz l`); with the parent's tip `p` and
+    /// orientation `R_p`, the bone's orientation is `R = R_p · C · M · C⁻¹` and its tip
+    /// `p + R_p · C · t + (length + δ) · R · direction`.
     ///
     /// # Errors
     /// A motion made for another skeleton (wrong stride).
@@ -233,23 +265,27 @@ impl Skeleton {
         pos[0] = t.to_array();
         ori[0] = crate::rotation::quat_to_wxyz(root_rot);
         for (b, bone) in self.bones.iter().enumerate() {
-            let mut m = DQuat::IDENTITY;
+            let (mut m, mut shift, mut stretch) = (DQuat::IDENTITY, DVec3::ZERO, 0.0);
             for dof in &bone.dofs {
-                if let Dof::Rotation(a) = *dof {
-                    let (s, c) = (0.5 * frame[k]).sin_cos();
-                    let e = DVec3::AXES[a] * s;
-                    m = DQuat::from_xyzw(e.x, e.y, e.z, c) * m;
+                match *dof {
+                    Dof::Rotation(a) => {
+                        let (s, c) = (0.5 * frame[k]).sin_cos();
+                        let e = DVec3::AXES[a] * s;
+                        m = DQuat::from_xyzw(e.x, e.y, e.z, c) * m;
+                    }
+                    Dof::Translation(a) => shift[a] = frame[k],
+                    Dof::Length => stretch = frame[k],
                 }
                 k += 1;
             }
             // Parents come first, so their rows are already final.
             let parent = bone.parent.map_or(0, |p| p + 1);
             let [w, x, y, z] = ori[parent];
-            let r =
-                (DQuat::from_xyzw(x, y, z, w) * bone.axis * m * bone.axis.conjugate()).normalize();
+            let frame_c = DQuat::from_xyzw(x, y, z, w) * bone.axis;
+            let r = (frame_c * m * bone.axis.conjugate()).normalize();
             ori[b + 1] = crate::rotation::quat_to_wxyz(r);
-            pos[b + 1] =
-                (DVec3::from_array(pos[parent]) + bone.length * (r * bone.direction)).to_array();
+            let base = DVec3::from_array(pos[parent]) + frame_c * shift;
+            pos[b + 1] = (base + (bone.length + stretch) * (r * bone.direction)).to_array();
         }
     }
 }

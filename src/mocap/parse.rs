@@ -29,6 +29,15 @@ fn number(file: &str, line: usize, tok: &str) -> Result<f64> {
         .ok_or_else(|| err(file, line, format!("a finite number, found {tok:?}")))
 }
 
+/// A limit: a number or `inf` / `-inf` (the ASF 1.10 text writes `limits (-inf inf)` for a
+/// free dof), never NaN.
+fn limit(file: &str, line: usize, tok: &str) -> Result<f64> {
+    tok.parse::<f64>()
+        .ok()
+        .filter(|v| !v.is_nan())
+        .ok_or_else(|| err(file, line, format!("a limit (a number, inf or -inf), found {tok:?}")))
+}
+
 fn dof(file: &str, line: usize, tok: &str) -> Result<Dof> {
     Ok(match tok.to_ascii_lowercase().as_str() {
         "rx" => Dof::Rotation(0),
@@ -65,6 +74,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
     let mut sk = Skeleton {
         name: String::new(),
         length_unit: 1.0,
+        mass_unit: 1.0,
         degrees: true,
         root_order: Vec::new(),
         root_axis: EulerSequence::parse("xyz")?,
@@ -115,8 +125,9 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
             "skip" => {}
             "units" => match toks[0] {
                 "length" => sk.length_unit = number(file, ln, toks.get(1).copied().unwrap_or(""))?,
+                "mass" => sk.mass_unit = number(file, ln, toks.get(1).copied().unwrap_or(""))?,
                 "angle" => sk.degrees = toks.get(1).is_some_and(|u| u.starts_with("deg")),
-                _ => {} // mass and vendor extras
+                _ => {} // vendor extras
             },
             "root" => match toks[0] {
                 "order" => {
@@ -160,7 +171,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                 if let Some((n, vals)) = pending_limits.as_mut() {
                     if toks[0].starts_with('(') {
                         for t in line.replace(['(', ')'], " ").split_whitespace() {
-                            vals.push(number(file, ln, t)?);
+                            vals.push(limit(file, ln, t)?);
                         }
                         if vals.len() >= 2 * *n {
                             let (_, vals) = pending_limits.take().expect("checked");
@@ -218,7 +229,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                                 let n = bone.dofs.len();
                                 let mut vals = Vec::new();
                                 for t in line["limits".len()..].replace(['(', ')'], " ").split_whitespace() {
-                                    vals.push(number(file, ln, t)?);
+                                    vals.push(limit(file, ln, t)?);
                                 }
                                 if vals.len() >= 2 * n {
                                     bone.limits = vals.chunks(2).map(|c| (c[0], c[1])).collect();
@@ -327,11 +338,13 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
     for &old in &order {
         let (mut bone, angles, ord, ln) = bones[old].clone();
         bone.parent = parent_of[old].flatten().map(|p| new_index[&p]);
+        // A bone of length 0 (exporters' `_dum` placeholders) may have no direction.
         let len = bone.direction.length();
-        if len.is_nan() || len <= 0.0 {
+        if len > 0.0 {
+            bone.direction /= len;
+        } else if bone.length != 0.0 {
             return Err(err(file, ln, format!("a non-zero direction for bone {:?}", bone.name)));
         }
-        bone.direction /= len;
         bone.axis = axis_rotation(file, ln, angles.map(|a| a * scale), &ord)?;
         bone.axis_as_read = (angles, ord.clone());
         if !bone.limits.is_empty() && bone.limits.len() != bone.dofs.len() {

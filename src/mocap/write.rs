@@ -27,7 +27,8 @@ pub fn write_asf(sk: &Skeleton) -> String {
     let _ = writeln!(s, ":name {}", sk.name);
     let _ = writeln!(
         s,
-        ":units\n  mass 1.0\n  length {:?}\n  angle {}",
+        ":units\n  mass {:?}\n  length {:?}\n  angle {}",
+        sk.mass_unit,
         sk.length_unit,
         if sk.degrees { "deg" } else { "rad" }
     );

@@ -113,6 +113,79 @@ pub struct Emitter {
     pub mass: f64,
     /// Seed of the emitter's random numbers.
     pub seed: u64,
+    /// Colour and size of emitted particles.
+    pub appearance: Appearance,
+}
+
+/// The rendering properties an emitter gives its particles (Reeves 1983, "Particle systems —
+/// a technique for modeling a class of fuzzy objects": each particle carries a colour and a
+/// size besides its motion), as a mean and a spread like the emitter's position and velocity.
+/// The spreads draw from the emitter's random numbers after the position and the velocity,
+/// and only when they are not zero, so constant appearance leaves the motion unchanged.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Appearance {
+    /// Mean colour, linear RGBA, each channel in `[0, 1]`.
+    pub color: [f64; 4],
+    /// Half-width of the uniform spread of each of R, G and B (alpha is kept); the drawn
+    /// channel is clamped to `[0, 1]`.
+    pub color_spread: f64,
+    /// Mean size: the particle's diameter (m), `> 0`.
+    pub size: f64,
+    /// Half-width of the uniform spread of the size (m), `0 <= size_spread < size`.
+    pub size_spread: f64,
+}
+
+impl Default for Appearance {
+    /// Opaque white, 1 cm, no spread.
+    fn default() -> Self {
+        Appearance { color: [1.0; 4], color_spread: 0.0, size: 0.01, size_spread: 0.0 }
+    }
+}
+
+impl Appearance {
+    /// `Ok` when every value is in its range (see the fields), else the argument at fault.
+    fn check(&self) -> Result<()> {
+        if !self.color.iter().all(|c| (0.0..=1.0).contains(c)) {
+            return Err(Error::invalid(
+                "color",
+                format!("channels must lie in [0, 1], got {:?}", self.color),
+            ));
+        }
+        if !(self.color_spread.is_finite() && self.color_spread >= 0.0) {
+            return Err(Error::invalid(
+                "color_spread",
+                format!("must be finite and >= 0, got {}", self.color_spread),
+            ));
+        }
+        if !(self.size.is_finite() && self.size > 0.0) {
+            return Err(Error::invalid(
+                "size",
+                format!("must be finite and > 0, got {}", self.size),
+            ));
+        }
+        if !(self.size_spread >= 0.0 && self.size_spread < self.size) {
+            return Err(Error::invalid(
+                "size_spread",
+                format!("must lie in [0, size) = [0, {}), got {}", self.size, self.size_spread),
+            ));
+        }
+        Ok(())
+    }
+
+    /// A colour and a size drawn from `rng` (nothing drawn for a zero spread).
+    fn draw(&self, rng: &mut u64) -> ([f64; 4], f64) {
+        let mut color = self.color;
+        if self.color_spread > 0.0 {
+            for c in &mut color[..3] {
+                *c = (*c + self.color_spread * uniform_symmetric(rng)).clamp(0.0, 1.0);
+            }
+        }
+        let mut size = self.size;
+        if self.size_spread > 0.0 {
+            size += self.size_spread * uniform_symmetric(rng);
+        }
+        (color, size)
+    }
 }
 
 /// Counters of the last call to [`ParticleSystem::step`].
@@ -136,6 +209,8 @@ struct Rollback {
     y: Vec<f64>,
     /// With emitters and more than one step: every slot's alive flag, age, lifespan, mass and
     /// inverse mass, and each emitter's accumulator and random state, copied before the call.
+    /// (Colours and sizes are not copied: only emission writes them, and the replay of the
+    /// good steps emits the same particles again from the restored random state.)
     alive: Vec<bool>,
     age: Vec<f64>,
     lifespan: Vec<f64>,
@@ -213,6 +288,10 @@ pub struct ParticleSystem {
     age_pending: (f64, usize),
     lifespan: Vec<f64>,
     alive: Vec<bool>,
+    /// Colour of each slot (linear RGBA in `[0, 1]`), set by [`Appearance`] on emission.
+    color: Vec<[f64; 4]>,
+    /// Size of each slot (diameter, m), set by [`Appearance`] on emission.
+    size: Vec<f64>,
     forces: Vec<Force>,
     colliders: Vec<Collider>,
     emitters: Vec<(Emitter, f64, u64)>,
@@ -236,9 +315,14 @@ fn splitmix(state: &mut u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// Uniform in `[-1, 1)`.
+fn uniform_symmetric(state: &mut u64) -> f64 {
+    (splitmix(state) >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+}
+
 fn uniform_in_ball(state: &mut u64) -> DVec3 {
     loop {
-        let mut u = || (splitmix(state) >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+        let mut u = || uniform_symmetric(state);
         let p = DVec3::new(u(), u(), u());
         if p.length_squared() <= 1.0 {
             return p;
@@ -309,6 +393,8 @@ impl ParticleSystem {
             age_pending: (0.0, 0),
             lifespan: vec![f64::INFINITY; n],
             alive: (0..n).map(|i| i < live).collect(),
+            color: vec![Appearance::default().color; n],
+            size: vec![Appearance::default().size; n],
             forces: Vec::new(),
             colliders: Vec::new(),
             emitters: Vec::new(),
@@ -425,6 +511,52 @@ impl ParticleSystem {
     /// Mass of each slot (kg; infinite when pinned).
     pub fn masses(&self) -> &[f64] {
         &self.mass
+    }
+
+    /// Colour of each slot (linear RGBA in `[0, 1]`; opaque white unless an emitter or
+    /// [`ParticleSystem::set_appearance`] set it). Slots are never reordered, so a particle
+    /// keeps its colour while others die.
+    pub fn colors(&self) -> &[[f64; 4]] {
+        &self.color
+    }
+
+    /// Size of each slot (diameter, m; [`Appearance::default`]'s 1 cm unless set).
+    pub fn sizes(&self) -> &[f64] {
+        &self.size
+    }
+
+    /// Set the colour (linear RGBA in `[0, 1]`) and size (diameter, m, `> 0`) of every slot
+    /// (`capacity` of each), e.g. of the particles given at construction.
+    ///
+    /// # Errors
+    /// Wrong lengths, a channel outside `[0, 1]` (argument `colors`), a size that is not
+    /// positive and finite (`sizes`); nothing is changed then.
+    pub fn set_appearance(&mut self, colors: &[[f64; 4]], sizes: &[f64]) -> Result<()> {
+        for (arg, len) in [("colors", colors.len()), ("sizes", sizes.len())] {
+            if len != self.n {
+                return Err(Error::invalid(
+                    arg,
+                    format!("expected {} rows (the capacity), got {len}", self.n),
+                ));
+            }
+        }
+        if let Some(i) = colors.iter().position(|c| !c.iter().all(|c| (0.0..=1.0).contains(c))) {
+            return Err(Error::InvalidInput {
+                arg: "colors".into(),
+                index: Some(i),
+                reason: "channels must lie in [0, 1]".into(),
+            });
+        }
+        if let Some(i) = sizes.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(Error::InvalidInput {
+                arg: "sizes".into(),
+                index: Some(i),
+                reason: format!("must be finite and > 0, got {}", sizes[i]),
+            });
+        }
+        self.color.copy_from_slice(colors);
+        self.size.copy_from_slice(sizes);
+        Ok(())
     }
 
     /// Add a force.
@@ -558,6 +690,7 @@ impl ParticleSystem {
                 "rate, spreads >= 0, lifespan > 0, mass > 0, all finite (lifespan may be inf)",
             ));
         }
+        emitter.appearance.check()?;
         let seed = emitter.seed;
         self.emitters.push((emitter, 0.0, seed));
         self.summary.masses = None;
@@ -973,6 +1106,7 @@ impl ParticleSystem {
                 self.lifespan[i] = emitter.lifespan;
                 self.mass[i] = emitter.mass;
                 self.inv_mass[i] = 1.0 / emitter.mass;
+                (self.color[i], self.size[i]) = emitter.appearance.draw(rng);
                 self.stats.emitted += 1;
             }
         }

@@ -244,7 +244,7 @@ def test_arc_length_reparameterisation_moves_at_constant_speed():
 
 def test_easing_and_clips():
     from kinema import Rotation
-    from kinema.anim import Clip, RotationTrack, ease, reparameterize_by_arc_length
+    from kinema.anim import Clip, RotationTrack, ease
 
     u = np.linspace(0, 1, 11)
     for kind in ["linear", "ease_in", "ease_out", "ease_in_out", "smoothstep"]:
@@ -256,11 +256,6 @@ def test_easing_and_clips():
     assert ease(d, "ease_in_out") / d < 1e-5 and (1 - ease(1 - d, "ease_in_out")) / d < 1e-5
     with pytest.raises(ValueError, match="kind"):
         ease(0.5, "bounce")
-    # Moving along a path with a speed profile: distance covered follows the easing curve.
-    path = reparameterize_by_arc_length(
-        Track([0.0, 1.0, 2.0], [[0, 0], [1, 1], [3, 1]], "catmull_rom")
-    )
-    assert ease(0.5, "smoothstep") * path.length == pytest.approx(path.length / 2)
 
     clip = Clip(
         {
@@ -274,3 +269,32 @@ def test_easing_and_clips():
     np.testing.assert_allclose(values["opacity"], t / 2.0, atol=1e-15)
     with pytest.raises(ValueError, match="channels"):
         Clip({})
+
+
+def parabola_arc(x):
+    """Arc length of y = x² from 0 to x: (x √(1 + 4x²) + asinh(2x) / 2) / 2."""
+    return (x * np.sqrt(1 + 4 * x**2) + np.arcsinh(2 * x) / 2) / 2
+
+
+@pytest.mark.parametrize("kind", ["linear", "ease_in", "ease_out", "ease_in_out", "smoothstep"])
+def test_eased_motion_along_a_path_covers_the_analytic_arc_length(kind):
+    from kinema.anim import ease, reparameterize_by_arc_length
+
+    # The parabola y = x², x in [0, 2], exactly: a cubic Hermite segment with end tangents
+    # (2, 0) and (2, 8) reproduces (2t, 4t²).
+    path = reparameterize_by_arc_length(
+        Track([0.0, 1.0], [[0, 0], [2, 4]], "hermite", tangents=[[2, 0], [2, 8]])
+    )
+    assert path.length == pytest.approx(parabola_arc(2.0), rel=1e-10)
+    u = np.linspace(0, 1, 41)
+    p = path(ease(u, kind) * path.length)  # the eased motion along the path
+    np.testing.assert_allclose(p[:, 1], p[:, 0] ** 2, atol=1e-9)  # on the parabola
+    # The distance travelled at time u is the eased fraction of the analytic length.
+    eased = {
+        "linear": u,
+        "ease_in": u**2,
+        "ease_out": 1 - (1 - u) ** 2,
+        "ease_in_out": (1 - np.cos(np.pi * u)) / 2,
+        "smoothstep": 3 * u**2 - 2 * u**3,
+    }[kind]
+    np.testing.assert_allclose(parabola_arc(p[:, 0]), eased * parabola_arc(2.0), atol=1e-8)

@@ -62,10 +62,10 @@ def test_slices_values_and_limits(walk):
     p_all, _ = sk.forward_kinematics(motion)
     p_part, _ = sk.forward_kinematics(part)
     np.testing.assert_array_equal(p_part, p_all[10:20])
-    ok = np.array(sk.within_limits(motion))
+    ok = sk.within_limits(motion)
     # CMU captures are not bound by their ASF limits (frame 100 has lowerneck at -20.4° against
     # a limit of -20°); the check must see that.
-    assert ok.shape == (517,) and not ok.all()
+    assert ok.shape == (517,) and ok.dtype == np.bool_ and not ok.all()
     with pytest.raises(ValueError, match="start < end"):
         motion.slice(5, 5)
 
@@ -79,3 +79,40 @@ def test_resample_to_30_hz(walk):
     np.testing.assert_allclose(q, p[::4], atol=1e-9)
     with pytest.raises(ValueError, match="rate"):
         motion.resample(-1.0)
+
+
+def test_within_limits_takes_a_motion_a_pose_or_a_batch_of_poses(walk):
+    sk, motion = walk
+    per_frame = sk.within_limits(motion)
+    assert not per_frame[100]  # lowerneck at -20.4° against -20°
+    rest = np.zeros(sk.stride)  # the rest pose is within every limit
+    # One pose (stride,): a bool; a batch (N, stride): (N,) bools, the same answers.
+    assert sk.within_limits(motion.pose(100)) is False
+    assert sk.within_limits(rest) is True
+    nudged = rest.copy()
+    nudged[sk.stride - 1] = 1e3  # far outside the last bone's last limit
+    assert sk.within_limits(nudged) is False
+    batch = sk.within_limits(np.vstack([rest, motion.pose(100), nudged, rest]))
+    assert batch.shape == (4,) and batch.dtype == np.bool_
+    np.testing.assert_array_equal(batch, [True, False, False, True])
+    np.testing.assert_array_equal(sk.within_limits(motion.values()[90:110]), per_frame[90:110])
+    assert sk.within_limits(np.zeros((0, sk.stride))).shape == (0,)
+    with pytest.raises(ValueError, match=r"motion.*62 values, got 3"):
+        sk.within_limits([0.0, 1.0, 2.0])
+    bad = motion.values()[:3].copy()
+    bad[1, 7] = np.nan
+    with pytest.raises(ValueError, match=r"motion\[1\].*NaN"):
+        sk.within_limits(bad)
+    with pytest.raises(ValueError, match="motion"):
+        sk.within_limits(np.zeros((2, 2, sk.stride)))
+
+
+def test_mass_unit_survives_write_and_read(tmp_path, walk):
+    sk, _ = walk
+    assert sk.mass_unit == 1.0
+    text = (DATA / "07-walk.asf").read_text().replace("mass 1.0", "mass 2.5")
+    (tmp_path / "heavy.asf").write_text(text)
+    heavy = mocap.read_asf(tmp_path / "heavy.asf")
+    assert heavy.mass_unit == 2.5
+    mocap.write_asf(heavy, tmp_path / "again.asf")
+    assert mocap.read_asf(tmp_path / "again.asf").mass_unit == 2.5

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import gc
+import pickle
+import re
 
 import numpy as np
 import pytest
@@ -211,3 +213,135 @@ def test_a_pinned_particle_stays_put_with_every_method(method):
     assert np.array_equal(ps.positions[0], [0.0, 0.0, 0.0])
     assert np.array_equal(ps.velocities[0], [1.0, 2.0, 3.0])
     assert ps.positions[1, 1] < 0.0  # the free end falls
+
+
+def two_emitter_fountain(speed: float | None = None) -> ParticleSystem:
+    """Red particles fly to +y, blue ones (colour and size spread) to -y; both live 0.25 s.
+    With ``speed``, one more particle (slot 0, lives forever) flies along +x at that speed."""
+    x = np.zeros((0 if speed is None else 1, 3))
+    v = np.array([[speed or 0.0, 0.0, 0.0]])[: len(x)]
+    s = ParticleSystem(x, v, capacity=400)
+    s.add(Emitter(rate=200, velocity=(0, 1, 0), lifespan=0.25, color=(1, 0, 0), size=0.02))
+    s.add(
+        Emitter(
+            rate=200,
+            velocity=(0, -1, 0),
+            velocity_spread=0.2,
+            lifespan=0.25,
+            color=(0.0, 0.0, 1.0, 0.5),
+            color_spread=0.1,
+            size=0.05,
+            size_spread=0.01,
+            seed=3,
+        )
+    )
+    return s
+
+
+def test_particle_colours_and_sizes_follow_their_emitter():
+    s = two_emitter_fountain()
+    colors, sizes = s.colors, s.sizes  # views: read once, updated in place
+    assert colors.shape == (400, 4) and colors.dtype == np.float64 and not colors.flags.writeable
+    assert sizes.shape == (400,) and sizes.dtype == np.float64 and not sizes.flags.writeable
+    np.testing.assert_array_equal(colors, 1.0)  # empty slots: opaque white, 1 cm
+    np.testing.assert_array_equal(sizes, 0.01)
+    blue_sizes = []
+    for _ in range(60):  # 1 s: every slot dies and is reused about four times
+        s.step(1 / 60)
+        alive, vy = s.alive, s.velocities[:, 1]
+        red, blue = alive & (vy > 0), alive & (vy < 0)
+        assert red.sum() >= 3 and blue.sum() >= 3
+        # Each live slot carries the colour and size of the emitter that made it, however
+        # the slots were recycled.
+        np.testing.assert_array_equal(colors[red], [[1.0, 0.0, 0.0, 1.0]] * int(red.sum()))
+        np.testing.assert_array_equal(sizes[red], 0.02)
+        c = colors[blue]
+        assert (c[:, :2] >= 0.0).all() and (c[:, :2] <= 0.1).all()
+        assert (c[:, 2] >= 0.9).all() and (c[:, 2] <= 1.0).all()
+        np.testing.assert_array_equal(c[:, 3], 0.5)
+        assert (np.abs(sizes[blue] - 0.05) <= 0.01).all()
+        blue_sizes.extend(sizes[blue])
+    # The spreads are drawn (uniform: mean 0.05 m, standard deviation 0.01/√3 m).
+    assert np.mean(blue_sizes) == pytest.approx(0.05, abs=1e-3)
+    assert np.std(blue_sizes) == pytest.approx(0.01 / np.sqrt(3), rel=0.15)
+    assert len(blue_sizes) > 1000
+    assert np.ptp(colors[s.alive & (s.velocities[:, 1] < 0), 0]) > 0.0
+
+
+def test_constant_appearance_leaves_the_motion_unchanged():
+    a = ParticleSystem(np.zeros((0, 3)), capacity=100)
+    b = ParticleSystem(np.zeros((0, 3)), capacity=100)
+    a.add(Emitter(rate=300, velocity=(0, 2, 0), velocity_spread=1.0, lifespan=0.2, seed=5))
+    b.add(
+        Emitter(
+            rate=300,
+            velocity=(0, 2, 0),
+            velocity_spread=1.0,
+            lifespan=0.2,
+            seed=5,
+            color=(0.2, 0.4, 0.6, 1.0),
+            size=0.3,
+        )
+    )
+    a.step(0.01, 50)
+    b.step(0.01, 50)
+    np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_array_equal(b.colors[b.alive], [[0.2, 0.4, 0.6, 1.0]] * int(b.alive.sum()))
+
+
+def test_colours_and_sizes_survive_save_resume_and_a_failed_step():
+    s = two_emitter_fountain()
+    s.step(1 / 60, 10)
+    copy = pickle.loads(pickle.dumps(s))
+    np.testing.assert_array_equal(copy.colors, s.colors)
+    np.testing.assert_array_equal(copy.sizes, s.sizes)
+    s.step(1 / 60, 7)
+    copy.step(1 / 60, 7)
+    np.testing.assert_array_equal(copy.colors, s.colors)
+    np.testing.assert_array_equal(copy.sizes, s.sizes)
+    np.testing.assert_array_equal(copy.positions, s.positions)
+    # A call that fails part-way through is left at its last good step: colours and sizes as
+    # in a system that took just those steps.
+    # The fast particle's position overflows after about 18 steps of 1 s; the emitted ones
+    # die and are replaced at every step, so each step rewrites colours and sizes.
+    a, b = two_emitter_fountain(speed=1e307), two_emitter_fountain(speed=1e307)
+    with pytest.raises(kinema.SimulationError, match=r"step (\d+)") as failed:
+        a.step(1.0, 40)
+    good = int(re.search(r"step (\d+)", str(failed.value)).group(1))
+    assert good > 3
+    b.step(1.0, good)
+    np.testing.assert_array_equal(a.colors, b.colors)
+    np.testing.assert_array_equal(a.sizes, b.sizes)
+    np.testing.assert_array_equal(a.positions, b.positions)
+
+
+def test_initial_particles_take_given_colours_and_sizes():
+    s = ParticleSystem(np.zeros((3, 3)), capacity=5, colors=[[1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    np.testing.assert_array_equal(s.colors[:3, :3], np.eye(3))
+    np.testing.assert_array_equal(s.colors[:, 3], 1.0)
+    np.testing.assert_array_equal(s.colors[3:], 1.0)
+    np.testing.assert_array_equal(s.sizes, 0.01)
+    s = ParticleSystem(np.zeros((2, 3)), colors=(0.5, 0.5, 0.5, 0.2), sizes=[0.1, 0.2])
+    np.testing.assert_array_equal(s.colors, [[0.5, 0.5, 0.5, 0.2]] * 2)
+    np.testing.assert_array_equal(s.sizes, [0.1, 0.2])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"color": (1.5, 0, 0)}, "color"),
+        ({"color": (1, 0)}, "color"),
+        ({"color_spread": -0.1}, "color_spread"),
+        ({"size": 0.0}, "size"),
+        ({"size": float("nan")}, "size"),
+        ({"size": 0.1, "size_spread": 0.1}, "size_spread"),
+    ],
+)
+def test_bad_appearance_names_the_argument(kwargs, match):
+    s = ParticleSystem(np.zeros((0, 3)), capacity=10)
+    with pytest.raises(ValueError, match=match):
+        s.add(Emitter(rate=1.0, **kwargs))
+    with pytest.raises(ValueError, match="colors"):
+        ParticleSystem(np.zeros((2, 3)), colors=[[2.0, 0, 0]] * 2)
+    with pytest.raises(ValueError, match="sizes"):
+        ParticleSystem(np.zeros((2, 3)), sizes=[0.1, -1.0])

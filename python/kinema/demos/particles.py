@@ -1,5 +1,6 @@
 """Particles demo: a fountain with an emitter, a vortex, curl-noise turbulence and a ground
-plane with restitution and friction, rendered to ``particles.gif`` and ``particles.png``."""
+plane with restitution and friction, rendered to ``particles.gif`` and ``particles.png``; each
+particle is drawn in the colour and size its emitter gave it, fading with age."""
 
 from __future__ import annotations
 
@@ -31,6 +32,10 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
             lifespan=2.5,
             mass=0.01,
             seed=7,
+            color=(0.15, 0.45, 1.0),
+            color_spread=0.15,
+            size=0.03,
+            size_spread=0.015,
         )
     )
     ps.add(Gravity())
@@ -45,15 +50,18 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
             ps.step(1.0 / (fps * substeps))
             contacts += ps.stats["contacts"]
         alive = ps.alive
-        frames.append((ps.positions[alive].copy(), ps.ages[alive].copy()))
+        rgba = ps.colors[alive].copy()
+        rgba[:, 3] *= np.clip(1.0 - ps.ages[alive] / 2.5, 0.1, 1.0)  # fade with age
+        frames.append((ps.positions[alive].copy(), rgba, ps.sizes[alive].copy()))
 
     fig = plt.figure(figsize=(5.5, 5.5))
     ax = fig.add_subplot(projection="3d")
 
     def draw(k: int) -> None:
         ax.cla()
-        pts, ages = frames[k]
-        ax.scatter(pts[:, 0], pts[:, 2], pts[:, 1], c=ages, cmap="viridis", s=3, vmin=0, vmax=2.5)
+        pts, rgba, sizes = frames[k]
+        # Marker area in points² grows with the square of the diameter (3 pt² at 3 cm).
+        ax.scatter(pts[:, 0], pts[:, 2], pts[:, 1], c=rgba, s=3 * (sizes / 0.03) ** 2)
         ax.set_xlim(-2.5, 2.5)
         ax.set_ylim(-2.5, 2.5)
         ax.set_zlim(0, 4)
