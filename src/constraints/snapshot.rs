@@ -61,11 +61,12 @@ impl Snapshot for ConstrainedSystem {
 
 impl ConstrainedSystem {
     /// Check that every constraint's particles are among the `n` slots of the particle system
-    /// it is used with (a snapshot does not hold the particles). Allocates nothing: every step calls it.
+    /// it is used with, and that the per-particle workspace is of that size (a snapshot does
+    /// not hold the particles). Allocates nothing: every step calls it.
     ///
     /// # Errors
     /// [`Error::InvalidInput`] (argument `"particles"`) naming the first constraint that
-    /// refers to a particle `>= n`.
+    /// refers to a particle `>= n`, or a workspace of another size.
     pub fn check_particles(&self, n: usize) -> Result<()> {
         let highest = |c: &Constraint| match c {
             Constraint::Distance { i, j, .. } => *i.max(j),
@@ -75,6 +76,9 @@ impl ConstrainedSystem {
             | Constraint::OnCurve { i, .. } => *i,
             Constraint::Custom { particles, .. } => particles.iter().copied().max().unwrap_or(0),
         };
+        if ![0, 6 * n].contains(&self.work.backup.len()) {
+            return Err(Error::invalid("particles", format!("workspace not of {n} particles")));
+        }
         match self.constraints.iter().position(|c| highest(c) >= n) {
             None => Ok(()),
             Some(k) => Err(Error::invalid(

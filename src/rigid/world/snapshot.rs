@@ -102,9 +102,14 @@ impl Snapshot for World {
         })?;
         self.multipliers.validate(&self.joints, n)?;
         check(
-            self.previous.iter().all(|c| c.a < n && c.b.is_none_or(|b| b < n && b != c.a)),
+            self.previous.iter().all(|c| {
+                c.a < n
+                    && c.b.is_none_or(|b| b < n && b != c.a)
+                    && c.ra.is_finite()
+                    && finite(c.impulse)
+            }),
             "previous",
-            || "contact between bodies out of range".into(),
+            || "warm-start contacts out of range or non-finite".into(),
         )
     }
 }
