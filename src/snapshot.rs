@@ -12,7 +12,11 @@
 //! little-endian, then the postcard encoding. The tag and version are checked when reading, so
 //! bytes of another type or of an incompatible kinema are refused with a clear error. Integrity
 //! against damaged files (checksums) is the job of the container that stores snapshots
-//! (`kinema.Scene.save`).
+//! (`kinema.Scene.save`); but since a checksum only proves that the bytes are the ones written,
+//! not that they were written by kinema, every type also checks what it decoded
+//! ([`Snapshot::validate`]: every index in range, every length consistent, every value finite
+//! where it must be) before [`Snapshot::from_snapshot`] returns it, so no snapshot, however
+//! damaged or crafted, can make a later step panic.
 
 use crate::error::{Error, Result};
 use serde::de::DeserializeOwned;
@@ -25,6 +29,14 @@ pub const VERSION: u32 = 5;
 pub trait Snapshot: Serialize + DeserializeOwned {
     /// The tag written before the data, e.g. `"Cloth"`.
     const TAG: &'static str;
+
+    /// Check a decoded value: every index in range, every length consistent with the sizes it
+    /// must match, every value finite (or in its domain) where the code that reads it relies on
+    /// it. Called by [`Snapshot::from_snapshot`].
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] (argument `"data"`) naming the first inconsistency.
+    fn validate(&self) -> Result<()>;
 
     /// The system as bytes (see the module documentation for the layout).
     ///
@@ -46,7 +58,7 @@ pub trait Snapshot: Serialize + DeserializeOwned {
     ///
     /// # Errors
     /// [`Error::InvalidInput`] (argument `"data"`) if the bytes are not a snapshot of this type
-    /// and version, or are damaged.
+    /// and version, are damaged, or decode into an inconsistent value ([`Snapshot::validate`]).
     fn from_snapshot(data: &[u8]) -> Result<Self> {
         let head = header(Self::TAG);
         let Some(body) = data.strip_prefix(head.as_slice()) else {
@@ -71,8 +83,28 @@ pub trait Snapshot: Serialize + DeserializeOwned {
                 format!("damaged {} snapshot: {} trailing bytes", Self::TAG, rest.len()),
             ));
         }
+        Snapshot::validate(&value).map_err(|e| {
+            Error::invalid("data", format!("inconsistent {} snapshot: {e}", Self::TAG))
+        })?;
         Ok(value)
     }
+}
+
+/// `Ok` if `ok`, else the validation error about `field` (for [`Snapshot::validate`]).
+///
+/// # Errors
+/// [`Error::InvalidInput`] (argument `field`) with reason `what()` when `ok` is false.
+pub fn check(ok: bool, field: &str, what: impl FnOnce() -> String) -> Result<()> {
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::invalid(field, what()))
+    }
+}
+
+/// Whether every value is finite.
+pub fn finite(values: impl IntoIterator<Item = f64>) -> bool {
+    values.into_iter().all(f64::is_finite)
 }
 
 fn header(tag: &str) -> Vec<u8> {
@@ -82,32 +114,4 @@ fn header(tag: &str) -> Vec<u8> {
     h.push(b':');
     h.extend_from_slice(&VERSION.to_le_bytes());
     h
-}
-
-impl Snapshot for crate::particles::ParticleSystem {
-    const TAG: &'static str = "ParticleSystem";
-}
-impl Snapshot for crate::constraints::ConstrainedSystem {
-    const TAG: &'static str = "ConstrainedSystem";
-}
-impl Snapshot for crate::cloth::Cloth {
-    const TAG: &'static str = "Cloth";
-}
-impl Snapshot for crate::rigid::World {
-    const TAG: &'static str = "World";
-}
-impl Snapshot for crate::anim::Track {
-    const TAG: &'static str = "Track";
-}
-impl Snapshot for crate::anim::RotationTrack {
-    const TAG: &'static str = "RotationTrack";
-}
-impl Snapshot for crate::mocap::Skeleton {
-    const TAG: &'static str = "Skeleton";
-}
-impl Snapshot for crate::mocap::Motion {
-    const TAG: &'static str = "Motion";
-}
-impl Snapshot for crate::mocap::BvhSkeleton {
-    const TAG: &'static str = "BvhSkeleton";
 }

@@ -300,7 +300,7 @@ fn malformed_files_give_the_line() {
         (with_line(20, "0 1 2 3 4 5 6 7 inf"), 20, "finite number"),
         (with_line(17, "Frames: 3"), 20, "3 frames (Frames: 3), found 2"),
         (with_line(17, "Frames: 1"), 20, "the end of the file after 1 frames"),
-        (GOOD.replace("MOTION\n", ""), 16, "ROOT or MOTION, found \"Frames:\""),
+        (GOOD.replace("MOTION\n", ""), 16, "ROOT or MOTION"),
         (GOOD[..GOOD.find("MOTION").unwrap()].to_string(), 15, "MOTION after the hierarchy"),
         (GOOD[..GOOD.find("  JOINT").unwrap()].to_string(), 5, "} to close joint \"Hips\""),
         ("HIERARCHY\nMOTION\nFrames: 0\nFrame Time: 1\n".to_string(), 2, "a ROOT joint"),

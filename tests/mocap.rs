@@ -290,7 +290,9 @@ fn broken_files_name_the_line() {
     assert!(matches!(e, Error::Parse { .. }), "{e}");
     let sk = parse_asf(&asf, "07-walk.asf").unwrap();
     let e = parse_amc("1\nroot 0 0 0 0 0 0\nnosuchbone 1 2\n", "x.amc", &sk).unwrap_err();
-    assert!(e.to_string().contains("x.amc:3") && e.to_string().contains("nosuchbone"), "{e}");
+    // The place and what was expected, never the text found (a file may hold secrets).
+    let m = e.to_string();
+    assert!(m.contains("x.amc:3: expected a bone") && !m.contains("nosuchbone"), "{e}");
     let e = parse_amc("1\nroot 0 0 0 0 0\n", "x.amc", &sk).unwrap_err();
     assert!(e.to_string().contains("x.amc:2") && e.to_string().contains("6 values"), "{e}");
     let e = parse_amc("1\nroot 0 0 0 0 0 nan\n", "x.amc", &sk).unwrap_err();

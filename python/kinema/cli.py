@@ -2,7 +2,11 @@
 
 - ``kinema demo``: the showcase (one scene with cloth, particles, rigid bodies and a
   motion-captured walk); ``kinema demo NAME`` one demo; ``kinema demo all`` every demo.
-- ``kinema run SCENE.toml``: run a scene file (see :mod:`kinema.scenefile`).
+- ``kinema run SCENE.toml``: run a scene file (see :mod:`kinema.scenefile`). Outputs go
+  inside ``--out``; the file's inputs must lie in its folder (or a folder given with
+  ``--allow-read``). Failures print one line on stderr and exit with 1 (the simulation failed:
+  ``kinema.SimulationError``) or 2 (bad input: a scene file, checkpoint or data file that
+  cannot be used, or a file that cannot be read or written).
 - ``kinema bench``: the peer comparisons of ``bench/`` (quick sizes unless ``--full``).
 - ``kinema info``: versions, threads, build flags.
 
@@ -20,7 +24,9 @@ import platform
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
+from typing import Any
 
 from kinema.demos import DEMOS
 
@@ -52,39 +58,54 @@ def _info() -> None:
 def _run_scene(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from kinema import plot, scenefile
+    from kinema import SimulationError, plot, scenefile
     from kinema.scene import Scene
 
-    scene, output = scenefile.load(args.scene)
+    scene, output = scenefile.load(args.scene, read_dirs=args.allow_read)
     if args.resume is not None:
         scene = Scene.load(args.resume)
         print(f"resumed from {args.resume} at frame {scene.frame}, t = {scene.time:.4g} s")
     frames = args.frames if args.frames is not None else max(output.frames - scene.frame, 0)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
+    paths = {
+        name: output.path(out, value)
+        for name in ("gif", "png", "obj", "checkpoint")
+        if (value := getattr(output, name))
+    }
+    if args.checkpoint is not None:
+        paths["checkpoint"] = args.checkpoint
 
     def export(s: Scene) -> None:
-        s.export_obj(out / str(output.obj))
+        s.export_obj(paths["obj"])
 
     on_frame = export if output.obj else None
     start = time.perf_counter()
     steps0 = scene.frame * scene.substeps
-    if output.gif:
-        plot.render(scene, out / output.gif, frames, progress=args.progress, on_frame=on_frame)
-    else:
-        scene.run(frames=frames, progress=args.progress, on_frame=on_frame)
+    try:
+        if output.gif:
+            plot.render(scene, paths["gif"], frames, progress=args.progress, on_frame=on_frame)
+        else:
+            scene.run(frames=frames, progress=args.progress, on_frame=on_frame)
+    except SimulationError as e:
+        print(
+            f"kinema run: {args.scene}: the simulation failed in frame {scene.frame + 1} "
+            f"(t = {scene.time:.4g} s): {_line(e)}",
+            file=sys.stderr,
+        )
+        return 1
     seconds = time.perf_counter() - start
     written = []
     if output.png:
         ax = plot.scene(scene)
-        ax.figure.savefig(out / output.png, dpi=100)
+        ax.figure.savefig(paths["png"], dpi=100)
         written.append(output.png)
     if output.record:
         np.savez(out / "records.npz", **scene.records)  # type: ignore[arg-type]
         written.append("records.npz")
-    if output.checkpoint:
-        scene.save(out / output.checkpoint)
-        written.append(output.checkpoint)
+    if "checkpoint" in paths:
+        scene.save(paths["checkpoint"])
+        written.append(str(args.checkpoint or output.checkpoint))
     if output.gif:
         written.append(output.gif)
     if output.obj:
@@ -123,6 +144,20 @@ def _bench(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _line(e: BaseException) -> str:
+    """An error as one line: its message (for a file that cannot be opened, the reason and
+    the file name only), newlines folded."""
+    text = f"{e.strerror}: {e.filename}" if isinstance(e, OSError) and e.strerror else str(e)
+    return " ".join(text.split())
+
+
+def _show_warning(
+    message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any
+) -> None:
+    """Warnings of ``kinema run`` as one line each on stderr, without source lines."""
+    print(f"kinema run: {category.__name__}: {_line(Exception(message))}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``kinema`` command (also ``python -m kinema``)."""
     parser = argparse.ArgumentParser(prog="kinema", description="Physically based animation.")
@@ -142,6 +177,15 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--out", type=Path, default=Path("kinema-out"), help="output folder")
     run.add_argument("--frames", type=int, help="frames to run (default: the file's)")
     run.add_argument("--resume", type=Path, help="continue from this checkpoint")
+    run.add_argument("--checkpoint", type=Path, help="write the final checkpoint here (any path)")
+    run.add_argument(
+        "--allow-read",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="a folder the scene file may read from besides its own (repeatable)",
+    )
     run.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
     bench = sub.add_parser("bench", help="compare kinema with its peers (bench/*.py)")
     bench.add_argument("names", nargs="*", help="benchmarks to run (default: all)")
@@ -155,9 +199,11 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.command == "run":
         try:
-            return _run_scene(args)
+            with warnings.catch_warnings():
+                warnings.showwarning = _show_warning
+                return _run_scene(args)
         except (ValueError, OSError) as e:
-            print(f"kinema run: {e}", file=sys.stderr)
+            print(f"kinema run: {_line(e)}", file=sys.stderr)
             return 2
     if args.command == "bench":
         return _bench(args)

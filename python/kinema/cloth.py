@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -220,7 +221,12 @@ class Cloth:
             raise TypeError(f"unexpected keyword arguments: {sorted(unknown)}")
         defaults.update(kwargs)
         mat = _material(model, **defaults)
-        text = open(path, encoding="utf-8").read()
+        data = Path(path).read_bytes()
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError as e:
+            line = data[: e.start].count(b"\n") + 1
+            raise _kinema.ParseError(f"{path}:{line}: not UTF-8 text") from None
         core = _kinema.ClothCore.from_obj(text, str(path), model, mat, gravity)
         return cls(None, None, model=model, thickness=thickness, _core=core)
 

@@ -13,19 +13,18 @@ integrator history, contact warm starts and emitters' random numbers — so a re
 bit-for-bit the run that never stopped. The file is written atomically (a temporary file
 renamed over the old one) and carries a magic number, a format version, its length and a
 SHA-256 checksum, so a damaged, truncated or foreign file is refused with
-:class:`CheckpointError`. The payload is a Python pickle: load only checkpoints you trust, as
-with any pickle.
+:class:`CheckpointError`. A checkpoint is data only (a JSON manifest and the Rust snapshots of
+the systems, see :mod:`kinema._checkpoint`): loading one cannot run code, and everything in it
+is validated before use. Pickling a scene or a system (``pickle.dumps``) remains possible, and
+is Python's contract: unpickle only what you trust.
 """
 
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import math
 import os
-import pickle
 import signal
-import struct
 import threading
 import time
 import warnings
@@ -52,16 +51,17 @@ __all__ = [
     "StabilityWarning",
 ]
 
-FORMAT_VERSION = 1
-"""Version of the checkpoint format written by :meth:`Scene.save`."""
+FORMAT_VERSION = 2
+"""Version of the checkpoint format written by :meth:`Scene.save` (version 1 was a Python
+pickle, which can run code; such files are refused)."""
 
 _IMPLICIT = ("implicit_euler", "trapezoidal", "bdf2")  # A-stable: no step limit
-_MAGIC = b"KINEMA-SCENE\r\n\x1a\n"  # 16 bytes; the line ends catch text-mode mangling
-_HEADER = struct.Struct("<16sIQ32s")  # magic, version, payload length, SHA-256 of payload
 
 
 class CheckpointError(ValueError):
-    """A file is not a readable kinema checkpoint (foreign, truncated, damaged, other version)."""
+    """A file is not a readable kinema checkpoint (foreign, truncated, damaged, other version,
+    invalid content), or a scene holds something a checkpoint cannot store (a Python
+    function)."""
 
 
 class StabilityWarning(UserWarning):
@@ -508,43 +508,24 @@ class Scene:
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write a checkpoint of the whole scene to ``path``, atomically: a crash part-way
-        leaves the previous file as it was. Raises ``ValueError`` if a system holds what
-        cannot be stored (a Python function as a constraint or a force field, a lambda)."""
-        try:
-            payload = pickle.dumps(self, protocol=pickle.HIGHEST_PROTOCOL)
-        except (pickle.PicklingError, TypeError, AttributeError, ValueError) as e:
-            raise ValueError(f"scene: cannot be saved: {e}") from e
-        header = _HEADER.pack(
-            _MAGIC, FORMAT_VERSION, len(payload), hashlib.sha256(payload).digest()
-        )
-        _write_atomic(Path(path), header, payload)
+        leaves the previous file as it was. Raises :class:`CheckpointError` naming the object
+        if the scene holds what cannot be stored as data: a Python function as a force
+        (``particles.Field``), a constraint (``constraints.Custom``) or the path of an
+        :class:`AnimatedSphere`. Recorders given as functions are not stored (their records
+        are): register them again after :meth:`load` to go on recording."""
+        from kinema import _checkpoint
+
+        _write_atomic(Path(path), _checkpoint.dumps(self))
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Scene:
         """Read a checkpoint written by :meth:`save`; raise :class:`CheckpointError` if the file
-        is not one, is truncated or damaged, or has another format version."""
-        data = Path(path).read_bytes()
-        if len(data) < _HEADER.size or not data.startswith(_MAGIC):
-            raise CheckpointError(f"{path}: not a kinema scene checkpoint")
-        _, version, length, digest = _HEADER.unpack_from(data)
-        if version != FORMAT_VERSION:
-            raise CheckpointError(
-                f"{path}: checkpoint format version {version}; this kinema reads version {FORMAT_VERSION}"
-            )
-        payload = data[_HEADER.size :]
-        if len(payload) != length:
-            raise CheckpointError(
-                f"{path}: truncated or extended: {len(payload)} bytes of payload, header says {length}"
-            )
-        if hashlib.sha256(payload).digest() != digest:
-            raise CheckpointError(f"{path}: damaged: the checksum does not match")
-        try:
-            scene = pickle.loads(payload)
-        except Exception as e:
-            raise CheckpointError(f"{path}: cannot be read by this kinema: {e}") from e
-        if not isinstance(scene, cls):
-            raise CheckpointError(f"{path}: holds a {type(scene).__name__}, not a Scene")
-        return scene
+        is not one, is truncated or damaged, has another format version, or holds anything
+        invalid (every index, length and value is checked before use; nothing in the file
+        can run code)."""
+        from kinema import _checkpoint
+
+        return _checkpoint.loads(Path(path).read_bytes(), str(path))
 
     def __repr__(self) -> str:
         kinds = ", ".join(type(s).__name__ for s in self.systems) or "empty"

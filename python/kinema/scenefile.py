@@ -10,7 +10,7 @@ collider and shape of the Python API is available under its own name::
     substeps = 2
     duration = 2.0       # or: frames = 60
 
-    [output]             # all optional; paths are relative to the output folder
+    [output]             # all optional; relative paths inside the output folder
     gif = "scene.gif"    # or .mp4
     png = "scene.png"    # the last frame
     obj = "obj"          # an OBJ sequence in this folder
@@ -41,26 +41,41 @@ collider and shape of the Python API is available under its own name::
     centers = [[0.0, 0.3, 0.0], [0.5, 0.3, 0.0]]
     interpolation = "linear"
 
-    [[character]]          # asf + amc, or bvh; paths relative to the TOML file
+    [[character]]          # asf + amc, or bvh; paths relative to the TOML file's folder
     asf = "07-walk.asf"
     amc = "07_05-walk.amc"
     radius = 0.06
 
 Cloth also takes ``obj = "mesh.obj"`` (with the material keys) instead of ``grid``. Rigid
 bodies take every keyword of :meth:`kinema.rigid.World.add_body`; an ``orientation`` (of a
-body or a box collider) is a scalar-first quaternion. Mistakes are reported with their place, e.g. ``particles[0].items[1]``.
+body or a box collider) is a scalar-first quaternion. Mistakes are reported with their place,
+e.g. ``particles[0].items[1]``.
+
+A scene file cannot reach outside the folders it is given (it may come from someone else):
+
+- **Inputs** (``asf``, ``amc``, ``bvh``, ``obj``) are relative paths, resolved from the scene
+  file's folder, that must end inside it (symbolic links followed), inside kinema's bundled
+  data folder (``kinema/data``) or inside a folder given to :func:`load` as ``read_dirs``
+  (``kinema run --allow-read DIR``). Errors about an unreadable or malformed input name the
+  file, the line and the field, never its content.
+- **Outputs** (``gif``, ``png``, ``obj``, ``checkpoint``) are relative paths without ``..``,
+  written inside the output folder (:meth:`Output.path`); only the command line may write
+  elsewhere (``kinema run --checkpoint PATH``).
 """
 
 from __future__ import annotations
 
+import os
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any
 
 import numpy as np
 
 from kinema import anim, cloth, mocap, particles, rigid
+from kinema._kinema import ParseError
 from kinema.rotation import Rotation
 from kinema.scene import AnimatedSphere, Character, Scene
 
@@ -83,15 +98,48 @@ class Output:
     checkpoint: str | None = None
     record: list[str] = field(default_factory=list)
 
+    def __post_init__(self) -> None:
+        for name in ("gif", "png", "obj", "checkpoint"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            if not isinstance(value, str) or not value:
+                raise ValueError(f"{name}: expected a file name, got {value!r}")
+            parts = PurePath(value).parts
+            if PurePath(value).is_absolute() or Path(value).anchor or ".." in parts:
+                raise ValueError(
+                    f"{name}: {value!r} must be a relative path inside the output folder "
+                    "(no absolute path, no '..'); choose the folder with --out"
+                )
+        if not isinstance(self.record, list) or not all(isinstance(r, str) for r in self.record):
+            raise ValueError("record: expected a list of diagnostics names")
 
-def load(path: str | Path) -> tuple[Scene, Output]:
-    """Read a scene file; return the scene and what to write. Raises ``ValueError`` naming
-    the place of any mistake."""
+    def path(self, out_dir: str | os.PathLike[str], name: str) -> Path:
+        """Where output ``name`` (a value of this table) is written: inside ``out_dir``, after
+        following symbolic links; ``ValueError`` if a link leads outside."""
+        root = Path(out_dir).resolve()
+        target = (root / name).resolve()
+        if not target.is_relative_to(root):
+            raise ValueError(f"{name!r}: leads outside the output folder {root}")
+        return target
+
+
+def load(
+    path: str | os.PathLike[str], *, read_dirs: Sequence[str | os.PathLike[str]] = ()
+) -> tuple[Scene, Output]:
+    """Read a scene file; return the scene and what to write. Input files it names must lie
+    in its folder, in kinema's data folder or in one of ``read_dirs`` (see the module
+    docstring). Raises ``ValueError`` (``kinema.ParseError`` for text that is not UTF-8 or
+    TOML) naming the place of any mistake."""
     path = Path(path)
+    data = path.read_bytes()
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        doc = tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as e:
+        line = data[: e.start].count(b"\n") + 1
+        raise ParseError(f"{path}:{line}: not UTF-8 text") from None
     except tomllib.TOMLDecodeError as e:
-        raise ValueError(f"{path}: not valid TOML: {e}") from None
+        raise ParseError(f"{path}: not valid TOML: {e}") from None
     known = {"scene", "output", "cloth", "particles", "rigid", "animated_sphere", "character"}
     unknown = set(doc) - known
     if unknown:
@@ -110,29 +158,58 @@ def load(path: str | Path) -> tuple[Scene, Output]:
     except (ValueError, TypeError) as e:
         raise ValueError(f"{path}: [scene]: {e}") from None
     n = int(frames) if frames is not None else round(float(duration) / dt)
-    base = path.parent
+    roots = [path.parent, Path(__file__).parent / "data", *map(Path, read_dirs)]
+
+    def inside(name: Any, key: str) -> Path:
+        return _input(name, key, path.parent, roots)
+
     builders = {
-        "cloth": _cloth,
+        "cloth": lambda t: _cloth(t, inside),
         "particles": _particles,
         "rigid": _rigid,
         "animated_sphere": _animated,
-        "character": lambda t: _character(t, base),
+        "character": lambda t: _character(t, inside),
     }
     for kind, build in builders.items():
         for i, table in enumerate(doc.get(kind, [])):
             try:
                 item, options = build(dict(table))
                 scene.add(item, **options)
+            except ParseError as e:
+                raise ParseError(f"{path}: {kind}[{i}]: {e}") from None
             except (ValueError, TypeError, KeyError, OSError) as e:
-                raise ValueError(f"{path}: {kind}[{i}]: {e}") from None
+                raise ValueError(f"{path}: {kind}[{i}]: {_plain(e)}") from None
     out = dict(doc.get("output", {}))
     try:
         output = Output(frames=n, **out)
-    except TypeError as e:
+    except (TypeError, ValueError) as e:
         raise ValueError(f"{path}: [output]: {e}") from None
     for name in output.record:
         scene.record(name)
     return scene, output
+
+
+def _input(name: Any, key: str, base: Path, roots: list[Path]) -> Path:
+    """The input file ``name`` (field ``key``), resolved from ``base``; ``ValueError`` unless
+    it is a relative path that ends inside one of ``roots`` (symbolic links followed)."""
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"{key}: expected a relative file path, got {name!r}")
+    if PurePath(name).is_absolute() or Path(name).anchor:
+        raise ValueError(f"{key}: {name!r} must be relative to the scene file's folder")
+    target = (base / name).resolve()
+    if not any(target.is_relative_to(r.resolve()) for r in roots):
+        raise ValueError(
+            f"{key}: {name!r} leads outside the scene file's folder (allow another folder "
+            "with --allow-read)"
+        )
+    return target
+
+
+def _plain(e: BaseException) -> str:
+    """An error's message; for a file that cannot be opened, its reason and name only."""
+    if isinstance(e, OSError) and e.strerror:
+        return f"{e.strerror}: {e.filename}"
+    return str(e)
 
 
 def _make(module: Any, spec: Any, where: str) -> Any:
@@ -152,7 +229,7 @@ def _make(module: Any, spec: Any, where: str) -> Any:
         raise ValueError(f"{where}: {e}") from None
 
 
-def _cloth(t: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
+def _cloth(t: dict[str, Any], inside: Any) -> tuple[Any, dict[str, Any]]:
     step = t.pop("step", {})
     offset = np.asarray(t.pop("offset", (0.0, 0.0, 0.0)), dtype=np.float64)
     pins = t.pop("pin", [])
@@ -160,7 +237,7 @@ def _cloth(t: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
     if "grid" in t:
         c = cloth.Cloth.grid(**t.pop("grid"))
     elif "obj" in t:
-        c = cloth.Cloth.from_obj(t.pop("obj"), **t.pop("material", {}))
+        c = cloth.Cloth.from_obj(inside(t.pop("obj"), "obj"), **t.pop("material", {}))
     else:
         raise ValueError("give grid = {...} or obj = 'file.obj'")
     if t:
@@ -207,13 +284,13 @@ def _animated(t: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
     return AnimatedSphere(center=track, **t), {}
 
 
-def _character(t: dict[str, Any], base: Path) -> tuple[Any, dict[str, Any]]:
+def _character(t: dict[str, Any], inside: Any) -> tuple[Any, dict[str, Any]]:
     if "bvh" in t:
-        skeleton, motion = mocap.read_bvh(base / t.pop("bvh"))
+        skeleton, motion = mocap.read_bvh(inside(t.pop("bvh"), "bvh"))
     else:
-        skeleton = mocap.read_asf(base / t.pop("asf"))
+        skeleton = mocap.read_asf(inside(t.pop("asf"), "asf"))
         motion = mocap.read_amc(
-            base / t.pop("amc"),
+            inside(t.pop("amc"), "amc"),
             skeleton,
             **({"frame_rate": t.pop("frame_rate")} if "frame_rate" in t else {}),
         )

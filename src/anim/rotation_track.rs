@@ -296,3 +296,32 @@ impl RotationTrack {
         Ok(())
     }
 }
+
+impl crate::snapshot::Snapshot for RotationTrack {
+    const TAG: &'static str = "RotationTrack";
+
+    /// Key times finite and strictly increasing, one unit key per time, Squad's inner points
+    /// (one per key) and the spline's cubics (one per segment) present exactly for their
+    /// scheme, every value finite.
+    fn validate(&self) -> Result<()> {
+        use crate::snapshot::{check, finite};
+        let n = self.times.len();
+        let unit = |q: &DQuat| q.is_finite() && (q.length() - 1.0).abs() < 1e-6;
+        check(n > 0 && self.keys.len() == n, "times", || "one key per time".into())?;
+        check(
+            finite(self.times.iter().copied()) && self.times.windows(2).all(|w| w[0] < w[1]),
+            "times",
+            || "must be finite and strictly increasing".into(),
+        )?;
+        let squad = self.mode == RotationInterpolation::Squad;
+        let spline = self.mode == RotationInterpolation::Spline && n > 1;
+        check(
+            self.keys.iter().chain(&self.inner).all(unit)
+                && self.inner.len() == if squad { n } else { 0 }
+                && self.cubic.len() == if spline { n - 1 } else { 0 }
+                && finite(self.cubic.iter().flatten().flat_map(|v| v.to_array())),
+            "keys",
+            || "keys, inner points or cubics inconsistent with the scheme".into(),
+        )
+    }
+}

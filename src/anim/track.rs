@@ -516,3 +516,36 @@ impl Track {
         Ok(())
     }
 }
+
+impl crate::snapshot::Snapshot for Track {
+    const TAG: &'static str = "Track";
+
+    /// Key times finite and strictly increasing, one cubic per segment and channel (one flat
+    /// segment for a single key), Newton coefficients and the held last value of their
+    /// lengths, every coefficient finite.
+    fn validate(&self) -> Result<()> {
+        use crate::snapshot::{check, finite};
+        let (n, dim) = (self.times.len(), self.dim);
+        check(n > 0 && dim > 0, "times", || "a track needs a key and a channel".into())?;
+        check(
+            finite(self.times.iter().copied()) && self.times.windows(2).all(|w| w[0] < w[1]),
+            "times",
+            || "must be finite and strictly increasing".into(),
+        )?;
+        check(
+            self.coeffs.len() == (n - 1).max(1).saturating_mul(dim)
+                && finite(self.coeffs.iter().flatten().copied()),
+            "coeffs",
+            || "not one finite cubic per segment and channel".into(),
+        )?;
+        check(
+            self.newton.as_ref().is_none_or(|a| a.len() == n * dim && finite(a.iter().copied()))
+                && self
+                    .last_step_value
+                    .as_ref()
+                    .is_none_or(|v| v.len() == dim && finite(v.iter().copied())),
+            "newton",
+            || "Newton coefficients or last value of the wrong length".into(),
+        )
+    }
+}

@@ -142,10 +142,12 @@ impl Constrained {
         reduce(slf.as_any(), bytes, vec![this.particles.bind(slf.py()).clone().into_any()])
     }
 
-    /// The system stored by `__reduce__`, on `particles`.
+    /// The system stored by `__reduce__`, on `particles` (its constraints must refer to
+    /// particles of that system).
     #[staticmethod]
-    fn _from_snapshot(data: &[u8], particles: Py<Particles>) -> PyResult<Self> {
+    fn _from_snapshot(py: Python<'_>, data: &[u8], particles: Py<Particles>) -> PyResult<Self> {
         let system = ConstrainedSystem::from_snapshot(data)?;
+        system.check_particles(particles.borrow(py).system.capacity())?;
         Ok(Constrained { particles, system, error: Arc::default() })
     }
 

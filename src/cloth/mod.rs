@@ -39,6 +39,7 @@ mod bsr;
 mod mesh;
 mod model;
 mod pcg;
+mod snapshot;
 
 pub use bsr::BlockMatrix;
 pub use mesh::{parse_obj, uv_from_shape, write_obj, Mesh, Topology, Triangulation};

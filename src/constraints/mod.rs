@@ -30,6 +30,7 @@
 
 mod curve;
 mod reduced;
+mod snapshot;
 
 pub use curve::Curve;
 pub use reduced::{ReducedBead, ReducedPendulum};
@@ -470,6 +471,7 @@ impl ConstrainedSystem {
     /// A custom constraint's function fails, or a curve's closest point is lost.
     pub fn violation(&mut self, particles: &ParticleSystem) -> Result<(f64, f64)> {
         let n = particles.capacity();
+        self.check_particles(n)?;
         let mut y = particles.positions().to_vec();
         y.extend_from_slice(particles.velocities());
         let w = &mut self.work;
@@ -506,6 +508,7 @@ impl ConstrainedSystem {
     }
 
     fn prepare(&mut self, n: usize) -> Result<()> {
+        self.check_particles(n)?;
         if self.work.chol.is_none()
             && self.solver == ConstraintSolver::Cholesky
             && self.formulation == Formulation::Multipliers

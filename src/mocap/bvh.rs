@@ -74,7 +74,7 @@ fn number(file: &str, line: usize, tok: &str) -> Result<f64> {
     tok.parse::<f64>()
         .ok()
         .filter(|v| v.is_finite())
-        .ok_or_else(|| err(file, line, format!("a finite number, found {tok:?}")))
+        .ok_or_else(|| err(file, line, "a finite number"))
 }
 
 fn channel(tok: &str) -> Option<Dof> {
@@ -130,8 +130,7 @@ impl<'a> Tokens<'a> {
         let mut v = [0.0; N];
         for x in &mut v {
             let (ln, t) = self.expect(what)?;
-            *x = number(self.file, ln, t)
-                .map_err(|_| err(self.file, ln, format!("{what}, found {t:?}")))?;
+            *x = number(self.file, ln, t).map_err(|_| err(self.file, ln, format!("{what}")))?;
         }
         Ok(v)
     }
@@ -154,7 +153,7 @@ fn header_value<'a>(
         && words.len() == kw.len() + 1
         && words.iter().zip(&kw).all(|(w, k)| w.eq_ignore_ascii_case(k));
     if !ok {
-        return Err(err(file, ln, format!("{key}: and a value, found {line:?}")));
+        return Err(err(file, ln, format!("{key}: and a value")));
     }
     Ok((ln, words[kw.len()]))
 }
@@ -194,7 +193,7 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
     };
     match toks.next() {
         Some((_, t)) if t.eq_ignore_ascii_case("HIERARCHY") => {}
-        Some((ln, t)) => return Err(err(file, ln, format!("HIERARCHY at the start, found {t:?}"))),
+        Some((ln, _)) => return Err(err(file, ln, "HIERARCHY at the start")),
         None => return Err(err(file, last_line, "HIERARCHY at the start, found nothing")),
     }
     let mut joints: Vec<BvhJoint> = Vec::new();
@@ -247,7 +246,7 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
                 if !brace {
                     let (l, t) = toks.expect("{ after the joint name")?;
                     if t != "{" {
-                        return Err(err(file, l, format!("{{ after the joint name, found {t:?}")));
+                        return Err(err(file, l, format!("{{ after the joint name")));
                     }
                 }
                 joints.push(BvhJoint {
@@ -265,11 +264,11 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
                 let j = top_joint.ok_or_else(|| err(file, ln, "End Site only inside a joint"))?;
                 let (l, t) = toks.expect("Site after End")?;
                 if !t.eq_ignore_ascii_case("site") {
-                    return Err(err(file, l, format!("Site after End, found {t:?}")));
+                    return Err(err(file, l, "Site after End"));
                 }
                 let (l, t) = toks.expect("{ after End Site")?;
                 if t != "{" {
-                    return Err(err(file, l, format!("{{ after End Site, found {t:?}")));
+                    return Err(err(file, l, format!("{{ after End Site")));
                 }
                 if joints[j].end_site.is_some() {
                     return Err(err(
@@ -321,18 +320,16 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
                     ));
                 }
                 let (l, t) = toks.expect("a channel count after CHANNELS")?;
-                let n: usize = t.parse().ok().filter(|&n| n <= 64).ok_or_else(|| {
-                    err(file, l, format!("a channel count (0 to 64) after CHANNELS, found {t:?}"))
-                })?;
+                let n: usize = t
+                    .parse()
+                    .ok()
+                    .filter(|&n| n <= 64)
+                    .ok_or_else(|| err(file, l, "a channel count (0 to 64) after CHANNELS"))?;
                 let mut channels = Vec::with_capacity(n);
                 for _ in 0..n {
                     let (l, t) = toks.expect(&format!("{n} channel names"))?;
                     let c = channel(t).ok_or_else(|| {
-                        err(
-                            file,
-                            l,
-                            format!("{n} channel names (Xposition ... Zrotation), found {t:?}"),
-                        )
+                        err(file, l, format!("{n} channel names (Xposition ... Zrotation)"))
                     })?;
                     if matches!(c, Dof::Translation(_)) && channels.contains(&c) {
                         return Err(err(
@@ -368,7 +365,7 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
                     Some(Open::Joint(..)) => "OFFSET, CHANNELS, JOINT, End Site or }",
                     Some(Open::EndSite(..)) => "OFFSET or } in an End Site",
                 };
-                return Err(err(file, ln, format!("{what}, found {tok:?}")));
+                return Err(err(file, ln, format!("{what}")));
             }
         }
     }
@@ -394,13 +391,11 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
     // `Frames: N` and `Frame Time: dt`, in this order as every writer puts them.
     let mut rest = lines[motion_at + 1..].iter();
     let (fln, ftok) = header_value(file, last_line, rest.next(), "Frames")?;
-    let frames: usize = ftok
-        .parse()
-        .map_err(|_| err(file, fln, format!("a frame count after Frames:, found {ftok:?}")))?;
+    let frames: usize = ftok.parse().map_err(|_| err(file, fln, "a frame count after Frames:"))?;
     let (tln, ttok) = header_value(file, last_line, rest.next(), "Frame Time")?;
     let frame_time = number(file, tln, ttok)?;
     if frame_time <= 0.0 {
-        return Err(err(file, tln, format!("a positive Frame Time, found {ttok:?}")));
+        return Err(err(file, tln, "a positive Frame Time"));
     }
     let stride: usize = joints.iter().map(|j| j.channels.len()).sum();
     let kinds: Vec<bool> = joints

@@ -26,6 +26,7 @@
 pub mod bvh;
 mod edit;
 mod parse;
+mod snapshot;
 mod write;
 
 pub use bvh::{parse_bvh, write_bvh, BvhJoint, BvhSkeleton};

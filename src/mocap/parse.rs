@@ -26,7 +26,7 @@ fn number(file: &str, line: usize, tok: &str) -> Result<f64> {
     tok.parse::<f64>()
         .ok()
         .filter(|v| v.is_finite())
-        .ok_or_else(|| err(file, line, format!("a finite number, found {tok:?}")))
+        .ok_or_else(|| err(file, line, "a finite number"))
 }
 
 /// A limit: a number or `inf` / `-inf` (the ASF 1.10 text writes `limits (-inf inf)` for a
@@ -35,7 +35,7 @@ fn limit(file: &str, line: usize, tok: &str) -> Result<f64> {
     tok.parse::<f64>()
         .ok()
         .filter(|v| !v.is_nan())
-        .ok_or_else(|| err(file, line, format!("a limit (a number, inf or -inf), found {tok:?}")))
+        .ok_or_else(|| err(file, line, "a limit (a number, inf or -inf)"))
 }
 
 fn dof(file: &str, line: usize, tok: &str) -> Result<Dof> {
@@ -47,18 +47,16 @@ fn dof(file: &str, line: usize, tok: &str) -> Result<Dof> {
         "ty" => Dof::Translation(1),
         "tz" => Dof::Translation(2),
         "l" => Dof::Length,
-        _ => {
-            return Err(err(file, line, format!("a dof among rx ry rz tx ty tz l, found {tok:?}")))
-        }
+        _ => return Err(err(file, line, "a dof among rx ry rz tx ty tz l")),
     })
 }
 
 /// Extrinsic rotation about the global axes in the written order (`XYZ`: x first).
 fn axis_rotation(file: &str, line: usize, angles: [f64; 3], order: &str) -> Result<DQuat> {
     let seq = EulerSequence::parse(&order.to_ascii_lowercase())
-        .map_err(|_| err(file, line, format!("an axis order such as XYZ, found {order:?}")))?;
+        .map_err(|_| err(file, line, "an axis order such as XYZ"))?;
     if seq.is_proper() {
-        return Err(err(file, line, format!("an order of three different axes, found {order:?}")));
+        return Err(err(file, line, "an order of three different axes"));
     }
     let a = seq.axes.map(|i| angles[i]);
     seq.to_quat(&a).map_err(|_| err(file, line, "finite axis angles"))
@@ -112,10 +110,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                     return Err(err(
                         file,
                         ln,
-                        format!(
-                            "a known section (:units, :root, :bonedata, :hierarchy...), found {}",
-                            toks[0]
-                        ),
+                        "a known section (:units, :root, :bonedata, :hierarchy...)".to_string(),
                     ))
                 }
             };
@@ -136,10 +131,8 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                 }
                 "axis" => {
                     let order = toks.get(1).copied().unwrap_or("");
-                    sk.root_axis =
-                        EulerSequence::parse(&order.to_ascii_lowercase()).map_err(|_| {
-                            err(file, ln, format!("a root axis order such as XYZ, found {order:?}"))
-                        })?;
+                    sk.root_axis = EulerSequence::parse(&order.to_ascii_lowercase())
+                        .map_err(|_| err(file, ln, "a root axis order such as XYZ"))?;
                 }
                 "position" | "orientation" => {
                     if toks.len() != 4 {
@@ -160,10 +153,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                     return Err(err(
                         file,
                         ln,
-                        format!(
-                            "order, axis, position or orientation in :root, found {:?}",
-                            toks[0]
-                        ),
+                        "order, axis, position or orientation in :root".to_string(),
                     ))
                 }
             },
@@ -209,22 +199,46 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                             .ok_or_else(|| err(file, ln, "begin before bone data"))?;
                         match key {
                             "id" => {}
-                            "name" => bone.name = toks.get(1).ok_or_else(|| err(file, ln, "a bone name"))?.to_string(),
+                            "name" => {
+                                bone.name = toks
+                                    .get(1)
+                                    .ok_or_else(|| err(file, ln, "a bone name"))?
+                                    .to_string()
+                            }
                             "direction" => {
                                 if toks.len() != 4 {
                                     return Err(err(file, ln, "three numbers after direction"));
                                 }
-                                bone.direction = DVec3::new(number(file, ln, toks[1])?, number(file, ln, toks[2])?, number(file, ln, toks[3])?);
+                                bone.direction = DVec3::new(
+                                    number(file, ln, toks[1])?,
+                                    number(file, ln, toks[2])?,
+                                    number(file, ln, toks[3])?,
+                                );
                             }
-                            "length" => bone.length = number(file, ln, toks.get(1).copied().unwrap_or(""))?,
+                            "length" => {
+                                bone.length = number(file, ln, toks.get(1).copied().unwrap_or(""))?
+                            }
                             "axis" => {
                                 if toks.len() != 5 {
-                                    return Err(err(file, ln, "three angles and an order after axis"));
+                                    return Err(err(
+                                        file,
+                                        ln,
+                                        "three angles and an order after axis",
+                                    ));
                                 }
-                                *angles = [number(file, ln, toks[1])?, number(file, ln, toks[2])?, number(file, ln, toks[3])?];
+                                *angles = [
+                                    number(file, ln, toks[1])?,
+                                    number(file, ln, toks[2])?,
+                                    number(file, ln, toks[3])?,
+                                ];
                                 *order = toks[4].to_string();
                             }
-                            "dof" => bone.dofs = toks[1..].iter().map(|t| dof(file, ln, t)).collect::<Result<_>>()?,
+                            "dof" => {
+                                bone.dofs = toks[1..]
+                                    .iter()
+                                    .map(|t| dof(file, ln, t))
+                                    .collect::<Result<_>>()?
+                            }
                             "limits" => {
                                 let n = bone.dofs.len();
                                 let mut vals = Vec::new();
@@ -238,7 +252,11 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                                 }
                             }
                             "bodymass" | "cofmass" => {}
-                            other => return Err(err(file, ln, format!("a bone keyword (id, name, direction, length, axis, dof, limits), found {other:?}"))),
+                            _ => return Err(err(
+                                file,
+                                ln,
+                                "a bone keyword (id, name, direction, length, axis, dof, limits)",
+                            )),
                         }
                     }
                 }
@@ -293,16 +311,10 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
         let p = if parent == "root" {
             None
         } else {
-            Some(
-                *index
-                    .get(parent)
-                    .ok_or_else(|| err(file, *ln, format!("a known bone, found {parent:?}")))?,
-            )
+            Some(*index.get(parent).ok_or_else(|| err(file, *ln, "a known bone"))?)
         };
         for kid in kids {
-            let c = *index
-                .get(kid)
-                .ok_or_else(|| err(file, *ln, format!("a known bone, found {kid:?}")))?;
+            let c = *index.get(kid).ok_or_else(|| err(file, *ln, "a known bone"))?;
             if parent_of[c].is_some() {
                 return Err(err(file, *ln, format!("one parent per bone, {kid:?} has two")));
             }
@@ -405,15 +417,11 @@ pub fn parse_amc(text: &str, file: &str, skeleton: &Skeleton) -> Result<Motion> 
             continue;
         }
         if frames == 0 {
-            return Err(err(
-                file,
-                ln,
-                format!("a frame number before bone values, found {:?}", toks[0]),
-            ));
+            return Err(err(file, ln, "a frame number before bone values".to_string()));
         }
         let (off, dofs) = *offsets
             .get(toks[0])
-            .ok_or_else(|| err(file, ln, format!("a bone of the skeleton, found {:?}", toks[0])))?;
+            .ok_or_else(|| err(file, ln, "a bone of the skeleton".to_string()))?;
         if toks.len() - 1 != dofs.len() {
             return Err(err(
                 file,

@@ -467,3 +467,49 @@ fn lu_solve(a: &[f64], pivots: &[usize], n: usize, b: &mut [f64]) {
         b[r] = (b[r] - s) / a[r * n + r];
     }
 }
+
+impl Stepper {
+    /// Length of the states this stepper advances.
+    pub fn dimension(&self) -> usize {
+        self.n
+    }
+
+    /// Check a stepper decoded from a snapshot: workspaces of its dimension, a Jacobian and LU
+    /// factor that agree (square, pivots in range), finite history and Newton settings. The
+    /// Newton iteration count is capped at 10 000 so a damaged one cannot hang a step.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] naming the first inconsistent field.
+    pub fn validate(&self) -> Result<()> {
+        let n = self.n;
+        let bad = |field: &str, what: &str| Err(Error::invalid(field, what.to_string()));
+        if self.method.is_second_order() && !n.is_multiple_of(2) {
+            return bad("stepper", "a second-order method needs a state of even length");
+        }
+        if self.k.iter().chain([&self.stage, &self.y_new, &self.prev]).any(|v| v.len() != n) {
+            return bad("stepper", "workspaces are not of the stepper's dimension");
+        }
+        let m = self.jac.nrows();
+        if self.jac.ncols() != m
+            || (m != 0 && m != n)
+            || self.lu.len() != m * m
+            || self.pivots.len() != m
+            || self.pivots.iter().any(|&p| p >= m)
+        {
+            return bad("stepper", "inconsistent Jacobian or LU factor");
+        }
+        if !self.prev.iter().all(|v| v.is_finite())
+            || self.prev_h.is_some_and(|h| !(h.is_finite() && h > 0.0))
+        {
+            return bad("stepper", "non-finite history");
+        }
+        if !(self.newton_tol.is_finite() && self.newton_tol >= 0.0) || self.max_newton > MAX_NEWTON
+        {
+            return bad("stepper", "Newton tolerance or iteration count out of range");
+        }
+        Ok(())
+    }
+}
+
+/// Largest Newton iteration count a stepper read from a snapshot may carry.
+const MAX_NEWTON: usize = 10_000;

@@ -20,6 +20,7 @@
 mod explicit;
 mod forces;
 mod jacobian;
+mod snapshot;
 
 pub use forces::{curl_noise, noise_with_gradient, Force};
 
@@ -185,6 +186,35 @@ impl Appearance {
             size += self.size_spread * uniform_symmetric(rng);
         }
         (color, size)
+    }
+}
+
+impl Emitter {
+    /// Check the parameters: rate and spreads finite and >= 0, lifespan > 0 (may be infinite),
+    /// mass finite and > 0, position and velocity finite, and the appearance (colour, size) valid.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] (argument `"emitter"`) if one is out of range.
+    pub fn validate(&self) -> Result<()> {
+        let e = self;
+        let ok = e.rate.is_finite()
+            && e.rate >= 0.0
+            && e.position.is_finite()
+            && e.velocity.is_finite()
+            && e.position_spread.is_finite()
+            && e.position_spread >= 0.0
+            && e.velocity_spread.is_finite()
+            && e.velocity_spread >= 0.0
+            && e.lifespan > 0.0
+            && e.mass.is_finite()
+            && e.mass > 0.0;
+        if !ok {
+            return Err(Error::invalid(
+                "emitter",
+                "rate, spreads >= 0, lifespan > 0, mass > 0, all finite (lifespan may be inf)",
+            ));
+        }
+        e.appearance.check()
     }
 }
 
@@ -672,25 +702,7 @@ impl ParticleSystem {
     /// # Errors
     /// Negative or non-finite rate, spreads, lifespan or mass.
     pub fn add_emitter(&mut self, emitter: Emitter) -> Result<()> {
-        let e = &emitter;
-        let ok = e.rate.is_finite()
-            && e.rate >= 0.0
-            && e.position.is_finite()
-            && e.velocity.is_finite()
-            && e.position_spread.is_finite()
-            && e.position_spread >= 0.0
-            && e.velocity_spread.is_finite()
-            && e.velocity_spread >= 0.0
-            && e.lifespan > 0.0
-            && e.mass.is_finite()
-            && e.mass > 0.0;
-        if !ok {
-            return Err(Error::invalid(
-                "emitter",
-                "rate, spreads >= 0, lifespan > 0, mass > 0, all finite (lifespan may be inf)",
-            ));
-        }
-        emitter.appearance.check()?;
+        emitter.validate()?;
         let seed = emitter.seed;
         self.emitters.push((emitter, 0.0, seed));
         self.summary.masses = None;
@@ -1403,7 +1415,13 @@ fn for_each_close_pair(
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    let key = cell_key([c[0] + dx, c[1] + dy, c[2] + dz]);
+                    // Wrapping: cells of positions beyond ±2⁶³ radii saturate; their keys
+                    // may then be wrong but never overflow (no panic on absurd positions).
+                    let key = cell_key([
+                        c[0].wrapping_add(dx),
+                        c[1].wrapping_add(dy),
+                        c[2].wrapping_add(dz),
+                    ]);
                     let start = cells.partition_point(|e| e.0 < key);
                     for &(k, j) in &cells[start..] {
                         if k != key {

@@ -582,3 +582,32 @@ pub(crate) fn rotation_vector(q: DQuat) -> DVec3 {
     }
     v * (2.0 * s.atan2(q.w) / s)
 }
+
+impl Joint {
+    /// Check a joint decoded from a snapshot against a world of `n` bodies: the bodies exist
+    /// and differ, anchors are finite, frames are unit quaternions, limits, motor, stiffness
+    /// and damping are in the ranges [`Joint::new`] accepts.
+    pub fn validate(&self, n: usize) -> Result<()> {
+        let unit = |q: DQuat| q.is_finite() && (q.length() - 1.0).abs() < 1e-6;
+        let mut ok = self.a < n
+            && self.b.is_none_or(|b| b < n && b != self.a)
+            && self.ra.is_finite()
+            && self.rb.is_finite()
+            && unit(self.fa)
+            && unit(self.fb)
+            && self.stiffness.is_finite()
+            && self.stiffness >= 0.0
+            && self.damping.is_finite()
+            && self.damping >= 0.0;
+        if let JointKind::Hinge { limits, motor } = self.kind {
+            ok &= limits
+                .is_none_or(|(lo, hi)| lo.is_finite() && hi.is_finite() && lo <= 0.0 && hi >= 0.0);
+            ok &= motor.is_none_or(|m| m.speed.is_finite() && m.max_torque >= 0.0);
+        }
+        if ok {
+            Ok(())
+        } else {
+            Err(Error::invalid("joints", "a joint with bodies out of range or invalid parameters"))
+        }
+    }
+}

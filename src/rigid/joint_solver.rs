@@ -705,3 +705,29 @@ fn project_alignment(
         turn(b, tau);
     }
 }
+
+impl Multipliers {
+    /// Check multipliers decoded from a snapshot: their pattern and index maps are the ones
+    /// [`Multipliers::build`] makes for `joints` in a world of `n` bodies (or empty, when no
+    /// Lagrange joint was ever added), and every per-row and per-entry array has its length.
+    pub fn validate(&self, joints: &[Joint], n: usize) -> Result<()> {
+        let mut expected = Multipliers::default();
+        if joints.iter().any(|j| j.method == JointMethod::Lagrange) || !self.map.is_empty() {
+            expected.build(joints, n)?;
+        }
+        let m = expected.map.len();
+        let ok = self.col_ptr == expected.col_ptr
+            && self.row_idx == expected.row_idx
+            && self.map == expected.map
+            && self.contributions == expected.contributions
+            && self.diagonal == expected.diagonal
+            && self.values.len() == expected.values.len()
+            && [self.rhs.len(), self.lambda.len(), self.activity.len()] == [m; 3]
+            && self.values.iter().chain(&self.rhs).chain(&self.lambda).all(|v| v.is_finite());
+        if ok {
+            Ok(())
+        } else {
+            Err(Error::invalid("multipliers", "the pattern is not the one of the joints"))
+        }
+    }
+}

@@ -8,6 +8,8 @@ use crate::error::{Error, Result};
 use glam::{DMat3, DQuat, DVec3};
 use nalgebra::{Matrix3, SymmetricEigen};
 
+mod snapshot;
+
 /// How the rotational equations are integrated over a step `h`.
 ///
 /// All methods treat applied torques as impulses `h τ` and gravity as a uniform field (no

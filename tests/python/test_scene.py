@@ -3,9 +3,12 @@ Ctrl-C, damaged files, pickling of the main objects."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import pickle
 import signal
+import struct
 import subprocess
 import sys
 import textwrap
@@ -18,7 +21,15 @@ import pytest
 import kinema
 import kinema.ode
 from kinema import anim, cloth, constraints, mocap, particles, rigid
-from kinema.scene import AnimatedSphere, Character, CheckpointError, Scene, StabilityWarning
+from kinema._checkpoint import _HEADER, _MAGIC
+from kinema.scene import (
+    FORMAT_VERSION,
+    AnimatedSphere,
+    Character,
+    CheckpointError,
+    Scene,
+    StabilityWarning,
+)
 
 DATA = Path(kinema.__file__).parent / "data"
 
@@ -139,6 +150,194 @@ def test_damaged_foreign_and_other_version_checkpoints_are_refused(tmp_path: Pat
     refused(b"\x89PNG\r\n\x1a\n" + bytes(200), "not a kinema scene")
     refused(b"", "not a kinema scene")
     assert isinstance(Scene.load(path), Scene)
+
+
+def _with_header(payload: bytes, version: int = FORMAT_VERSION) -> bytes:
+    """A checkpoint container around ``payload`` with a correct length and checksum."""
+    return _HEADER.pack(_MAGIC, version, len(payload), hashlib.sha256(payload).digest()) + payload
+
+
+class _RunsCode:
+    """A pickle payload that runs a shell command when unpickled (what an attacker writes)."""
+
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self):
+        return (os.system, (f"touch {self.marker}",))
+
+
+def test_a_checkpoint_whose_payload_would_run_code_is_refused_and_runs_nothing(tmp_path: Path):
+    marker = tmp_path / "ran"
+    evil = pickle.dumps(_RunsCode(marker))
+    pickle.loads(evil)  # the payload does run code when unpickled...
+    assert marker.exists()
+    marker.unlink()
+    path = tmp_path / "evil.kin"
+    # ...but Scene.load never unpickles: not as the old format (version 1, a valid checksum),
+    path.write_bytes(_with_header(evil, version=1))
+    with pytest.raises(CheckpointError, match="version 1"):
+        Scene.load(path)
+    # not as the current version,
+    path.write_bytes(_with_header(evil))
+    with pytest.raises(CheckpointError, match="invalid checkpoint"):
+        Scene.load(path)
+    # and a manifest can only name kinema's own data classes, never a function.
+    for root in (
+        {"$object": ["system", 0, {}]},
+        {"$native": ["system", 0, 0, []]},
+        {"$object": ["posix.system", 0, {}]},
+        {"$native": ["Particles", 0, 0, [{"$object": ["_RunsCode", 1, {}]}]]},
+    ):
+        manifest = json.dumps({"blobs": [0], "root": root}).encode()
+        path.write_bytes(_with_header(struct.pack("<Q", len(manifest)) + manifest))
+        with pytest.raises(CheckpointError, match=r"unknown class|invalid checkpoint"):
+            Scene.load(path)
+    assert not marker.exists()
+
+
+def test_the_checkpoint_is_json_and_snapshots_without_pickle(tmp_path: Path):
+    scene = mixed_scene(n_cloth=4, n_particles=5)
+    scene.save(tmp_path / "a.kin")
+    data = (tmp_path / "a.kin").read_bytes()
+    payload = data[_HEADER.size :]
+    (n,) = struct.unpack_from("<Q", payload)
+    manifest = json.loads(payload[8 : 8 + n])
+    assert manifest["root"]["$object"][0] == "Scene"
+    assert b"kinema:Cloth:" in payload and b"kinema:World:" in payload
+    assert b"\x80\x05" not in payload[: 8 + n]  # no pickle protocol marker in the manifest
+
+
+def _mutants(data: bytes, count: int, seed: int) -> list[bytes]:
+    """Damaged copies of a checkpoint, each with a correct header (length and checksum), so
+    that everything past the checksum is exercised: truncations, bit flips, byte runs set to
+    random values, and bit flips inside the manifest's JSON numbers."""
+    rng = np.random.default_rng(seed)
+    payload = data[_HEADER.size :]
+    out = []
+    for k in range(count):
+        p = bytearray(payload)
+        kind = k % 4
+        if kind == 0:
+            p = p[: int(rng.integers(0, len(p)))]
+        elif kind == 1:
+            for _ in range(int(rng.integers(1, 4))):
+                i = int(rng.integers(0, len(p)))
+                p[i] ^= 1 << int(rng.integers(0, 8))
+        elif kind == 2:
+            i = int(rng.integers(0, len(p)))
+            run = rng.integers(0, 256, int(rng.integers(1, 16)), dtype=np.uint8).tobytes()
+            p[i : i + len(run)] = run
+        else:  # digits of the manifest changed: wrong sizes, ids, indices, shapes
+            (n,) = struct.unpack_from("<Q", p)
+            digits = [i for i in range(8, 8 + n) if chr(p[i]).isdigit()]
+            for i in rng.choice(digits, size=int(rng.integers(1, 3))):
+                p[int(i)] = ord(str(int(rng.integers(0, 10))))
+        out.append(_with_header(bytes(p)))
+    return out
+
+
+def test_damaged_checkpoints_past_the_checksum_give_only_checkpoint_error(tmp_path: Path):
+    scene = mixed_scene(n_cloth=4, n_particles=6)
+    ps = scene.systems[1]
+    ps.add(particles.Springs([[0, 1], [2, 3]], stiffness=50.0))
+    cs = constraints.ConstrainedSystem(particles.ParticleSystem([[0, 1, 0], [1, 1, 0]]), ks=1)
+    cs.add(constraints.Distance(0, 1))
+    scene.add(cs)
+    world = scene.systems[2]
+    world.add_joint(rigid.Ball(1, 2, (-0.4, 0.2, 0.0)))
+    scene.run(frames=3, progress=False)
+    scene.save(tmp_path / "good.kin")
+    data = (tmp_path / "good.kin").read_bytes()
+    path = tmp_path / "bad.kin"
+    outcomes = {"refused": 0, "loaded": 0}
+    for blob in _mutants(data, 400, seed=19):
+        path.write_bytes(blob)
+        try:
+            loaded = Scene.load(path)
+        except BaseException as e:  # a panic is a BaseException: catch it too
+            assert isinstance(e, CheckpointError), f"{type(e).__name__}: {e}"
+            outcomes["refused"] += 1
+            continue
+        outcomes["loaded"] += 1
+        try:  # what loads must step without a panic (an error for bad values is fine)
+            loaded.step(2)
+        except BaseException as e:
+            assert isinstance(e, Exception) and type(e).__name__ != "PanicException", repr(e)
+    assert outcomes["refused"] > 200 and outcomes["loaded"] > 0, outcomes
+
+
+def test_damaged_bytes_given_to_from_snapshot_raise_value_error_not_a_panic():
+    from kinema import _kinema
+
+    c = cloth.Cloth.grid(4, 4)
+    c.step(0.01)
+    _, (data, *_) = c._core.__reduce__()
+    rng = np.random.default_rng(5)
+    loaded = 0
+    for _ in range(200):
+        bad = bytearray(data)
+        for i in rng.integers(16, len(bad), size=2):
+            bad[int(i)] ^= 1 << int(rng.integers(0, 8))
+        try:
+            core = _kinema.ClothCore._from_snapshot(bytes(bad))
+        except BaseException as e:  # a panic is a BaseException: catch it too
+            assert isinstance(e, ValueError), repr(e)
+            continue
+        loaded += 1
+        try:
+            cloth.Cloth(None, None, _core=core).step(0.01)
+        except BaseException as e:
+            assert isinstance(e, Exception) and type(e).__name__ != "PanicException", repr(e)
+    assert 0 < loaded < 200
+    # A constrained system's snapshot is checked against the particles it is given.
+    ps = particles.ParticleSystem([[0, 1, 0], [1, 1, 0], [2, 1, 0]])
+    cs = constraints.ConstrainedSystem(ps)
+    cs.add(constraints.Distance(1, 2))
+    _, (data, _) = cs._sys.__reduce__()
+    small = particles.ParticleSystem([[0, 1, 0], [1, 1, 0]])
+    with pytest.raises(ValueError, match="particle"):
+        _kinema.Constrained._from_snapshot(data, small._sys)
+
+
+def test_objects_that_are_not_data_are_named_at_save(tmp_path: Path):
+    scene = Scene()
+    ps = particles.ParticleSystem([[0.0, 1.0, 0.0]])
+    ps.add(particles.Field(lambda t, x, v: np.zeros_like(x)))
+    scene.add(ps)
+    with pytest.raises(CheckpointError, match=r"scene\.systems\[0\].*Field"):
+        scene.save(tmp_path / "x.kin")
+    scene = Scene()
+    scene.add(rigid.World())
+    scene.add(AnimatedSphere(0.1, lambda t: (0.0, t, 0.0)))
+    with pytest.raises(CheckpointError, match=r"scene\.systems\[1:\]\[0\].*AnimatedSphere"):
+        scene.save(tmp_path / "x.kin")
+    scene = Scene()
+    custom = constraints.ConstrainedSystem(particles.ParticleSystem([[0, 1, 0]]))
+    custom.add(constraints.Custom([0], lambda x: x[0, 1] - 1, lambda x: [0, 1, 0]))
+    scene.add(custom)
+    with pytest.raises(CheckpointError, match=r"scene\.systems\[0\]._sys.*saved"):
+        scene.save(tmp_path / "x.kin")
+    assert not (tmp_path / "x.kin").exists()
+
+
+def test_records_are_kept_and_function_recorders_are_registered_again(tmp_path: Path):
+    scene = Scene()
+    ps = particles.ParticleSystem([[0.0, 1.0, 0.0]])
+    ps.add(particles.Gravity())
+    scene.add(ps)
+    scene.record("0.kinetic_energy")
+    scene.record("height", lambda: ps.positions[0, 1])
+    scene.step(3)
+    scene.save(tmp_path / "r.kin")
+    loaded = Scene.load(tmp_path / "r.kin")
+    assert np.array_equal(loaded.records["height"], scene.records["height"])
+    loaded.step(1)
+    assert len(loaded.records["0.kinetic_energy"]) == 4 and len(loaded.records["height"]) == 3
+    p = loaded.systems[0]
+    loaded.record("height", lambda: p.positions[0, 1])
+    loaded.step(1)
+    assert len(loaded.records["height"]) == 4
 
 
 def test_an_interrupted_write_leaves_the_previous_checkpoint_readable(tmp_path: Path, monkeypatch):

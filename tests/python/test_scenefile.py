@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kinema import scenefile
+from kinema import ParseError, scenefile
+from kinema import cloth as kinema_cloth
 from kinema.scene import Scene
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "scene.toml"
@@ -132,3 +133,110 @@ def test_box_collider_with_orientation_in_a_file(tmp_path: Path):
     scene, _ = scenefile.load(path)
     scene.run(frames=2, progress=False)
     assert np.isfinite(scene.systems[0].positions).all()
+
+
+def test_scene_files_cannot_write_outside_the_output_folder(tmp_path: Path):
+    for bad in ("/tmp/kinema-escape.kin", "../../escape.kin", "a/../../escape.kin", ""):
+        path = tmp_path / "w.toml"
+        path.write_text(f"[scene]\nframes = 1\n[output]\ncheckpoint = {bad!r}\n")
+        with pytest.raises(ValueError, match=r"\[output\]: checkpoint"):
+            scenefile.load(path)
+        r = kinema("run", str(path), "--no-progress", "--out", "out", cwd=tmp_path)
+        assert r.returncode == 2 and "checkpoint" in r.stderr, r.stderr
+    assert (
+        not Path("/tmp/kinema-escape.kin").exists()
+        and not (tmp_path.parent / "escape.kin").exists()
+    )
+    # A symbolic link inside the output folder cannot lead out of it either.
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "link").symlink_to(elsewhere)
+    path.write_text("[scene]\nframes = 1\n[output]\ncheckpoint = 'link/x.kin'\n")
+    r = kinema("run", str(path), "--no-progress", "--out", "out", cwd=tmp_path)
+    assert r.returncode == 2 and "outside the output folder" in r.stderr, r.stderr
+    assert not (elsewhere / "x.kin").exists()
+    # Only the command line may choose another place.
+    path.write_text("[scene]\nframes = 1\n[output]\ncheckpoint = 'x.kin'\n")
+    r = kinema(
+        "run", str(path), "--no-progress", "--checkpoint", str(elsewhere / "y.kin"), cwd=tmp_path
+    )
+    assert r.returncode == 0, r.stderr
+    assert Scene.load(elsewhere / "y.kin").frame == 1
+
+
+SECRET = "SECRET-TOKEN-1234 not a motion file"
+
+
+def test_scene_files_cannot_read_outside_their_folder_and_never_quote_inputs(tmp_path: Path):
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    private = tmp_path / "private"
+    private.mkdir()
+    (private / "secret.bvh").write_text(SECRET + "\n")
+    (scenes / "inside.bvh").write_text(SECRET + "\n")
+    cases = {
+        str(private / "secret.bvh"): "must be relative",
+        "../private/secret.bvh": "leads outside",
+        "/etc/passwd": "must be relative",
+    }
+    path = scenes / "r.toml"
+    for name, message in cases.items():
+        path.write_text(f"[scene]\nframes = 1\n[[character]]\nbvh = {name!r}\n")
+        with pytest.raises(ValueError, match=rf"character\[0\]: bvh: .*{message}") as e:
+            scenefile.load(path)
+        assert SECRET not in str(e.value) and "root:" not in str(e.value)
+    (scenes / "link.bvh").symlink_to(private / "secret.bvh")
+    path.write_text("[scene]\nframes = 1\n[[character]]\nbvh = 'link.bvh'\n")
+    with pytest.raises(ValueError, match="leads outside"):
+        scenefile.load(path)
+    # A malformed file inside the folder is named with its line, its content is not quoted.
+    path.write_text("[scene]\nframes = 1\n[[character]]\nbvh = 'inside.bvh'\n")
+    with pytest.raises(ParseError, match=r"inside\.bvh:1: expected HIERARCHY") as e:
+        scenefile.load(path)
+    assert "SECRET" not in str(e.value)
+    r = kinema("run", str(path), "--no-progress", cwd=tmp_path)
+    assert r.returncode == 2 and "inside.bvh:1" in r.stderr and "SECRET" not in r.stderr
+    # A folder given on the command line may be read.
+    path.write_text("[scene]\nframes = 1\n[[character]]\nbvh = '../private/secret.bvh'\n")
+    with pytest.raises(ParseError, match=r"secret\.bvh:1"):
+        scenefile.load(path, read_dirs=[private])
+    r = kinema("run", str(path), "--no-progress", "--allow-read", str(private), cwd=tmp_path)
+    assert r.returncode == 2 and "secret.bvh:1" in r.stderr and "SECRET" not in r.stderr
+
+
+def test_non_utf8_toml_and_obj_files_raise_parse_error_naming_the_file(tmp_path: Path):
+    toml = tmp_path / "latin1.toml"
+    toml.write_bytes(b"[scene]\nframes = 1\n# caf\xe9\n")
+    with pytest.raises(ParseError, match=r"latin1\.toml:3: not UTF-8"):
+        scenefile.load(toml)
+    obj = tmp_path / "mesh.obj"
+    obj.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 0 1\n# \xff\xfe\nf 1 2 3\n")
+    with pytest.raises(ParseError, match=r"mesh\.obj:4: not UTF-8"):
+        kinema_cloth.Cloth.from_obj(obj)
+    toml.write_text("[scene]\nframes = 1\n[[cloth]]\nobj = 'mesh.obj'\n")
+    with pytest.raises(ParseError, match=r"cloth\[0\]: .*mesh\.obj:4"):
+        scenefile.load(toml)
+    r = kinema("run", str(toml), "--no-progress", cwd=tmp_path)
+    assert r.returncode == 2 and "mesh.obj:4" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_kinema_run_reports_a_failed_simulation_in_one_line(tmp_path: Path):
+    path = tmp_path / "diverge.toml"
+    path.write_text(
+        "[scene]\nframes = 400\ndt = 0.1\n[[particles]]\npositions = [[0, 0, 0], [1, 0, 0]]\n"
+        "items = [{ type = 'Springs', pairs = [[0, 1]], stiffness = 1e9, rest = [0.5] }]\n"
+        "step = { method = 'explicit_euler' }\n"
+    )
+    r = kinema("run", str(path), "--no-progress", cwd=tmp_path)
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert "Traceback" not in r.stderr and len(lines) == 2, r.stderr
+    assert lines[0].startswith("kinema run: StabilityWarning: ")  # one line, no source line
+    assert lines[1].startswith("kinema run: ") and "diverge.toml" in lines[1]
+    assert "simulation failed in frame" in lines[1]
+    r = kinema("run", str(path), "--no-progress", "--resume", "nowhere.kin", cwd=tmp_path)
+    assert r.returncode == 2 and "nowhere.kin" in r.stderr and "Traceback" not in r.stderr
+    (tmp_path / "bad.kin").write_bytes(b"not a checkpoint")
+    r = kinema("run", str(path), "--no-progress", "--resume", "bad.kin", cwd=tmp_path)
+    assert r.returncode == 2 and "not a kinema scene checkpoint" in r.stderr
