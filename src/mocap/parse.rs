@@ -177,7 +177,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                             name: String::new(),
                             parent: None,
                             direction: DVec3::ZERO,
-                            length: 0.0,
+                            length: f64::NAN, // required: checked once the bones are read
                             axis: DQuat::IDENTITY,
                             axis_as_read: ([0.0; 3], String::new()),
                             dofs: vec![],
@@ -332,6 +332,11 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
             return Err(err(file, ln, format!("a non-zero direction for bone {:?}", bone.name)));
         }
         bone.direction /= len;
+        // The Acclaim ASF format gives every bone a length (an explicit `length 0` is legal).
+        if bone.length.is_nan() || bone.length < 0.0 {
+            let what = if bone.length.is_nan() { "missing" } else { "negative" };
+            return Err(err(file, ln, format!("a length >= 0 for bone {:?} ({what})", bone.name)));
+        }
         bone.axis = axis_rotation(file, ln, angles.map(|a| a * scale), &ord)?;
         bone.axis_as_read = (angles, ord.clone());
         if !bone.limits.is_empty() && bone.limits.len() != bone.dofs.len() {
