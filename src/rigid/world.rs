@@ -1052,7 +1052,7 @@ impl World {
                     let mu = (self.friction[i] * plane.friction).sqrt();
                     let (vn, c) = make((i, k, j), i, None, p, plane.normal, gap, e, mu);
                     if gap <= (-vn * h).max(0.0) + 1e-9 {
-                        resolvable(vn, gap, h, i)?;
+                        resolvable(vn, gap, h, resting_speed, i)?;
                         self.contacts.push(c);
                     }
                 }
@@ -1100,7 +1100,7 @@ impl World {
             for &(f, (p, nrm, gap)) in &self.touches {
                 let (vn, c) = make((a, np + b, f), a, Some(b), p, nrm, gap, e, mu);
                 if gap <= (-vn * h).max(0.0) + contact::SLOP {
-                    resolvable(vn, gap, h, a)?;
+                    resolvable(vn, gap, h, resting_speed, a)?;
                     self.contacts.push(c);
                 }
             }
@@ -1113,12 +1113,15 @@ impl World {
 /// `-vn` (m/s), can be honoured in a step of `h` (s): its target speed `gap / h` must stand
 /// above the rounding of the speeds the impulse cancels (16 ulp of `|vn|`). Otherwise (e.g. a
 /// body 2.5 m above the ground at dt = 1e9 s, which gravity moves at 1e10 m/s) the target is
-/// lost in the cancellation and the body would stop in mid-air.
+/// lost in the cancellation and the body would stop in mid-air. Only an approach the step's
+/// gravity accounts for (`|vn| <= resting_speed = 2 |g| h`) is blamed on `dt`; a faster one is
+/// a diverging state, reported as divergence after the step.
 ///
 /// # Errors
 /// [`Error::InvalidInput`] (argument `"dt"`) naming the body.
-fn resolvable(vn: f64, gap: f64, h: f64, body: usize) -> Result<()> {
-    if gap > contact::SLOP && gap / h < 16.0 * f64::EPSILON * vn.abs() {
+fn resolvable(vn: f64, gap: f64, h: f64, resting_speed: f64, body: usize) -> Result<()> {
+    if gap > contact::SLOP && vn.abs() <= resting_speed && gap / h < 16.0 * f64::EPSILON * vn.abs()
+    {
         return Err(Error::invalid(
             "dt",
             format!(
