@@ -448,9 +448,10 @@ def test_unpickling_validates_rotations():
 
 def test_from_matrix_orthonormalizes_huge_and_tiny_matrices():
     r = Rotation.from_rotvec([0.3, -0.2, 0.9])
-    for scale in [1e160, 1e300, 1e-160, 1e-310]:
+    # 1e-315 is subnormal (~25 significant bits left): close, not exact.
+    for scale, tol in [(1e160, 1e-14), (1e300, 1e-14), (1e-160, 1e-14), (1e-315, 1e-6)]:
         got = Rotation.from_matrix(scale * r.as_matrix(), orthonormalize=True)
-        assert abs(abs(np.dot(got.as_quat(), r.as_quat())) - 1.0) < 1e-14, scale
+        assert abs(abs(np.dot(got.as_quat(), r.as_quat())) - 1.0) < tol, scale
     eye = Rotation.from_matrix(1e160 * np.eye(3), orthonormalize=True)
     assert np.array_equal(eye.as_quat(), [1.0, 0.0, 0.0, 0.0])
     for bad in [np.inf, np.nan]:
