@@ -103,7 +103,7 @@ pub fn orthonormalize(m: &[f64; 9]) -> Result<[f64; 9]> {
     ensure_finite("matrix", m)?;
     let largest = m.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
     if largest == 0.0 {
-        return Err(Error::invalid("matrix", "is zero; no nearest rotation"));
+        return Err(Error::invalid("matrix", "has rank 0 (is zero); no nearest rotation"));
     }
     // 2^-e with e = floor(log2 largest), applied in two factors that are each representable
     // (e ranges over -1074..=1023).
