@@ -563,3 +563,76 @@ fn fastest_mode_predicts_the_explicit_stability_limit() {
     assert!(stable(0.9 * limit), "unstable below the predicted limit {limit}");
     assert!(!stable(1.3 * limit), "stable well above the predicted limit {limit}");
 }
+
+/// Positions, velocities, time and the step's counters of two cloths, bit for bit.
+fn assert_same_cloth(a: &Cloth, b: &Cloth) {
+    let bits =
+        |v: &[DVec3]| v.iter().flat_map(|p| p.to_array().map(f64::to_bits)).collect::<Vec<_>>();
+    assert_eq!(bits(a.positions()), bits(b.positions()), "positions");
+    assert_eq!(bits(a.velocities()), bits(b.velocities()), "velocities");
+    assert_eq!(a.time().to_bits(), b.time().to_bits(), "time");
+    let (sa, sb) = (a.stats(), b.stats());
+    assert_eq!(
+        (sa.iterations, sa.residual.to_bits(), sa.converged, sa.contacts, sa.substeps),
+        (sb.iterations, sb.residual.to_bits(), sb.converged, sb.contacts, sb.substeps),
+        "stats"
+    );
+}
+
+/// A failed step, even one that subdivided and committed some substeps before failing, leaves
+/// the cloth exactly as it was: the state and counters are those of a copy that never tried
+/// it, and the steps after it (which read the BDF2 history, the PCG warm start and the
+/// contact states) are bit for bit the copy's.
+#[test]
+fn failed_cloth_step_leaves_nothing_behind() {
+    use kinema::snapshot::Snapshot;
+    // Steps that fail (the matrix stops being positive definite, or RK4 overflows).
+    let cases = [
+        (Method::Bdf2, pcg(1e-6), 1e9),
+        (Method::ImplicitEuler, pcg(1e-6), 1e8),
+        (Method::Bdf2, cholesky(), 1e8),
+        (Method::Rk4, pcg(1e-6), 1e100),
+    ];
+    for (method, options, huge) in cases {
+        let mut cloth = hanging(6, Material::default());
+        cloth
+            .add_collider(Collider {
+                shape: Shape::Sphere { center: DVec3::new(0.0, -0.6, 0.05), radius: 0.2 },
+                velocity: DVec3::ZERO,
+                friction: 0.3,
+            })
+            .unwrap();
+        let dt = if method == Method::Rk4 { 1e-4 } else { 0.01 };
+        cloth.step(dt, 5, method, options).unwrap();
+        let mut twin = Cloth::from_snapshot(&cloth.to_snapshot().unwrap()).unwrap();
+        let err = cloth.step(huge, 1, method, options).unwrap_err();
+        assert!(matches!(err, Error::Diverged { .. } | Error::SolverFailed { .. }), "{err:?}");
+        assert_same_cloth(&cloth, &twin);
+        cloth.step(dt, 3, method, options).unwrap();
+        twin.step(dt, 3, method, options).unwrap();
+        assert_same_cloth(&cloth, &twin);
+    }
+}
+
+/// A step so large that the PCG's residual overflows (dt = 1e100) is refused naming `dt`, not
+/// taken as a silent no-op that advances the clock, and leaves the cloth as it was. The
+/// Cholesky solve of the same step is exact: implicit Euler at `h → ∞` is the static
+/// equilibrium, which it reaches with a small residual.
+#[test]
+fn huge_cloth_step_is_refused_not_silently_skipped() {
+    let mut cloth = hanging(5, Material::default());
+    let (x, t) = (cloth.positions().to_vec(), cloth.time());
+    for method in [Method::ImplicitEuler, Method::Bdf2] {
+        match cloth.step(1e100, 1, method, pcg(1e-6)) {
+            Err(Error::InvalidInput { arg, .. }) => assert_eq!(arg, "dt"),
+            Err(Error::SolverFailed { reason }) => assert!(reason.contains("dt"), "{reason}"),
+            other => panic!("{other:?} {method:?}"),
+        }
+        assert_eq!((cloth.positions(), cloth.time()), (&x[..], t));
+    }
+    cloth.step(1e100, 1, Method::ImplicitEuler, cholesky()).unwrap();
+    let stats = cloth.stats();
+    assert!(stats.converged && stats.residual < 1e-10, "{stats:?}");
+    assert!(cloth.positions().iter().all(|p| p.is_finite()));
+    assert!(cloth.positions() != &x[..]);
+}

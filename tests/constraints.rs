@@ -423,3 +423,32 @@ fn reduced_pendulums_have_no_drift_keep_energy_to_order_and_match_multipliers() 
     assert!((one.energy() - e0).abs() < 1e-3 * e0.abs());
     assert!((one.positions_velocities()[0].0 - DVec3::Y).length() - 2.0 < 1e-15);
 }
+
+/// A failed step leaves the particles and the constraint system exactly as they were: the
+/// state bit for bit, and the steps after it (which read the CG warm start, the tracked curve
+/// parameter) bit for bit those of a copy that never tried it. (The integrator's evaluation
+/// counters do count the failed attempt's work.)
+#[test]
+fn failed_constrained_step_leaves_nothing_behind() {
+    use kinema::snapshot::Snapshot;
+    let bits = |p: &ParticleSystem| -> Vec<u64> {
+        p.positions().iter().chain(p.velocities()).map(|v| v.to_bits()).collect()
+    };
+    let systems = [
+        double_pendulum(10.0, 5.0, ConstraintSolver::ConjugateGradient),
+        double_pendulum(10.0, 5.0, ConstraintSolver::Cholesky),
+        bead_on_curve(CIRCLE, 10.0, 5.0),
+    ];
+    for (mut p, mut c) in systems {
+        c.step(&mut p, 1e-3, 10, Method::Rk4).unwrap();
+        let (mut p2, mut c2) =
+            (p.clone(), ConstrainedSystem::from_snapshot(&c.to_snapshot().unwrap()).unwrap());
+        assert!(c.step(&mut p, 1e200, 1, Method::Rk4).is_err());
+        assert_eq!(bits(&p), bits(&p2));
+        assert_eq!(p.time().to_bits(), p2.time().to_bits());
+        c.step(&mut p, 1e-3, 5, Method::Rk4).unwrap();
+        c2.step(&mut p2, 1e-3, 5, Method::Rk4).unwrap();
+        assert_eq!(bits(&p), bits(&p2));
+        assert_eq!(c.iterations(), c2.iterations());
+    }
+}

@@ -450,3 +450,49 @@ fn mass_unit_is_kept_and_written_back() {
     let e = parse_asf(&SLIDING.replace("mass 2.5", "mass heavy"), "h.asf").unwrap_err();
     assert!(e.to_string().contains("h.asf:4") && e.to_string().contains("heavy"), "{e}");
 }
+
+/// Every Acclaim bone has a length: a bone without one is a parse error naming the file, the
+/// bone's line and the bone (not a silent length 0); a negative one too. An explicit
+/// `length 0` (as the iniini variant writes for its hand bones) stays legal.
+#[test]
+fn asf_bone_without_length_is_a_parse_error() {
+    let asf = ONE_BONE.replace("AXIS", "0 0 0").replace("DOF", "rz");
+    let e = parse_asf(&asf.replace("    length 2\n", ""), "nolength.asf").unwrap_err();
+    let Error::Parse { file, line, expected } = &e else { panic!("{e:?}") };
+    assert_eq!((file.as_str(), *line), ("nolength.asf", 12), "{e}");
+    assert!(expected.contains("\"arm\"") && expected.contains("missing"), "{e}");
+    let e = parse_asf(&asf.replace("length 2", "length -2"), "neg.asf").unwrap_err();
+    assert!(e.to_string().contains("neg.asf:12") && e.to_string().contains("negative"), "{e}");
+    let zero = parse_asf(&asf.replace("length 2", "length 0"), "zero.asf").unwrap();
+    assert_eq!(zero.bones[0].length, 0.0);
+}
+
+/// A skeleton built by hand or restored from bytes is checked before use: a parent index at
+/// or after its bone, a non-unit axis or direction, a bad dof axis or a negative length are
+/// refused by `validate` (which the Python unpickling calls) naming the bone; a parsed one
+/// passes.
+#[test]
+fn skeleton_validate_refuses_bad_parents_and_values() {
+    use kinema::mocap::Dof;
+    let sk = parse_asf(&read("07-walk.asf"), "07-walk.asf").unwrap();
+    sk.validate().unwrap();
+    let bad: [(&str, fn(&mut Skeleton)); 6] = [
+        ("parent", |s| s.bones[3].parent = Some(3)),
+        ("parent", |s| s.bones[0].parent = Some(99)),
+        ("direction", |s| s.bones[2].direction.x = f64::NAN),
+        ("length", |s| s.bones[2].length = -1.0),
+        ("axis", |s| s.bones[2].axis.w *= 2.0),
+        ("dofs", |s| s.bones[2].dofs[0] = Dof::Rotation(7)),
+    ];
+    for (what, spoil) in bad {
+        let mut s = sk.clone();
+        spoil(&mut s);
+        let e = s.validate().unwrap_err();
+        assert!(matches!(e, Error::InvalidInput { .. }), "{e}");
+        assert!(e.to_string().contains(what), "{what}: {e}");
+    }
+    let mut motion_ok = parse_amc(&read("07_05-walk.amc"), "07_05-walk.amc", &sk).unwrap();
+    motion_ok.validate().unwrap();
+    motion_ok.values.pop();
+    assert!(motion_ok.validate().is_err());
+}

@@ -721,3 +721,37 @@ fn max_stable_dt_is_exact_near_the_imaginary_axis() {
         }
     }
 }
+
+/// A failed BDF2 step (Newton fails in every substep on `y' = y²` from `y = 1` over a step
+/// beyond the blow-up at `t = 1`) leaves the state and the two-step history as they were:
+/// the steps after it are bit for bit those of a stepper that never tried it.
+#[test]
+fn failed_bdf2_step_keeps_its_history() {
+    struct Square;
+    impl OdeSystem for Square {
+        fn dim(&self) -> usize {
+            1
+        }
+        fn rhs(&mut self, _t: f64, y: &[f64], f: &mut [f64]) -> kinema::Result<()> {
+            f[0] = y[0] * y[0];
+            Ok(())
+        }
+    }
+    let run = |fail: bool| {
+        let mut stepper = Stepper::new(Method::Bdf2, 1).unwrap();
+        let mut y = [1.0];
+        for k in 0..3 {
+            stepper.step(&mut Square, 0.01 * k as f64, &mut y, 0.01).unwrap();
+        }
+        if fail {
+            let before = y;
+            assert!(stepper.step(&mut Square, 0.03, &mut y, 10.0).is_err());
+            assert_eq!(y.map(f64::to_bits), before.map(f64::to_bits));
+        }
+        for k in 3..6 {
+            stepper.step(&mut Square, 0.01 * k as f64, &mut y, 0.01).unwrap();
+        }
+        y[0].to_bits()
+    };
+    assert_eq!(run(true), run(false));
+}

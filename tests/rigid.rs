@@ -334,11 +334,98 @@ fn bad_input_and_divergence_leave_the_world_unchanged() {
     assert!(world.add_body(&desc).is_err());
     assert!(world.is_empty());
 
-    world.add_body(&body(tumbling_box(), DVec3::new(1e300, 1e300, 1e300))).unwrap();
+    // Spinning at 1e150 rad/s (kinetic energy ~1e300 J, still finite): an explicit Euler
+    // step's energy overflows, which is divergence.
+    world.add_body(&body(tumbling_box(), DVec3::new(1e150, 1e150, 1e150))).unwrap();
     let before = (world.orientation(0), world.angular_velocity(0));
     let err = world.step(1.0, 3).unwrap_err();
     assert!(matches!(err, kinema::Error::Diverged { index: 0, .. }), "{err}");
     assert_eq!((world.orientation(0), world.angular_velocity(0)), before);
     assert!(world.step(0.0, 1).is_err());
     assert!(world.apply_force(3, DVec3::X, DVec3::ZERO).is_err());
+}
+
+/// A body whose kinetic energy would overflow is refused, naming the argument; just below,
+/// the energy is computed without overflow (`|π/√I|²/2`, not `π²/(2I)`).
+#[test]
+fn kinetic_energy_is_finite_or_the_body_is_refused() {
+    let mut world = World::new(DVec3::ZERO, RotationIntegrator::Splitting);
+    for (w, v, arg) in [
+        (DVec3::splat(1e300), DVec3::ZERO, "angular_velocity"),
+        (DVec3::ZERO, DVec3::new(1e160, 0.0, 0.0), "velocity"),
+    ] {
+        let mut desc = body(Shape::Sphere { radius: 1.0 }, w);
+        desc.velocity = v;
+        match world.add_body(&desc) {
+            Err(kinema::Error::InvalidInput { arg: a, .. }) => assert_eq!(a, arg),
+            other => panic!("{other:?}"),
+        }
+    }
+    assert!(world.is_empty());
+    // A light sphere spinning fast: pi = I w = 1e-10 * 0.4 * 1e155 overflows when squared,
+    // the energy I w^2 / 2 = 2e299 J does not.
+    let mut desc = body(Shape::Sphere { radius: 1.0 }, DVec3::new(1e155, 0.0, 0.0));
+    desc.mass = Some(1e-10);
+    world.add_body(&desc).unwrap();
+    let expected = 0.5 * (0.4 * 1e-10) * 1e155 * 1e155;
+    let e = world.kinetic_energy();
+    assert!(e.is_finite() && (e - expected).abs() <= 1e-12 * expected, "{e} vs {expected}");
+}
+
+/// A failed step leaves the world exactly as it was: positions, velocities, orientations,
+/// angular momenta bit for bit, and the steps after it (which read the contact warm starts)
+/// bit for bit those of a copy that never tried it.
+#[test]
+fn failed_rigid_step_leaves_nothing_behind() {
+    use kinema::snapshot::Snapshot;
+    let mut world = World::new(DVec3::new(0.0, -9.81, 0.0), RotationIntegrator::Splitting);
+    world.add_plane(DVec3::Y, 0.0, 0.0, 0.5).unwrap();
+    for k in 0..3 {
+        let mut desc = body(Shape::Box { half_extents: DVec3::splat(0.1) }, DVec3::ZERO);
+        desc.position = DVec3::new(0.01 * k as f64, 0.1 + 0.21 * k as f64, 0.0);
+        world.add_body(&desc).unwrap();
+    }
+    world.step(1.0 / 60.0, 20).unwrap();
+    let snapshot = world.to_snapshot().unwrap();
+    let mut twin = World::from_snapshot(&snapshot).unwrap();
+    let state = |w: &World| -> Vec<u64> {
+        (0..w.len())
+            .flat_map(|i| {
+                let (x, v, q, l) =
+                    (w.position(i), w.velocity(i), w.orientation(i), w.spin_angular_momentum(i));
+                [x.to_array(), v.to_array(), l.to_array()]
+                    .concat()
+                    .into_iter()
+                    .chain(q.to_array())
+                    .map(f64::to_bits)
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    };
+    assert!(world.step(1e300, 1).is_err());
+    assert_eq!(state(&world), state(&twin));
+    world.step(1.0 / 60.0, 10).unwrap();
+    twin.step(1.0 / 60.0, 10).unwrap();
+    assert_eq!(state(&world), state(&twin));
+}
+
+/// A step so large that a speculative contact's closing speed is lost in rounding (a ball
+/// 2.5 m above the ground at dt = 1e9 s used to stop in mid-air) is refused naming `dt`, and
+/// leaves the world as it was; ordinary large steps still land the ball on the ground.
+#[test]
+fn huge_step_with_ground_is_refused_not_frozen_in_the_air() {
+    let mut world = World::new(DVec3::new(0.0, -9.81, 0.0), RotationIntegrator::Splitting);
+    world.add_plane(DVec3::Y, 0.0, 0.0, 0.5).unwrap();
+    let mut desc = body(Shape::Sphere { radius: 0.5 }, DVec3::ZERO);
+    desc.position = DVec3::new(0.0, 3.0, 0.0);
+    world.add_body(&desc).unwrap();
+    match world.step(1e9, 1) {
+        Err(kinema::Error::InvalidInput { arg, .. }) => assert_eq!(arg, "dt"),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(world.position(0), DVec3::new(0.0, 3.0, 0.0));
+    assert_eq!(world.velocity(0), DVec3::ZERO);
+    // One step of 10 s: the speculative contact lands it exactly on the ground.
+    world.step(10.0, 1).unwrap();
+    assert!((world.position(0).y - 0.5).abs() < 1e-9, "{}", world.position(0));
 }

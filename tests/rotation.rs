@@ -298,3 +298,31 @@ fn batched_matrices_equal_the_row_by_row_ones_bitwise() {
     let err = quats_to_matrices(&bad, &mut out).unwrap_err().to_string();
     assert!(err.contains("777"), "{err}");
 }
+
+/// The nearest rotation does not depend on the matrix's scale: huge and tiny (even subnormal)
+/// multiples of a rotation orthonormalise to that rotation, not to NaN; non-finite and zero
+/// matrices are refused.
+#[test]
+fn orthonormalize_scaled_matrices_without_overflow() {
+    let q = DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
+    let r = quat_to_matrix(q);
+    // Subnormal entries (5e-320) carry only ~10 significant bits: close, not exact.
+    for (scale, tol) in [(1e160, 1e-14), (1e300, 1e-14), (f64::MAX / 2.0, 1e-14)]
+        .into_iter()
+        .chain([(1e-160, 1e-14), (1e-300, 1e-14), (5e-320, 1e-4)])
+    {
+        let m = r.map(|x| x * scale);
+        let got = quat_from_matrix(&m, true).unwrap();
+        assert!(got.dot(q).abs() > 1.0 - tol, "scale {scale}: {got:?}");
+        let o = orthonormalize(&m).unwrap();
+        assert!(is_rotation_matrix(&o, 1e-14), "scale {scale}: {o:?}");
+    }
+    let identity = [1e160, 0.0, 0.0, 0.0, 1e160, 0.0, 0.0, 0.0, 1e160];
+    assert_eq!(quat_from_matrix(&identity, true).unwrap(), DQuat::IDENTITY);
+    for bad in [f64::INFINITY, f64::NAN] {
+        let mut m = r;
+        m[4] = bad;
+        assert!(quat_from_matrix(&m, true).is_err());
+    }
+    assert!(orthonormalize(&[0.0; 9]).is_err());
+}

@@ -85,7 +85,8 @@ class Rotation:
 
         A matrix further than ``ROTATION_MATRIX_TOL`` (1e-6) from orthonormal, or with a
         negative determinant, raises ValueError unless ``orthonormalize=True`` replaces it by
-        the nearest rotation (polar decomposition by SVD).
+        the nearest rotation (polar decomposition by SVD, after an exact power-of-two scaling,
+        so any finite matrix works, ``1e160 * I`` or subnormal entries included).
         """
         m, single = as_batch(matrix, "matrix", (3, 3))
         return cls._make(_kinema.matrix_to_quat(m, orthonormalize), single)
@@ -255,11 +256,31 @@ class Rotation:
     def __getstate__(self) -> tuple[np.ndarray, bool]:
         return self._quat, self._single
 
-    def __setstate__(self, state: tuple[np.ndarray, bool]) -> None:
-        self._quat, self._single = state
+    def __setstate__(self, state: Any) -> None:
+        """Unpickle, validating: quaternions ``(N, 4)`` of unit length (to 1e-9) and a bool
+        (``(1, 4)`` when single); anything else (a damaged or foreign pickle) raises
+        ValueError."""
+        quat, single = _pickled(state, "quaternions", (4,))
+        norms = np.linalg.norm(quat, axis=1)
+        bad = np.flatnonzero(~(np.abs(norms - 1.0) <= 1e-9))
+        if bad.size:
+            raise ValueError(f"state: quaternion {bad[0]} is not unit (norm {norms[bad[0]]})")
+        self._quat, self._single = quat, single
 
     def _out(self, arr: np.ndarray) -> np.ndarray:
         return arr[0] if self._single else arr
+
+
+def _pickled(state: Any, what: str, item: tuple[int, ...]) -> tuple[np.ndarray, bool]:
+    """The ``(array (N, *item), single)`` pickle state of a Rotation or Transform, checked for
+    its types and shape (one item when single)."""
+    if not (isinstance(state, tuple) and len(state) == 2 and isinstance(state[1], bool)):
+        raise ValueError(f"state: expected ({what}, single), not a kinema pickle")
+    array = np.ascontiguousarray(state[0], dtype=np.float64)
+    if array.shape[1:] != item or array.ndim != 1 + len(item) or (state[1] and len(array) != 1):
+        shape = ", ".join(["1" if state[1] else "N", *map(str, item)])
+        raise ValueError(f"state: {what} must have shape ({shape}), got {array.shape}")
+    return array, state[1]
 
 
 def _count(n: object) -> int:
@@ -411,5 +432,8 @@ class Transform:
     def __getstate__(self) -> tuple[np.ndarray, bool]:
         return self._matrix, self._single
 
-    def __setstate__(self, state: tuple[np.ndarray, bool]) -> None:
-        self._matrix, self._single = state
+    def __setstate__(self, state: Any) -> None:
+        """Unpickle, validating as :meth:`from_matrix` does: affine ``(N, 4, 4)`` with last
+        row ``(0, 0, 0, 1)`` and finite entries, and a bool; else ValueError."""
+        matrix, single = _pickled(state, "matrices", (4, 4))
+        self._matrix, self._single = _kinema.transform_validate(matrix), single

@@ -322,17 +322,44 @@ class Scene:
                 e.obj.step(h, **e.options)
         self._steps += 1
 
-    def step(self, frames: int = 1) -> None:
-        """Advance ``frames`` frames (no progress bar, no Ctrl-C handling; see :meth:`run`)."""
-        frames = _count(frames, "frames")
+    def _frame(self, stop: Callable[[], bool] | None = None) -> bool:
+        """One frame of ``substeps`` steps; ``False`` when ``stop()`` ended it early (checked
+        between steps, so no system is ever half-stepped).
+
+        All or nothing: when a system fails, every system is put back from a snapshot taken
+        before the frame (in place, so views of their state stay valid), together with the
+        clock and the colliders, and the error propagates. Only a frame of one step of one
+        system that receives no colliders takes no snapshot: a failed step of a single system
+        already changes nothing."""
         if not self._entries:
-            self._steps += frames * self._substeps
-            for _ in range(frames):
-                self._collect()
-            return
-        for _ in range(frames):
+            self._steps += self._substeps
+            return True
+        alone = (
+            len(self._entries) == 1
+            and self._substeps == 1
+            and not (self._entries[0].receives and self._kinematic)
+        )
+        undo = [] if alone else [_checkpoint(e) for e in self._entries]
+        steps, previous = self._steps, self._previous
+        try:
             for _ in range(self._substeps):
                 self._step()
+                if stop is not None and stop():
+                    return False
+        except BaseException:
+            for restore in undo:
+                restore()
+            self._steps, self._previous = steps, previous
+            raise
+        return True
+
+    def step(self, frames: int = 1) -> None:
+        """Advance ``frames`` frames (no progress bar, no Ctrl-C handling; see :meth:`run`).
+
+        Each frame is all or nothing: a :class:`kinema.SimulationError` (or any error) in any
+        system leaves the whole scene at the end of the last completed frame."""
+        for _ in range(_count(frames, "frames")):
+            self._frame()
             self._collect()
 
     def run(
@@ -346,6 +373,7 @@ class Scene:
         """Run ``duration`` seconds or ``frames`` frames; return the frames completed.
 
         ``on_frame(scene)`` is called after every completed frame (to draw, export or check).
+        Each frame is all or nothing, as in :meth:`step`.
 
         With ``progress`` a bar shows frames, simulated time and steps per second. Ctrl-C
         stops the run cleanly after the step in progress: the state is the last completed step,
@@ -366,11 +394,7 @@ class Scene:
         start, done = time.perf_counter(), 0
         with _sigint_flag() as stop:
             for _ in range(n):
-                for _ in range(self._substeps):
-                    self._step_or_count()
-                    if stop():
-                        break
-                if stop():
+                if not self._frame(stop) or stop():
                     self.interrupted = True
                     break
                 self._collect()
@@ -386,12 +410,6 @@ class Scene:
         if bar is not None:
             bar.close()
         return done
-
-    def _step_or_count(self) -> None:
-        if self._entries:
-            self._step()
-        else:
-            self._steps += 1
 
     def _check_stability(self) -> None:
         """Warn when an explicit method's step is beyond the stability limit of the fastest
@@ -530,6 +548,38 @@ class Scene:
     def __repr__(self) -> str:
         kinds = ", ".join(type(s).__name__ for s in self.systems) or "empty"
         return f"Scene(dt={self._dt}, substeps={self._substeps}, time={self.time:.4g} s: {kinds})"
+
+
+def _checkpoint(entry: _Entry) -> Callable[[], None]:
+    """A function that puts ``entry``'s system (and the scene's record of its colliders) back
+    as it is now: its compiled object is restored in place from a snapshot, so views of its
+    state stay valid. A constrained system holding a Python function cannot be snapshotted:
+    its particles are restored, while its multiplier warm start and step counters keep the
+    failed step's values (they change no result beyond the solver tolerance)."""
+    obj, colliders = entry.obj, list(entry.colliders)
+    cores: list[Any]
+    if isinstance(obj, ConstrainedSystem):
+        cores = [obj._particles._sys, obj._sys]
+    elif isinstance(obj, _cloth.Cloth):
+        cores = [obj._core]
+    elif isinstance(obj, _particles.ParticleSystem):
+        cores = [obj._sys]
+    else:
+        cores = [obj._world]
+    saved: list[tuple[Any, Any]] = []
+    for core in cores:
+        with contextlib.suppress(ValueError):  # refused when a constraint is a Python function
+            saved.append((core, core.__reduce__()[1][0]))
+    count = getattr(obj, "_colliders", None)
+
+    def restore() -> None:
+        for core, data in saved:
+            core._restore(data)
+        entry.colliders[:] = colliders
+        if count is not None:
+            obj._colliders = count
+
+    return restore
 
 
 def _count(n: Any, name: str) -> int:

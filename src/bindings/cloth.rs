@@ -103,6 +103,13 @@ impl ClothCore {
         Ok(Self { cloth: Cloth::from_snapshot(data)? })
     }
 
+    /// Become the cloth of snapshot `data` (same vertex count), in place: views of the
+    /// positions and velocities stay valid.
+    fn _restore(&mut self, py: Python<'_>, data: &[u8]) -> PyResult<()> {
+        let cloth = &mut self.cloth;
+        Ok(detached(py, || cloth.restore(Cloth::from_snapshot(data)?))?)
+    }
+
     /// A cloth from `vertices` (N, 3) m and `triangles` (M, 3) indices (as float64), with
     /// optional per-corner `uv` (M, 6) m, model `"baraff_witkin"` or `"mass_spring"` and
     /// material `[density, stretch, shear, bend, damping, air_damping]`, `gravity` (3,).

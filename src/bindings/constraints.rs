@@ -151,6 +151,13 @@ impl Constrained {
         Ok(Constrained { particles, system, error: Arc::default() })
     }
 
+    /// Become the constraint system of snapshot `data`, in place (the particles are restored
+    /// on their own).
+    fn _restore(&mut self, data: &[u8]) -> PyResult<()> {
+        self.system = ConstrainedSystem::from_snapshot(data)?;
+        Ok(())
+    }
+
     /// Constraints on `particles`: `formulation` `"multipliers"` with feedback gains `ks`
     /// (1/s²), `kd` (1/s) and a solver (`"cholesky"` or `"cg"`), or `"penalty"` with
     /// `stiffness` (N/m) and `damping` (N s/m).

@@ -55,10 +55,13 @@ impl PySkeleton {
         reduce(slf.as_any(), bytes, vec![])
     }
 
-    /// The object stored by `__reduce__`.
+    /// The object stored by `__reduce__`, validated (a bad parent index, a non-unit axis...
+    /// raises `ValueError`).
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { skeleton: Skeleton::from_snapshot(data)? })
+        let skeleton = Skeleton::from_snapshot(data)?;
+        skeleton.validate()?;
+        Ok(Self { skeleton })
     }
 
     /// Joint names: "root" then the bones, parents first.
@@ -202,10 +205,12 @@ impl PyMotion {
         reduce(slf.as_any(), bytes, vec![this.skeleton.bind(slf.py()).clone().into_any()])
     }
 
-    /// The motion stored by `__reduce__`, for `skeleton`.
+    /// The motion stored by `__reduce__`, for `skeleton`, validated.
     #[staticmethod]
     fn _from_snapshot(data: &[u8], skeleton: Py<PyAny>) -> PyResult<Self> {
-        Ok(Self { motion: Motion::from_snapshot(data)?, skeleton })
+        let motion = Motion::from_snapshot(data)?;
+        motion.validate()?;
+        Ok(Self { motion, skeleton })
     }
 
     /// Frame `i` as a pose: its values (root dofs then each bone's), radians / file units.
@@ -376,10 +381,13 @@ impl PyBvhSkeleton {
         reduce(slf.as_any(), bytes, vec![])
     }
 
-    /// The object stored by `__reduce__`.
+    /// The object stored by `__reduce__`, validated (a bad parent index, a non-unit axis...
+    /// raises `ValueError`).
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { skeleton: BvhSkeleton::from_snapshot(data)? })
+        let skeleton = BvhSkeleton::from_snapshot(data)?;
+        skeleton.validate()?;
+        Ok(Self { skeleton })
     }
 
     /// Joint names in file order (depth first, parents first).

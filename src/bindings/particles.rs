@@ -141,6 +141,13 @@ impl Particles {
         Ok(Self { system: ParticleSystem::from_snapshot(data)? })
     }
 
+    /// Become the system of snapshot `data` (same capacity), in place: views of the state
+    /// stay valid.
+    fn _restore(&mut self, py: Python<'_>, data: &[u8]) -> PyResult<()> {
+        let system = &mut self.system;
+        Ok(detached(py, || system.restore(ParticleSystem::from_snapshot(data)?))?)
+    }
+
     /// `positions` (N, 3) m, `velocities` (N, 3) m/s, `masses` (N, 1) kg (inf pins), and room
     /// for `capacity` particles in all.
     #[new]

@@ -40,6 +40,12 @@ impl RigidWorld {
         Ok(Self { world: World::from_snapshot(data)? })
     }
 
+    /// Become the world of snapshot `data`, in place.
+    fn _restore(&mut self, data: &[u8]) -> PyResult<()> {
+        self.world = World::from_snapshot(data)?;
+        Ok(())
+    }
+
     /// An empty world with gravity (m/s², world frame), a rotation integrator name and
     /// whether bodies collide with each other.
     #[new]

@@ -396,6 +396,33 @@ pub struct Cloth {
     #[serde(skip)] // rebuilt on the next Cholesky solve (same pattern, same factor)
     cholesky: Option<CholeskyState>,
     stepper: Option<Stepper>,
+    #[serde(skip)] // refilled at the start of every step
+    rollback: Rollback,
+}
+
+/// Everything a step may change that a later step reads, copied at the start of each step
+/// and put back when the step fails (a subdivided step commits its substeps as it goes).
+#[derive(Default)]
+struct Rollback {
+    x: Vec<DVec3>,
+    v: Vec<DVec3>,
+    history: Option<(Vec<DVec3>, Vec<DVec3>, f64)>,
+    /// The PCG's warm start `Δv` of the last step.
+    dv: Vec<DVec3>,
+    time: f64,
+    contact: Vec<ContactState>,
+    colliders: Vec<Collider>,
+    stats: StepStats,
+    /// The explicit stepper's evaluation counters.
+    evaluations: Option<(usize, usize)>,
+}
+
+impl Rollback {
+    /// Copy `what` into `into`, reusing its allocation.
+    fn copy<T: Copy>(into: &mut Vec<T>, what: &[T]) {
+        into.clear();
+        into.extend_from_slice(what);
+    }
 }
 
 impl std::fmt::Debug for Cloth {
@@ -591,6 +618,7 @@ impl Cloth {
             scratch,
             cholesky: None,
             stepper: None,
+            rollback: Rollback::default(),
         })
     }
 
@@ -909,7 +937,10 @@ impl Cloth {
     ///
     /// # Errors
     /// A bad `dt` or options, [`Method::Trapezoidal`] (not offered for cloth), a failed
-    /// Cholesky factorisation, or [`Error::Diverged`]; the cloth is left at the last good step.
+    /// Cholesky factorisation, or [`Error::Diverged`]. The cloth is left exactly at the end of
+    /// the last good step (positions, velocities, time, BDF2 history, warm start, contact
+    /// states, colliders and statistics; with `steps = 1`, as before the call), also when a
+    /// subdivided step fails after committing some of its substeps.
     pub fn step(
         &mut self,
         dt: f64,
@@ -933,6 +964,7 @@ impl Cloth {
             ));
         }
         for s in 0..steps {
+            self.save_rollback();
             self.stats = StepStats { converged: true, ..StepStats::default() };
             let result = match method {
                 Method::ImplicitEuler => self.step_adaptive(dt, false, options, 0),
@@ -943,12 +975,84 @@ impl Cloth {
                 )),
                 explicit => self.step_explicit(dt, explicit),
             };
-            result.map_err(|e| match e {
-                Error::Diverged { index, reason, .. } => Error::Diverged { step: s, index, reason },
-                other => other,
-            })?;
+            if let Err(e) = result {
+                self.restore_rollback();
+                return Err(match e {
+                    Error::Diverged { index, reason, .. } => {
+                        Error::Diverged { step: s, index, reason }
+                    }
+                    other => other,
+                });
+            }
         }
         Ok(())
+    }
+
+    /// Become `other` (e.g. an earlier [`crate::snapshot::Snapshot`] of this cloth), copying
+    /// its positions and velocities into this cloth's buffers, which stay in place so views of
+    /// them stay valid (a scene undoes a failed step this way).
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] (argument `"data"`) if `other` has another number of vertices.
+    pub fn restore(&mut self, other: Cloth) -> Result<()> {
+        if other.x.len() != self.x.len() || other.v.len() != self.v.len() {
+            return Err(Error::invalid("data", "is a cloth with another number of vertices"));
+        }
+        let (mut x, mut v) = (std::mem::take(&mut self.x), std::mem::take(&mut self.v));
+        x.copy_from_slice(&other.x);
+        v.copy_from_slice(&other.v);
+        *self = Cloth { x, v, ..other };
+        Ok(())
+    }
+
+    /// Copy what a step may change into `self.rollback` (buffers reused: no allocation after
+    /// the first step).
+    fn save_rollback(&mut self) {
+        let r = &mut self.rollback;
+        Rollback::copy(&mut r.x, &self.x);
+        Rollback::copy(&mut r.v, &self.v);
+        Rollback::copy(&mut r.dv, &self.scratch.dv);
+        Rollback::copy(&mut r.contact, &self.contact);
+        Rollback::copy(&mut r.colliders, &self.colliders);
+        match (&self.history, &mut r.history) {
+            (None, _) => r.history = None,
+            (Some((hx, hv, hh)), Some((rx, rv, rh))) => {
+                Rollback::copy(rx, hx);
+                Rollback::copy(rv, hv);
+                *rh = *hh;
+            }
+            (Some(h), None) => r.history = Some(h.clone()),
+        }
+        r.time = self.time;
+        r.stats = self.stats;
+        r.evaluations = self.stepper.as_ref().map(|s| (s.nfev, s.njev));
+    }
+
+    /// Put back what [`Cloth::save_rollback`] copied (the state buffers are copied into, so
+    /// Python views stay valid).
+    fn restore_rollback(&mut self) {
+        let r = &mut self.rollback;
+        self.x.copy_from_slice(&r.x);
+        self.v.copy_from_slice(&r.v);
+        Rollback::copy(&mut self.scratch.dv, &r.dv);
+        Rollback::copy(&mut self.contact, &r.contact);
+        Rollback::copy(&mut self.colliders, &r.colliders);
+        match (&r.history, &mut self.history) {
+            (None, _) => self.history = None,
+            (Some((rx, rv, rh)), Some((hx, hv, hh))) => {
+                Rollback::copy(hx, rx);
+                Rollback::copy(hv, rv);
+                *hh = *rh;
+            }
+            (Some(h), None) => self.history = Some(h.clone()),
+        }
+        self.time = r.time;
+        self.stats = r.stats;
+        match (self.stepper.as_mut(), r.evaluations) {
+            (Some(s), Some((nfev, njev))) => (s.nfev, s.njev) = (nfev, njev),
+            (Some(_), None) => self.stepper = None,
+            _ => {}
+        }
     }
 
     /// Filter, prescribed velocity change and position correction of every vertex for a step
@@ -1135,6 +1239,18 @@ impl Cloth {
             scratch.b[i] = self.mass[i] * scratch.hv[i] + h_eff * (scratch.f[i] + scratch.ku[i]);
         }
         let assemble_time = t1.elapsed().as_secs_f64();
+        // A step so large that `h² ∂f/∂x` or `h f` overflows has no meaningful solve (at
+        // dt = 1e100 the PCG would stop at once and the step would silently do nothing).
+        if !(scratch.b.iter().all(|b| b.is_finite())
+            && self.matrix.blocks.iter().all(|b| b.is_finite()))
+        {
+            self.scratch = scratch;
+            self.history = history;
+            return Err(Error::invalid(
+                "dt",
+                format!("{h} s is too large for this cloth: the implicit system overflows"),
+            ));
+        }
 
         let t2 = Instant::now();
         let solved = match options.solver {
@@ -1401,9 +1517,6 @@ impl Cloth {
         self.scratch = scratch;
         let flat = &self.scratch.flat;
         if let Err(e) = result {
-            if let Some(s) = self.stepper.as_mut() {
-                s.reset();
-            }
             return Err(match e {
                 Error::Diverged { index, .. } => Error::Diverged {
                     step: 0,

@@ -228,6 +228,13 @@ impl Run<'_> {
             delta = l.add(delta, l.mul(ri, z));
         }
         let mut delta = l.sum(delta);
+        if !(delta0.is_finite() && delta.is_finite()) {
+            // Overflow (a step so large that `h² ∂f/∂x` times the velocities exceeds f64):
+            // without this the loop would not start and the step would silently do nothing.
+            return Err(Error::SolverFailed {
+                reason: "PCG: the residual overflows (the step is too large); reduce dt".into(),
+            });
+        }
         let target = (tol * tol * delta0).max(floor);
         let mut iterations = 0;
         let mut beta = 0.0;

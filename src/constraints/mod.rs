@@ -257,6 +257,10 @@ struct Work {
     next: Vec<f64>,
     #[serde(skip)] // rebuilt by `prepare` (same pattern, same factor)
     chol: Option<SparseCholesky>,
+    /// The CG warm start `lambda` and `iterations` before the current step, put back when it
+    /// fails (a failed step's multipliers may be huge or NaN and would poison the next solve).
+    #[serde(skip)]
+    saved: (Vec<f64>, usize),
     values: Vec<f64>,
     /// (value index, row r, row s, particle) per contribution w_p J_rp · J_sp.
     contributions: Vec<(usize, usize, usize, usize)>,
@@ -669,6 +673,9 @@ impl ConstrainedSystem {
             if curves {
                 system.work.backup.copy_from_slice(y);
             }
+            let w = &mut *system.work;
+            w.saved.0.clone_from(&w.lambda);
+            w.saved.1 = w.iterations;
             result = stepper.step(&mut system, *time, y, dt).and_then(|()| {
                 let w = &mut *system.work;
                 track_curves(system.constraints, y, &mut w.curves).inspect_err(|_| {
@@ -677,6 +684,9 @@ impl ConstrainedSystem {
                 })
             });
             if let Err(e) = result {
+                let w = &mut *system.work;
+                w.lambda.clone_from(&w.saved.0);
+                w.iterations = w.saved.1;
                 result = Err(match e {
                     Error::Diverged { index, reason, .. } => {
                         Error::Diverged { step: s, index: (index % (3 * n)) / 3, reason }

@@ -464,8 +464,24 @@ impl BvhSkeleton {
         self.joints.iter().map(|j| j.channels.len()).sum()
     }
 
-    /// Check the structure that forward kinematics and the writer rely on.
-    fn validate(&self, motion: &Motion) -> Result<()> {
+    /// Check the hierarchy that forward kinematics, editing and the writer rely on, for one
+    /// built by hand or restored from bytes (a parsed one always passes): joints, every
+    /// parent before its children, finite offsets, position and rotation channels about x,
+    /// y, z, a positive finite frame time.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] (argument `"skeleton"`) naming the first bad joint.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.frame_time.is_finite() && self.frame_time > 0.0) {
+            return Err(Error::invalid("skeleton", "frame time must be positive and finite"));
+        }
+        if let Some(i) = self
+            .joints
+            .iter()
+            .position(|j| !(j.offset.is_finite() && j.end_site.is_none_or(|e| e.is_finite())))
+        {
+            return Err(Error::invalid("skeleton", "offsets must be finite").at(i));
+        }
         if self.joints.is_empty() {
             return Err(Error::invalid("skeleton", "has no joints"));
         }
@@ -485,6 +501,12 @@ impl BvhSkeleton {
                 .at(i));
             }
         }
+        Ok(())
+    }
+
+    /// [`BvhSkeleton::validate`], and `motion` made for this skeleton.
+    fn validate_motion(&self, motion: &Motion) -> Result<()> {
+        self.validate()?;
         if motion.stride != self.stride() || motion.values.len() != motion.frames * motion.stride {
             return Err(Error::invalid(
                 "motion",
@@ -511,7 +533,7 @@ impl BvhSkeleton {
         positions: &mut [[f64; 3]],
         orientations: &mut [[f64; 4]],
     ) -> Result<()> {
-        self.validate(motion)?;
+        self.validate_motion(motion)?;
         let joints = self.joints.len();
         if positions.len() != motion.frames * joints || orientations.len() != motion.frames * joints
         {
@@ -574,7 +596,7 @@ impl BvhSkeleton {
 /// a parent after its child, a `Length` dof, a name that is empty or has braces or untidy
 /// whitespace); a non-finite value or a non-positive frame time.
 pub fn write_bvh(skeleton: &BvhSkeleton, motion: &Motion) -> Result<String> {
-    skeleton.validate(motion)?;
+    skeleton.validate_motion(motion)?;
     let sk = skeleton;
     if !(sk.frame_time.is_finite() && sk.frame_time > 0.0) {
         return Err(Error::invalid(

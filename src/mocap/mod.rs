@@ -119,6 +119,24 @@ pub struct Motion {
 pub const CMU_FRAME_RATE: f64 = 120.0;
 
 impl Motion {
+    /// Check a motion built by hand or restored from bytes (a parsed one always passes):
+    /// `frames × stride` values, all finite, and a positive finite frame rate.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] (argument `"motion"`).
+    pub fn validate(&self) -> Result<()> {
+        if self.frames.checked_mul(self.stride) != Some(self.values.len()) {
+            return Err(Error::invalid("motion", "must hold frames × stride values"));
+        }
+        if !(self.frame_rate.is_finite() && self.frame_rate > 0.0) {
+            return Err(Error::invalid("motion", "frame rate must be positive and finite"));
+        }
+        if let Some(i) = self.values.iter().position(|v| !v.is_finite()) {
+            return Err(Error::invalid("motion", "values must be finite").at(i));
+        }
+        Ok(())
+    }
+
     /// Frames `start..end` as a new motion.
     ///
     /// # Errors
@@ -139,7 +157,62 @@ impl Motion {
     }
 }
 
+/// Whether `q` is a finite quaternion of unit length to `1e-9`.
+fn is_unit(q: DQuat) -> bool {
+    q.is_finite() && (q.length() - 1.0).abs() <= 1e-9
+}
+
+/// `dofs` are about or along axis 0, 1 or 2.
+fn dofs_valid(dofs: &[Dof]) -> bool {
+    dofs.iter().all(|d| matches!(d, Dof::Rotation(a) | Dof::Translation(a) if *a < 3))
+}
+
 impl Skeleton {
+    /// Check what forward kinematics, editing and the writer rely on, for a skeleton built
+    /// by hand or restored from bytes (a parsed one always passes): every parent index
+    /// before its bone, finite values, unit directions and axes (to `1e-9`), lengths `>= 0`,
+    /// a positive length unit, dofs about axes 0–2 and one limit per dof (or none).
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] (argument `"skeleton"`) naming the first bad bone.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: &str| Err(Error::invalid("skeleton", what.to_string()));
+        if !(self.length_unit.is_finite() && self.length_unit > 0.0) {
+            return bad("length unit must be positive and finite");
+        }
+        if !(self.root_position.is_finite()
+            && is_unit(self.root_orientation)
+            && self.root_orientation_as_read.iter().all(|a| a.is_finite())
+            && dofs_valid(&self.root_order))
+        {
+            return bad("root: needs a finite position, a unit orientation and dofs about x, y, z");
+        }
+        for (i, b) in self.bones.iter().enumerate() {
+            let why = if b.parent.is_some_and(|p| p >= i) {
+                "parent index must come before the bone"
+            } else if !(b.direction.is_finite()
+                && ((b.direction.length() - 1.0).abs() <= 1e-9
+                    || (b.length == 0.0 && b.direction == DVec3::ZERO)))
+            {
+                "direction must be a unit vector (or zero for a bone of length 0)"
+            } else if !(b.length.is_finite() && b.length >= 0.0) {
+                "length must be finite and >= 0"
+            } else if !(is_unit(b.axis) && b.axis_as_read.0.iter().all(|a| a.is_finite())) {
+                "axis must be a unit quaternion"
+            } else if !dofs_valid(&b.dofs) {
+                "dofs must be about or along axes 0, 1, 2"
+            } else if !(b.limits.is_empty() || b.limits.len() == b.dofs.len())
+                || b.limits.iter().any(|(lo, hi)| lo.is_nan() || hi.is_nan())
+            {
+                "limits must be one (lower, upper) per dof, or none"
+            } else {
+                continue;
+            };
+            return Err(Error::invalid("skeleton", format!("bone {:?}: {why}", b.name)).at(i));
+        }
+        Ok(())
+    }
+
     /// Whether each frame of `motion` keeps every bone's dofs within the ASF limits
     /// ([`Skeleton::pose_within_limits`] per frame).
     ///

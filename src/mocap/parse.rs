@@ -178,7 +178,7 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                             name: String::new(),
                             parent: None,
                             direction: DVec3::ZERO,
-                            length: 0.0,
+                            length: f64::NAN, // required: checked once the bones are read
                             axis: DQuat::IDENTITY,
                             axis_as_read: ([0.0; 3], String::new()),
                             dofs: vec![],
@@ -350,6 +350,11 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
     for &old in &order {
         let (mut bone, angles, ord, ln) = bones[old].clone();
         bone.parent = parent_of[old].flatten().map(|p| new_index[&p]);
+        // The Acclaim ASF format gives every bone a length (an explicit `length 0` is legal).
+        if bone.length.is_nan() || bone.length < 0.0 {
+            let what = if bone.length.is_nan() { "missing" } else { "negative" };
+            return Err(err(file, ln, format!("a length >= 0 for bone {:?} ({what})", bone.name)));
+        }
         // A bone of length 0 (exporters' `_dum` placeholders) may have no direction.
         let len = bone.direction.length();
         if len > 0.0 {

@@ -139,6 +139,9 @@ pub struct World {
     // Contact workspaces, reused every step.
     contacts: Vec<Contact>,
     previous: Vec<Contact>,
+    /// The last good step's contacts (the next step's warm start), put back when a step fails.
+    #[serde(skip)]
+    contacts_saved: Vec<Contact>,
     islands: contact::Islands,
     points: Vec<DVec3>,
     omega: Vec<DVec3>,
@@ -224,6 +227,7 @@ impl World {
             scratch: Box::default(),
             contacts: Vec::new(),
             previous: Vec::new(),
+            contacts_saved: Vec::new(),
             islands: contact::Islands::default(),
             points: Vec::new(),
             omega: Vec::new(),
@@ -415,6 +419,15 @@ impl World {
         check_material(desc.restitution, desc.friction)?;
         let q = (q_body * principal).normalize();
         let omega_principal = q.conjugate() * desc.angular_velocity;
+        let energy = kinetic_energy(props.mass, moments, desc.velocity, omega_principal * moments);
+        for (arg, e) in [("velocity", energy.0), ("angular_velocity", energy.1)] {
+            if !e.is_finite() {
+                return Err(Error::invalid(
+                    arg,
+                    "too large: the body's kinetic energy would overflow (exceed 1.8e308 J)",
+                ));
+            }
+        }
         self.mass.push(props.mass);
         self.inertia_body.push(props.inertia);
         self.com_body.push(props.center_of_mass);
@@ -435,6 +448,12 @@ impl World {
         self.force.push(DVec3::ZERO);
         self.torque.push(DVec3::ZERO);
         Ok(self.mass.len() - 1)
+    }
+
+    /// Translational and rotational kinetic energy (J) of body `i` at velocity `v` and
+    /// principal-frame angular momentum `pi`.
+    fn body_energy(&self, i: usize, v: DVec3, pi: DVec3) -> (f64, f64) {
+        kinetic_energy(self.mass[i], self.moments[i], v, pi)
     }
 
     /// Number of bodies.
@@ -487,12 +506,14 @@ impl World {
         self.q[i] * self.pi[i]
     }
 
-    /// Total kinetic energy, translational plus rotational (J).
+    /// Total kinetic energy, translational plus rotational (J). Each body's is finite: bodies
+    /// are refused ([`World::add_body`]) and steps fail ([`World::step`]) where it would
+    /// overflow.
     pub fn kinetic_energy(&self) -> f64 {
         (0..self.len())
             .map(|i| {
-                0.5 * self.mass[i] * self.v[i].length_squared()
-                    + 0.5 * (self.pi[i] * self.pi[i] / self.moments[i]).element_sum()
+                let (linear, angular) = self.body_energy(i, self.v[i], self.pi[i]);
+                linear + angular
             })
             .sum()
     }
@@ -590,12 +611,24 @@ impl World {
                 }
             } else {
                 self.joint_impulse_next.clone_from(&self.joint_impulse);
+                self.contacts_saved.clone_from(&self.contacts);
                 let detect = pairs || !self.planes.is_empty();
+                let mut failed = None;
                 for _ in 0..substeps {
-                    self.coupled_step(dt / substeps as f64, detect)?;
+                    if let Err(e) = self.coupled_step(dt / substeps as f64, detect) {
+                        failed = Some(e);
+                        break;
+                    }
                     if self.first_non_finite().is_some() {
                         break; // reported below, before any contact sees the bad state
                     }
+                }
+                if failed.is_some() || self.first_non_finite().is_some() {
+                    // The next step warm-starts from the last good step's contacts.
+                    self.contacts.clone_from(&self.contacts_saved);
+                }
+                if let Some(e) = failed {
+                    return Err(e);
                 }
             }
             if let Some(i) = self.first_non_finite() {
@@ -609,7 +642,7 @@ impl World {
                 return Err(Error::Diverged {
                     step: s,
                     index: i,
-                    reason: format!("non-finite body state{hint}"),
+                    reason: format!("non-finite body state or kinetic energy{hint}"),
                 });
             }
             let (x, v, q, pi) = &mut *self.scratch;
@@ -624,11 +657,16 @@ impl World {
         Ok(())
     }
 
-    /// The first body whose scratch state is not finite.
+    /// The first body whose scratch state, or kinetic energy, is not finite.
     fn first_non_finite(&self) -> Option<usize> {
         let (x, v, q, pi) = &*self.scratch;
         (0..self.mass.len()).find(|&i| {
-            !(x[i].is_finite() && v[i].is_finite() && q[i].is_finite() && pi[i].is_finite())
+            let (linear, angular) = self.body_energy(i, v[i], pi[i]);
+            !(x[i].is_finite()
+                && v[i].is_finite()
+                && q[i].is_finite()
+                && pi[i].is_finite()
+                && (linear + angular).is_finite())
         })
     }
 
@@ -723,7 +761,7 @@ impl World {
         std::mem::swap(&mut self.contacts, &mut self.previous);
         self.contacts.clear();
         if detect {
-            self.detect_contacts(h);
+            self.detect_contacts(h)?;
         }
         let (x, v, q, pi) = &mut *self.scratch;
         let mass = Mass { inv_mass: &self.inv_mass, inv_moments: &self.inv_moments };
@@ -958,7 +996,10 @@ impl World {
     /// Find the contacts of the scratch state (planes, then body pairs by sweep and prune)
     /// into `self.contacts`, in the order of [`contact::warm_start`]; velocities already
     /// include this step's forces.
-    fn detect_contacts(&mut self, h: f64) {
+    ///
+    /// # Errors
+    /// A step too large for a speculative contact ([`resolvable`]).
+    fn detect_contacts(&mut self, h: f64) -> Result<()> {
         let (x, v, q, _) = &*self.scratch;
         let n = self.mass.len();
         let resting_speed = 2.0 * self.gravity.length() * h;
@@ -1013,6 +1054,7 @@ impl World {
                     let mu = (self.friction[i] * plane.friction).sqrt();
                     let (vn, c) = make((i, k, j), i, None, p, plane.normal, gap, e, mu);
                     if gap <= (-vn * h).max(0.0) + 1e-9 {
+                        resolvable(vn, gap, h, resting_speed, i)?;
                         self.contacts.push(c);
                     }
                 }
@@ -1060,11 +1102,40 @@ impl World {
             for &(f, (p, nrm, gap)) in &self.touches {
                 let (vn, c) = make((a, np + b, f), a, Some(b), p, nrm, gap, e, mu);
                 if gap <= (-vn * h).max(0.0) + contact::SLOP {
+                    resolvable(vn, gap, h, resting_speed, a)?;
                     self.contacts.push(c);
                 }
             }
         }
+        Ok(())
     }
+}
+
+/// Whether a speculative contact of `body` apart by `gap` (m), approaching at normal speed
+/// `-vn` (m/s), can be honoured in a step of `h` (s): its target speed `gap / h` must stand
+/// above the rounding of the speeds the impulse cancels (16 ulp of `|vn|`). Otherwise (e.g. a
+/// body 2.5 m above the ground at dt = 1e9 s, which gravity moves at 1e10 m/s) the target is
+/// lost in the cancellation and the body would stop in mid-air. Only an approach the step's
+/// gravity accounts for (`|vn| <= resting_speed = 2 |g| h`) is blamed on `dt`; a faster one is
+/// a diverging state, reported as divergence after the step.
+///
+/// # Errors
+/// [`Error::InvalidInput`] (argument `"dt"`) naming the body.
+fn resolvable(vn: f64, gap: f64, h: f64, resting_speed: f64, body: usize) -> Result<()> {
+    if gap > contact::SLOP && vn.abs() <= resting_speed && gap / h < 16.0 * f64::EPSILON * vn.abs()
+    {
+        return Err(Error::invalid(
+            "dt",
+            format!(
+                "{h} s is too large for the contacts of body {body}: closing its gap of {gap:.3e} \
+                 m within the step needs {:.3e} m/s, below the rounding of its approach speed \
+                 {:.3e} m/s; take smaller steps",
+                gap / h,
+                vn.abs()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn check_material(restitution: f64, friction: f64) -> Result<()> {
@@ -1140,4 +1211,12 @@ fn rotate(
             (q.normalize(), pi + 0.5 * h * tau)
         }
     }
+}
+
+/// Translational and rotational kinetic energy (J) of a body of `mass` (kg) and principal
+/// `moments` (kg m²) at velocity `v` (m/s) and principal-frame angular momentum `pi`
+/// (kg m²/s): `|√m v|² / 2` and `|π / √I|² / 2`, squared after scaling so that they overflow
+/// only when the energy itself exceeds the largest `f64`.
+fn kinetic_energy(mass: f64, moments: DVec3, v: DVec3, pi: DVec3) -> (f64, f64) {
+    (0.5 * (mass.sqrt() * v).length_squared(), 0.5 * (pi / moments.sqrt()).length_squared())
 }

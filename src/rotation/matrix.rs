@@ -92,11 +92,25 @@ pub fn is_rotation_matrix(m: &[f64; 9], tol: f64) -> bool {
 /// The rotation nearest to `m` in the Frobenius norm: `U diag(1, 1, det(U Vᵀ)) Vᵀ` from the
 /// SVD `m = U Σ Vᵀ` (the orthogonal Procrustes solution, Higham 1989).
 ///
+/// The nearest rotation does not depend on a positive scale of `m`, so `m` is first scaled
+/// by a power of two (exactly) to a largest entry in `[1, 2)`: any finite matrix, with
+/// entries as large as `1e300` or as small as subnormals, is orthonormalised without
+/// overflow or underflow in the SVD.
+///
 /// # Errors
 /// Non-finite entries, or a matrix of rank below 2 (no unique nearest rotation).
 pub fn orthonormalize(m: &[f64; 9]) -> Result<[f64; 9]> {
     ensure_finite("matrix", m)?;
-    let svd = Matrix3::from_row_slice(m).svd(true, true);
+    let largest = m.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+    if largest == 0.0 {
+        return Err(Error::invalid("matrix", "has rank 0 (is zero); no nearest rotation"));
+    }
+    // 2^-e with e = floor(log2 largest), applied in two factors that are each representable
+    // (e ranges over -1074..=1023).
+    let e = largest.log2().floor() as i32;
+    let (a, b) = (-e / 2, -e - (-e / 2));
+    let scaled = m.map(|x| x * 2f64.powi(a) * 2f64.powi(b));
+    let svd = Matrix3::from_row_slice(&scaled).svd(true, true);
     let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
         return Err(Error::invalid("matrix", "singular value decomposition failed"));
     };

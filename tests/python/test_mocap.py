@@ -116,3 +116,25 @@ def test_mass_unit_survives_write_and_read(tmp_path, walk):
     assert heavy.mass_unit == 2.5
     mocap.write_asf(heavy, tmp_path / "again.asf")
     assert mocap.read_asf(tmp_path / "again.asf").mass_unit == 2.5
+
+
+def test_unpickling_validates_skeletons(tmp_path):
+    import pickle
+    import struct
+
+    asf = tmp_path / "one.asf"
+    asf.write_text(
+        ":version 1.10\n:name one\n:units\n  length 1\n  angle deg\n:root\n"
+        "  order TX TY TZ RX RY RZ\n  axis XYZ\n  position 0 0 0\n  orientation 0 0 0\n"
+        ":bonedata\n  begin\n    id 1\n    name arm\n    direction 1 0 0\n    length 2.625\n"
+        "    axis 0 0 0 XYZ\n    dof rz\n  end\n:hierarchy\n  begin\n    root arm\n  end\n"
+    )
+    sk = mocap.read_asf(asf)
+    func, (data, *extra) = sk.__reduce__()
+    assert pickle.loads(pickle.dumps(sk)).joint_names == sk.joint_names
+    length = struct.pack("<d", 2.625)
+    assert data.count(length) == 1
+    for bad in [-1.0, float("nan")]:
+        spoiled = data.replace(length, struct.pack("<d", bad))
+        with pytest.raises(ValueError, match=r"arm.*length"):
+            func(spoiled, *extra)

@@ -427,3 +427,35 @@ def test_property_slerp_is_on_the_arc(q, p, t):
     total = angle_between(b, a)[0]
     # The rotation from a to slerp(t) is t times the way to b (modulo a full turn).
     assert abs(angle_between(s, a)[0] - abs(((t * total + np.pi) % (2 * np.pi)) - np.pi)) < 1e-9
+
+
+def test_unpickling_validates_rotations():
+    r = Rotation.from_euler("xyz", [[0.1, 0.2, 0.3], [1.0, -2.0, 0.5]])
+    back = pickle.loads(pickle.dumps(r))
+    assert np.array_equal(back.as_quat(), r.as_quat()) and len(back) == 2
+    single = pickle.loads(pickle.dumps(r[0]))
+    assert single.as_quat().shape == (4,)
+    for quat, match in [
+        (np.array([[2.0, 0.0, 0.0, 0.0]]), "not unit"),
+        (np.array([[np.nan, 0.0, 0.0, 0.0]]), "not unit"),
+        (np.array([1.0, 0.0, 0.0, 0.0]), "shape"),
+    ]:
+        bad = Rotation.identity()
+        bad._quat = quat  # what a tampered or damaged pickle would carry
+        with pytest.raises(ValueError, match=match):
+            pickle.loads(pickle.dumps(bad))
+
+
+def test_from_matrix_orthonormalizes_huge_and_tiny_matrices():
+    r = Rotation.from_rotvec([0.3, -0.2, 0.9])
+    # 1e-315 is subnormal (~25 significant bits left): close, not exact.
+    for scale, tol in [(1e160, 1e-14), (1e300, 1e-14), (1e-160, 1e-14), (1e-315, 1e-6)]:
+        got = Rotation.from_matrix(scale * r.as_matrix(), orthonormalize=True)
+        assert abs(abs(np.dot(got.as_quat(), r.as_quat())) - 1.0) < tol, scale
+    eye = Rotation.from_matrix(1e160 * np.eye(3), orthonormalize=True)
+    assert np.array_equal(eye.as_quat(), [1.0, 0.0, 0.0, 0.0])
+    for bad in [np.inf, np.nan]:
+        m = np.eye(3)
+        m[1, 1] = bad
+        with pytest.raises(ValueError, match="matrix"):
+            Rotation.from_matrix(m, orthonormalize=True)
