@@ -130,7 +130,7 @@ impl<'a> Tokens<'a> {
         let mut v = [0.0; N];
         for x in &mut v {
             let (ln, t) = self.expect(what)?;
-            *x = number(self.file, ln, t).map_err(|_| err(self.file, ln, format!("{what}")))?;
+            *x = number(self.file, ln, t).map_err(|_| err(self.file, ln, what))?;
         }
         Ok(v)
     }
@@ -246,7 +246,7 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
                 if !brace {
                     let (l, t) = toks.expect("{ after the joint name")?;
                     if t != "{" {
-                        return Err(err(file, l, format!("{{ after the joint name")));
+                        return Err(err(file, l, "{ after the joint name"));
                     }
                 }
                 joints.push(BvhJoint {
@@ -268,7 +268,7 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
                 }
                 let (l, t) = toks.expect("{ after End Site")?;
                 if t != "{" {
-                    return Err(err(file, l, format!("{{ after End Site")));
+                    return Err(err(file, l, "{ after End Site"));
                 }
                 if joints[j].end_site.is_some() {
                     return Err(err(
@@ -365,7 +365,7 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
                     Some(Open::Joint(..)) => "OFFSET, CHANNELS, JOINT, End Site or }",
                     Some(Open::EndSite(..)) => "OFFSET or } in an End Site",
                 };
-                return Err(err(file, ln, format!("{what}")));
+                return Err(err(file, ln, what));
             }
         }
     }
