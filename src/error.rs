@@ -105,3 +105,28 @@ pub fn ensure_finite<const N: usize>(arg: &str, item: &[f64; N]) -> Result<()> {
         Err(Error::invalid(arg, "contains NaN or infinity"))
     }
 }
+
+/// `n` copies of `value` in a new vector, or an [`Error::InvalidInput`] naming `arg` (the
+/// argument that sized it) when `n` items do not fit in memory: the allocator's refusal
+/// (`Vec::try_reserve_exact`) becomes an error instead of aborting the process.
+pub fn filled<T: Clone>(arg: &str, n: usize, value: T) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    reserve(arg, &mut v, n)?;
+    v.resize(n, value);
+    Ok(v)
+}
+
+/// Room for `additional` more items in `v` (`Vec::try_reserve`), or an
+/// [`Error::InvalidInput`] naming `arg` with the size asked for, instead of aborting the
+/// process when the allocator refuses.
+pub fn reserve<T>(arg: &str, v: &mut Vec<T>, additional: usize) -> Result<()> {
+    v.try_reserve(additional).map_err(|_| too_large(arg, additional, size_of::<T>()))
+}
+
+/// The error for `count` items of `bytes` bytes each that cannot be allocated.
+pub fn too_large(arg: &str, count: impl fmt::Display, bytes: usize) -> Error {
+    Error::invalid(
+        arg,
+        format!("needs {count} items of {bytes} bytes, more memory than can be allocated"),
+    )
+}

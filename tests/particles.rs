@@ -225,6 +225,47 @@ fn emitters_recycle_dead_slots() {
 }
 
 #[test]
+fn emitter_with_huge_rate_fills_free_slots_in_one_step() {
+    // 1e300 /s owes ~1e298 particles a step: the free slots fill, the rest are counted as
+    // dropped at once (saturating) instead of one loop turn per dropped particle.
+    let mut s = ParticleSystem::new(&[DVec3::X], &[DVec3::ZERO], &[1.0], 8).unwrap();
+    let emitter = |rate, seed| Emitter {
+        rate,
+        position: DVec3::ZERO,
+        position_spread: 0.5,
+        velocity: DVec3::ZERO,
+        velocity_spread: 1.0,
+        lifespan: 1.0,
+        mass: 1.0,
+        seed,
+        appearance: Appearance::default(),
+    };
+    s.add_emitter(emitter(1e300, 3)).unwrap();
+    s.add_emitter(emitter(250.0, 4)).unwrap();
+    s.step(0.01, 1, Method::SymplecticEuler).unwrap();
+    assert_eq!(s.stats.emitted, 7);
+    // The first emitter owes usize::MAX (saturated): 7 emitted, the rest dropped; the second
+    // owes 2 (2.5 accumulated), both dropped.
+    assert_eq!(s.stats.dropped, usize::MAX - 7 + 2);
+    assert!(s.alive().iter().all(|a| *a));
+    assert!(s.positions().iter().all(|x| x.is_finite()));
+    // The accumulator keeps counting the fraction as before: 2.5 owed → 2 now, 0.5 kept.
+    let mut t = ParticleSystem::new(&[], &[], &[], 10).unwrap();
+    t.add_emitter(emitter(250.0, 4)).unwrap();
+    t.step(0.01, 1, Method::SymplecticEuler).unwrap();
+    t.step(0.01, 1, Method::SymplecticEuler).unwrap();
+    assert_eq!(t.alive().iter().filter(|a| **a).count(), 5);
+}
+
+#[test]
+fn capacity_too_large_for_memory_is_an_error_naming_capacity() {
+    for capacity in [1usize << 40, usize::MAX / 2, usize::MAX] {
+        let e = ParticleSystem::new(&[], &[], &[], capacity).unwrap_err();
+        assert!(e.to_string().starts_with("capacity: needs "), "{e}");
+    }
+}
+
+#[test]
 fn pinned_particles_stay_and_failures_roll_back() {
     let mut s =
         ParticleSystem::new(&[DVec3::ZERO, DVec3::X], &[DVec3::ZERO; 2], &[f64::INFINITY, 1.0], 2)

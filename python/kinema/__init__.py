@@ -18,17 +18,32 @@ SI units, +Y up, quaternions ``(w, x, y, z)``; see README.md and ARCHITECTURE.md
 
 import importlib as _importlib
 import os as _os
+import warnings as _warnings
 from typing import Any as _Any
 
 from kinema._kinema import ParseError, SimulationError, __version__, num_threads, set_num_threads
 from kinema.rotation import GimbalLockWarning, Rotation, Transform, slerp
 from kinema.scene import Scene
 
-if _os.environ.get("KINEMA_NUM_THREADS"):
+
+def _threads_from_environment() -> None:
+    """Apply ``KINEMA_NUM_THREADS`` (an integer from 1 to 1024); any other value is ignored
+    with a ``RuntimeWarning`` naming the variable, and the default pool (one thread per
+    core) is kept, so a bad environment never stops ``import kinema``."""
+    value = _os.environ.get("KINEMA_NUM_THREADS", "")
+    if not value:
+        return
     try:
-        set_num_threads(int(_os.environ["KINEMA_NUM_THREADS"]))
-    except ValueError as _e:
-        raise ValueError(f"KINEMA_NUM_THREADS: {_e}") from None
+        set_num_threads(int(value))
+    except ValueError as e:
+        _warnings.warn(
+            f"KINEMA_NUM_THREADS={value!r} ignored ({e}); using {num_threads()} threads",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+
+
+_threads_from_environment()
 
 __all__ = [
     "GimbalLockWarning",

@@ -176,9 +176,7 @@ def subdivide(
     p = _float(points, "points")
     if p.ndim != 2:
         raise ValueError(f"points: expected shape (N, D), got {p.shape}")
-    if not isinstance(iterations, (int, np.integer)) or iterations < 0:
-        raise ValueError(f"iterations: expected a non-negative integer, got {iterations!r}")
-    return _kinema.anim_subdivide(np.ascontiguousarray(p), scheme, int(iterations), bool(closed))
+    return _kinema.anim_subdivide(np.ascontiguousarray(p), scheme, iterations, bool(closed))
 
 
 class RotationTrack:

@@ -193,7 +193,7 @@ class Cloth:
         mat = _material(model, density, stretch, shear, bend, damping, air_damping)
         g = as_vector3(gravity, "gravity")
         core = _kinema.ClothCore.grid(
-            int(nx), int(ny), float(width), float(height), triangulation, model, mat, g
+            nx, ny, float(width), float(height), triangulation, model, mat, g
         )
         return cls(None, None, model=model, thickness=thickness, _core=core)
 
@@ -281,7 +281,7 @@ class Cloth:
 
     def set_collider(self, index: int, collider: Plane | Sphere | Capsule | Box) -> None:
         """Replace collider ``index`` (move it along any path between steps)."""
-        self._core.set_collider(int(index), *_collider(collider))
+        self._core.set_collider(index, *_collider(collider))
 
     def step(
         self,
@@ -305,15 +305,13 @@ class Cloth:
         :class:`kinema.SimulationError` names the step and vertex and the cloth stays at the
         last good step.
         """
-        if int(steps) < 0:
-            raise ValueError(f"steps: must be >= 0, got {steps}")
         self._core.step(
             float(dt),
-            int(steps),
+            steps,
             integrator,
             solver,
             float(tol),
-            int(max_iterations),
+            max_iterations,
             float(max_strain_change),
         )
 

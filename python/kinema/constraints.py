@@ -240,7 +240,7 @@ class ConstrainedSystem:
             i, j = int(constraint.i), int(constraint.j)
             if constraint.length is None:
                 if not (0 <= i < len(x) and 0 <= j < len(x)):
-                    raise ValueError(f"i: particle indices must lie in [0, {len(x)})")
+                    raise ValueError(f"i, j: particle indices must lie in [0, {len(x)})")
                 length = float(np.linalg.norm(x[i] - x[j]))
             else:
                 length = float(constraint.length)

@@ -88,7 +88,9 @@ def solve(
     Fixed-step methods need ``dt`` (s): ``ceil((t1 - t0) / dt)`` equal steps are taken so
     that the last lands on ``t1``; ``t`` is ``(M,)`` and ``y`` is ``(M, n)``. ``method="dopri5"``
     adapts the step to keep the local error below ``atol + rtol |y|`` and returns the accepted
-    steps. Implicit methods use ``jac(t, y) -> (n, n)`` when given, else finite differences.
+    steps. Either way at most ``max_steps`` steps are taken: a ``dt`` that needs more raises
+    ValueError naming ``dt`` before anything is allocated, dopri5 raises
+    ``kinema.SimulationError`` when it runs out. Implicit methods use ``jac(t, y) -> (n, n)`` when given, else finite differences.
 
     Raises ValueError for bad arguments, ``kinema.SimulationError`` when the state diverges
     (naming the step and component) or Newton fails; exceptions raised by ``f`` propagate.
@@ -97,16 +99,24 @@ def solve(
     y = _state(y0)
     if not callable(f):
         raise ValueError("f: expected a callable f(t, y)")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
+        raise ValueError(f"max_steps: expected a positive integer, got {max_steps!r}")
     if method == "dopri5":
         t, states, _, _ = _kinema.ode_solve_adaptive(
-            f, y, t0, t1, float(rtol), float(atol), int(max_steps)
+            f, y, t0, t1, float(rtol), float(atol), max_steps
         )
         return t, states
     if method not in METHODS:
         raise ValueError(f"method: {method!r} is not one of {', '.join([*METHODS, 'dopri5'])}")
     if dt is None or not (float(dt) > 0 and math.isfinite(float(dt))):
         raise ValueError(f"dt: fixed-step method {method!r} needs a positive finite dt, got {dt!r}")
-    steps = max(1, math.ceil((t1 - t0) / float(dt) - 1e-9))
+    count = (t1 - t0) / float(dt)
+    if not count - 1e-9 <= max_steps:
+        raise ValueError(
+            f"dt: {dt!r} over t_span ({t0}, {t1}) needs {count:.3g} steps, more than "
+            f"max_steps={max_steps}; raise dt or max_steps"
+        )
+    steps = max(1, math.ceil(count - 1e-9))
     states, _, _ = _kinema.ode_solve_fixed(f, y, t0, t1, steps, method, jac)
     return np.linspace(t0, t1, steps + 1), states
 

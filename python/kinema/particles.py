@@ -292,7 +292,7 @@ class ParticleSystem:
         m, single = as_scalars(masses, "masses")
         if single:
             m = np.full((len(x), 1), m[0, 0])
-        cap = len(x) if capacity is None else int(capacity)
+        cap = len(x) if capacity is None else capacity
         self._sys = _kinema.Particles(x, v, m, cap)
         if colors is not None or sizes is not None:
             c = np.ones((cap, 4))
@@ -365,9 +365,7 @@ class ParticleSystem:
                 ],
             )
         elif isinstance(item, Turbulence):
-            s.add_force(
-                "turbulence", [float(item.strength), float(item.scale)], seed=int(item.seed)
-            )
+            s.add_force("turbulence", [float(item.strength), float(item.scale)], seed=item.seed)
         elif isinstance(item, NeighborRepulsion):
             s.add_force("neighbor_repulsion", [float(item.radius), float(item.stiffness)])
         elif isinstance(item, NBodyGravity):
@@ -394,7 +392,7 @@ class ParticleSystem:
                     float(item.size),
                     float(item.size_spread),
                 ],
-                int(item.seed),
+                item.seed,
             )
         else:
             raise ValueError(
@@ -403,7 +401,7 @@ class ParticleSystem:
 
     def set_collider(self, index: int, collider: Plane | Sphere | Capsule | Box) -> None:
         """Replace collider ``index`` (move it between steps)."""
-        self._sys.set_collider(int(index), *_collider(collider))
+        self._sys.set_collider(index, *_collider(collider))
 
     @property
     def stiffest_spring(self) -> float:

@@ -13,7 +13,7 @@ angles), Grassia 1998 (exponential map), Shoemake 1985 (slerp).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any, overload
 
 import numpy as np
@@ -129,7 +129,7 @@ class Rotation:
     @classmethod
     def identity(cls, n: int | None = None) -> Rotation:
         """The identity: single if ``n`` is None, else a stack of ``n``."""
-        q = np.zeros((1 if n is None else _count(n), 4))
+        q = _quats(n, np.zeros)
         q[:, 0] = 1.0
         return cls._make(q, n is None)
 
@@ -142,7 +142,7 @@ class Rotation:
         Single if ``n`` is None, else a stack of ``n``; ``seed`` makes the draw repeatable.
         """
         rng = np.random.default_rng(seed)
-        q = rng.standard_normal((1 if n is None else _count(n), 4))
+        q = _quats(n, rng.standard_normal)
         return cls._make(_kinema.quat_normalize(q, False), n is None)
 
     @classmethod
@@ -287,6 +287,18 @@ def _count(n: object) -> int:
     if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 0:
         raise ValueError(f"n: expected a non-negative integer, got {n!r}")
     return int(n)
+
+
+def _quats(n: int | None, make: Callable[[tuple[int, int]], np.ndarray]) -> np.ndarray:
+    """``make((count, 4))`` for a stack of ``n`` (one when None); numpy's MemoryError, which
+    names no argument, becomes one naming ``n``."""
+    count = 1 if n is None else _count(n)
+    try:
+        return make((count, 4))
+    except MemoryError:
+        raise MemoryError(
+            f"n: {count} rotations need {32 * count} bytes, more than is free"
+        ) from None
 
 
 @overload

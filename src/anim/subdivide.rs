@@ -2,7 +2,7 @@
 //! (Lane & Riesenfeld 1980) and the interpolating 4-point scheme (Dyn, Levin & Gregory 1987,
 //! weight 1/16), open or closed.
 
-use crate::error::{Error, Result};
+use crate::error::{reserve, too_large, Error, Result};
 
 /// A subdivision rule.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
@@ -40,8 +40,12 @@ impl Scheme {
 /// scheme: Chaikin and B-spline keep the ends, the 4-point scheme mirrors the missing
 /// neighbour). Returns the refined points, row-major.
 ///
+/// Each round at most doubles the points, so both working buffers are allocated once with
+/// room for `n 2^iterations` points before any work is done.
+///
 /// # Errors
-/// Fewer than 2 points (3 when closed), non-finite coordinates.
+/// Fewer than 2 points (3 when closed), non-finite coordinates, more points than the
+/// allocator grants (named `iterations`).
 pub fn subdivide(
     points: &[f64],
     dim: usize,
@@ -66,8 +70,16 @@ pub fn subdivide(
             reason: "contains NaN or infinity".into(),
         });
     }
-    let mut cur = points.to_vec();
+    let room = (iterations < usize::BITS as usize)
+        .then(|| points.len().checked_mul(1 << iterations))
+        .flatten()
+        .ok_or_else(|| too_large("iterations", format!("{n} x 2^{iterations} points"), 8 * dim))?;
+    let (mut cur, mut next) = (Vec::new(), Vec::new());
+    reserve("iterations", &mut cur, room)?;
+    reserve("iterations", &mut next, room)?;
+    cur.extend_from_slice(points);
     for _ in 0..iterations {
+        next.clear();
         let m = cur.len() / dim;
         let p = |i: isize| -> &[f64] {
             let j = if closed {
@@ -77,7 +89,6 @@ pub fn subdivide(
             };
             &cur[j * dim..(j + 1) * dim]
         };
-        let mut next = Vec::with_capacity(2 * cur.len() + dim);
         let mut push = |w: &[(f64, isize)]| {
             for c in 0..dim {
                 next.push(w.iter().map(|&(wt, i)| wt * p(i)[c]).sum());
@@ -145,7 +156,7 @@ pub fn subdivide(
                 }
             }
         }
-        cur = next;
+        std::mem::swap(&mut cur, &mut next);
     }
     Ok(cur)
 }

@@ -1,5 +1,6 @@
 //! `kinema.anim`: compiled keyframe tracks and subdivision.
 
+use super::args::Int;
 use super::array::compute;
 use super::array::rows;
 use super::error::{detached, reduce, Reduced};
@@ -120,8 +121,9 @@ impl KeyTrack {
         &self,
         py: Python<'py>,
         t: PyReadonlyArrayDyn<'py, f64>,
-        order: usize,
+        order: Int,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let order = order.count("order")?;
         let ts = rows::<1>(&t, "t", &[1])?.as_flattened();
         let dim = self.track.dim();
         let mut out = vec![0.0; ts.len() * dim];
@@ -143,9 +145,10 @@ fn anim_subdivide<'py>(
     py: Python<'py>,
     points: PyReadonlyArrayDyn<'py, f64>,
     scheme: &str,
-    iterations: usize,
+    iterations: Int,
     closed: bool,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let iterations = iterations.count("iterations")?;
     let (p, dim) = matrix(&points, "points")?;
     let out = subdivide(p, dim, Scheme::parse(scheme)?, iterations, closed)?;
     let m = out.len() / dim;
@@ -206,8 +209,9 @@ impl KeyRotationTrack {
         &self,
         py: Python<'py>,
         t: PyReadonlyArrayDyn<'py, f64>,
-        order: usize,
+        order: Int,
     ) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
+        let order = order.count("order")?;
         let ts = rows::<1>(&t, "t", &[1])?.as_flattened();
         let track = &self.track;
         compute(py, ts.len(), &[3], |out| track.rates_many(ts, order, out))

@@ -1,6 +1,7 @@
 //! `kinema.cloth`: the compiled cloth, whose positions and velocities numpy views without a
 //! copy.
 
+use super::args::{counts, Int, MAX_ITERATIONS};
 use super::array::{compute, rows};
 use super::error::detached;
 use super::error::{reduce, Reduced};
@@ -19,16 +20,6 @@ use pyo3::types::PyDict;
 
 fn vectors(arr: &PyReadonlyArrayDyn<'_, f64>, arg: &str) -> PyResult<Vec<DVec3>> {
     Ok(rows::<3>(arr, arg, &[3])?.iter().map(|p| DVec3::from_array(*p)).collect())
-}
-
-fn indices(values: &[i64], arg: &str) -> PyResult<Vec<usize>> {
-    values
-        .iter()
-        .map(|&i| {
-            usize::try_from(i)
-                .map_err(|_| Error::invalid(arg, format!("index {i} is negative")).into())
-        })
-        .collect()
 }
 
 fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
@@ -150,8 +141,8 @@ impl ClothCore {
     #[staticmethod]
     #[allow(clippy::too_many_arguments)]
     fn grid(
-        nx: usize,
-        ny: usize,
+        nx: Int,
+        ny: Int,
         width: f64,
         height: f64,
         triangulation: &str,
@@ -170,6 +161,7 @@ impl ClothCore {
                 .into())
             }
         };
+        let (nx, ny) = (nx.count("nx")?, ny.count("ny")?);
         Self::build(Mesh::grid(nx, ny, width, height, triangulation)?, model, material, gravity)
     }
 
@@ -195,10 +187,10 @@ impl ClothCore {
     #[pyo3(signature = (indices, positions=None))]
     fn pin(
         &mut self,
-        indices: Vec<i64>,
+        indices: Vec<Int>,
         positions: Option<PyReadonlyArrayDyn<'_, f64>>,
     ) -> PyResult<()> {
-        let idx = self::indices(&indices, "indices")?;
+        let idx = counts(&indices, "indices")?;
         let targets = positions.map(|p| vectors(&p, "positions")).transpose()?;
         Ok(self.cloth.pin(&idx, targets.as_deref())?)
     }
@@ -206,10 +198,10 @@ impl ClothCore {
     /// Prescribe the velocities (K, 3) m/s of vertices `indices`.
     fn prescribe(
         &mut self,
-        indices: Vec<i64>,
+        indices: Vec<Int>,
         velocities: PyReadonlyArrayDyn<'_, f64>,
     ) -> PyResult<()> {
-        let idx = self::indices(&indices, "indices")?;
+        let idx = counts(&indices, "indices")?;
         let v = vectors(&velocities, "velocities")?;
         if v.len() != idx.len() {
             return Err(Error::Shape {
@@ -227,8 +219,8 @@ impl ClothCore {
 
     /// Constrain `indices` to a plane (`kind="plane"`, `direction` its normal) or a line
     /// (`kind="line"`), or free them (`kind="free"`).
-    fn constrain(&mut self, indices: Vec<i64>, kind: &str, direction: [f64; 3]) -> PyResult<()> {
-        let idx = self::indices(&indices, "indices")?;
+    fn constrain(&mut self, indices: Vec<Int>, kind: &str, direction: [f64; 3]) -> PyResult<()> {
+        let idx = counts(&indices, "indices")?;
         let d = DVec3::from_array(direction);
         let constraint = match kind {
             "plane" => Some(VertexConstraint::Plane(d)),
@@ -249,23 +241,26 @@ impl ClothCore {
     }
 
     /// Replace collider `index`.
-    fn set_collider(&mut self, index: usize, kind: &str, p: Vec<f64>) -> PyResult<()> {
-        Ok(self.cloth.set_collider(index, collider(kind, &p)?)?)
+    fn set_collider(&mut self, index: Int, kind: &str, p: Vec<f64>) -> PyResult<()> {
+        Ok(self.cloth.set_collider(index.count("index")?, collider(kind, &p)?)?)
     }
 
-    /// Advance `steps` steps of `dt` s (GIL released).
+    /// Advance `steps` steps of `dt` s (GIL released); at most `MAX_ITERATIONS` (10^6) PCG
+    /// iterations per solve.
     #[allow(clippy::too_many_arguments)]
     fn step(
         &mut self,
         py: Python<'_>,
         dt: f64,
-        steps: usize,
+        steps: Int,
         integrator: &str,
         solver: &str,
         tol: f64,
-        max_iterations: usize,
+        max_iterations: Int,
         max_strain_change: f64,
     ) -> PyResult<()> {
+        let steps = steps.count("steps")?;
+        let max_iterations = max_iterations.range("max_iterations", 1, MAX_ITERATIONS)?;
         let method = Method::parse(integrator).map_err(|_| {
             Error::invalid("integrator", format!("{integrator:?} is not implicit_euler, bdf2 or an explicit method of kinema.ode"))
         })?;

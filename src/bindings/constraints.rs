@@ -2,6 +2,7 @@
 //! reduced-coordinate bead and pendulum.
 
 use super::anim::KeyTrack;
+use super::args::{counts, Int};
 use super::error::detached;
 use super::error::{reduce, Reduced};
 use super::particles::Particles;
@@ -199,7 +200,8 @@ impl Constrained {
 
     /// Add a constraint: `distance` (i, j, [length]), `on_sphere` (i, -, [center 3, radius]),
     /// `on_plane` (i, -, [point 3, normal 3]) or `fixed` (i, -, [point 3]).
-    fn add(&mut self, py: Python<'_>, kind: &str, i: usize, j: usize, p: Vec<f64>) -> PyResult<()> {
+    fn add(&mut self, py: Python<'_>, kind: &str, i: Int, j: Int, p: Vec<f64>) -> PyResult<()> {
+        let (i, j) = (i.count("i")?, j.count("j")?);
         let c = match kind {
             "distance" => {
                 need(&p, 1, kind)?;
@@ -232,11 +234,12 @@ impl Constrained {
     fn add_on_curve(
         &mut self,
         py: Python<'_>,
-        i: usize,
+        i: Int,
         kind: &str,
         p: Vec<f64>,
         track: Option<Bound<'_, KeyTrack>>,
     ) -> PyResult<()> {
+        let i = i.count("i")?;
         let curve = curve(kind, &p, track.as_ref())?;
         let particles = self.particles.bind(py).borrow();
         Ok(self.system.add(&particles.system, Constraint::OnCurve { i, curve })?)
@@ -247,11 +250,12 @@ impl Constrained {
     fn add_custom(
         &mut self,
         py: Python<'_>,
-        indices: Vec<usize>,
+        indices: Vec<Int>,
         value: Py<PyAny>,
         gradient: Py<PyAny>,
-        rows: usize,
+        rows: Int,
     ) -> PyResult<()> {
+        let (indices, rows) = (counts(&indices, "indices")?, rows.count("rows")?);
         let function = PyConstraint {
             value,
             gradient,
@@ -268,7 +272,8 @@ impl Constrained {
     /// Advance `steps` steps of `dt` with an ODE method, or `"projection"` for the
     /// velocity-level formulation with position post-stabilisation. The GIL is released
     /// unless a custom constraint calls Python.
-    fn step(&mut self, py: Python<'_>, dt: f64, steps: usize, method: &str) -> PyResult<()> {
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: Int, method: &str) -> PyResult<()> {
+        let steps = steps.count("steps")?;
         let projection = method == "projection";
         let method = if projection { Method::Rk4 } else { Method::parse(method)? };
         let custom = self.system.has_custom();
@@ -306,8 +311,8 @@ impl Constrained {
     }
 
     /// The tracked curve parameter of constraint `k` (None unless it is an `OnCurve`).
-    fn curve_parameter(&self, k: usize) -> Option<f64> {
-        self.system.curve_parameter(k)
+    fn curve_parameter(&self, k: Int) -> PyResult<Option<f64>> {
+        Ok(self.system.curve_parameter(k.count("k")?))
     }
 
     /// Conjugate-gradient iterations of the last solve (0 with Cholesky).
@@ -349,7 +354,8 @@ impl PyReducedBead {
     }
 
     /// Advance `steps` steps of `dt` with an ODE method (GIL released).
-    fn step(&mut self, py: Python<'_>, dt: f64, steps: usize, method: &str) -> PyResult<()> {
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: Int, method: &str) -> PyResult<()> {
+        let steps = steps.count("steps")?;
         let method = Method::parse(method)?;
         let bead = &mut self.bead;
         detached(py, || bead.step(dt, steps, method))
@@ -404,7 +410,8 @@ impl PyReducedPendulum {
     }
 
     /// Advance `steps` steps of `dt` with an ODE method (GIL released).
-    fn step(&mut self, py: Python<'_>, dt: f64, steps: usize, method: &str) -> PyResult<()> {
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: Int, method: &str) -> PyResult<()> {
+        let steps = steps.count("steps")?;
         let method = Method::parse(method)?;
         let pendulum = &mut self.pendulum;
         detached(py, || pendulum.step(dt, steps, method))

@@ -1,5 +1,6 @@
 //! `kinema.ik`: inverse kinematics on Acclaim skeletons.
 
+use super::args::{counts, Int, MAX_ITERATIONS};
 use super::array::rows;
 use super::error::detached;
 use super::mocap::{pose_values, PySkeleton};
@@ -56,14 +57,14 @@ impl PyIkReport {
 }
 
 /// Solve IK; arguments as checked by `kinema.ik.solve` (positions (E, 3), one orientation
-/// (w, x, y, z) or None per target). Returns the new pose and the report.
+/// (w, x, y, z) or None per target, at most `MAX_ITERATIONS` (10^6) iterations). Returns the new pose and the report.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 fn ik_solve<'py>(
     py: Python<'py>,
     skeleton: &PySkeleton,
     pose: PyArrayLike1<'py, f64, AllowTypeChange>,
-    joints: Vec<usize>,
+    joints: Vec<Int>,
     positions: PyReadonlyArrayDyn<'py, f64>,
     orientations: Vec<Option<[f64; 4]>>,
     method: &str,
@@ -73,8 +74,10 @@ fn ik_solve<'py>(
     rest: Option<PyArrayLike1<'py, f64, AllowTypeChange>>,
     free_root: bool,
     tol: f64,
-    max_iters: usize,
+    max_iters: Int,
 ) -> PyResult<(Bound<'py, PyArray1<f64>>, PyIkReport)> {
+    let joints = counts(&joints, "joints")?;
+    let max_iters = max_iters.range("max_iters", 0, MAX_ITERATIONS)?;
     let positions = rows::<3>(&positions, "targets", &[3])?;
     if positions.len() != joints.len() || orientations.len() != joints.len() {
         return Err(
@@ -114,10 +117,11 @@ fn ik_jacobian<'py>(
     py: Python<'py>,
     skeleton: &PySkeleton,
     pose: PyArrayLike1<'py, f64, AllowTypeChange>,
-    joints: Vec<usize>,
+    joints: Vec<Int>,
     orientation: bool,
     free_root: bool,
 ) -> PyResult<(Bound<'py, numpy::PyArray2<f64>>, Vec<usize>)> {
+    let joints = counts(&joints, "joints")?;
     let values = pose_values(&pose, "pose")?;
     let sk = &skeleton.skeleton;
     let (jac, cols) = detached(py, || ik::jacobian(sk, values, &joints, orientation, free_root))?;

@@ -1,5 +1,6 @@
 //! `kinema.mocap`: Acclaim skeletons, BVH hierarchies and their motions.
 
+use super::args::Int;
 use super::error::{detached, reduce, Reduced};
 use crate::error::Error;
 use crate::mocap::{
@@ -214,8 +215,8 @@ impl PyMotion {
     }
 
     /// Frame `i` as a pose: its values (root dofs then each bone's), radians / file units.
-    fn pose<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let m = &self.motion;
+    fn pose<'py>(&self, py: Python<'py>, i: Int) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (m, i) = (&self.motion, i.count("i")?);
         if i >= m.frames {
             return Err(crate::Error::invalid(
                 "i",
@@ -248,9 +249,9 @@ impl PyMotion {
     }
 
     /// Frames start..end as a new motion.
-    fn slice(&self, py: Python<'_>, start: usize, end: usize) -> PyResult<PyMotion> {
+    fn slice(&self, py: Python<'_>, start: Int, end: Int) -> PyResult<PyMotion> {
         Ok(PyMotion {
-            motion: self.motion.slice(start, end)?,
+            motion: self.motion.slice(start.count("start")?, end.count("end")?)?,
             skeleton: self.skeleton.clone_ref(py),
         })
     }
@@ -307,9 +308,9 @@ fn mocap_stitch(
     skeleton: &Bound<'_, PyAny>,
     a: &PyMotion,
     b: &PyMotion,
-    transition: usize,
+    transition: Int,
 ) -> PyResult<PyMotion> {
-    let (a, b) = (&a.motion, &b.motion);
+    let (a, b, transition) = (&a.motion, &b.motion, transition.count("transition")?);
     let out = editable(skeleton, |e| super::error::detached(py, || e.stitch(a, b, transition)))??;
     Ok(PyMotion { motion: out, skeleton: skeleton.clone().unbind() })
 }
@@ -320,9 +321,13 @@ fn mocap_warp(
     py: Python<'_>,
     skeleton: &Bound<'_, PyAny>,
     motion: &PyMotion,
-    keys: Vec<(usize, Vec<f64>)>,
+    keys: Vec<(Int, Vec<f64>)>,
 ) -> PyResult<PyMotion> {
     let m = &motion.motion;
+    let keys = keys
+        .into_iter()
+        .map(|(frame, pose)| Ok((frame.count("keys")?, pose)))
+        .collect::<PyResult<Vec<_>>>()?;
     let out = editable(skeleton, |e| super::error::detached(py, || e.warp(m, &keys)))??;
     Ok(PyMotion { motion: out, skeleton: skeleton.clone().unbind() })
 }

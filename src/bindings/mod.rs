@@ -6,6 +6,7 @@
 use pyo3::prelude::*;
 
 mod anim;
+mod args;
 mod array;
 mod cloth;
 mod constraints;
@@ -17,14 +18,11 @@ mod particles;
 mod rigid;
 mod rotation;
 
-/// Use `n` threads in every parallel kernel from now on (any time, as often as wanted;
-/// results are bitwise the same for any thread count).
+/// Use `n` threads (1 to `MAX_THREADS` = 1024) in every parallel kernel from now on (any
+/// time, as often as wanted; results are bitwise the same for any thread count).
 #[pyfunction]
-fn set_num_threads(n: usize) -> PyResult<()> {
-    if n == 0 {
-        return Err(crate::Error::invalid("n", "the thread count must be at least 1").into());
-    }
-    error::set_pool(n)
+fn set_num_threads(n: args::Int) -> PyResult<()> {
+    error::set_pool(n.range("n", 1, args::MAX_THREADS)?)
 }
 
 /// Threads used by the parallel kernels.

@@ -1,7 +1,8 @@
 //! `kinema.ode`: integrators driven by Python callables, and the stability analysis.
 
+use super::args::Int;
 use super::array::{compute, rows};
-use crate::error::Error;
+use crate::error::{filled, too_large, Error};
 use crate::ode::{
     max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function, Method, OdeSystem,
     Stepper,
@@ -90,10 +91,11 @@ fn ode_solve_fixed<'py>(
     y0: PyReadonlyArrayDyn<'py, f64>,
     t0: f64,
     t1: f64,
-    steps: usize,
+    steps: Int,
     method: &str,
     jac: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Array<'py>, usize, usize)> {
+    let steps = steps.count("steps")?;
     let method = Method::parse(method)?;
     let y0 = y0
         .as_slice()
@@ -110,7 +112,8 @@ fn ode_solve_fixed<'py>(
     let mut system = PySystem { py, f, jac, n, error: None };
     let mut stepper = Stepper::new(method, n)?;
     let h = (t1 - t0) / steps as f64;
-    let mut out = vec![0.0; (steps + 1) * n];
+    let len = steps.checked_add(1).and_then(|m| m.checked_mul(n));
+    let mut out = filled("steps", len.ok_or_else(|| too_large("steps", steps, 8 * n))?, 0.0)?;
     out[..n].copy_from_slice(&y0);
     let mut y = y0;
     for s in 0..steps {
@@ -136,8 +139,9 @@ fn ode_solve_adaptive<'py>(
     t1: f64,
     rtol: f64,
     atol: f64,
-    max_steps: usize,
+    max_steps: Int,
 ) -> PyResult<(Array<'py>, Array<'py>, usize, usize)> {
+    let max_steps = max_steps.count("max_steps")?;
     let y0 = y0
         .as_slice()
         .map_err(|_| PyErr::from(Error::invalid("y0", "must be contiguous")))?

@@ -1,5 +1,6 @@
 //! `kinema.particles`: a compiled particle system whose state numpy views without a copy.
 
+use super::args::Int;
 use super::array::{compute, rows};
 use super::error::detached;
 use super::error::{reduce, Reduced};
@@ -155,8 +156,9 @@ impl Particles {
         positions: PyReadonlyArrayDyn<'_, f64>,
         velocities: PyReadonlyArrayDyn<'_, f64>,
         masses: PyReadonlyArrayDyn<'_, f64>,
-        capacity: usize,
+        capacity: Int,
     ) -> PyResult<Self> {
+        let capacity = capacity.count("capacity")?;
         let x: Vec<DVec3> = rows::<3>(&positions, "positions", &[3])?
             .iter()
             .map(|p| DVec3::from_array(*p))
@@ -170,15 +172,19 @@ impl Particles {
     }
 
     /// Add a force by kind with its parameters (see `kinema.particles` for each layout).
-    #[pyo3(signature = (kind, p, pairs=None, rest=None, seed=0))]
+    #[pyo3(
+        signature = (kind, p, pairs=None, rest=None, seed=Int::ZERO),
+        text_signature = "($self, kind, p, pairs=None, rest=None, seed=0)"
+    )]
     fn add_force(
         &mut self,
         kind: &str,
         p: Vec<f64>,
         pairs: Option<PyReadonlyArrayDyn<'_, f64>>,
         rest: Option<PyReadonlyArrayDyn<'_, f64>>,
-        seed: u64,
+        seed: Int,
     ) -> PyResult<()> {
+        let seed = seed.seed("seed")?;
         let force = match kind {
             "gravity" => {
                 params(&p, 3, "gravity")?;
@@ -247,14 +253,15 @@ impl Particles {
     }
 
     /// Replace collider `index` by one given as in `add_collider`.
-    fn set_collider(&mut self, index: usize, kind: &str, p: Vec<f64>) -> PyResult<()> {
-        Ok(self.system.set_collider(index, collider(kind, &p)?)?)
+    fn set_collider(&mut self, index: Int, kind: &str, p: Vec<f64>) -> PyResult<()> {
+        Ok(self.system.set_collider(index.count("index")?, collider(kind, &p)?)?)
     }
 
     /// Add an emitter: (rate, position 3, position_spread, velocity 3, velocity_spread,
     /// lifespan, mass, color 4, color_spread, size, size_spread) and a seed.
-    fn add_emitter(&mut self, p: Vec<f64>, seed: u64) -> PyResult<()> {
+    fn add_emitter(&mut self, p: Vec<f64>, seed: Int) -> PyResult<()> {
         params(&p, 18, "emitter")?;
+        let seed = seed.seed("seed")?;
         Ok(self.system.add_emitter(Emitter {
             rate: p[0],
             position: v3(&p, 1),
@@ -281,10 +288,11 @@ impl Particles {
         &mut self,
         py: Python<'_>,
         dt: f64,
-        steps: usize,
+        steps: Int,
         method: &str,
         sparse_jacobian: bool,
     ) -> PyResult<()> {
+        let steps = steps.count("steps")?;
         let method = Method::parse(method)?;
         let system = &mut self.system;
         detached(py, || system.step_with_jacobian(dt, steps, method, sparse_jacobian))

@@ -1,5 +1,6 @@
 //! `kinema.rigid`: a compiled world of free rigid bodies.
 
+use super::args::{Int, MAX_ITERATIONS};
 use super::array::compute;
 use super::error::detached;
 use super::error::{reduce, Reduced};
@@ -150,8 +151,8 @@ impl RigidWorld {
     fn add_joint(
         &mut self,
         kind: &str,
-        a: usize,
-        b: Option<usize>,
+        a: Int,
+        b: Option<Int>,
         anchor: [f64; 3],
         axis: [f64; 3],
         limits: Option<(f64, f64)>,
@@ -175,8 +176,8 @@ impl RigidWorld {
         let desc = JointDesc {
             kind,
             method: JointMethod::parse(method)?,
-            a,
-            b,
+            a: a.count("a")?,
+            b: b.map(|b| b.count("b")).transpose()?,
             anchor: vec3(anchor),
             axis: vec3(axis),
             stiffness,
@@ -213,40 +214,40 @@ impl RigidWorld {
         })
     }
 
-    /// Sequential-impulse sweeps per step for contacts (velocities, then positions).
+    /// Sequential-impulse sweeps per step for contacts (velocities, then positions), at most
+    /// `MAX_ITERATIONS` (10^6).
     #[getter]
     fn get_contact_iterations(&self) -> usize {
         self.world.contact_iterations
     }
 
     #[setter]
-    fn set_contact_iterations(&mut self, n: usize) {
-        self.world.contact_iterations = n;
+    fn set_contact_iterations(&mut self, n: Int) -> PyResult<()> {
+        self.world.contact_iterations = n.range("contact_iterations", 0, MAX_ITERATIONS)?;
+        Ok(())
     }
 
-    /// Sequential-impulse sweeps per step for impulse joints.
+    /// Sequential-impulse sweeps per step for impulse joints, at most `MAX_ITERATIONS` (10^6).
     #[getter]
     fn get_joint_iterations(&self) -> usize {
         self.world.joint_iterations
     }
 
     #[setter]
-    fn set_joint_iterations(&mut self, n: usize) {
-        self.world.joint_iterations = n;
+    fn set_joint_iterations(&mut self, n: Int) -> PyResult<()> {
+        self.world.joint_iterations = n.range("joint_iterations", 0, MAX_ITERATIONS)?;
+        Ok(())
     }
 
-    /// Substeps per step when a joint uses XPBD.
+    /// Substeps per step when a joint uses XPBD, 1 to `MAX_ITERATIONS` (10^6).
     #[getter]
     fn get_xpbd_substeps(&self) -> usize {
         self.world.xpbd_substeps
     }
 
     #[setter]
-    fn set_xpbd_substeps(&mut self, n: usize) -> PyResult<()> {
-        if n == 0 {
-            return Err(Error::invalid("xpbd_substeps", "must be at least 1").into());
-        }
-        self.world.xpbd_substeps = n;
+    fn set_xpbd_substeps(&mut self, n: Int) -> PyResult<()> {
+        self.world.xpbd_substeps = n.range("xpbd_substeps", 1, MAX_ITERATIONS)?;
         Ok(())
     }
 
@@ -278,32 +279,33 @@ impl RigidWorld {
     }
 
     /// Mass (kg) of body `i`.
-    fn mass(&self, i: usize) -> PyResult<f64> {
-        self.check(i)?;
+    fn mass(&self, i: Int) -> PyResult<f64> {
+        let i = self.check(i)?;
         Ok(self.world.mass(i))
     }
 
     /// Inertia tensor about the centre of mass, body axes, row-major (9,) (kg m²).
-    fn inertia(&self, i: usize) -> PyResult<Vec<f64>> {
-        self.check(i)?;
+    fn inertia(&self, i: Int) -> PyResult<Vec<f64>> {
+        let i = self.check(i)?;
         Ok(self.world.inertia(i).transpose().to_cols_array().to_vec())
     }
 
     /// Centre of mass in the body frame (m).
-    fn center_of_mass(&self, i: usize) -> PyResult<[f64; 3]> {
-        self.check(i)?;
+    fn center_of_mass(&self, i: Int) -> PyResult<[f64; 3]> {
+        let i = self.check(i)?;
         Ok(self.world.center_of_mass(i).to_array())
     }
 
     /// Advance `steps` steps of `dt` seconds (GIL released).
-    fn step(&mut self, py: Python<'_>, dt: f64, steps: usize) -> PyResult<()> {
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: Int) -> PyResult<()> {
+        let steps = steps.count("steps")?;
         let world = &mut self.world;
         detached(py, || world.step(dt, steps))
     }
 
     /// Apply `force` (N) at world `point` (m) of body `i` during the next step.
-    fn apply_force(&mut self, i: usize, force: [f64; 3], point: [f64; 3]) -> PyResult<()> {
-        Ok(self.world.apply_force(i, vec3(force), vec3(point))?)
+    fn apply_force(&mut self, i: Int, force: [f64; 3], point: [f64; 3]) -> PyResult<()> {
+        Ok(self.world.apply_force(i.count("body")?, vec3(force), vec3(point))?)
     }
 
     /// World positions of the body origins (N, 3) (m).
@@ -361,9 +363,11 @@ impl RigidWorld {
 }
 
 impl RigidWorld {
-    fn check(&self, i: usize) -> PyResult<()> {
+    /// Body index `i`, or a `ValueError` naming `body`.
+    fn check(&self, i: Int) -> PyResult<usize> {
+        let i = i.count("body")?;
         if i < self.world.len() {
-            Ok(())
+            Ok(i)
         } else {
             Err(Error::invalid(
                 "body",

@@ -2,7 +2,7 @@
 //! topology the material models need (edges, interior edges with their two opposite
 //! vertices).
 
-use crate::error::{Error, Result};
+use crate::error::{reserve, Error, Result};
 use std::collections::HashMap;
 
 /// How each quad of a grid is split into two triangles.
@@ -52,7 +52,8 @@ impl Mesh {
     /// are `(u, v) = (x, z)`. Triangles face +Y.
     ///
     /// # Errors
-    /// `nx` or `ny` below 2, or a non-positive / non-finite size.
+    /// `nx` or `ny` below 2, more than `2^32 - 1` vertices or more than the allocator grants
+    /// (named `nx, ny`), or a non-positive / non-finite size.
     pub fn grid(
         nx: usize,
         ny: usize,
@@ -74,7 +75,13 @@ impl Mesh {
                 ));
             }
         }
-        let mut positions = Vec::with_capacity(nx * ny);
+        // The block matrix numbers vertices with 32 bits; the buffers are allocated or
+        // reported, never aborted on.
+        let vertices = nx.checked_mul(ny).filter(|&n| n <= u32::MAX as usize).ok_or_else(|| {
+            Error::invalid("nx, ny", format!("{nx} x {ny} vertices, more than 2^32 - 1"))
+        })?;
+        let mut positions = Vec::new();
+        reserve("nx, ny", &mut positions, vertices)?;
         for j in 0..ny {
             for i in 0..nx {
                 let x = -0.5 * width + width * i as f64 / (nx - 1) as f64;
@@ -82,7 +89,8 @@ impl Mesh {
                 positions.push([x, 0.0, z]);
             }
         }
-        let mut triangles = Vec::with_capacity(2 * (nx - 1) * (ny - 1));
+        let mut triangles = Vec::new();
+        reserve("nx, ny", &mut triangles, 2 * (nx - 1) * (ny - 1))?;
         for j in 0..ny - 1 {
             for i in 0..nx - 1 {
                 let (a, b, c, d) =

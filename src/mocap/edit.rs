@@ -10,7 +10,7 @@
 
 use super::{BvhSkeleton, Dof, Motion, Skeleton};
 use crate::anim::{Extrapolation, Interpolation, Track};
-use crate::error::{Error, Result};
+use crate::error::{filled, reserve, too_large, Error, Result};
 use crate::rotation::EulerSequence;
 use glam::DQuat;
 use rayon::prelude::*;
@@ -108,6 +108,32 @@ impl Edit for BvhSkeleton {
     }
 }
 
+/// The body of [`Edit::time_warp`]; `arg` names `at` in errors (`times`, or the `to_rate`
+/// it was made from), including when the output does not fit in memory.
+fn sample<E: Edit + ?Sized>(e: &E, motion: &Motion, at: &[f64], arg: &str) -> Result<Motion> {
+    check(e, motion, "motion")?;
+    let last = (motion.frames - 1) as f64;
+    for (i, &u) in at.iter().enumerate() {
+        if !(u.is_finite() && (0.0..=last).contains(&u)) || (i > 0 && u < at[i - 1]) {
+            return Err(Error::InvalidInput {
+                arg: arg.into(),
+                index: Some(i),
+                reason: format!("must be non-decreasing frame positions within [0, {last}]"),
+            });
+        }
+    }
+    let (stride, groups) = (motion.stride, rotation_groups(e));
+    let count = at.len().checked_mul(stride).ok_or_else(|| too_large(arg, at.len(), 8 * stride))?;
+    let mut values = filled(arg, count, 0.0)?;
+    values.par_chunks_mut(stride).zip(at.par_iter()).for_each(|(out, &u)| {
+        let i = (u.floor() as usize).min(motion.frames - 1);
+        let j = (i + 1).min(motion.frames - 1);
+        let frame = |k: usize| &motion.values[k * stride..(k + 1) * stride];
+        mix(&groups, frame(i), frame(j), u - i as f64, out);
+    });
+    Ok(Motion { values, stride, frames: at.len(), frame_rate: motion.frame_rate })
+}
+
 /// Motion editing for a skeleton that says how its frame values are laid out; the operations
 /// are provided.
 pub trait Edit: Sync {
@@ -121,7 +147,8 @@ pub trait Edit: Sync {
     /// `motion` (sampled at `from_rate` Hz) resampled at `to_rate` Hz over the same time span.
     ///
     /// # Errors
-    /// A motion of another skeleton, non-positive rates.
+    /// A motion of another skeleton, non-positive rates, more frames than the allocator
+    /// grants (named `to_rate`).
     fn resample(&self, motion: &Motion, from_rate: f64, to_rate: f64) -> Result<Motion> {
         check(self, motion, "motion")?;
         if !(from_rate.is_finite() && to_rate.is_finite() && from_rate > 0.0 && to_rate > 0.0) {
@@ -131,11 +158,13 @@ pub trait Edit: Sync {
             ));
         }
         let duration = (motion.frames - 1) as f64 / from_rate;
-        let frames = (duration * to_rate + 1e-9).floor() as usize + 1;
-        let at: Vec<f64> = (0..frames)
-            .map(|f| (f as f64 / to_rate * from_rate).min((motion.frames - 1) as f64))
-            .collect();
-        let mut out = self.time_warp(motion, &at)?;
+        // `as` saturates: a count beyond usize fails the allocation below like any other.
+        let frames = ((duration * to_rate + 1e-9).floor() as usize).saturating_add(1);
+        let mut at = Vec::new();
+        reserve("to_rate", &mut at, frames)?;
+        let last = (motion.frames - 1) as f64;
+        at.extend((0..frames).map(|f| (f as f64 / to_rate * from_rate).min(last)));
+        let mut out = sample(self, motion, &at, "to_rate")?;
         out.frame_rate = to_rate;
         Ok(out)
     }
@@ -147,26 +176,7 @@ pub trait Edit: Sync {
     /// A motion of another skeleton; positions that are not finite, decrease, or fall
     /// outside the motion (named by index).
     fn time_warp(&self, motion: &Motion, at: &[f64]) -> Result<Motion> {
-        check(self, motion, "motion")?;
-        let last = (motion.frames - 1) as f64;
-        for (i, &u) in at.iter().enumerate() {
-            if !(u.is_finite() && (0.0..=last).contains(&u)) || (i > 0 && u < at[i - 1]) {
-                return Err(Error::InvalidInput {
-                    arg: "times".into(),
-                    index: Some(i),
-                    reason: format!("must be non-decreasing frame positions within [0, {last}]"),
-                });
-            }
-        }
-        let (stride, groups) = (motion.stride, rotation_groups(self));
-        let mut values = vec![0.0; at.len() * stride];
-        values.par_chunks_mut(stride).zip(at.par_iter()).for_each(|(out, &u)| {
-            let i = (u.floor() as usize).min(motion.frames - 1);
-            let j = (i + 1).min(motion.frames - 1);
-            let frame = |k: usize| &motion.values[k * stride..(k + 1) * stride];
-            mix(&groups, frame(i), frame(j), u - i as f64, out);
-        });
-        Ok(Motion { values, stride, frames: at.len(), frame_rate: motion.frame_rate })
+        sample(self, motion, at, "times")
     }
 
     /// Frame-by-frame blend of two motions of equal length: `weights` (one, or one per frame,

@@ -5,7 +5,7 @@
 
 use super::sparse::SparseNewton;
 use super::{Method, OdeSystem};
-use crate::error::{Error, Result};
+use crate::error::{filled, Error, Result};
 use nalgebra::DMatrix;
 
 /// Newton corrections that shrink by less than this factor per iteration trigger a Jacobian
@@ -387,8 +387,20 @@ impl Stepper {
         }
         let n = self.n;
         if self.jac.nrows() != n {
-            self.jac = DMatrix::zeros(n, n);
-            self.lu = vec![0.0; n * n];
+            // n² values twice: allocated or reported (the state's length names it), never
+            // aborted on.
+            let dense = || {
+                Error::invalid(
+                    "y0",
+                    format!(
+                        "a dense Jacobian of {n} x {n} values does not fit in memory; offer a \
+                         sparse Jacobian or use an explicit method"
+                    ),
+                )
+            };
+            let nn = n.checked_mul(n).ok_or_else(dense)?;
+            self.jac = DMatrix::from_vec(n, n, filled("y0", nn, 0.0).map_err(|_| dense())?);
+            self.lu = filled("y0", nn, 0.0).map_err(|_| dense())?;
             self.pivots = vec![0; n];
         }
         self.dense_jacobian(sys, t, y)?;

@@ -106,15 +106,15 @@ impl Force {
     pub fn validate(&self, n: usize) -> Result<()> {
         match self {
             Force::Gravity { g } => check("g", g.is_finite(), "must be finite"),
-            Force::Drag { linear, quadratic, wind } => check(
-                "drag",
-                linear.is_finite()
-                    && quadratic.is_finite()
-                    && *linear >= 0.0
-                    && *quadratic >= 0.0
-                    && wind.is_finite(),
-                "coefficients must be finite and >= 0",
-            ),
+            Force::Drag { linear, quadratic, wind } => {
+                check("linear", linear.is_finite() && *linear >= 0.0, "must be finite and >= 0")?;
+                check(
+                    "quadratic",
+                    quadratic.is_finite() && *quadratic >= 0.0,
+                    "must be finite and >= 0",
+                )?;
+                check("wind", wind.is_finite(), "must be finite")
+            }
             Force::Damping { rate } => {
                 check("rate", rate.is_finite() && *rate >= 0.0, "must be finite and >= 0")
             }

@@ -24,7 +24,7 @@ mod snapshot;
 
 pub use forces::{curl_noise, noise_with_gradient, Force};
 
-use crate::error::{Error, Result};
+use crate::error::{filled, reserve, too_large, Error, Result};
 use crate::ode::{Method, OdeSystem, SparseJacobian, Stepper};
 use crate::sdf;
 use glam::{DQuat, DVec3};
@@ -194,25 +194,22 @@ impl Emitter {
     /// mass finite and > 0, position and velocity finite, and the appearance (colour, size) valid.
     ///
     /// # Errors
-    /// [`Error::InvalidInput`] (argument `"emitter"`) if one is out of range.
+    /// [`Error::InvalidInput`] naming the field (`rate`, `mass`, ...) that is out of range.
     pub fn validate(&self) -> Result<()> {
         let e = self;
-        let ok = e.rate.is_finite()
-            && e.rate >= 0.0
-            && e.position.is_finite()
-            && e.velocity.is_finite()
-            && e.position_spread.is_finite()
-            && e.position_spread >= 0.0
-            && e.velocity_spread.is_finite()
-            && e.velocity_spread >= 0.0
-            && e.lifespan > 0.0
-            && e.mass.is_finite()
-            && e.mass > 0.0;
-        if !ok {
-            return Err(Error::invalid(
-                "emitter",
-                "rate, spreads >= 0, lifespan > 0, mass > 0, all finite (lifespan may be inf)",
-            ));
+        let finite = |v: f64| v.is_finite() && v >= 0.0;
+        for (arg, ok, what) in [
+            ("rate", finite(e.rate), "must be finite and >= 0"),
+            ("position", e.position.is_finite(), "must be finite"),
+            ("velocity", e.velocity.is_finite(), "must be finite"),
+            ("position_spread", finite(e.position_spread), "must be finite and >= 0"),
+            ("velocity_spread", finite(e.velocity_spread), "must be finite and >= 0"),
+            ("lifespan", e.lifespan > 0.0, "must be positive (inf: forever)"),
+            ("mass", e.mass.is_finite() && e.mass > 0.0, "must be positive and finite"),
+        ] {
+            if !ok {
+                return Err(Error::invalid(arg, what));
+            }
         }
         e.appearance.check()
     }
@@ -404,31 +401,41 @@ impl ParticleSystem {
             });
         }
         let n = capacity;
-        let mut y = vec![0.0; 6 * n];
+        // Every buffer is sized by the capacity: allocate them all or report the capacity.
+        let arg = "capacity";
+        let mut y = filled(arg, n.checked_mul(6).ok_or_else(|| too_large(arg, n, 48))?, 0.0)?;
         for i in 0..live {
             y[3 * i..3 * i + 3].copy_from_slice(&positions[i].to_array());
             y[3 * n + 3 * i..3 * n + 3 * i + 3].copy_from_slice(&velocities[i].to_array());
         }
-        let mut mass = vec![1.0; n];
+        let mut mass = filled(arg, n, 1.0)?;
         mass[..live].copy_from_slice(masses);
+        let mut inv_mass = filled(arg, n, 1.0)?;
+        for (inv, m) in inv_mass.iter_mut().zip(masses) {
+            *inv = if m.is_finite() { 1.0 / m } else { 0.0 };
+        }
+        let mut alive = filled(arg, n, false)?;
+        alive[..live].fill(true);
+        let mut cells = Vec::new();
+        reserve(arg, &mut cells, n)?;
         Ok(ParticleSystem {
             n,
             backup: Vec::new(),
             rollback: Rollback::default(),
             summary: Summary::default(),
             y,
-            inv_mass: mass.iter().map(|m| if m.is_finite() { 1.0 / m } else { 0.0 }).collect(),
+            inv_mass,
             mass,
-            age: vec![0.0; n],
+            age: filled(arg, n, 0.0)?,
             age_pending: (0.0, 0),
-            lifespan: vec![f64::INFINITY; n],
-            alive: (0..n).map(|i| i < live).collect(),
-            color: vec![Appearance::default().color; n],
-            size: vec![Appearance::default().size; n],
+            lifespan: filled(arg, n, f64::INFINITY)?,
+            alive,
+            color: filled(arg, n, Appearance::default().color)?,
+            size: filled(arg, n, Appearance::default().size)?,
             forces: Vec::new(),
             colliders: Vec::new(),
             emitters: Vec::new(),
-            cells: Vec::with_capacity(n),
+            cells,
             external: Vec::new(),
             stepper: None,
             jacobian: jacobian::JacobianWork::default(),
@@ -716,7 +723,8 @@ impl ParticleSystem {
     /// Add an emitter.
     ///
     /// # Errors
-    /// Negative or non-finite rate, spreads, lifespan or mass.
+    /// Negative or non-finite rate, spreads, lifespan or mass, non-finite position or
+    /// velocity (each named).
     pub fn add_emitter(&mut self, emitter: Emitter) -> Result<()> {
         emitter.validate()?;
         let seed = emitter.seed;
@@ -1109,20 +1117,26 @@ impl ParticleSystem {
         }
     }
 
-    /// Emit new particles into dead slots.
+    /// Emit new particles into dead slots: each emitter owes the whole part of its
+    /// accumulated `rate dt`; as many as there are dead slots are emitted (lowest slots
+    /// first, emitters in the order added) and the rest are counted as dropped at once, so a
+    /// step costs O(capacity) whatever the rate (a rate of 1e300 /s fills the free slots).
     fn emit(&mut self, dt: f64) {
         let n = self.n;
         let mut cursor = 0;
         for (emitter, accum, rng) in &mut self.emitters {
             *accum += emitter.rate * dt;
-            while *accum >= 1.0 {
-                *accum -= 1.0;
+            // Subtracting the whole part is exact, as subtracting 1 that many times was.
+            let owed = accum.floor();
+            *accum = if owed.is_finite() { *accum - owed } else { 0.0 };
+            // `as` saturates: more than usize::MAX owed counts as usize::MAX.
+            for k in 0..owed as usize {
                 while cursor < n && self.alive[cursor] {
                     cursor += 1;
                 }
                 if cursor == n {
-                    self.stats.dropped += 1;
-                    continue;
+                    self.stats.dropped = self.stats.dropped.saturating_add(owed as usize - k);
+                    break;
                 }
                 let i = cursor;
                 let x = emitter.position + emitter.position_spread * uniform_in_ball(rng);

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 SCRIPT = r"""
 import sys
@@ -70,9 +71,32 @@ def test_one_and_two_threads_agree_bitwise(tmp_path: Path):
         assert np.array_equal(one[key], two[key]), key
 
 
-def test_bad_thread_counts(tmp_path: Path):
-    env = dict(os.environ, KINEMA_NUM_THREADS="0")
-    result = subprocess.run(
-        [sys.executable, "-c", "import kinema"], env=env, capture_output=True, text=True
+def threads_at_import(env_value: str | None) -> tuple[str, str]:
+    """``kinema.num_threads()`` after ``import kinema`` in a fresh process with
+    ``KINEMA_NUM_THREADS=env_value`` (unset for None), and the RuntimeWarnings it issued."""
+    env = {k: v for k, v in os.environ.items() if k != "KINEMA_NUM_THREADS"}
+    if env_value is not None:
+        env["KINEMA_NUM_THREADS"] = env_value
+    code = (
+        "import warnings\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        "    warnings.simplefilter('always')\n"
+        "    import kinema\n"
+        "print(kinema.num_threads())\n"
+        "print(*[str(x.message) for x in w if x.category is RuntimeWarning])\n"
     )
-    assert result.returncode != 0 and "KINEMA_NUM_THREADS" in result.stderr
+    result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    threads, warnings = result.stdout.split("\n", 1)
+    return threads, warnings
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "1025", "10**6", "two", "99999999999999999999999"])
+def test_bad_KINEMA_NUM_THREADS_warns_naming_it_and_keeps_the_default(value: str):
+    threads, warnings = threads_at_import(value)
+    assert f"KINEMA_NUM_THREADS={value!r} ignored" in warnings
+    assert threads == threads_at_import(None)[0]
+
+
+def test_good_KINEMA_NUM_THREADS_sizes_the_pool():
+    assert threads_at_import("3") == ("3", "\n")
