@@ -57,23 +57,128 @@ fn energy(p: &ParticleSystem) -> f64 {
 
 #[test]
 fn feedback_keeps_drift_below_1e_8_and_without_it_drift_grows() {
+    // The same integrator (RK4, 1 ms) with post-stabilisation off on both sides: only the
+    // feedback gains differ.
     for make in [
         bead as fn(f64, f64) -> (ParticleSystem, ConstrainedSystem),
         |ks, kd| bead_on_curve(CIRCLE, ks, kd),
         |ks, kd| double_pendulum(ks, kd, ConstraintSolver::Cholesky),
     ] {
-        let (mut p, mut c) = make(100.0, 20.0);
-        for _ in 0..10 {
-            c.step(&mut p, 1e-3, 10_000, Method::Rk4).unwrap();
-            assert!(c.violation(&p).unwrap().0 < 1e-8, "{:?}", c.violation(&p).unwrap());
+        let mut worst = [0.0_f64; 2];
+        for (k, (ks, kd)) in [(100.0, 20.0), (0.0, 0.0)].into_iter().enumerate() {
+            let (mut p, mut c) = make(ks, kd);
+            c.set_stabilization(false).unwrap();
+            for _ in 0..10 {
+                c.step(&mut p, 1e-3, 10_000, Method::Rk4).unwrap();
+                worst[k] = worst[k].max(c.violation(&p).unwrap().0);
+            }
         }
-        let (mut p, mut c) = make(0.0, 0.0);
-        c.step(&mut p, 1e-3, 1_000, Method::Midpoint).unwrap();
-        let early = c.violation(&p).unwrap().0;
-        c.step(&mut p, 1e-3, 99_000, Method::Midpoint).unwrap();
-        let late = c.violation(&p).unwrap().0;
-        assert!(late > 2.0 * early && late > 1e-6, "no feedback: {early} -> {late}");
+        let [with, without] = worst;
+        assert!(with < 1e-8 && without > 100.0 * with, "feedback {with}, none {without}");
     }
+}
+
+#[test]
+fn bead_drift_over_1e5_steps_at_the_defaults_stays_below_1e_10() {
+    for make in [bead as fn(f64, f64) -> (ParticleSystem, ConstrainedSystem), |ks, kd| {
+        bead_on_curve(CIRCLE, ks, kd)
+    }] {
+        // Defaults: ks = kd = 0, post-stabilisation on.
+        let (mut p, mut c) = make(0.0, 0.0);
+        assert!(c.stabilization());
+        let (mut drift, mut rate) = (0.0_f64, 0.0_f64);
+        for _ in 0..100 {
+            c.step(&mut p, 1e-3, 1_000, Method::Rk4).unwrap();
+            let (d, r) = c.violation(&p).unwrap();
+            (drift, rate) = (drift.max(d), rate.max(r));
+        }
+        assert!(drift <= 1e-10 && rate <= 1e-10, "drift {drift} m, rate {rate} m/s");
+        // The old behaviour, still reachable: the drift of the integrator alone.
+        let (mut p, mut c) = make(0.0, 0.0);
+        c.set_stabilization(false).unwrap();
+        c.step(&mut p, 1e-3, 100_000, Method::Rk4).unwrap();
+        assert!(c.violation(&p).unwrap().0 > 1e3 * drift.max(1e-12));
+    }
+}
+
+/// A hanging rope of `n` rods of 1 cm (1 g particles, the top one pinned) pushed sideways,
+/// as in `bench/bench_constraints.py`.
+fn rope(n: usize) -> (ParticleSystem, ConstrainedSystem) {
+    let xs: Vec<DVec3> = (0..n).map(|i| DVec3::new(0.0, -0.01 * i as f64, 0.0)).collect();
+    let vs: Vec<DVec3> = (0..n).map(|i| DVec3::new(0.2 * i as f64 / n as f64, 0.0, 0.0)).collect();
+    let mut masses = vec![0.001; n];
+    masses[0] = f64::INFINITY;
+    let mut p = ParticleSystem::new(&xs, &vs, &masses, n).unwrap();
+    p.add_force(Force::Gravity { g: G }).unwrap();
+    let mut c = ConstrainedSystem::new(0.0, 0.0, ConstraintSolver::Cholesky).unwrap();
+    for i in 0..n - 1 {
+        c.add(&p, Constraint::Distance { i, j: i + 1, length: 0.01 }).unwrap();
+    }
+    (p, c)
+}
+
+/// Largest relative rod-length error of the rope over `chunks` calls of `steps` steps.
+fn rope_stretch(
+    p: &mut ParticleSystem,
+    c: &mut ConstrainedSystem,
+    dt: f64,
+    chunks: usize,
+    steps: usize,
+    method: Option<Method>,
+) -> f64 {
+    let mut worst = 0.0_f64;
+    for _ in 0..chunks {
+        match method {
+            Some(m) => c.step(p, dt, steps, m).unwrap(),
+            None => c.step_projection(p, dt, steps).unwrap(),
+        }
+        worst = worst.max(c.violation(p).unwrap().0 / 0.01);
+    }
+    worst
+}
+
+#[test]
+fn rope_rods_hold_1e_6_relative_length_at_the_defaults() {
+    // Projection, 1,000 rods at 1/240 s for 0.5 s, 10,000 rods at 1 ms for 15 steps (steps
+    // the tension at the top allows; see the next test).
+    for (n, dt, steps) in [(1_000, 1.0 / 240.0, 120), (10_000, 1e-3, 15)] {
+        let (mut p, mut c) = rope(n);
+        let stretch = rope_stretch(&mut p, &mut c, dt, steps, 1, None);
+        assert!(stretch < 1e-6, "{n} rods, projection: {stretch}");
+        let end = DVec3::from_slice(&p.positions()[3 * (n - 1)..]);
+        // The free end was pushed at 0.2 m/s: it has moved along +X.
+        assert!(end.x > 0.05 * dt * steps as f64, "{n} rods: the rope swings, end at {end}");
+    }
+    // Multipliers with RK4 at a step within its stability limit, 1,000 rods for 0.5 s.
+    let (mut p, mut c) = rope(1_000);
+    let stretch = rope_stretch(&mut p, &mut c, 1e-3, 50, 10, Some(Method::Rk4));
+    assert!(stretch < 1e-6, "1000 rods, multipliers: {stretch}");
+}
+
+#[test]
+fn a_rope_too_stiff_for_the_step_fails_instead_of_stretching() {
+    // At 1/60 s the tension at the top of 1,000 rods of 1 cm (h √(T/(m L)) ≈ 16) makes the
+    // velocity-level step unstable. Without post-stabilisation the rods stretch by percents
+    // (the old behaviour); with it the position projection cannot converge, and the step
+    // fails with the particles at the last good step.
+    let (mut p, mut c) = rope(1_000);
+    c.set_stabilization(false).unwrap();
+    let stretch = rope_stretch(&mut p, &mut c, 1.0 / 60.0, 12, 1, None);
+    assert!(stretch > 1e-2, "1000 rods, projection without stabilisation: {stretch}");
+    let (mut p, mut c) = rope(1_000);
+    let mut last = (p.positions().to_vec(), p.velocities().to_vec(), p.time());
+    let err = loop {
+        match c.step_projection(&mut p, 1.0 / 60.0, 1) {
+            Ok(()) => {
+                assert!(c.violation(&p).unwrap().0 <= 1e-10);
+                last = (p.positions().to_vec(), p.velocities().to_vec(), p.time());
+            }
+            Err(e) => break e,
+        }
+        assert!(p.time() < 1.0, "no failure in 60 steps");
+    };
+    assert!(matches!(err, kinema::Error::SolverFailed { .. }), "{err}");
+    assert_eq!((p.positions().to_vec(), p.velocities().to_vec(), p.time()), last);
 }
 
 #[test]
@@ -106,6 +211,25 @@ fn constraint_force_does_no_work_on_legal_velocities() {
         let power = forces[1].dot(v1) + forces[2].dot(v2);
         let scale = forces[1].length() * v1.length() + forces[2].length() * v2.length();
         assert!(power.abs() <= 1e-14 * scale, "{power} vs {scale}");
+    }
+}
+
+#[test]
+fn constraint_force_is_the_tension_of_a_pendulum_rod() {
+    // A rod of 1 m from a fixed pivot, 1.5 kg released horizontally: the rod pulls with
+    // T = m (g·d̂ + |v|²/L) along -d̂ (radial balance), whatever the state.
+    let xs = [DVec3::ZERO, DVec3::X];
+    let mut p = ParticleSystem::new(&xs, &[DVec3::ZERO; 2], &[f64::INFINITY, 1.5], 2).unwrap();
+    p.add_force(Force::Gravity { g: G }).unwrap();
+    let mut c = ConstrainedSystem::new(0.0, 0.0, ConstraintSolver::Cholesky).unwrap();
+    c.add(&p, Constraint::Distance { i: 0, j: 1, length: 1.0 }).unwrap();
+    for _ in 0..5 {
+        c.step(&mut p, 1e-3, 150, Method::Rk4).unwrap();
+        let (d, v) = (position(&p, 1), DVec3::from_slice(&p.velocities()[3..]));
+        let dir = d / d.length();
+        let tension = 1.5 * (G.dot(dir) + v.length_squared() / d.length());
+        let f = c.constraint_forces(&mut p).unwrap()[1];
+        assert!((f + tension * dir).length() <= 1e-8 * tension, "{f} vs {tension} along {dir}");
     }
 }
 
@@ -165,12 +289,6 @@ fn degenerate_input_is_refused_or_regularised() {
     assert!(c.add(&p, Constraint::OnSphere { i: 0, center: DVec3::ZERO, radius: 0.0 }).is_err());
     assert!(c.add(&p, Constraint::Fixed { i: 5, point: DVec3::ZERO }).is_err());
     assert!(ConstrainedSystem::new(-1.0, 0.0, ConstraintSolver::Cholesky).is_err());
-    // Conflicting and redundant constraints: a finite, regularised answer.
-    c.add(&p, Constraint::OnPlane { i: 0, point: DVec3::ZERO, normal: DVec3::Y }).unwrap();
-    c.add(&p, Constraint::OnPlane { i: 0, point: DVec3::ZERO, normal: DVec3::Y }).unwrap();
-    c.add(&p, Constraint::OnPlane { i: 0, point: DVec3::Y, normal: DVec3::Y }).unwrap();
-    c.step(&mut p, 1e-3, 100, Method::Rk4).unwrap();
-    assert!(p.positions().iter().all(|v| v.is_finite()));
     // Everything pinned: nothing moves, nothing fails.
     let mut pinned =
         ParticleSystem::new(&[DVec3::ZERO, DVec3::X], &[DVec3::ZERO; 2], &[f64::INFINITY; 2], 2)
@@ -224,6 +342,57 @@ fn degenerate_input_is_refused_or_regularised() {
     let err = c.step(&mut q, 1e-2, 1000, Method::Rk4).unwrap_err();
     assert!(matches!(err, kinema::Error::SolverFailed { .. }), "{err}");
     assert!(q.positions().iter().all(|v| v.is_finite()));
+}
+
+/// One particle of 2 kg at `y0` moving at 0.5 m/s along +X under gravity, held by the planes
+/// `y = 0` (twice: redundant) and `y = 3` (conflicting with them).
+fn between_conflicting_planes(y0: f64, ks: f64, kd: f64) -> (ParticleSystem, ConstrainedSystem) {
+    let x = [DVec3::new(0.0, y0, 0.0)];
+    let mut p = ParticleSystem::new(&x, &[DVec3::new(0.5, 0.0, 0.0)], &[2.0], 1).unwrap();
+    p.add_force(Force::Gravity { g: G }).unwrap();
+    let mut c = ConstrainedSystem::new(ks, kd, ConstraintSolver::Cholesky).unwrap();
+    for y in [0.0, 0.0, 3.0] {
+        let point = DVec3::new(0.0, y, 0.0);
+        c.add(&p, Constraint::OnPlane { i: 0, point, normal: DVec3::Y }).unwrap();
+    }
+    (p, c)
+}
+
+#[test]
+fn redundant_constraints_hold_and_conflicting_ones_fail_or_reach_least_squares() {
+    // Redundant only (the plane y = 0 twice): the defaults hold the particle on it exactly
+    // while it slides along X.
+    let (mut p, mut c) = between_conflicting_planes(0.0, 0.0, 0.0);
+    let mut redundant = ConstrainedSystem::new(0.0, 0.0, ConstraintSolver::Cholesky).unwrap();
+    for k in 0..2 {
+        redundant.add(&p, c.constraints()[k].clone()).unwrap();
+    }
+    redundant.step(&mut p, 1e-3, 1000, Method::Rk4).unwrap();
+    let x = position(&p, 0);
+    assert!(x.y.abs() <= 1e-12 && (x.x - 0.5).abs() < 1e-12, "{x}");
+    // Conflicting, at the defaults (post-stabilisation): no point satisfies them, so the step
+    // fails with a solver error naming the residual, and nothing moves.
+    let (mut p, _) = between_conflicting_planes(0.0, 0.0, 0.0);
+    let before = (p.positions().to_vec(), p.velocities().to_vec(), p.time());
+    let err = c.step(&mut p, 1e-3, 10, Method::Rk4).unwrap_err();
+    assert!(matches!(err, kinema::Error::SolverFailed { .. }), "{err}");
+    assert!(err.to_string().contains("conflict"), "{err}");
+    assert_eq!((p.positions().to_vec(), p.velocities().to_vec(), p.time()), before);
+    let err = c.step_projection(&mut p, 1e-3, 10).unwrap_err();
+    assert!(err.to_string().contains("conflict"), "{err}");
+    assert_eq!((p.positions().to_vec(), p.velocities().to_vec(), p.time()), before);
+    // Without post-stabilisation the multipliers solve the rows in the least-squares sense:
+    // feedback (critically damped, ω = 10/s) drives the particle to the least-squares point of
+    // C = (y, y, y - 3), y = 1, where the constraint force carries its weight; X is free.
+    let (mut p, mut c) = between_conflicting_planes(0.0, 100.0, 20.0);
+    c.set_stabilization(false).unwrap();
+    c.step(&mut p, 1e-3, 3000, Method::Rk4).unwrap();
+    let x = position(&p, 0);
+    // To ~1e-6: the rounding of the multipliers' null-space components (~|C|/ε) as they cancel.
+    assert!((x.y - 1.0).abs() < 1e-5 && (x.x - 1.5).abs() < 1e-12 && x.z == 0.0, "{x}");
+    assert!((c.violation(&p).unwrap().0 - 2.0).abs() < 1e-5);
+    let f = c.constraint_forces(&mut p).unwrap()[0];
+    assert!((f - DVec3::new(0.0, 2.0 * 9.81, 0.0)).length() < 1e-2, "{f}");
 }
 
 #[test]

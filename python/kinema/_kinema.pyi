@@ -260,6 +260,7 @@ class Constrained:
         formulation: str,
         stiffness: float,
         damping: float,
+        stabilize: bool,
     ) -> Constrained: ...
     def add(self, kind: str, i: int, j: int, p: list[float]) -> None: ...
     def add_on_curve(

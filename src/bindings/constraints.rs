@@ -160,8 +160,9 @@ impl Constrained {
     }
 
     /// Constraints on `particles`: `formulation` `"multipliers"` with feedback gains `ks`
-    /// (1/s²), `kd` (1/s) and a solver (`"cholesky"` or `"cg"`), or `"penalty"` with
-    /// `stiffness` (N/m) and `damping` (N s/m).
+    /// (1/s²), `kd` (1/s), a solver (`"cholesky"` or `"cg"`) and post-stabilisation
+    /// `stabilize`, or `"penalty"` with `stiffness` (N/m) and `damping` (N s/m) and
+    /// `stabilize` false.
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -172,6 +173,7 @@ impl Constrained {
         formulation: &str,
         stiffness: f64,
         damping: f64,
+        stabilize: bool,
     ) -> PyResult<Self> {
         let solver = match solver {
             "cholesky" => ConstraintSolver::Cholesky,
@@ -184,7 +186,7 @@ impl Constrained {
                 .into())
             }
         };
-        let system = match formulation {
+        let mut system = match formulation {
             "multipliers" => ConstrainedSystem::new(ks, kd, solver)?,
             "penalty" => ConstrainedSystem::penalty(stiffness, damping)?,
             other => {
@@ -195,6 +197,7 @@ impl Constrained {
                 .into())
             }
         };
+        system.set_stabilization(stabilize)?;
         Ok(Constrained { particles, system, error: Arc::default() })
     }
 

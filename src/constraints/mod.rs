@@ -42,9 +42,11 @@ use crate::particles::ParticleSystem;
 use glam::DVec3;
 use std::sync::Arc;
 
-/// Position projections per [`ConstrainedSystem::step_projection`] step, at most.
+/// Gauss–Newton position projections of the post-stabilisation per step, at most; a step that
+/// needs more fails (see [`ConstrainedSystem::set_stabilization`]).
 pub const PROJECTION_ITERATIONS: usize = 30;
-/// Largest `|C|` (m) at which the position projection stops early.
+/// The post-stabilisation stops when the largest `|C|` (m) is at most this (far from the
+/// origin: 64 ulps of the largest coordinate, the rounding floor of `C`).
 pub const PROJECTION_TOL: f64 = 1e-10;
 
 /// A user constraint `C(x) = 0` of `m` scalar rows on `k` particles, given by its value and
@@ -235,6 +237,8 @@ pub struct ConstrainedSystem {
     pub kd: f64,
     formulation: Formulation,
     solver: ConstraintSolver,
+    /// Post-stabilisation after every step (multipliers only; see [`Self::set_stabilization`]).
+    stabilize: bool,
     work: Work,
     stepper: Option<Stepper>,
 }
@@ -245,7 +249,7 @@ struct Work {
     rows: Rows,
     /// Per constraint: the tracked curve parameter and frame reference axis (curves only).
     curves: Vec<(f64, DVec3)>,
-    /// The state before a step, restored when the step's curve tracking fails.
+    /// The state before a step, restored when its post-stabilisation or curve tracking fails.
     backup: Vec<f64>,
     b: Vec<f64>,
     lambda: Vec<f64>,
@@ -272,11 +276,12 @@ impl std::fmt::Debug for ConstrainedSystem {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "ConstrainedSystem({} constraints, {:?}, ks = {}, kd = {})",
+            "ConstrainedSystem({} constraints, {:?}, ks = {}, kd = {}, stabilize = {})",
             self.constraints.len(),
             self.formulation,
             self.ks,
-            self.kd
+            self.kd,
+            self.stabilize
         )
     }
 }
@@ -293,7 +298,7 @@ fn at_particle(e: Error, i: usize) -> Error {
 
 impl ConstrainedSystem {
     /// No constraints yet, multiplier formulation with feedback gains `ks`, `kd` (0 turns
-    /// feedback off).
+    /// feedback off) and post-stabilisation on ([`Self::set_stabilization`]).
     ///
     /// # Errors
     /// Negative or non-finite gains.
@@ -307,6 +312,7 @@ impl ConstrainedSystem {
             kd,
             formulation: Formulation::Multipliers,
             solver,
+            stabilize: true,
             work: Work::default(),
             stepper: None,
         })
@@ -332,7 +338,39 @@ impl ConstrainedSystem {
         }
         let mut system = ConstrainedSystem::new(0.0, 0.0, ConstraintSolver::Cholesky)?;
         system.formulation = Formulation::Penalty { stiffness, damping };
+        system.stabilize = false;
         Ok(system)
+    }
+
+    /// Turn post-stabilisation (Cline & Pai 2003, "Post-stabilization for rigid body
+    /// simulation with contact and constraints", ICRA) on or off. On (the default with
+    /// multipliers), every step of [`Self::step`] and [`Self::step_projection`] ends by
+    /// projecting the positions onto `C(x) = 0` in the mass metric, `(J W Jᵀ) δ = -C`,
+    /// `x += W Jᵀ δ` (Gauss–Newton, at most [`PROJECTION_ITERATIONS`] times, until `|C| ≤`
+    /// [`PROJECTION_TOL`]), and the velocities onto `J v = 0` at the new positions,
+    /// `(J W Jᵀ) μ = -J v`, `v += W Jᵀ μ`, with the same sparse solve as the multipliers. The
+    /// corrections are of the size of one step's drift, so the integrator keeps its order,
+    /// and the constraints hold to `PROJECTION_TOL` at any step; the velocity projection
+    /// removes the kinetic energy of the constraint-violating velocity (at most that of the
+    /// drift rate, `½ Ċᵀ (J W Jᵀ)⁻¹ Ċ`). Off, the constraints hold only through `ks`, `kd`
+    /// and the accuracy of the integrator (and `step_projection` does no position projection).
+    ///
+    /// # Errors
+    /// `on` with the penalty formulation (whose springs are the constraint model).
+    pub fn set_stabilization(&mut self, on: bool) -> Result<()> {
+        if on && self.formulation != Formulation::Multipliers {
+            return Err(Error::invalid(
+                "stabilize",
+                "post-stabilisation needs the multiplier formulation, not penalty",
+            ));
+        }
+        self.stabilize = on;
+        Ok(())
+    }
+
+    /// Whether post-stabilisation is on ([`Self::set_stabilization`]).
+    pub fn stabilization(&self) -> bool {
+        self.stabilize
     }
 
     /// How the constraints act.
@@ -524,7 +562,9 @@ impl ConstrainedSystem {
             v.resize(m, 0.0);
         }
         self.work.scratch.resize(3 * n, 0.0);
-        if self.constraints.iter().any(|c| matches!(c, Constraint::OnCurve { .. })) {
+        if self.stabilize
+            || self.constraints.iter().any(|c| matches!(c, Constraint::OnCurve { .. }))
+        {
             self.work.backup.resize(6 * n, 0.0);
         }
         Ok(())
@@ -532,11 +572,13 @@ impl ConstrainedSystem {
 
     /// Advance the particles `steps` steps of `dt` with constraints enforced at the velocity
     /// level (impulses), the formulation of rigid-body engines: `v* = v + h W Q`, then
-    /// `J W Jᵀ λ = -J v*`, `v₁ = v* + W Jᵀ λ`, `x₁ = x + h v₁`, followed by up to
-    /// [`PROJECTION_ITERATIONS`] Gauss–Newton projections of the positions onto `C = 0`
-    /// (post-stabilisation, Cline & Pai 2003). First order and dissipative, but stable at large
-    /// steps where the acceleration-level formulation with an explicit integrator is not (a
-    /// rope of short rods at 1/60 s). Multiplier formulation only.
+    /// `J W Jᵀ λ = -J v*`, `v₁ = v* + W Jᵀ λ`, `x₁ = x + h v₁` (`J` at `x`), followed by the
+    /// post-stabilisation when it is on ([`Self::set_stabilization`]). First order and
+    /// dissipative; stable at larger steps than the acceleration-level formulation with an
+    /// explicit integrator, but the tension acts along the directions at the start of the
+    /// step, so a string of tension `T`, particle mass `m` and rod length `L` needs roughly
+    /// `h √(T / (m L)) ≲ 1`: beyond, the transverse motion grows and the post-stabilisation
+    /// fails to converge (an error, not a stretched rope). Multiplier formulation only.
     ///
     /// # Errors
     /// A bad `dt`, the penalty formulation, a solver failure, a custom constraint's failure or
@@ -584,6 +626,7 @@ impl ConstrainedSystem {
             for k in 0..3 * n {
                 next[3 * n + k] = y[3 * n + k] + dt * next[3 * n + k];
             }
+            // Impulses with the directions at x₀: J(x₀) v₁ = 0, x₁ = x₀ + h v₁.
             evaluate(system.constraints, &system.work.curves, y, n, &mut system.work.rows)?;
             let w = &mut *system.work;
             for r in 0..w.rows.rows.len() {
@@ -595,41 +638,13 @@ impl ConstrainedSystem {
                     .sum();
                 w.b[r] = -jv;
             }
-            system.solve_multipliers()?;
-            let w = &mut *system.work;
-            for r in 0..w.rows.rows.len() {
-                for &(p, g) in w.rows.blocks(r) {
-                    let dv = system.inv_mass[p] * w.lambda[r] * g;
-                    for k in 0..3 {
-                        next[3 * n + 3 * p + k] += dv[k];
-                    }
-                }
-            }
+            system.apply_correction(next, 3 * n)?;
             for k in 0..3 * n {
                 next[k] = y[k] + dt * next[3 * n + k];
             }
-            // Post-stabilisation (Cline & Pai 2003): Gauss–Newton projection of the positions
-            // back onto C = 0, mass-weighted: (J W Jᵀ) δ = -C, x += W Jᵀ δ.
-            for _ in 0..PROJECTION_ITERATIONS {
-                evaluate(system.constraints, &system.work.curves, next, n, &mut system.work.rows)?;
-                let w = &mut *system.work;
-                let worst = w.rows.rows.iter().fold(0.0_f64, |a, r| a.max(r.c.abs()));
-                if worst <= PROJECTION_TOL {
-                    break;
-                }
-                for (r, row) in w.rows.rows.iter().enumerate() {
-                    w.b[r] = -row.c;
-                }
-                system.solve_multipliers()?;
-                let w = &mut *system.work;
-                for r in 0..w.rows.rows.len() {
-                    for &(p, g) in w.rows.blocks(r) {
-                        let dx = system.inv_mass[p] * w.lambda[r] * g;
-                        for k in 0..3 {
-                            next[3 * p + k] += dx[k];
-                        }
-                    }
-                }
+            if system.stabilize {
+                system.project_positions(next)?;
+                system.project_velocities(next)?;
             }
             if let Some(bad) = next.iter().position(|v| !v.is_finite()) {
                 return Err(Error::Diverged {
@@ -666,23 +681,31 @@ impl ConstrainedSystem {
         }
         self.prepare(n)?;
         let mut stepper = self.stepper.take().expect("created above");
-        let curves = !self.work.backup.is_empty();
+        let backup = !self.work.backup.is_empty();
         let (mut system, y, time) = assemble(self, particles);
         let mut result = Ok(());
         for s in 0..steps {
-            if curves {
+            if backup {
                 system.work.backup.copy_from_slice(y);
             }
             let w = &mut *system.work;
             w.saved.0.clone_from(&w.lambda);
             w.saved.1 = w.iterations;
-            result = stepper.step(&mut system, *time, y, dt).and_then(|()| {
-                let w = &mut *system.work;
-                track_curves(system.constraints, y, &mut w.curves).inspect_err(|_| {
-                    y.copy_from_slice(&w.backup);
+            result = stepper.step(&mut system, *time, y, dt);
+            if result.is_ok() {
+                // The step is committed only when its post-stabilisation and curve tracking
+                // succeed; otherwise the state before it comes back.
+                result = if system.stabilize {
+                    system.project_positions(y).and_then(|()| system.project_velocities(y))
+                } else {
+                    Ok(())
+                }
+                .and_then(|()| track_curves(system.constraints, y, &mut system.work.curves));
+                if result.is_err() {
+                    y.copy_from_slice(&system.work.backup);
                     stepper.reset();
-                })
-            });
+                }
+            }
             if let Err(e) = result {
                 let w = &mut *system.work;
                 w.lambda.clone_from(&w.saved.0);
@@ -761,6 +784,7 @@ fn assemble<'a>(
         kd: system.kd,
         formulation: system.formulation,
         solver: system.solver,
+        stabilize: system.stabilize,
         work: &mut system.work,
     };
     (equations, y, time)
@@ -951,6 +975,80 @@ fn custom_rows(
 }
 
 impl Constrained<'_> {
+    /// Post-stabilisation of `y = [x; v]` (Cline & Pai 2003): Gauss–Newton projections of the
+    /// positions onto `C(x) = 0` in the mass metric, `(J W Jᵀ + εI) δ = -C`, `x += W Jᵀ δ`,
+    /// until `max |C| ≤` [`PROJECTION_TOL`] (or, far from the origin, 64 ulps of the largest
+    /// coordinate) over the rows that act on a particle of finite mass, then the velocities onto `J v = 0` at the projected positions,
+    /// `(J W Jᵀ + εI) μ = -J v`, `v += W Jᵀ μ`. `y` may be left part-way on failure (the
+    /// callers restore it).
+    ///
+    /// # Errors
+    /// No convergence in [`PROJECTION_ITERATIONS`] projections (conflicting constraints, which
+    /// have no point with `C = 0`, or a step too large for the linearisation), a solver failure
+    /// or a constraint's failure.
+    fn project_positions(&mut self, y: &mut [f64]) -> Result<()> {
+        let n = y.len() / 6;
+        let largest = y[..3 * n].iter().fold(0.0_f64, |a, &b| a.max(b.abs()));
+        let tol = PROJECTION_TOL.max(64.0 * f64::EPSILON * largest);
+        let inv_mass = self.inv_mass;
+        for iteration in 0.. {
+            evaluate(self.constraints, &self.work.curves, y, n, &mut self.work.rows)?;
+            let w = &mut *self.work;
+            // Rows on pinned particles only cannot be moved, so they are not waited for.
+            let worst = (0..w.rows.rows.len())
+                .filter(|&r| w.rows.blocks(r).iter().any(|&(p, _)| inv_mass[p] > 0.0))
+                .fold(0.0_f64, |a, r| a.max(w.rows.rows[r].c.abs()));
+            if worst <= tol {
+                break;
+            }
+            if iteration == PROJECTION_ITERATIONS {
+                return Err(Error::SolverFailed {
+                    reason: format!(
+                        "the position projection left max |C| = {worst:.3e} after \
+                         {PROJECTION_ITERATIONS} iterations: the constraints conflict, or \
+                         the step is too large (lower dt)"
+                    ),
+                });
+            }
+            for (b, row) in w.b.iter_mut().zip(&w.rows.rows) {
+                *b = -row.c;
+            }
+            self.apply_correction(y, 0)?;
+        }
+        Ok(())
+    }
+
+    /// Post-stabilisation of the velocities of `y = [x; v]` (Cline & Pai 2003): onto
+    /// `J v = 0` at the positions of `y`, `(J W Jᵀ + εI) μ = -J v`, `v += W Jᵀ μ`.
+    ///
+    /// # Errors
+    /// A solver failure or a constraint's failure.
+    fn project_velocities(&mut self, y: &mut [f64]) -> Result<()> {
+        let n = y.len() / 6;
+        evaluate(self.constraints, &self.work.curves, y, n, &mut self.work.rows)?;
+        let w = &mut *self.work;
+        for (b, row) in w.b.iter_mut().zip(&w.rows.rows) {
+            *b = -row.cdot;
+        }
+        self.apply_correction(y, 3 * n)
+    }
+
+    /// Solve for the multipliers of the right-hand side in the workspace and add `W Jᵀ λ` to
+    /// the block of `y` at `offset` (0: positions, `3 n`: velocities).
+    fn apply_correction(&mut self, y: &mut [f64], offset: usize) -> Result<()> {
+        self.solve_multipliers()?;
+        let (w, inv_mass) = (&*self.work, self.inv_mass);
+        for r in 0..w.rows.rows.len() {
+            for &(p, g) in w.rows.blocks(r) {
+                let d = inv_mass[p] * w.lambda[r] * g;
+                for k in 0..3 {
+                    y[offset + 3 * p + k] += d[k];
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Solve `(J W Jᵀ + εI) λ = b` for the rows and right-hand side in the workspace.
     fn solve_multipliers(&mut self) -> Result<()> {
         let inv_mass = self.inv_mass;
@@ -1030,6 +1128,7 @@ struct Constrained<'a> {
     kd: f64,
     formulation: Formulation,
     solver: ConstraintSolver,
+    stabilize: bool,
     work: &'a mut Work,
 }
 
