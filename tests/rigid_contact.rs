@@ -147,29 +147,43 @@ fn unit_box(position: DVec3) -> BodyDesc {
     desc(Shape::Box { half_extents: DVec3::splat(0.5) }, position, 0.0, 0.6)
 }
 
-#[test]
-fn a_stack_of_ten_boxes_stands_still_for_ten_seconds() {
-    // Ten unit boxes at 60 Hz. Sequential impulses carry the weight through one layer per
-    // sweep, so ten layers need more sweeps than the default 40 (with which the stack sways
-    // off by ~10 cm): 320 hold it to 2 mm (docs/rigid.md).
+/// A stack of `n` unit boxes (1 kg, μ = 0.6) on the ground at 60 Hz with the default
+/// settings, stepped 10 s: the largest distance of any box from its rest position over the
+/// run, the largest horizontal one, and the largest speed (linear or angular) at the end.
+fn stack_at_defaults(n: usize) -> (f64, f64, f64) {
     let mut w = world(G, 0.6);
-    w.contact_iterations = 320;
-    for k in 0..10 {
+    for k in 0..n {
         w.add_body(&unit_box(DVec3::new(0.0, 0.5 + k as f64, 0.0))).unwrap();
     }
-    let mut worst = 0.0_f64;
+    let (mut worst, mut sideways) = (0.0_f64, 0.0_f64);
     for _ in 0..600 {
         w.step(1.0 / 60.0, 1).unwrap();
-        for k in 0..10 {
-            let expected = DVec3::new(0.0, 0.5 + k as f64, 0.0);
-            worst = worst.max((w.position(k) - expected).length());
+        for k in 0..n {
+            let d = w.position(k) - DVec3::new(0.0, 0.5 + k as f64, 0.0);
+            worst = worst.max(d.length());
+            sideways = sideways.max(DVec3::new(d.x, 0.0, d.z).length());
         }
     }
-    assert!(worst < 5e-3, "a box moved {worst} m");
-    for k in 0..10 {
-        assert!(w.velocity(k).length() < 1e-4, "box {k} moves at {}", w.velocity(k));
-        assert!(w.angular_velocity(k).length() < 1e-4);
-    }
+    let speed = (0..n)
+        .map(|k| w.velocity(k).length().max(w.angular_velocity(k).length()))
+        .fold(0.0, f64::max);
+    println!("{n} boxes: moved {worst:.2e} m, sideways {sideways:.2e} m, speed {speed:.2e}");
+    (worst, sideways, speed)
+}
+
+#[test]
+fn a_stack_of_ten_boxes_stands_at_the_default_settings() {
+    // Without shock propagation the default 40 sweeps let it sway off by ~12 cm; with it the
+    // boxes move by 2e-11 m.
+    let (worst, sideways, speed) = stack_at_defaults(10);
+    assert!(worst < 1e-6 && sideways < 1e-6 && speed < 1e-9, "{worst} {sideways} {speed}");
+}
+
+#[test]
+fn a_stack_of_twenty_boxes_stands_at_the_default_settings() {
+    // Measured 8e-11 m; with 20 sweeps instead of 40 it falls over.
+    let (worst, sideways, speed) = stack_at_defaults(20);
+    assert!(worst < 1e-6 && sideways < 1e-6 && speed < 1e-9, "{worst} {sideways} {speed}");
 }
 
 #[test]

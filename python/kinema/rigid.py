@@ -29,14 +29,16 @@ joint, enforced by one of four formulations (``method``):
 - ``"impulse"``: sequential impulses on the velocities and a position pass (Catto 2005);
 - ``"xpbd"``: extended position-based dynamics with substeps (Müller et al. 2020).
 
-Tall stacks need more contact sweeps than the default (``World.contact_iterations``: a
-ten-box stack stands with 320); see docs/rigid.md for this and for the measured trade between
-the joint formulations.
+Contact islands that do not converge within ``World.contact_iterations`` sweeps finish with
+shock propagation (Guendelman et al. 2003), so tall stacks stand at the default settings;
+bodies may have linear and angular damping. See docs/rigid.md for both and for the measured
+trade between the joint formulations.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -208,6 +210,21 @@ class Body:
         """Centre of mass in the body frame, ``(3,)`` (m)."""
         return np.array(self._world.center_of_mass(self._index))
 
+    @property
+    def friction(self) -> float:
+        """Coulomb friction coefficient of the body's surface."""
+        return self._world.friction(self._index)
+
+    @property
+    def linear_damping(self) -> float:
+        """Linear damping rate ``c`` (1/s): ``v̇ = … − c v`` (see :meth:`World.add_body`)."""
+        return self._world.damping(self._index)[0]
+
+    @property
+    def angular_damping(self) -> float:
+        """Angular damping rate ``c_ω`` (1/s): ``Π̇ = … − c_ω Π`` (see :meth:`World.add_body`)."""
+        return self._world.damping(self._index)[1]
+
 
 class World:
     """Rigid bodies in a uniform gravity field, stepped with one clock, colliding with the
@@ -244,6 +261,8 @@ class World:
         fixed: bool = False,
         restitution: float = 0.0,
         friction: float = 0.5,
+        linear_damping: float = 0.0,
+        angular_damping: float = 0.0,
     ) -> int:
         """Add a body and return its index.
 
@@ -253,7 +272,15 @@ class World:
         body never moves. ``restitution`` (in [0, 1]) and ``friction`` (Coulomb coefficient)
         are the surface's; a contact takes the larger restitution and the geometric mean of
         the frictions of its two surfaces.
+
+        ``linear_damping`` and ``angular_damping`` (1/s, default 0: none) slow the body as
+        ``v̇ = … − c v`` and ``Π̇ = … − c_ω Π`` (angular momentum), solved exactly over each
+        step (``v ← e^{−c h} v``, as Box2D's and Bullet's damping): a free body's speed falls
+        as ``e^{−c t}``. Drag from air at low speed is of this form (Stokes).
         """
+        for name, c in (("linear_damping", linear_damping), ("angular_damping", angular_damping)):
+            if not (isinstance(c, numbers.Real) and math.isfinite(c) and c >= 0):
+                raise ValueError(f"{name}: must be non-negative and finite (1/s), got {c!r}")
         verts = tris = None
         if isinstance(shape, Sphere):
             kind, dims = "sphere", [float(shape.radius)]
@@ -289,6 +316,7 @@ class World:
             float(restitution),
             float(friction),
         )
+        self._world.set_damping(index, float(linear_damping), float(angular_damping))
         self._shapes.append(shape)
         return int(index)
 

@@ -153,21 +153,23 @@ class Character:
 
 
 def _rigid_shapes(world: _rigid.World) -> list[_Shape]:
-    """The spheres, capsules and boxes of a rigid world at its current pose (cylinders and
-    meshes are not mirrored: cloth and particles have no such colliders yet)."""
+    """The spheres, capsules and boxes of a rigid world at its current pose, each with its
+    body's friction coefficient (cylinders and meshes are not mirrored: cloth and particles
+    have no such colliders yet)."""
     from kinema.rotation import Rotation
 
     shapes: list[_Shape] = []
     x = world.positions
     q = world.orientations
-    for i, s in enumerate(world.shapes):
+    for i, (s, body) in enumerate(zip(world.shapes, world.bodies, strict=True)):
+        mu = body.friction
         if isinstance(s, _rigid.Sphere):
-            shapes.append(("sphere", x[i], float(s.radius), 0.5))
+            shapes.append(("sphere", x[i], float(s.radius), mu))
         elif isinstance(s, _rigid.Capsule):
             axis = Rotation.from_quat(q[i]).apply([0.0, 0.5 * float(s.height), 0.0])
-            shapes.append(("capsule", x[i] - axis, x[i] + axis, float(s.radius), 0.5))
+            shapes.append(("capsule", x[i] - axis, x[i] + axis, float(s.radius), mu))
         elif isinstance(s, _rigid.Box):
-            shapes.append(("box", x[i], Rotation.from_quat(q[i]), s.half_extents, 0.5))
+            shapes.append(("box", x[i], Rotation.from_quat(q[i]), s.half_extents, mu))
     return shapes
 
 
@@ -274,26 +276,37 @@ class Scene:
         return shapes
 
     def _couple(self, receivers: list[_Entry], t: float) -> None:
-        """Move every receiver's copy of the colliders to their pose at ``t``, with the
-        velocity of their motion over the step."""
+        """Hand every receiver the colliders of the step that ends at ``t``: each moves at the
+        constant velocity that takes it from its pose at ``t - h`` to its pose at ``t``.
+        Particles collide after their step, so they get the pose at ``t``. A cloth's collider
+        is its pose at the cloth's own time, the start of the step, which the cloth moves by
+        ``velocity · h`` to find its end-of-step contacts (implicit Euler and BDF2 solve for
+        the end of the step), so it gets the pose at ``t - h``: both meet the collider where
+        it is at ``t``. Without poses from the previous step (the first step, or a collider
+        added since), the kinematic objects' are evaluated at ``t - h``; rigid worlds have
+        already stepped, so their bodies count as at rest for that one step."""
+        h = self._h
         shapes = self._sources(t)
         previous = self._previous
         if previous is None or len(previous) != len(shapes):
-            previous = shapes
-        h = self._h
+            previous = self._sources(t - h)
         for e in receivers:
             is_cloth = isinstance(e.obj, _cloth.Cloth)
             module: Any = _cloth if is_cloth else _particles
+            back = h if is_cloth else 0.0  # from the pose at t to the one the receiver needs
             for k, (s, p) in enumerate(zip(shapes, previous, strict=True)):
                 if s[0] == "sphere":
                     v = (s[1] - p[1]) / h
-                    c: Any = module.Sphere(s[1], s[2], friction=s[3], velocity=v)
+                    c: Any = module.Sphere(s[1] - back * v, s[2], friction=s[3], velocity=v)
                 elif s[0] == "box":
                     v = (s[1] - p[1]) / h
-                    c = module.Box(s[1], s[3], orientation=s[2], friction=s[4], velocity=v)
+                    c = module.Box(
+                        s[1] - back * v, s[3], orientation=s[2], friction=s[4], velocity=v
+                    )
                 else:
                     v = 0.5 * ((s[1] - p[1]) + (s[2] - p[2])) / h
-                    c = module.Capsule(s[1], s[2], s[3], friction=s[4], velocity=v)
+                    a, b = s[1] - back * v, s[2] - back * v
+                    c = module.Capsule(a, b, s[3], friction=s[4], velocity=v)
                 if k < len(e.colliders):
                     e.obj.set_collider(e.colliders[k], c)
                 elif is_cloth:

@@ -296,6 +296,23 @@ impl RigidWorld {
         Ok(self.world.center_of_mass(i).to_array())
     }
 
+    /// Coulomb friction coefficient of body `i`'s surface.
+    fn friction(&self, i: usize) -> PyResult<f64> {
+        self.check(i)?;
+        Ok(self.world.friction(i))
+    }
+
+    /// Linear and angular damping rates of body `i` (1/s).
+    fn damping(&self, i: usize) -> PyResult<(f64, f64)> {
+        self.check(i)?;
+        Ok(self.world.damping(i))
+    }
+
+    /// Set the linear and angular damping rates of body `i` (1/s, >= 0).
+    fn set_damping(&mut self, i: usize, linear: f64, angular: f64) -> PyResult<()> {
+        Ok(self.world.set_damping(i, linear, angular)?)
+    }
+
     /// Advance `steps` steps of `dt` seconds (GIL released).
     fn step(&mut self, py: Python<'_>, dt: f64, steps: Int) -> PyResult<()> {
         let steps = steps.count("steps")?;

@@ -15,7 +15,9 @@
 //!   on the speed gravity gives them in one step.
 //!
 //! The contacts are solved island by island ([`Islands`]): bodies touching through moving
-//! bodies, each swept until its contacts' speeds stop changing.
+//! bodies, each swept until its contacts' speeds stop changing; an island that has not
+//! converged within the sweeps is finished by shock propagation (Guendelman, Bridson &
+//! Fedkiw 2003): layer by layer from the supports up, with the layers below held fixed.
 //!
 //! Penetration left after the velocity solve (the solve is iterative, so a tall stack is not
 //! held exactly in one step) is removed by a separate position pass (nonlinear Gauss–Seidel on
@@ -286,7 +288,26 @@ pub(crate) struct Islands {
     start: Vec<usize>,
     /// Contact indices, island by island, in detection order within an island.
     order: Vec<usize>,
+    /// Workspaces of shock propagation ([`Islands::propagate_shock`]), rebuilt every step:
+    /// contacts of the islands that did not converge, then sorted by layer; each body's
+    /// layer (contact-graph depth from the supports); the bodies in breadth-first order;
+    /// neighbours in compressed rows; inverse masses with the lower layers held fixed.
+    #[serde(skip)]
+    unsettled: Vec<usize>,
+    #[serde(skip)]
+    depth: Vec<usize>,
+    #[serde(skip)]
+    queue: Vec<usize>,
+    #[serde(skip)]
+    neighbours: (Vec<usize>, Vec<usize>),
+    #[serde(skip)]
+    held: (Vec<f64>, Vec<DVec3>),
+    #[serde(skip)]
+    layer: Vec<Contact>,
 }
+
+/// Layer of a body that no support reaches.
+const UNSUPPORTED: usize = usize::MAX;
 
 impl Islands {
     fn root(&mut self, mut i: usize) -> usize {
@@ -333,9 +354,10 @@ impl Islands {
     }
 
     /// Sweep each island up to `sweeps` times, stopping it once no contact's speed changes by
-    /// more than `tolerance` (m/s) in a sweep.
+    /// more than `tolerance` (m/s) in a sweep; the islands that did not converge then get
+    /// [`Islands::propagate_shock`].
     pub fn solve(
-        &self,
+        &mut self,
         contacts: &mut [Contact],
         bodies: &Bodies<'_>,
         sweeps: usize,
@@ -343,16 +365,145 @@ impl Islands {
         v: &mut [DVec3],
         w: &mut [DVec3],
     ) {
+        self.unsettled.clear();
         for island in self.start.windows(2).filter(|s| s[1] > s[0]) {
             let members = &self.order[island[0]..island[1]];
-            for _ in 0..sweeps {
+            let converged = (0..sweeps).any(|_| {
                 let change = members.iter().fold(0.0_f64, |largest, &k| {
                     largest.max(solve(&mut contacts[k], bodies, v, w))
                 });
+                change <= tolerance
+            });
+            if !converged && sweeps > 0 {
+                self.unsettled.extend_from_slice(members);
+            }
+        }
+        if !self.unsettled.is_empty() {
+            self.propagate_shock(contacts, bodies, sweeps, tolerance, v, w);
+        }
+    }
+
+    /// Shock propagation (Guendelman, Bridson & Fedkiw 2003, "Nonconvex rigid bodies with
+    /// stacking", SIGGRAPH, §7) over the contacts in `unsettled`: the bodies are layered by
+    /// their contact-graph depth from the supports (layer 0 touches a plane or a fixed body,
+    /// layer k + 1 touches layer k), and layer by layer from the bottom the contacts of that
+    /// layer (with the supports, the layer below and each other) are swept until they
+    /// converge (at most `sweeps` times) with every lower layer held fixed (infinite mass).
+    /// Gauss–Seidel carries a stack's weight down by one layer per sweep; here each layer
+    /// rests on a finished one, so after a sweep of the whole stack no body sinks into or
+    /// slides on the one below, whatever its height. The held layers take no reaction, so
+    /// this pass is a correction of velocities left unconverged, and the accumulated
+    /// impulses it reaches warm-start the next step. Bodies that no support reaches keep the
+    /// result of the ordinary sweeps.
+    fn propagate_shock(
+        &mut self,
+        contacts: &mut [Contact],
+        bodies: &Bodies<'_>,
+        sweeps: usize,
+        tolerance: f64,
+        v: &mut [DVec3],
+        w: &mut [DVec3],
+    ) {
+        let n = bodies.inv_mass.len();
+        let moving = |i: usize| bodies.inv_mass[i] > 0.0;
+        // Layers by breadth-first search from the bodies on a support.
+        self.depth.clear();
+        self.depth.resize(n, UNSUPPORTED);
+        self.queue.clear();
+        let (start, next) = &mut self.neighbours;
+        start.clear();
+        start.resize(n + 2, 0);
+        for &k in &self.unsettled {
+            let c = &contacts[k];
+            match c.b {
+                Some(b) if moving(c.a) && moving(b) => {
+                    start[c.a + 2] += 1;
+                    start[b + 2] += 1;
+                }
+                _ => {
+                    let body = if moving(c.a) { c.a } else { c.b.unwrap_or(c.a) };
+                    if self.depth[body] != 0 {
+                        self.depth[body] = 0;
+                        self.queue.push(body);
+                    }
+                }
+            }
+        }
+        for i in 0..n {
+            start[i + 2] += start[i + 1];
+        }
+        next.clear();
+        next.resize(start[n + 1], 0);
+        for &k in &self.unsettled {
+            let c = &contacts[k];
+            if let Some(b) = c.b.filter(|&b| moving(c.a) && moving(b)) {
+                next[start[c.a + 1]] = b;
+                start[c.a + 1] += 1;
+                next[start[b + 1]] = c.a;
+                start[b + 1] += 1;
+            }
+        }
+        // `start[i]..start[i + 1]` now holds body i's neighbours.
+        let mut head = 0;
+        while head < self.queue.len() {
+            let i = self.queue[head];
+            head += 1;
+            for &j in &next[start[i]..start[i + 1]] {
+                if self.depth[j] == UNSUPPORTED {
+                    self.depth[j] = self.depth[i] + 1;
+                    self.queue.push(j);
+                }
+            }
+        }
+        // The contacts by layer (that of their upper body), bottom up.
+        let depth = &self.depth;
+        let layer = |c: &Contact| {
+            let of = |i: usize| if moving(i) { depth[i] } else { 0 };
+            c.b.map_or(of(c.a), |b| of(c.a).max(of(b)))
+        };
+        self.unsettled.retain(|&k| layer(&contacts[k]) != UNSUPPORTED);
+        self.unsettled.sort_unstable_by_key(|&k| (layer(&contacts[k]), k));
+        let (inv_mass, inv_moments) = &mut self.held;
+        inv_mass.clear();
+        inv_mass.extend_from_slice(bodies.inv_mass);
+        inv_moments.clear();
+        inv_moments.extend_from_slice(bodies.inv_moments);
+        let (mut from, mut frozen) = (0, 0);
+        while from < self.unsettled.len() {
+            let level = layer(&contacts[self.unsettled[from]]);
+            let to =
+                from + self.unsettled[from..].partition_point(|&k| layer(&contacts[k]) == level);
+            // Hold every body below this layer.
+            while frozen < self.queue.len() && depth[self.queue[frozen]] < level {
+                inv_mass[self.queue[frozen]] = 0.0;
+                inv_moments[self.queue[frozen]] = DVec3::ZERO;
+                frozen += 1;
+            }
+            // The layer's contacts, prepared for the held bodies, swept, and their impulses
+            // kept (the originals keep their responses for the position pass).
+            let held = Bodies {
+                inv_mass: inv_mass.as_slice(),
+                inv_moments: inv_moments.as_slice(),
+                q: bodies.q,
+            };
+            self.layer.clear();
+            self.layer.extend(self.unsettled[from..to].iter().map(|&k| contacts[k]));
+            for c in self.layer.iter_mut() {
+                held.prepare(c);
+            }
+            for _ in 0..sweeps {
+                let change = self
+                    .layer
+                    .iter_mut()
+                    .fold(0.0_f64, |largest, c| largest.max(solve(c, &held, v, w)));
                 if change <= tolerance {
                     break;
                 }
             }
+            for (c, &k) in self.layer.iter().zip(&self.unsettled[from..to]) {
+                contacts[k].impulse = c.impulse;
+            }
+            from = to;
         }
     }
 }

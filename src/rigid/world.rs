@@ -122,6 +122,9 @@ pub struct World {
     shape: Vec<Shape>,
     restitution: Vec<f64>,
     friction: Vec<f64>,
+    /// Linear and angular damping rates per body (1/s), see [`World::set_damping`].
+    linear_damping: Vec<f64>,
+    angular_damping: Vec<f64>,
     planes: Vec<Plane>,
     /// Sequential-impulse sweeps per step when there are contacts.
     pub contact_iterations: usize,
@@ -215,6 +218,8 @@ impl World {
             shape: Vec::new(),
             restitution: Vec::new(),
             friction: Vec::new(),
+            linear_damping: Vec::new(),
+            angular_damping: Vec::new(),
             planes: Vec::new(),
             contact_iterations: 40,
             collisions: true,
@@ -441,6 +446,8 @@ impl World {
         self.shape.push(desc.shape.clone());
         self.restitution.push(desc.restitution);
         self.friction.push(desc.friction);
+        self.linear_damping.push(0.0);
+        self.angular_damping.push(0.0);
         self.x.push(desc.position + q_body * props.center_of_mass);
         self.v.push(if desc.fixed { DVec3::ZERO } else { desc.velocity });
         self.q.push(q);
@@ -469,6 +476,48 @@ impl World {
     /// Mass of body `i` (kg).
     pub fn mass(&self, i: usize) -> f64 {
         self.mass[i]
+    }
+
+    /// Coefficient of Coulomb friction of body `i`'s surface.
+    pub fn friction(&self, i: usize) -> f64 {
+        self.friction[i]
+    }
+
+    /// Linear and angular damping rates of body `i` (1/s), see [`World::set_damping`].
+    pub fn damping(&self, i: usize) -> (f64, f64) {
+        (self.linear_damping[i], self.angular_damping[i])
+    }
+
+    /// Set the damping rates of body `i` (1/s, both 0 when added): its velocity and its
+    /// angular momentum decay as `v̇ = … − c v`, `Π̇ = … − c_ω Π`, exactly over each step
+    /// (`v ← e^{−c h} v`; Box2D and Bullet damp the same way, with the factors `1/(1 + c h)`
+    /// and `(1 − c)^h`). Without contacts and joints the free update stays exact: the
+    /// translation solves `v̇ = a − c v` in closed form, and the rotation is the undamped one
+    /// over the shortened time `(1 − e^{−c_ω h})/c_ω` followed by `Π ← e^{−c_ω h} Π` (with
+    /// `Π = e^{−c_ω t} P`, Euler's equations for `P` are the undamped ones in that time), so
+    /// a torque-free body keeps its path and only slows down. Zero damping leaves every
+    /// update bit for bit as without it.
+    ///
+    /// # Errors
+    /// An index out of range; a negative or non-finite rate.
+    pub fn set_damping(&mut self, i: usize, linear: f64, angular: f64) -> Result<()> {
+        if i >= self.len() {
+            return Err(Error::invalid(
+                "body",
+                format!("index {i} out of range ({} bodies)", self.len()),
+            ));
+        }
+        for (arg, c) in [("linear_damping", linear), ("angular_damping", angular)] {
+            if !(c.is_finite() && c >= 0.0) {
+                return Err(Error::invalid(
+                    arg,
+                    format!("must be non-negative and finite (1/s), got {c}"),
+                ));
+            }
+        }
+        self.linear_damping[i] = linear;
+        self.angular_damping[i] = angular;
+        Ok(())
     }
 
     /// Inertia tensor of body `i` about its centre of mass, body-frame axes (kg m²).
@@ -602,10 +651,36 @@ impl World {
                         continue;
                     }
                     let a = self.gravity + self.force[i] / self.mass[i];
-                    x[i] += dt * v[i] + 0.5 * dt * dt * a;
-                    v[i] += dt * a;
+                    let c = self.linear_damping[i];
+                    if c == 0.0 {
+                        x[i] += dt * v[i] + 0.5 * dt * dt * a;
+                        v[i] += dt * a;
+                    } else {
+                        // v̇ = a − c v exactly: v ← e^{−ch} v + s a, x ← x + s v + (h − s)/c a.
+                        let z = -c * dt;
+                        let s = -z.exp_m1() / c;
+                        x[i] += s * v[i] + dt * dt * phi2(z) * a;
+                        v[i] = z.exp() * v[i] + s * a;
+                    }
                     let tau = q[i].conjugate() * self.torque[i]; // principal frame
-                    let (qi, pii) = rotate(self.integrator, q[i], pi[i], self.moments[i], tau, dt);
+                    let c = self.angular_damping[i];
+                    let (qi, pii) = if c == 0.0 {
+                        rotate(self.integrator, q[i], pi[i], self.moments[i], tau, dt)
+                    } else {
+                        // The undamped rotation over s, then the decay (see `set_damping`);
+                        // a torque's impulse h τ decays with the momentum.
+                        let z = -c * dt;
+                        let s = -z.exp_m1() / c;
+                        let (qi, pii) = rotate(
+                            self.integrator,
+                            q[i],
+                            pi[i],
+                            self.moments[i],
+                            tau * (dt / s),
+                            s,
+                        );
+                        (qi, z.exp() * pii)
+                    };
                     q[i] = qi;
                     pi[i] = pii;
                 }
@@ -747,6 +822,9 @@ impl World {
             if !self.fixed[i] {
                 v[i] += h * (self.gravity + (self.force[i] + self.joint_force[i]) / self.mass[i]);
                 pi[i] += h * (q[i].conjugate() * (self.torque[i] + self.joint_torque[i]));
+                // Damping (`set_damping`): e^{−0} = 1 exactly, so none changes nothing.
+                v[i] *= (-h * self.linear_damping[i]).exp();
+                pi[i] *= (-h * self.angular_damping[i]).exp();
             }
             self.omega[i] = q[i] * (pi[i] / self.moments[i]);
             if detect {
@@ -1149,6 +1227,24 @@ fn check_material(restitution: f64, friction: f64) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// `φ₂(z) = (e^z − 1 − z)/z²` for `z ≤ 0`, by its series near 0 where the closed form
+/// cancels: `(h − s)/c = h² φ₂(−c h)` is the distance a damped body falls short of the
+/// undamped drift `a h²/2` (Hochbruck & Ostermann 2010, "Exponential integrators", §2).
+fn phi2(z: f64) -> f64 {
+    if z.abs() < 0.1 {
+        // Σ z^k/(k+2)!, k = 0..11: the first omitted term is below 1e-17 relative.
+        let mut term = 0.5;
+        let mut sum = 0.5;
+        for k in 1..12 {
+            term *= z / (k + 2) as f64;
+            sum += term;
+        }
+        sum
+    } else {
+        (z.exp_m1() / z - 1.0) / z // → 0, not NaN, as z → −∞
+    }
 }
 
 /// One rotational step of a body with principal moments `m`: orientation `q` (principal →

@@ -169,3 +169,35 @@ def test_contact_iterations_setting():
     assert w.contact_iterations == 320
     with pytest.raises(ValueError, match="contact_iterations"):
         w.contact_iterations = -1
+
+
+def test_damping_decays_velocity_and_spin_at_the_analytic_rate():
+    # A free body: v(t) = e^{-ct} v0 + (1 - e^{-ct})/c g exactly; a sphere's spin e^{-c_w t}.
+    c, cw, t = 0.5, 1.5, 1.0
+    w = World()
+    i = w.add_body(
+        Sphere(0.2),
+        mass=1.0,
+        velocity=[2.0, 0.0, -1.0],
+        angular_velocity=[0.0, 4.0, 0.0],
+        linear_damping=c,
+        angular_damping=cw,
+    )
+    assert (w.bodies[i].linear_damping, w.bodies[i].angular_damping) == (c, cw)
+    w.step(0.01, 100)
+    s = -np.expm1(-c * t) / c
+    v = np.exp(-c * t) * np.array([2.0, 0.0, -1.0]) + s * np.array([0.0, -9.81, 0.0])
+    np.testing.assert_allclose(w.velocities[i], v, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(w.angular_velocities[i], [0, 4 * np.exp(-cw * t), 0], atol=1e-13)
+
+
+def test_damping_is_named_when_bad_and_leaves_the_world_unchanged():
+    w = World()
+    for name, kwargs in [
+        ("linear_damping", {"linear_damping": -1.0}),
+        ("angular_damping", {"angular_damping": float("nan")}),
+        ("linear_damping", {"linear_damping": "fast"}),
+    ]:
+        with pytest.raises(ValueError, match=name):
+            w.add_body(Sphere(0.1), **kwargs)
+    assert len(w) == 0

@@ -639,3 +639,46 @@ def test_a_frame_where_the_last_system_diverges_leaves_the_scene_as_before():
     scene._entries[-1].options["method"] = "implicit_euler"
     scene.step(2)
     assert scene.frame == frame + 2
+
+
+def test_moving_colliders_meet_cloth_and_particles_where_the_analytic_pose_is():
+    # A sphere rising at a known speed carries a cloth and a particle resting on its top: at
+    # every frame they are at the top of the sphere's pose at that time (the cloth at its
+    # collision thickness above it), not at the pose one step later (u h = 8 mm here).
+    u, r, thickness = 0.5, 0.2, 1e-3
+    scene = Scene(dt=1 / 60)
+    c = scene.add(cloth.Cloth.grid(9, 9, 0.4, 0.4, thickness=thickness))
+    ps = scene.add(particles.ParticleSystem([[0.0, 0.0, 0.0]]))
+    ps.add(particles.Gravity())
+    ball = scene.add(AnimatedSphere(r, lambda t: (0.0, u * t - 0.25, 0.0)))
+    middle = 4 + 9 * 4  # the vertex above the sphere's centre
+    scene.run(duration=0.5, progress=False)
+    for _ in range(10):
+        scene.step()
+        top = ball.position(scene.time)[1] + r
+        assert c.positions[middle, 1] == pytest.approx(top + thickness, abs=2e-4)
+        p = ps.positions[0] - ball.position(scene.time)
+        assert np.linalg.norm(p) == pytest.approx(r, abs=1e-9)
+
+
+@pytest.mark.parametrize(("mu", "slides"), [(0.0, True), (1.0, False)])
+def test_rigid_colliders_use_the_bodys_own_friction(mu: float, slides: bool):
+    # A particle on the top face of a fixed box tilted by 35° (tan 35° = 0.70): frictionless,
+    # it slides down the face as a = g sin 35° says; with μ = 1 it stays put.
+    tilt = np.radians(35.0)
+    scene = Scene(dt=1 / 240)
+    world = rigid.World(gravity=(0, 0, 0))
+    turned = kinema.Rotation.from_rotvec([0.0, 0.0, tilt])
+    world.add_body(rigid.Box([1.0, 0.1, 0.5]), orientation=turned, fixed=True, friction=mu)
+    assert world.bodies[0].friction == mu
+    scene.add(world)
+    up = turned.apply([0.0, 0.1, 0.0])
+    start = up + 1e-9 * up
+    ps = scene.add(particles.ParticleSystem([start]))
+    ps.add(particles.Gravity())
+    scene.run(duration=0.5, progress=False)
+    moved = np.linalg.norm(ps.positions[0] - start)
+    if slides:
+        assert moved == pytest.approx(0.5 * 9.81 * np.sin(tilt) * 0.25, rel=0.05)
+    else:
+        assert moved < 1e-6
