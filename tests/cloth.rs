@@ -588,7 +588,7 @@ fn failed_cloth_step_leaves_nothing_behind() {
     use kinema::snapshot::Snapshot;
     // Steps that fail (the matrix stops being positive definite, or RK4 overflows).
     let cases = [
-        (Method::Bdf2, pcg(1e-6), 1e9),
+        (Method::Bdf2, pcg(1e-6), 1e8),
         (Method::ImplicitEuler, pcg(1e-6), 1e8),
         (Method::Bdf2, cholesky(), 1e8),
         (Method::Rk4, pcg(1e-6), 1e100),
@@ -605,7 +605,7 @@ fn failed_cloth_step_leaves_nothing_behind() {
         let dt = if method == Method::Rk4 { 1e-4 } else { 0.01 };
         cloth.step(dt, 5, method, options).unwrap();
         let mut twin = Cloth::from_snapshot(&cloth.to_snapshot().unwrap()).unwrap();
-        let err = cloth.step(huge, 1, method, options).unwrap_err();
+        let err = cloth.step(huge, 1, method, options).expect_err(&format!("{method:?} {huge}"));
         assert!(matches!(err, Error::Diverged { .. } | Error::SolverFailed { .. }), "{err:?}");
         assert_same_cloth(&cloth, &twin);
         cloth.step(dt, 3, method, options).unwrap();

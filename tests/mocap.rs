@@ -244,10 +244,7 @@ fn every_variant_file_gives_what_it_must() {
     // a bone of length 0; its walk lists the bones alphabetically, lines end in a space.
     let sk = parse_asf(&variant("skeleton.asf"), "skeleton.asf").unwrap();
     assert_eq!((sk.bones.len(), sk.length_unit, sk.mass_unit, sk.degrees), (33, 0.01, 1.0, true));
-    assert!(sk
-        .bones
-        .iter()
-        .any(|b| b.limits.iter().any(|l| *l == (f64::NEG_INFINITY, f64::INFINITY))));
+    assert!(sk.bones.iter().any(|b| b.limits.contains(&(f64::NEG_INFINITY, f64::INFINITY))));
     let m = parse_amc(&variant("walking.amc"), "walking.amc", &sk).unwrap();
     assert_eq!(m.frames, 1741);
     // MotionData exports: `direction 0 0 0` on bones of length 0, `4e-006` exponents; their
@@ -269,7 +266,8 @@ fn every_variant_file_gives_what_it_must() {
     // the first one. With numbers in their place the rest of the file (tabs, hierarchy lines
     // not root-first) and its motion (root line 5th in every frame) read.
     let e = parse_asf(&variant("test.asf"), "test.asf").unwrap_err();
-    assert_eq!(parse_error(e), (4, "a finite number, found \"kg\"".to_string()));
+    // (Errors name the file, line and what was expected, never the text found: issue 19.)
+    assert_eq!(parse_error(e), (4, "a finite number".to_string()));
     let numeric =
         variant("test.asf").replace("mass\tkg", "mass\t1").replace("length\tm", "length\t1");
     let sk = parse_asf(&numeric, "test.asf").unwrap();
@@ -448,7 +446,7 @@ fn mass_unit_is_kept_and_written_back() {
     let without = SLIDING.replace("  mass 2.5\n", "");
     assert_eq!(parse_asf(&without, "n.asf").unwrap().mass_unit, 1.0);
     let e = parse_asf(&SLIDING.replace("mass 2.5", "mass heavy"), "h.asf").unwrap_err();
-    assert!(e.to_string().contains("h.asf:4") && e.to_string().contains("heavy"), "{e}");
+    assert!(e.to_string().contains("h.asf:4") && !e.to_string().contains("heavy"), "{e}");
 }
 
 /// Every Acclaim bone has a length: a bone without one is a parse error naming the file, the
@@ -476,7 +474,8 @@ fn skeleton_validate_refuses_bad_parents_and_values() {
     use kinema::mocap::Dof;
     let sk = parse_asf(&read("07-walk.asf"), "07-walk.asf").unwrap();
     sk.validate().unwrap();
-    let bad: [(&str, fn(&mut Skeleton)); 6] = [
+    type Spoil = fn(&mut Skeleton);
+    let bad: [(&str, Spoil); 6] = [
         ("parent", |s| s.bones[3].parent = Some(3)),
         ("parent", |s| s.bones[0].parent = Some(99)),
         ("direction", |s| s.bones[2].direction.x = f64::NAN),

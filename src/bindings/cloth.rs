@@ -98,7 +98,7 @@ impl ClothCore {
     /// positions and velocities stay valid.
     fn _restore(&mut self, py: Python<'_>, data: &[u8]) -> PyResult<()> {
         let cloth = &mut self.cloth;
-        Ok(detached(py, || cloth.restore(Cloth::from_snapshot(data)?))?)
+        detached(py, || cloth.restore(Cloth::from_snapshot(data)?))
     }
 
     /// A cloth from `vertices` (N, 3) m and `triangles` (M, 3) indices (as float64), with

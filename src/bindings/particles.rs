@@ -146,7 +146,7 @@ impl Particles {
     /// stay valid.
     fn _restore(&mut self, py: Python<'_>, data: &[u8]) -> PyResult<()> {
         let system = &mut self.system;
-        Ok(detached(py, || system.restore(ParticleSystem::from_snapshot(data)?))?)
+        detached(py, || system.restore(ParticleSystem::from_snapshot(data)?))
     }
 
     /// `positions` (N, 3) m, `velocities` (N, 3) m/s, `masses` (N, 1) kg (inf pins), and room

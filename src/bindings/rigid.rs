@@ -297,19 +297,20 @@ impl RigidWorld {
     }
 
     /// Coulomb friction coefficient of body `i`'s surface.
-    fn friction(&self, i: usize) -> PyResult<f64> {
-        self.check(i)?;
+    fn friction(&self, i: Int) -> PyResult<f64> {
+        let i = self.check(i)?;
         Ok(self.world.friction(i))
     }
 
     /// Linear and angular damping rates of body `i` (1/s).
-    fn damping(&self, i: usize) -> PyResult<(f64, f64)> {
-        self.check(i)?;
+    fn damping(&self, i: Int) -> PyResult<(f64, f64)> {
+        let i = self.check(i)?;
         Ok(self.world.damping(i))
     }
 
     /// Set the linear and angular damping rates of body `i` (1/s, >= 0).
-    fn set_damping(&mut self, i: usize, linear: f64, angular: f64) -> PyResult<()> {
+    fn set_damping(&mut self, i: Int, linear: f64, angular: f64) -> PyResult<()> {
+        let i = self.check(i)?;
         Ok(self.world.set_damping(i, linear, angular)?)
     }
 

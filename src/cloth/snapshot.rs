@@ -31,7 +31,9 @@ impl Snapshot for Cloth {
             same("history", xp.len())?;
             same("history", vp.len())?;
             check(vec3(xp) && vec3(vp), "history", || "non-finite values".into())?;
-            check(h.is_finite() && *h > 0.0, "history", || "previous step not finite and > 0".into())?;
+            check(h.is_finite() && *h > 0.0, "history", || {
+                "previous step not finite and > 0".into()
+            })?;
         }
         let m = &self.material;
         check(

@@ -164,7 +164,10 @@ fn is_unit(q: DQuat) -> bool {
 
 /// `dofs` are about or along axis 0, 1 or 2.
 fn dofs_valid(dofs: &[Dof]) -> bool {
-    dofs.iter().all(|d| matches!(d, Dof::Rotation(a) | Dof::Translation(a) if *a < 3))
+    dofs.iter().all(|d| match *d {
+        Dof::Rotation(a) | Dof::Translation(a) => a < 3,
+        Dof::Length => true,
+    })
 }
 
 impl Skeleton {
@@ -183,7 +186,11 @@ impl Skeleton {
         if !(self.root_position.is_finite()
             && is_unit(self.root_orientation)
             && self.root_orientation_as_read.iter().all(|a| a.is_finite())
-            && dofs_valid(&self.root_order))
+            && dofs_valid(&self.root_order)
+            && {
+                let [i, j, k] = self.root_axis.axes;
+                i < 3 && j < 3 && k < 3 && i != j && j != k
+            })
         {
             return bad("root: needs a finite position, a unit orientation and dofs about x, y, z");
         }

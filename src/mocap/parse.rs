@@ -242,7 +242,10 @@ pub fn parse_asf(text: &str, file: &str) -> Result<Skeleton> {
                             "limits" => {
                                 let n = bone.dofs.len();
                                 let mut vals = Vec::new();
-                                for t in line["limits".len()..].replace(['(', ')'], " ").split_whitespace() {
+                                for t in line["limits".len()..]
+                                    .replace(['(', ')'], " ")
+                                    .split_whitespace()
+                                {
                                     vals.push(limit(file, ln, t)?);
                                 }
                                 if vals.len() >= 2 * n {

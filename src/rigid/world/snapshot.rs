@@ -27,6 +27,8 @@ impl Snapshot for World {
             self.shape.len(),
             self.restitution.len(),
             self.friction.len(),
+            self.linear_damping.len(),
+            self.angular_damping.len(),
             self.v.len(),
             self.q.len(),
             self.pi.len(),
@@ -58,6 +60,14 @@ impl Snapshot for World {
                 && finite(self.inertia_body.iter().flat_map(|m| m.to_cols_array())),
             "mass",
             || "masses must be finite and positive".into(),
+        )?;
+        check(
+            self.linear_damping
+                .iter()
+                .chain(&self.angular_damping)
+                .all(|c| c.is_finite() && *c >= 0.0),
+            "damping",
+            || "damping rates must be finite and >= 0".into(),
         )?;
         for (i, s) in self.shape.iter().enumerate() {
             s.mass_properties(1.0).map_err(|e| e.at(i))?;
