@@ -382,7 +382,7 @@ pub struct Cloth {
     v: Vec<DVec3>,
     mass: Vec<f64>,
     /// Positions, velocities and length (s) of the previous step (BDF2 history), if valid.
-    history: Option<(Vec<DVec3>, Vec<DVec3>, f64)>,
+    history: History,
     time: f64,
     elements: Vec<Triangle>,
     hinges: Vec<Hinge>,
@@ -402,11 +402,14 @@ pub struct Cloth {
 
 /// Everything a step may change that a later step reads, copied at the start of each step
 /// and put back when the step fails (a subdivided step commits its substeps as it goes).
+/// Positions, velocities and length (s) of the previous step: the BDF2 history.
+type History = Option<(Vec<DVec3>, Vec<DVec3>, f64)>;
+
 #[derive(Default)]
 struct Rollback {
     x: Vec<DVec3>,
     v: Vec<DVec3>,
-    history: Option<(Vec<DVec3>, Vec<DVec3>, f64)>,
+    history: History,
     /// The PCG's warm start `Δv` of the last step.
     dv: Vec<DVec3>,
     time: f64,
@@ -422,6 +425,19 @@ impl Rollback {
     fn copy<T: Copy>(into: &mut Vec<T>, what: &[T]) {
         into.clear();
         into.extend_from_slice(what);
+    }
+
+    /// Copy a BDF2 history into another, reusing its buffers when it has them.
+    fn copy_history(into: &mut History, what: &History) {
+        match (what, into.as_mut()) {
+            (None, _) => *into = None,
+            (Some((wx, wv, wh)), Some((ix, iv, ih))) => {
+                Rollback::copy(ix, wx);
+                Rollback::copy(iv, wv);
+                *ih = *wh;
+            }
+            (Some(h), None) => *into = Some(h.clone()),
+        }
     }
 }
 
@@ -1014,15 +1030,7 @@ impl Cloth {
         Rollback::copy(&mut r.dv, &self.scratch.dv);
         Rollback::copy(&mut r.contact, &self.contact);
         Rollback::copy(&mut r.colliders, &self.colliders);
-        match (&self.history, &mut r.history) {
-            (None, _) => r.history = None,
-            (Some((hx, hv, hh)), Some((rx, rv, rh))) => {
-                Rollback::copy(rx, hx);
-                Rollback::copy(rv, hv);
-                *rh = *hh;
-            }
-            (Some(h), None) => r.history = Some(h.clone()),
-        }
+        Rollback::copy_history(&mut r.history, &self.history);
         r.time = self.time;
         r.stats = self.stats;
         r.evaluations = self.stepper.as_ref().map(|s| (s.nfev, s.njev));
@@ -1037,15 +1045,7 @@ impl Cloth {
         Rollback::copy(&mut self.scratch.dv, &r.dv);
         Rollback::copy(&mut self.contact, &r.contact);
         Rollback::copy(&mut self.colliders, &r.colliders);
-        match (&r.history, &mut self.history) {
-            (None, _) => self.history = None,
-            (Some((rx, rv, rh)), Some((hx, hv, hh))) => {
-                Rollback::copy(hx, rx);
-                Rollback::copy(hv, rv);
-                *hh = *rh;
-            }
-            (Some(h), None) => self.history = Some(h.clone()),
-        }
+        Rollback::copy_history(&mut self.history, &r.history);
         self.time = r.time;
         self.stats = r.stats;
         match (self.stepper.as_mut(), r.evaluations) {

@@ -3,6 +3,7 @@ so that no earlier import hides a missing one."""
 
 from __future__ import annotations
 
+import pkgutil
 import subprocess
 import sys
 
@@ -10,22 +11,10 @@ import pytest
 
 import kinema
 
-SUBMODULES = [
-    "anim",
-    "cli",
-    "cloth",
-    "constraints",
-    "demos",
-    "ik",
-    "mocap",
-    "ode",
-    "particles",
-    "plot",
-    "rigid",
-    "rotation",
-    "scene",
-    "scenefile",
-]
+# Every public module in the package folder, found independently of kinema's own list.
+SUBMODULES = sorted(
+    m.name for m in pkgutil.iter_modules(kinema.__path__) if not m.name.startswith("_")
+)
 
 
 def fresh(code: str) -> str:
