@@ -82,31 +82,21 @@ pub struct Particles {
 }
 
 impl Particles {
-    /// A read-only numpy view `(capacity, 3)` of positions or velocities owned by `slf`.
+    /// A read-only numpy view `(capacity, width)` of the buffer `data` picks from the system
+    /// owned by `slf` (positions, velocities or colours).
     #[allow(unsafe_code)]
-    fn view<'py>(slf: &Bound<'py, Self>, velocities: bool) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    fn view<'py>(
+        slf: &Bound<'py, Self>,
+        width: usize,
+        data: fn(&ParticleSystem) -> &[f64],
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let this = slf.borrow();
-        let data = if velocities { this.system.velocities() } else { this.system.positions() };
-        let view = ArrayView2::from_shape((this.system.capacity(), 3), data)
+        let view = ArrayView2::from_shape((this.system.capacity(), width), data(&this.system))
             .map_err(|e| Error::invalid("state", e.to_string()))?;
         // SAFETY: the buffer belongs to `slf`, which the array keeps alive as its base; the
-        // system's state buffer has a fixed capacity and is never reallocated, only written in
-        // place by `step` and `set_state`, so the pointer stays valid for the array's lifetime.
-        let array = unsafe { PyArray2::borrow_from_array(&view, slf.clone().into_any()) };
-        drop(this);
-        array.readwrite().make_nonwriteable();
-        Ok(array)
-    }
-
-    /// A read-only numpy view `(capacity, 4)` of the colours owned by `slf`.
-    #[allow(unsafe_code)]
-    fn colors_view<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let this = slf.borrow();
-        let data = this.system.colors().as_flattened();
-        let view = ArrayView2::from_shape((this.system.capacity(), 4), data)
-            .map_err(|e| Error::invalid("colors", e.to_string()))?;
-        // SAFETY: as in `view`: the colour buffer has the fixed capacity and is only written
-        // in place (emission, rollback, `set_appearance`), never reallocated.
+        // system's state and colour buffers have a fixed capacity and are never reallocated,
+        // only written in place (`step`, `set_state`, emission, rollback, `set_appearance`),
+        // so the pointer stays valid for the array's lifetime.
         let array = unsafe { PyArray2::borrow_from_array(&view, slf.clone().into_any()) };
         drop(this);
         array.readwrite().make_nonwriteable();
@@ -118,7 +108,7 @@ impl Particles {
     fn sizes_view<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let this = slf.borrow();
         let view = ArrayView1::from(this.system.sizes());
-        // SAFETY: as in `colors_view`.
+        // SAFETY: as in `view`: the size buffer has the fixed capacity, written in place.
         let array = unsafe { PyArray1::borrow_from_array(&view, slf.clone().into_any()) };
         drop(this);
         array.readwrite().make_nonwriteable();
@@ -301,19 +291,19 @@ impl Particles {
     /// Read-only view (capacity, 3) of the positions (m), updated in place by `step`.
     #[getter]
     fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Self::view(slf, false)
+        Self::view(slf, 3, ParticleSystem::positions)
     }
 
     /// Read-only view (capacity, 3) of the velocities (m/s), updated in place by `step`.
     #[getter]
     fn velocities<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Self::view(slf, true)
+        Self::view(slf, 3, ParticleSystem::velocities)
     }
 
     /// Read-only view (capacity, 4) of the colours (linear RGBA in [0, 1]).
     #[getter]
     fn colors<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Self::colors_view(slf)
+        Self::view(slf, 4, |s| s.colors().as_flattened())
     }
 
     /// Read-only view (capacity,) of the sizes (diameters, m).
