@@ -5,14 +5,18 @@
 
 use crate::error::{Error, Result};
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, LdltRef, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
-/// `L Lᵀ` factorisation of a sparse SPD matrix with a fixed pattern (faer, AMD ordering).
+/// `L Lᵀ` factorisation of a sparse SPD matrix, or `L D Lᵀ` of a sparse symmetric
+/// quasi-definite one (`[A Bᵀ; B -C]` with `A`, `C` positive definite, e.g. a regularised KKT
+/// matrix, which has such a factorisation for every ordering: Vanderbei 1995, "Symmetric
+/// quasidefinite matrices", SIAM J. Optim. 5(1)), with a fixed pattern (faer, AMD ordering).
 ///
 /// The pattern is the lower triangle in compressed sparse columns (`col_ptr`, `row_idx`, rows
 /// sorted within each column, diagonal included). [`SparseCholesky::factorize`] refills the
@@ -25,6 +29,8 @@ pub struct SparseCholesky {
     symbolic: SymbolicCholesky<usize>,
     factor: Vec<f64>,
     buffer: MemBuffer,
+    /// The sign of each pivot of a quasi-definite matrix (`L D Lᵀ`); empty for `L Lᵀ`.
+    signs: Vec<i8>,
 }
 
 impl std::fmt::Debug for SparseCholesky {
@@ -53,9 +59,36 @@ impl SparseCholesky {
         .map_err(|e| Error::SolverFailed { reason: format!("symbolic Cholesky: {e:?}") })?;
         let req = symbolic
             .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+            .or(symbolic.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()))
             .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
         let factor = vec![0.0; symbolic.len_val()];
-        Ok(SparseCholesky { n, col_ptr, row_idx, symbolic, factor, buffer: MemBuffer::new(req) })
+        Ok(SparseCholesky {
+            n,
+            col_ptr,
+            row_idx,
+            symbolic,
+            factor,
+            buffer: MemBuffer::new(req),
+            signs: Vec::new(),
+        })
+    }
+
+    /// Analyse the pattern of a quasi-definite matrix whose pivot `k` has the sign `signs[k]`
+    /// (`+1` or `-1`); [`Self::factorize`] then computes `L D Lᵀ`, and a pivot of the wrong
+    /// sign or below `1e-300` in size is replaced (faer's dynamic regularisation).
+    ///
+    /// # Errors
+    /// As [`Self::new`], or `signs` of the wrong length.
+    pub fn quasi_definite(
+        n: usize,
+        col_ptr: Vec<usize>,
+        row_idx: Vec<usize>,
+        signs: Vec<i8>,
+    ) -> Result<Self> {
+        if signs.len() != n {
+            return Err(Error::invalid("signs", "needs one sign per row"));
+        }
+        Ok(SparseCholesky { signs, ..Self::new(n, col_ptr, row_idx)? })
     }
 
     /// Number of stored entries of the pattern (lower triangle).
@@ -63,10 +96,11 @@ impl SparseCholesky {
         self.row_idx.len()
     }
 
-    /// Factorise the matrix with `values` in the pattern's order.
+    /// Factorise the matrix with `values` in the pattern's order. A quasi-definite matrix's
+    /// pivot of the wrong sign becomes `±1e-10 max|value|`.
     ///
     /// # Errors
-    /// [`Error::SolverFailed`] when the matrix is not numerically positive definite.
+    /// [`Error::SolverFailed`] when an SPD matrix is not numerically positive definite.
     pub fn factorize(&mut self, values: &[f64]) -> Result<()> {
         let pattern = SymbolicSparseColMatRef::new_checked(
             self.n,
@@ -76,27 +110,64 @@ impl SparseCholesky {
             &self.row_idx,
         );
         let a = SparseColMatRef::new(pattern, values);
-        self.symbolic
-            .factorize_numeric_llt::<f64>(
-                &mut self.factor,
-                a,
-                Side::Lower,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut self.buffer),
-                Default::default(),
-            )
-            .map_err(|e| Error::SolverFailed {
-                reason: format!("Cholesky factorisation: {e:?} (matrix not positive definite)"),
-            })?;
+        let stack = MemStack::new(&mut self.buffer);
+        if self.signs.is_empty() {
+            self.symbolic
+                .factorize_numeric_llt::<f64>(
+                    &mut self.factor,
+                    a,
+                    Side::Lower,
+                    LltRegularization::default(),
+                    Par::Seq,
+                    stack,
+                    Default::default(),
+                )
+                .map_err(|e| Error::SolverFailed {
+                    reason: format!("Cholesky factorisation: {e:?} (matrix not positive definite)"),
+                })?;
+        } else {
+            let regularization = LdltRegularization {
+                dynamic_regularization_signs: Some(&self.signs),
+                dynamic_regularization_delta: 1e-10
+                    * values.iter().fold(f64::MIN_POSITIVE, |a, v| a.max(v.abs())),
+                dynamic_regularization_epsilon: 1e-300,
+            };
+            self.symbolic
+                .factorize_numeric_ldlt::<f64>(
+                    &mut self.factor,
+                    a,
+                    Side::Lower,
+                    regularization,
+                    Par::Seq,
+                    stack,
+                    Default::default(),
+                )
+                .map_err(|e| Error::SolverFailed {
+                    reason: format!("L D Lᵀ factorisation: {e:?}"),
+                })?;
+        }
         Ok(())
     }
 
     /// Overwrite `rhs` with the solution of `A x = rhs` for the last factorised `A`.
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) {
-        let llt = LltRef::new(&self.symbolic, &self.factor);
         let mat = MatMut::from_column_major_slice_mut(rhs, self.n, 1);
-        llt.solve_in_place_with_conj(Conj::No, mat, Par::Seq, MemStack::new(&mut self.buffer));
+        let stack = MemStack::new(&mut self.buffer);
+        if self.signs.is_empty() {
+            LltRef::new(&self.symbolic, &self.factor).solve_in_place_with_conj(
+                Conj::No,
+                mat,
+                Par::Seq,
+                stack,
+            );
+        } else {
+            LdltRef::new(&self.symbolic, &self.factor).solve_in_place_with_conj(
+                Conj::No,
+                mat,
+                Par::Seq,
+                stack,
+            );
+        }
     }
 }
 

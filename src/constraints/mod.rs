@@ -29,10 +29,12 @@
 //! gradient functions ([`Constraint::Custom`], [`ConstraintFunction`]).
 
 mod curve;
+mod implicit;
 mod reduced;
 mod snapshot;
 
 pub use curve::Curve;
+pub use implicit::NEWTON_STEP_TOL;
 pub use reduced::{ReducedBead, ReducedPendulum};
 
 use crate::error::{Error, Result};
@@ -261,6 +263,12 @@ struct Work {
     next: Vec<f64>,
     #[serde(skip)] // rebuilt by `prepare` (same pattern, same factor)
     chol: Option<SparseCholesky>,
+    /// The multipliers (N) of the last implicit projection, the next one's starting guess.
+    #[serde(default)]
+    implicit_lambda: Vec<f64>,
+    /// The implicit projection's KKT system (built at the first projection step).
+    #[serde(skip)]
+    kkt: Option<implicit::Kkt>,
     /// The CG warm start `lambda` and `iterations` before the current step, put back when it
     /// fails (a failed step's multipliers may be huge or NaN and would poison the next solve).
     #[serde(skip)]
@@ -344,7 +352,7 @@ impl ConstrainedSystem {
 
     /// Turn post-stabilisation (Cline & Pai 2003, "Post-stabilization for rigid body
     /// simulation with contact and constraints", ICRA) on or off. On (the default with
-    /// multipliers), every step of [`Self::step`] and [`Self::step_projection`] ends by
+    /// multipliers), every step of [`Self::step`] ends by
     /// projecting the positions onto `C(x) = 0` in the mass metric, `(J W Jᵀ) δ = -C`,
     /// `x += W Jᵀ δ` (Gauss–Newton, at most [`PROJECTION_ITERATIONS`] times, until `|C| ≤`
     /// [`PROJECTION_TOL`]), and the velocities onto `J v = 0` at the new positions,
@@ -353,7 +361,8 @@ impl ConstrainedSystem {
     /// and the constraints hold to `PROJECTION_TOL` at any step; the velocity projection
     /// removes the kinetic energy of the constraint-violating velocity (at most that of the
     /// drift rate, `½ Ċᵀ (J W Jᵀ)⁻¹ Ċ`). Off, the constraints hold only through `ks`, `kd`
-    /// and the accuracy of the integrator (and `step_projection` does no position projection).
+    /// and the accuracy of the integrator. [`Self::step_projection`] always ends on
+    /// `C(x) = 0` (its step is a projection); post-stabilisation adds the velocity projection.
     ///
     /// # Errors
     /// `on` with the penalty formulation (whose springs are the constraint model).
@@ -503,6 +512,7 @@ impl ConstrainedSystem {
         self.constraints.push(constraint);
         self.work.curves.push(curve_state);
         self.work.chol = None; // the pattern changed
+        self.work.kkt = None;
         self.stepper = None;
         Ok(())
     }
@@ -558,7 +568,8 @@ impl ConstrainedSystem {
             self.build_pattern(n)?;
         }
         let m: usize = self.constraints.iter().map(Constraint::rows).sum();
-        for v in [&mut self.work.b, &mut self.work.lambda, &mut self.work.diag] {
+        let w = &mut self.work;
+        for v in [&mut w.b, &mut w.lambda, &mut w.diag, &mut w.implicit_lambda] {
             v.resize(m, 0.0);
         }
         self.work.scratch.resize(3 * n, 0.0);
@@ -570,19 +581,22 @@ impl ConstrainedSystem {
         Ok(())
     }
 
-    /// Advance the particles `steps` steps of `dt` with constraints enforced at the velocity
-    /// level (impulses), the formulation of rigid-body engines: `v* = v + h W Q`, then
-    /// `J W Jᵀ λ = -J v*`, `v₁ = v* + W Jᵀ λ`, `x₁ = x + h v₁` (`J` at `x`), followed by the
-    /// post-stabilisation when it is on ([`Self::set_stabilization`]). First order and
-    /// dissipative; stable at larger steps than the acceleration-level formulation with an
-    /// explicit integrator, but the tension acts along the directions at the start of the
-    /// step, so a string of tension `T`, particle mass `m` and rod length `L` needs roughly
-    /// `h √(T / (m L)) ≲ 1`: beyond, the transverse motion grows and the post-stabilisation
-    /// fails to converge (an error, not a stretched rope). Multiplier formulation only.
+    /// Advance the particles `steps` steps of `dt` by step and project (Goldenthal et al. 2007,
+    /// "Efficient simulation of inextensible cloth", section 4): the free step
+    /// `x̃ = x + h (v + h a_free)` is replaced by its closest point on `C(x) = 0` in the mass
+    /// metric, and the velocity is `v₁ = (x₁ - x₀) / h`. The constraint impulse acts along the constraints'
+    /// directions at the end of the step (an implicit step in the limit of infinite
+    /// stiffness), so a rope of any tension is stable at any step; first order and
+    /// dissipative. The projection is solved by Newton's method with the constraints'
+    /// geometric stiffness (see `implicit.rs`) to [`PROJECTION_TOL`]; with post-stabilisation
+    /// on ([`Self::set_stabilization`]) the velocities are then projected onto `J v = 0` at the
+    /// new positions. Multiplier formulation only.
     ///
     /// # Errors
-    /// A bad `dt`, the penalty formulation, a solver failure, a custom constraint's failure or
-    /// a non-finite state; the particles are left at the last good step.
+    /// A bad `dt`, the penalty formulation, a projection that does not converge (a step so
+    /// large that the free motion leaves the constraints beyond the linearisation, or
+    /// conflicting constraints), a solver failure, a custom constraint's failure or a
+    /// non-finite state; the particles are left at the last good step.
     pub fn step_projection(
         &mut self,
         particles: &mut ParticleSystem,
@@ -621,37 +635,23 @@ impl ConstrainedSystem {
         system.ks = 0.0;
         system.kd = 0.0;
         for s in 0..steps {
-            // next = [v; a_free]; v* = v + h a_free.
-            system.free.rhs(*time, y, next)?;
-            for k in 0..3 * n {
-                next[3 * n + k] = y[3 * n + k] + dt * next[3 * n + k];
-            }
-            // Impulses with the directions at x₀: J(x₀) v₁ = 0, x₁ = x₀ + h v₁.
-            evaluate(system.constraints, &system.work.curves, y, n, &mut system.work.rows)?;
             let w = &mut *system.work;
-            for r in 0..w.rows.rows.len() {
-                let jv: f64 = w
-                    .rows
-                    .blocks(r)
-                    .iter()
-                    .map(|&(p, g)| g.dot(DVec3::from_slice(&next[3 * n + 3 * p..])))
-                    .sum();
-                w.b[r] = -jv;
-            }
-            system.apply_correction(next, 3 * n)?;
-            for k in 0..3 * n {
-                next[k] = y[k] + dt * next[3 * n + k];
-            }
-            if system.stabilize {
-                system.project_positions(next)?;
-                system.project_velocities(next)?;
-            }
-            if let Some(bad) = next.iter().position(|v| !v.is_finite()) {
-                return Err(Error::Diverged {
+            w.saved.0.clone_from(&w.implicit_lambda);
+            let result = projection_step(&mut system, *time, y, dt, next).and_then(|()| match next
+                .iter()
+                .position(|v| !v.is_finite())
+            {
+                Some(bad) => Err(Error::Diverged {
                     step: s,
                     index: (bad % (3 * n)) / 3,
                     reason: "non-finite state in the constraint projection".into(),
-                });
+                }),
+                None => Ok(()),
+            });
+            if let Err(e) = result {
+                let w = &mut *system.work;
+                w.implicit_lambda.clone_from(&w.saved.0);
+                return Err(e);
             }
             // On failure the tracked parameters may have moved on: they are only the starting
             // guesses of the closest-point search, so the particles' state is what is kept.
@@ -788,6 +788,32 @@ fn assemble<'a>(
         work: &mut system.work,
     };
     (equations, y, time)
+}
+
+/// One step of [`ConstrainedSystem::step_projection`] from `y = [x; v]` at `time` into `next`:
+/// the free step `x̃ = x + h (v + h a_free)`, its implicit projection, `v₁ = (x₁ - x₀) / h`,
+/// and with post-stabilisation the velocity projection onto `J v = 0`.
+fn projection_step(
+    system: &mut Constrained<'_>,
+    time: f64,
+    y: &[f64],
+    dt: f64,
+    next: &mut [f64],
+) -> Result<()> {
+    let n = y.len() / 6;
+    // next = [v; a_free].
+    system.free.rhs(time, y, next)?;
+    for k in 0..3 * n {
+        next[k] = y[k] + dt * (y[3 * n + k] + dt * next[3 * n + k]);
+    }
+    system.implicit_projection(next, dt)?;
+    for k in 0..3 * n {
+        next[3 * n + k] = (next[k] - y[k]) / dt;
+    }
+    if system.stabilize {
+        system.project_velocities(next)?;
+    }
+    Ok(())
 }
 
 /// Move every curve's tracked parameter to the closest point at the state `y`, and pick a new

@@ -44,6 +44,9 @@ impl Snapshot for ConstrainedSystem {
         check(finite(w.curves.iter().flat_map(|(u, r)| [*u, r.x, r.y, r.z])), "curves", || {
             "non-finite curve parameters".into()
         })?;
+        check(finite(w.implicit_lambda.iter().copied()), "implicit_lambda", || {
+            "non-finite multipliers".into()
+        })?;
         check(
             w.rows
                 .rows
