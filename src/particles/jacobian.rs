@@ -34,6 +34,7 @@
 //! redoes its symbolic factorisation (see [`crate::ode::SparseJacobian`]).
 
 use super::{for_each_close_pair, particle_force, Dynamics, Force};
+use crate::math::{outer, skew};
 use crate::ode::SparseJacobian;
 use glam::{DMat3, DVec3};
 
@@ -68,20 +69,6 @@ impl JacobianWork {
             self.dv[s] += sign * kv;
         }
     }
-}
-
-/// `u wᵀ`.
-fn outer(u: DVec3, w: DVec3) -> DMat3 {
-    DMat3::from_cols(u * w.x, u * w.y, u * w.z)
-}
-
-/// `[a]ₓ`, the matrix of `p ↦ a × p`.
-fn skew(a: DVec3) -> DMat3 {
-    DMat3::from_cols(
-        DVec3::new(0.0, a.z, -a.y),
-        DVec3::new(-a.z, 0.0, a.x),
-        DVec3::new(a.y, -a.x, 0.0),
-    )
 }
 
 /// `(∂F/∂x, ∂F/∂v)` of the forces acting on one particle alone, analytic except turbulence
@@ -270,7 +257,7 @@ mod tests {
     /// Uniform numbers in [-1, 1) from a fixed seed.
     fn rng(seed: u64) -> impl FnMut() -> f64 {
         let mut s = seed;
-        move || (super::super::splitmix(&mut s) >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        move || (super::super::emit::splitmix(&mut s) >> 11) as f64 / (1u64 << 52) as f64 - 1.0
     }
 
     /// 8 slots: 7 live particles at random states in a ball of radius 0.6 (so that repulsion
