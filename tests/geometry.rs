@@ -66,15 +66,20 @@ fn closest_points_lie_on_the_surface() {
         }),
     ];
     for shape in shapes {
+        let mut inside = 0;
         for k in 0..100 {
             let t = k as f64;
-            let p = DVec3::new((1.7 * t).sin(), (2.3 * t).cos(), (0.9 * t).sin()) * 1.5;
+            // From well inside every solid (a tenth of the scale) to well outside.
+            let scale = 0.15 * (k % 10 + 1) as f64;
+            let p = DVec3::new((1.7 * t).sin(), (2.3 * t).cos(), (0.9 * t).sin()) * scale;
             let (d, n) = shape.distance(p);
             assert!((n.length() - 1.0).abs() < 1e-12, "{shape:?} {p}");
             let q = shape.closest_point(p);
             assert!(shape.distance(q).0.abs() < 1e-12, "{shape:?} {p}: {q}");
             assert!(((p - q).length() - d.abs()).abs() < 1e-12, "{shape:?} {p}");
+            inside += usize::from(d < 0.0);
         }
+        assert!(inside >= 5, "{shape:?}: {inside} points inside");
     }
 }
 

@@ -78,7 +78,28 @@ pub(super) fn step_bound(
 ) -> f64 {
     let m = Magnitudes { within: std::cell::Cell::new(true) };
     let b = m.note(bound);
-    let Extremes { mass, inv_mass, external } = extremes;
+    let Some(f) = force_bound(&m, forces, b, &extremes) else {
+        return f64::INFINITY;
+    };
+    let f = m.note(f);
+    let mut v = m.note(b + m.note(dt * m.note(f * extremes.inv_mass)));
+    let mut x = m.note(b + m.note(dt * v));
+    let gravity = mag(gravity);
+    for collider in colliders {
+        (x, v) = contact_bound(&m, collider, x, v, b, dt, gravity);
+    }
+    if m.within.get() {
+        x.max(v)
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// A bound on |component| of the sum of `forces` on one particle (N) whose position and
+/// velocity are within `b` (the external force included); `None` for a force the kernel
+/// does not take or whose quotient cannot be bounded (an attractor whose `s³` underflows).
+fn force_bound(m: &Magnitudes, forces: &[Force], b: f64, extremes: &Extremes) -> Option<f64> {
+    let Extremes { mass, external, .. } = *extremes;
     let mut f = m.note(external);
     for force in forces {
         f += match *force {
@@ -95,7 +116,7 @@ pub(super) fn step_bound(
                 let s2 = softening * softening;
                 let least = s2.powf(1.5);
                 if least == 0.0 {
-                    return f64::INFINITY;
+                    return None;
                 }
                 m.note((m.note(3.0 * r * r) + s2).powf(1.5));
                 let q = m.note(m.note(strength.abs() * mass) / least);
@@ -115,63 +136,67 @@ pub(super) fn step_bound(
             Force::Springs { .. }
             | Force::NeighborRepulsion { .. }
             | Force::NBodyGravity { .. } => {
-                return f64::INFINITY;
+                return None;
             }
         };
     }
-    let f = m.note(f);
-    let mut v = m.note(b + m.note(dt * m.note(f * inv_mass)));
-    let mut x = m.note(b + m.note(dt * v));
-    let gravity = mag(gravity);
-    for collider in colliders {
-        // The contact: distance, normal and collider velocity, bounded.
-        let sphere = |m: &Magnitudes, center: f64, radius: f64| {
-            let d = m.note(x + center);
-            m.note(3.0 * d * d);
-            (m.note(2.0 * d + radius), 2.0)
-        };
-        let (mu, vc) = (collider.material.friction, mag(collider.velocity));
-        let (d, n) = match collider.shape {
-            Shape::Plane(Plane { point, normal }) => {
-                let n = mag(normal);
-                (m.note(3.0 * m.note(x + mag(point)) * n), n)
-            }
-            Shape::Sphere(Sphere { center, radius }) => sphere(&m, mag(center), radius),
-            Shape::Capsule(Capsule { a, b: end, radius }) => {
-                let ab = m.note(mag(a) + mag(end));
-                m.note(3.0 * ab * ab);
-                m.note(3.0 * m.note(x + mag(a)) * ab);
-                let center = m.note(mag(a) + ab);
-                sphere(&m, center, radius)
-            }
-            Shape::Box(Cuboid { center, half, .. }) => {
-                let q = m.note(16.0 * m.note(x + mag(center)));
-                let excess = m.note(q + mag(half));
-                m.note(3.0 * excess * excess);
-                (m.note(2.0 * excess), 32.0)
-            }
-        };
-        // The response, as `respond` forms it (restitution at most 1).
-        let x1 = m.note(x + m.note(d * n));
-        let moved = m.note(x1 + b + m.note(vc * dt));
-        let moved_t = m.note(moved + m.note(m.note(3.0 * moved * n) * n));
-        m.note(3.0 * moved_t * moved_t);
-        m.note(mu * d);
-        x = m.note(x1 + moved_t);
-        let u = m.note(v + vc);
-        let vn = m.note(3.0 * u * n);
-        m.note(2.0 * m.note(3.0 * gravity * n) * dt);
-        let jn = m.note(2.0 * vn);
-        let vt = m.note(u + m.note(vn * n));
-        m.note(3.0 * vt * vt);
-        m.note(mu * jn);
-        v = v.max(m.note(vc + m.note((vn + jn) * n) + vt));
-    }
-    if m.within.get() {
-        x.max(v)
-    } else {
-        f64::INFINITY
-    }
+    Some(f)
+}
+
+/// The bounds `(x, v)` on position and velocity after the contact response to `collider` of a
+/// particle within `(x, v)` that was within `b` before the step.
+fn contact_bound(
+    m: &Magnitudes,
+    collider: &Collider,
+    mut x: f64,
+    mut v: f64,
+    b: f64,
+    dt: f64,
+    gravity: f64,
+) -> (f64, f64) {
+    // The contact: distance, normal and collider velocity, bounded.
+    let sphere = |m: &Magnitudes, center: f64, radius: f64| {
+        let d = m.note(x + center);
+        m.note(3.0 * d * d);
+        (m.note(2.0 * d + radius), 2.0)
+    };
+    let (mu, vc) = (collider.material.friction, mag(collider.velocity));
+    let (d, n) = match collider.shape {
+        Shape::Plane(Plane { point, normal }) => {
+            let n = mag(normal);
+            (m.note(3.0 * m.note(x + mag(point)) * n), n)
+        }
+        Shape::Sphere(Sphere { center, radius }) => sphere(m, mag(center), radius),
+        Shape::Capsule(Capsule { a, b: end, radius }) => {
+            let ab = m.note(mag(a) + mag(end));
+            m.note(3.0 * ab * ab);
+            m.note(3.0 * m.note(x + mag(a)) * ab);
+            let center = m.note(mag(a) + ab);
+            sphere(m, center, radius)
+        }
+        Shape::Box(Cuboid { center, half, .. }) => {
+            let q = m.note(16.0 * m.note(x + mag(center)));
+            let excess = m.note(q + mag(half));
+            m.note(3.0 * excess * excess);
+            (m.note(2.0 * excess), 32.0)
+        }
+    };
+    // The response, as `respond` forms it (restitution at most 1).
+    let x1 = m.note(x + m.note(d * n));
+    let moved = m.note(x1 + b + m.note(vc * dt));
+    let moved_t = m.note(moved + m.note(m.note(3.0 * moved * n) * n));
+    m.note(3.0 * moved_t * moved_t);
+    m.note(mu * d);
+    x = m.note(x1 + moved_t);
+    let u = m.note(v + vc);
+    let vn = m.note(3.0 * u * n);
+    m.note(2.0 * m.note(3.0 * gravity * n) * dt);
+    let jn = m.note(2.0 * vn);
+    let vt = m.note(u + m.note(vn * n));
+    m.note(3.0 * vt * vt);
+    m.note(mu * jn);
+    v = v.max(m.note(vc + m.note((vn + jn) * n) + vt));
+    (x, v)
 }
 
 #[cfg(test)]
