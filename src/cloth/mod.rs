@@ -43,6 +43,7 @@ mod implicit;
 mod mesh;
 mod model;
 mod pcg;
+mod rollback;
 mod snapshot;
 
 pub use bsr::BlockMatrix;
@@ -59,6 +60,7 @@ use collide::ContactState;
 use glam::{DMat3, DVec3};
 use implicit::CholeskyState;
 use model::{Accumulator, Hinge, Spring, Triangle};
+use rollback::Rollback;
 use std::time::Instant;
 
 /// The material model.
@@ -270,42 +272,6 @@ pub struct Cloth {
 /// and put back when the step fails (a subdivided step commits its substeps as it goes).
 /// Positions, velocities and length (s) of the previous step: the BDF2 history.
 type History = Option<(Vec<DVec3>, Vec<DVec3>, f64)>;
-
-#[derive(Default)]
-struct Rollback {
-    x: Vec<DVec3>,
-    v: Vec<DVec3>,
-    history: History,
-    /// The PCG's warm start `Δv` of the last step.
-    dv: Vec<DVec3>,
-    time: f64,
-    contact: Vec<ContactState>,
-    colliders: Vec<Collider>,
-    stats: StepStats,
-    /// The explicit stepper's evaluation counters.
-    evaluations: Option<(usize, usize)>,
-}
-
-impl Rollback {
-    /// Copy `what` into `into`, reusing its allocation.
-    fn copy<T: Copy>(into: &mut Vec<T>, what: &[T]) {
-        into.clear();
-        into.extend_from_slice(what);
-    }
-
-    /// Copy a BDF2 history into another, reusing its buffers when it has them.
-    fn copy_history(into: &mut History, what: &History) {
-        match (what, into.as_mut()) {
-            (None, _) => *into = None,
-            (Some((wx, wv, wh)), Some((ix, iv, ih))) => {
-                Rollback::copy(ix, wx);
-                Rollback::copy(iv, wv);
-                *ih = *wh;
-            }
-            (Some(h), None) => *into = Some(h.clone()),
-        }
-    }
-}
 
 impl std::fmt::Debug for Cloth {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -709,56 +675,5 @@ impl Cloth {
             }
         }
         Ok(())
-    }
-
-    /// Become `other` (e.g. an earlier [`crate::snapshot::Snapshot`] of this cloth), copying
-    /// its positions and velocities into this cloth's buffers, which stay in place so views of
-    /// them stay valid (a scene undoes a failed step this way).
-    ///
-    /// # Errors
-    /// [`Error::InvalidInput`] (argument `"data"`) if `other` has another number of vertices.
-    pub fn restore(&mut self, other: Cloth) -> Result<()> {
-        if other.x.len() != self.x.len() || other.v.len() != self.v.len() {
-            return Err(Error::invalid("data", "is a cloth with another number of vertices"));
-        }
-        let (mut x, mut v) = (std::mem::take(&mut self.x), std::mem::take(&mut self.v));
-        x.copy_from_slice(&other.x);
-        v.copy_from_slice(&other.v);
-        *self = Cloth { x, v, ..other };
-        Ok(())
-    }
-
-    /// Copy what a step may change into `self.rollback` (buffers reused: no allocation after
-    /// the first step).
-    fn save_rollback(&mut self) {
-        let r = &mut self.rollback;
-        Rollback::copy(&mut r.x, &self.x);
-        Rollback::copy(&mut r.v, &self.v);
-        Rollback::copy(&mut r.dv, &self.scratch.dv);
-        Rollback::copy(&mut r.contact, &self.contact);
-        Rollback::copy(&mut r.colliders, &self.colliders);
-        Rollback::copy_history(&mut r.history, &self.history);
-        r.time = self.time;
-        r.stats = self.stats;
-        r.evaluations = self.stepper.as_ref().map(|s| (s.nfev, s.njev));
-    }
-
-    /// Put back what [`Cloth::save_rollback`] copied (the state buffers are copied into, so
-    /// Python views stay valid).
-    fn restore_rollback(&mut self) {
-        let r = &mut self.rollback;
-        self.x.copy_from_slice(&r.x);
-        self.v.copy_from_slice(&r.v);
-        Rollback::copy(&mut self.scratch.dv, &r.dv);
-        Rollback::copy(&mut self.contact, &r.contact);
-        Rollback::copy(&mut self.colliders, &r.colliders);
-        Rollback::copy_history(&mut self.history, &r.history);
-        self.time = r.time;
-        self.stats = r.stats;
-        match (self.stepper.as_mut(), r.evaluations) {
-            (Some(s), Some((nfev, njev))) => (s.nfev, s.njev) = (nfev, njev),
-            (Some(_), None) => self.stepper = None,
-            _ => {}
-        }
     }
 }
