@@ -10,14 +10,15 @@ pub mod batch;
 pub mod cloth;
 pub mod constraints;
 pub mod error;
+pub mod geometry;
 pub mod ik;
 pub mod linalg;
+pub mod math;
 pub mod mocap;
 pub mod ode;
 pub mod particles;
 pub mod rigid;
 pub mod rotation;
-pub mod sdf;
 pub mod snapshot;
 
 #[cfg(feature = "python")]

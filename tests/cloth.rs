@@ -3,9 +3,10 @@
 
 use glam::DVec3;
 use kinema::cloth::{
-    dihedral_angle, parse_obj, write_obj, Cloth, Collider, Material, Mesh, Model, Shape,
-    SolveOptions, Solver, Triangulation, VertexConstraint,
+    dihedral_angle, parse_obj, write_obj, Cloth, Collider, Material, Mesh, Model, SolveOptions,
+    Solver, Triangulation, VertexConstraint,
 };
+use kinema::geometry::{Plane, Shape, Sphere};
 use kinema::ode::Method;
 use kinema::Error;
 
@@ -431,9 +432,9 @@ fn cloth_drapes_over_a_sphere_and_rests_on_the_ground_without_penetration() {
     let lifted: Vec<DVec3> =
         cloth.positions().iter().map(|p| *p + DVec3::new(0.0, 0.5, 0.0)).collect();
     cloth.set_state(&lifted, &vec![DVec3::ZERO; lifted.len()]).unwrap();
-    let sphere = Shape::Sphere { center: DVec3::new(0.0, 0.2, 0.0), radius: 0.2 };
+    let sphere = Shape::Sphere(Sphere { center: DVec3::new(0.0, 0.2, 0.0), radius: 0.2 });
     cloth.add_collider(Collider { shape: sphere, velocity: DVec3::ZERO, friction: 0.3 }).unwrap();
-    let ground = Shape::Plane { point: DVec3::ZERO, normal: DVec3::Y };
+    let ground = Shape::Plane(Plane { point: DVec3::ZERO, normal: DVec3::Y });
     cloth.add_collider(Collider { shape: ground, velocity: DVec3::ZERO, friction: 0.5 }).unwrap();
     for _ in 0..120 {
         cloth.step(1.0 / 60.0, 1, Method::ImplicitEuler, SolveOptions::default()).unwrap();
@@ -467,7 +468,7 @@ fn friction_holds_cloth_on_a_slope_and_frictionless_cloth_slides() {
         cloth.set_state(&x, &vec![DVec3::ZERO; x.len()]).unwrap();
         cloth
             .add_collider(Collider {
-                shape: Shape::Plane { point: DVec3::ZERO, normal },
+                shape: Shape::Plane(Plane { point: DVec3::ZERO, normal }),
                 velocity: DVec3::ZERO,
                 friction: mu,
             })
@@ -500,7 +501,7 @@ fn friction_holds_cloth_on_a_slope_and_frictionless_cloth_slides() {
 #[test]
 fn moving_collider_pushes_the_cloth() {
     let mut cloth = grid(6, Model::BaraffWitkin, Material::default());
-    let ground = Shape::Plane { point: DVec3::new(0.0, -0.01, 0.0), normal: DVec3::Y };
+    let ground = Shape::Plane(Plane { point: DVec3::new(0.0, -0.01, 0.0), normal: DVec3::Y });
     // A floor rising at 1 m/s lifts the cloth with it.
     cloth
         .add_collider(Collider {
@@ -526,7 +527,7 @@ fn bad_steps_leave_the_state_untouched() {
     assert!(cloth.pin(&[99], None).is_err());
     assert!(cloth.constrain(&[0], Some(VertexConstraint::Plane(DVec3::ZERO))).is_err());
     let bad = Collider {
-        shape: Shape::Sphere { center: DVec3::ZERO, radius: -1.0 },
+        shape: Shape::Sphere(Sphere { center: DVec3::ZERO, radius: -1.0 }),
         velocity: DVec3::ZERO,
         friction: 0.1,
     };
@@ -597,7 +598,7 @@ fn failed_cloth_step_leaves_nothing_behind() {
         let mut cloth = hanging(6, Material::default());
         cloth
             .add_collider(Collider {
-                shape: Shape::Sphere { center: DVec3::new(0.0, -0.6, 0.05), radius: 0.2 },
+                shape: Shape::Sphere(Sphere { center: DVec3::new(0.0, -0.6, 0.05), radius: 0.2 }),
                 velocity: DVec3::ZERO,
                 friction: 0.3,
             })

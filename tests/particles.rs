@@ -2,6 +2,7 @@
 //! brute force, emitters, failures.
 
 use glam::DVec3;
+use kinema::geometry::{Material, Plane, Shape, Sphere};
 use kinema::ode::Method;
 use kinema::particles::{curl_noise, Appearance, Collider, Emitter, Force, ParticleSystem};
 
@@ -42,11 +43,11 @@ fn bouncing_ball_apex_heights_follow_restitution() {
     let e = 0.8;
     let mut s = one(DVec3::new(0.0, 1.0, 0.0), DVec3::ZERO);
     s.add_force(Force::Gravity { g: G }).unwrap();
-    s.add_collider(Collider::Plane {
-        point: DVec3::ZERO,
-        normal: DVec3::Y,
-        restitution: e,
-        friction: 0.0,
+    s.add_collider(Collider {
+        shape: Shape::Plane(Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+        material: Material { restitution: e, friction: 0.0 },
+        velocity: DVec3::ZERO,
+        inside: false,
     })
     .unwrap();
     let mut apexes = Vec::new();
@@ -76,11 +77,11 @@ fn incline_sticks_or_slides_as_coulomb_says() {
         let normal = DVec3::new(-th.sin(), th.cos(), 0.0);
         let mut s = one(DVec3::ZERO, DVec3::ZERO);
         s.add_force(Force::Gravity { g: G }).unwrap();
-        s.add_collider(Collider::Plane {
-            point: DVec3::ZERO,
-            normal,
-            restitution: 0.5,
-            friction: mu,
+        s.add_collider(Collider {
+            shape: Shape::Plane(Plane { point: DVec3::ZERO, normal }),
+            material: Material { restitution: 0.5, friction: mu },
+            velocity: DVec3::ZERO,
+            inside: false,
         })
         .unwrap();
         s.step(1e-3, 2000, Method::SymplecticEuler).unwrap();
@@ -100,11 +101,11 @@ fn resting_particles_do_not_jitter() {
     let xs: Vec<DVec3> = (0..10).map(|i| DVec3::new(i as f64, 0.0, 0.0)).collect();
     let mut s = ParticleSystem::new(&xs, &vec![DVec3::ZERO; 10], &[1.0; 10], 10).unwrap();
     s.add_force(Force::Gravity { g: G }).unwrap();
-    s.add_collider(Collider::Plane {
-        point: DVec3::ZERO,
-        normal: DVec3::Y,
-        restitution: 0.9,
-        friction: 0.3,
+    s.add_collider(Collider {
+        shape: Shape::Plane(Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+        material: Material { restitution: 0.9, friction: 0.3 },
+        velocity: DVec3::ZERO,
+        inside: false,
     })
     .unwrap();
     for _ in 0..600 {
@@ -301,11 +302,11 @@ fn pinned_particles_stay_and_failures_roll_back() {
         })
         .is_err());
     assert!(s
-        .add_collider(Collider::Plane {
-            point: DVec3::ZERO,
-            normal: DVec3::Y,
-            restitution: 1.5,
-            friction: 0.0
+        .add_collider(Collider {
+            shape: Shape::Plane(Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+            material: Material { restitution: 1.5, friction: 0.0 },
+            velocity: DVec3::ZERO,
+            inside: false
         })
         .is_err());
     assert!(s.step(-1.0, 1, Method::Rk4).is_err());
@@ -326,20 +327,18 @@ fn fused_symplectic_path_is_bitwise_the_general_path() {
         s.add_force(Force::Gravity { g: G }).unwrap();
         s.add_force(Force::Drag { linear: 0.01, quadratic: 0.02, wind: DVec3::X }).unwrap();
         s.add_force(Force::Turbulence { strength: 2.0, scale: 0.5, seed: 3 }).unwrap();
-        s.add_collider(Collider::Plane {
-            point: DVec3::ZERO,
-            normal: DVec3::Y,
-            restitution: 0.4,
-            friction: 0.3,
+        s.add_collider(Collider {
+            shape: Shape::Plane(Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+            material: Material { restitution: 0.4, friction: 0.3 },
+            velocity: DVec3::ZERO,
+            inside: false,
         })
         .unwrap();
-        s.add_collider(Collider::Sphere {
-            center: DVec3::new(2.0, 0.0, 0.0),
-            radius: 0.7,
-            inside: false,
-            restitution: 0.2,
-            friction: 0.1,
+        s.add_collider(Collider {
+            shape: Shape::Sphere(Sphere { center: DVec3::new(2.0, 0.0, 0.0), radius: 0.7 }),
+            material: Material { restitution: 0.2, friction: 0.1 },
             velocity: DVec3::ZERO,
+            inside: false,
         })
         .unwrap();
         if pairwise {
@@ -363,7 +362,8 @@ fn fused_symplectic_path_is_bitwise_the_general_path() {
 #[test]
 fn oriented_box_distance_matches_brute_force() {
     use glam::DQuat;
-    use kinema::sdf::oriented_box;
+    use kinema::geometry::Cuboid;
+    let oriented_box = |center, rotation, half, p| Cuboid { center, rotation, half }.distance(p);
     let q = DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -0.7, 1.1);
     let (c, h) = (DVec3::new(0.5, -0.2, 1.0), DVec3::new(0.3, 0.1, 0.6));
     // The distance to a box is that to the nearest of a dense sample of its surface (outside),
@@ -427,20 +427,18 @@ fn kernel_scene(n: usize, emitter: bool) -> ParticleSystem {
         .unwrap();
     s.add_force(Force::Vortex { center: DVec3::ZERO, axis: DVec3::Y, strength: 2.0, core: 0.1 })
         .unwrap();
-    s.add_collider(Collider::Plane {
-        point: DVec3::ZERO,
-        normal: DVec3::new(0.1, 1.0, 0.0),
-        restitution: 0.5,
-        friction: 0.3,
+    s.add_collider(Collider {
+        shape: Shape::Plane(Plane { point: DVec3::ZERO, normal: DVec3::new(0.1, 1.0, 0.0) }),
+        material: Material { restitution: 0.5, friction: 0.3 },
+        velocity: DVec3::ZERO,
+        inside: false,
     })
     .unwrap();
-    s.add_collider(Collider::Sphere {
-        center: DVec3::new(1.0, 0.0, 1.0),
-        radius: 0.5,
-        inside: false,
-        restitution: 0.2,
-        friction: 0.6,
+    s.add_collider(Collider {
+        shape: Shape::Sphere(Sphere { center: DVec3::new(1.0, 0.0, 1.0), radius: 0.5 }),
+        material: Material { restitution: 0.2, friction: 0.6 },
         velocity: DVec3::ZERO,
+        inside: false,
     })
     .unwrap();
     if emitter {
@@ -520,11 +518,11 @@ fn explicit_kernel_failure_keeps_the_last_good_step() {
         v[30_000] = DVec3::new(2e307, 0.0, 0.0);
         let mut s = ParticleSystem::new(&x, &v, &vec![1.0; 40_000], 40_000).unwrap();
         s.add_force(Force::Gravity { g: G }).unwrap();
-        s.add_collider(Collider::Plane {
-            point: DVec3::ZERO,
-            normal: DVec3::Y,
-            restitution: 0.5,
-            friction: 0.3,
+        s.add_collider(Collider {
+            shape: Shape::Plane(Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+            material: Material { restitution: 0.5, friction: 0.3 },
+            velocity: DVec3::ZERO,
+            inside: false,
         })
         .unwrap();
         s
@@ -570,11 +568,11 @@ fn runaway(live: usize, capacity: usize, runaway: usize, fail: usize) -> Particl
     let mut s = ParticleSystem::new(&x, &v, &vec![2.0; live], capacity).unwrap();
     s.add_force(Force::Gravity { g: G }).unwrap();
     s.add_force(Force::Damping { rate: 0.1 }).unwrap();
-    s.add_collider(Collider::Plane {
-        point: DVec3::ZERO,
-        normal: DVec3::Y,
-        restitution: 0.5,
-        friction: 0.3,
+    s.add_collider(Collider {
+        shape: Shape::Plane(Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+        material: Material { restitution: 0.5, friction: 0.3 },
+        velocity: DVec3::ZERO,
+        inside: false,
     })
     .unwrap();
     s

@@ -2,7 +2,8 @@
 //! Dzhanibekov flip, convergence order, bad input.
 
 use glam::{DMat3, DQuat, DVec3};
-use kinema::rigid::{BodyDesc, RotationIntegrator, Shape, World};
+use kinema::geometry::Solid as Shape;
+use kinema::rigid::{BodyDesc, RotationIntegrator, World};
 use std::f64::consts::PI;
 
 fn box_mesh(h: DVec3) -> Shape {

@@ -2,7 +2,8 @@
 //! resting contact without jitter, every shape, bad material.
 
 use glam::{DQuat, DVec3};
-use kinema::rigid::{BodyDesc, RotationIntegrator, Shape, World};
+use kinema::geometry::Solid as Shape;
+use kinema::rigid::{BodyDesc, RotationIntegrator, World};
 
 fn desc(shape: Shape, position: DVec3, restitution: f64, friction: f64) -> BodyDesc {
     BodyDesc {

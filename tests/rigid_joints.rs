@@ -3,9 +3,10 @@
 //! under large steps, extreme mass ratios and bad input.
 
 use glam::{DQuat, DVec3};
+use kinema::geometry::Solid as Shape;
 use kinema::rigid::{
-    BodyDesc, JointDesc, JointKind, JointMethod, Motor, RotationIntegrator, Shape, World,
-    PENALTY_DAMPING, PENALTY_STIFFNESS,
+    BodyDesc, JointDesc, JointKind, JointMethod, Motor, RotationIntegrator, World, PENALTY_DAMPING,
+    PENALTY_STIFFNESS,
 };
 use std::f64::consts::PI;
 

@@ -4,11 +4,10 @@
 
 use glam::{DQuat, DVec3};
 use kinema::cloth::{Cloth, Material, Mesh, Model, SolveOptions, Solver, Triangulation};
+use kinema::geometry::{self, Solid as Shape};
 use kinema::ode::Method;
 use kinema::particles::{Appearance, Collider, Emitter, Force, ParticleSystem};
-use kinema::rigid::{
-    BodyDesc, JointDesc, JointKind, JointMethod, RotationIntegrator, Shape, World,
-};
+use kinema::rigid::{BodyDesc, JointDesc, JointKind, JointMethod, RotationIntegrator, World};
 use kinema::snapshot::Snapshot;
 use kinema::Error;
 
@@ -68,11 +67,11 @@ fn particles_resume_bit_for_bit_with_emitters_and_collisions() {
         ParticleSystem::new(&[DVec3::new(0.0, 1.0, 0.0)], &[DVec3::ZERO], &[1.0], 40).unwrap();
     s.add_force(Force::Gravity { g: G }).unwrap();
     s.add_force(Force::Drag { linear: 0.1, quadratic: 0.01, wind: DVec3::X }).unwrap();
-    s.add_collider(Collider::Plane {
-        point: DVec3::ZERO,
-        normal: DVec3::Y,
-        restitution: 0.5,
-        friction: 0.3,
+    s.add_collider(Collider {
+        shape: geometry::Shape::Plane(geometry::Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+        material: geometry::Material { restitution: 0.5, friction: 0.3 },
+        velocity: DVec3::ZERO,
+        inside: false,
     })
     .unwrap();
     s.add_emitter(Emitter {

@@ -8,16 +8,14 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use glam::{DQuat, DVec3};
 use kinema::anim::{Extrapolation, Interpolation, RotationInterpolation, RotationTrack, Track};
 use kinema::cloth::{
-    Cloth, Collider as ClothCollider, Material, Mesh, Model, Shape as ClothShape, SolveOptions,
-    Solver, Triangulation,
+    Cloth, Collider as ClothCollider, Material, Mesh, Model, SolveOptions, Solver, Triangulation,
 };
 use kinema::constraints::{ConstrainedSystem, Constraint, ConstraintSolver};
+use kinema::geometry::{self, Solid as Shape};
 use kinema::mocap::{parse_amc, parse_asf, parse_bvh, BvhSkeleton, Motion, Skeleton};
 use kinema::ode::Method;
 use kinema::particles::{Appearance, Collider, Emitter, Force, ParticleSystem};
-use kinema::rigid::{
-    BodyDesc, JointDesc, JointKind, JointMethod, RotationIntegrator, Shape, World,
-};
+use kinema::rigid::{BodyDesc, JointDesc, JointKind, JointMethod, RotationIntegrator, World};
 use kinema::snapshot::Snapshot;
 
 const G: DVec3 = DVec3::new(0.0, -9.81, 0.0);
@@ -97,7 +95,10 @@ fn cloth() -> Cloth {
     let mut c = Cloth::new(mesh, Model::BaraffWitkin, Material::default(), G).unwrap();
     c.pin(&[0, 3], None).unwrap();
     c.add_collider(ClothCollider {
-        shape: ClothShape::Plane { point: DVec3::new(0.0, -0.5, 0.0), normal: DVec3::Y },
+        shape: geometry::Shape::Plane(geometry::Plane {
+            point: DVec3::new(0.0, -0.5, 0.0),
+            normal: DVec3::Y,
+        }),
         velocity: DVec3::ZERO,
         friction: 0.3,
     })
@@ -142,11 +143,11 @@ fn damaged_particle_snapshots_never_panic() {
     })
     .unwrap();
     s.add_force(Force::NeighborRepulsion { radius: 0.15, stiffness: 10.0 }).unwrap();
-    s.add_collider(Collider::Plane {
-        point: DVec3::ZERO,
-        normal: DVec3::Y,
-        restitution: 0.5,
-        friction: 0.3,
+    s.add_collider(Collider {
+        shape: geometry::Shape::Plane(geometry::Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+        material: geometry::Material { restitution: 0.5, friction: 0.3 },
+        velocity: DVec3::ZERO,
+        inside: false,
     })
     .unwrap();
     s.add_emitter(Emitter {

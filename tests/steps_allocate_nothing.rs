@@ -8,10 +8,11 @@ use common::process_allocations;
 use glam::{DQuat, DVec3};
 use kinema::cloth::{self, Cloth, Material, Mesh, Model, SolveOptions, Solver, Triangulation};
 use kinema::constraints::{ConstrainedSystem, Constraint, ConstraintSolver};
+use kinema::geometry::{self, Solid as Shape};
 use kinema::ode::Method;
 use kinema::particles::{Appearance, Collider, Emitter, Force, ParticleSystem};
 use kinema::rigid::{
-    BodyDesc, JointDesc, JointKind, JointMethod, RotationIntegrator, Shape, World, PENALTY_DAMPING,
+    BodyDesc, JointDesc, JointKind, JointMethod, RotationIntegrator, World, PENALTY_DAMPING,
     PENALTY_STIFFNESS,
 };
 
@@ -37,7 +38,12 @@ fn particles(n: usize) -> ParticleSystem {
 }
 
 fn ground() -> Collider {
-    Collider::Plane { point: DVec3::ZERO, normal: DVec3::Y, restitution: 0.5, friction: 0.3 }
+    Collider {
+        shape: geometry::Shape::Plane(geometry::Plane { point: DVec3::ZERO, normal: DVec3::Y }),
+        material: geometry::Material { restitution: 0.5, friction: 0.3 },
+        velocity: DVec3::ZERO,
+        inside: false,
+    }
 }
 
 fn particle_scenes() -> Vec<(String, usize)> {
@@ -66,13 +72,14 @@ fn particle_scenes() -> Vec<(String, usize)> {
         s.add_force(Force::NeighborRepulsion { radius: 0.02, stiffness: 10.0 }).unwrap();
         s.add_force(Force::Turbulence { strength: 1.0, scale: 0.5, seed: 3 }).unwrap();
         s.add_collider(ground()).unwrap();
-        s.add_collider(Collider::Sphere {
-            center: DVec3::new(0.5, 0.5, 0.5),
-            radius: 0.2,
-            inside: false,
-            restitution: 0.2,
-            friction: 0.5,
+        s.add_collider(Collider {
+            shape: geometry::Shape::Sphere(geometry::Sphere {
+                center: DVec3::new(0.5, 0.5, 0.5),
+                radius: 0.2,
+            }),
+            material: geometry::Material { restitution: 0.2, friction: 0.5 },
             velocity: DVec3::ZERO,
+            inside: false,
         })
         .unwrap();
         s.add_emitter(Emitter {
@@ -108,7 +115,10 @@ fn cloth_scenes() -> Vec<(String, usize)> {
         let mut c = Cloth::new(mesh, model, Material::default(), G).unwrap();
         c.pin(&[0, 15], None).unwrap();
         c.add_collider(cloth::Collider {
-            shape: cloth::Shape::Sphere { center: DVec3::new(0.5, -0.3, 0.5), radius: 0.25 },
+            shape: geometry::Shape::Sphere(geometry::Sphere {
+                center: DVec3::new(0.5, -0.3, 0.5),
+                radius: 0.25,
+            }),
             velocity: DVec3::ZERO,
             friction: 0.3,
         })

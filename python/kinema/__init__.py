@@ -2,7 +2,8 @@
 
 One submodule per subject, each loaded on first use (``import kinema; kinema.cloth`` works,
 PEP 562): :mod:`kinema.rotation` (rotations, Euler angles, slerp, transforms),
-:mod:`kinema.ode` (integrators and stability), :mod:`kinema.particles` (forces, colliders,
+:mod:`kinema.ode` (integrators and stability), :mod:`kinema.geometry` (collision shapes),
+:mod:`kinema.particles` (forces, colliders,
 emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`kinema.rigid`
 (rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
@@ -65,6 +66,7 @@ _SUBMODULES = frozenset(
         "cloth",
         "constraints",
         "demos",
+        "geometry",
         "ik",
         "mocap",
         "ode",

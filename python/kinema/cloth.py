@@ -2,7 +2,8 @@
 
 Build a :class:`Cloth` from a grid (:meth:`Cloth.grid`), arrays or an OBJ file, hold vertices
 with :meth:`Cloth.pin` / :meth:`Cloth.constrain` / :meth:`Cloth.prescribe` (mass-modification
-constraints, Baraff & Witkin §5.3), add colliders (:class:`Plane`, :class:`Sphere`, :class:`Capsule`, which may move at
+constraints, Baraff & Witkin §5.3), add colliders (:class:`Plane`, :class:`Sphere`, :class:`Capsule`, :class:`Box`, the shapes of
+:mod:`kinema.geometry` re-exported here, which may move at
 a constant velocity or be moved with :meth:`Cloth.set_collider`) and :meth:`Cloth.step`.
 
 Integrators: ``"implicit_euler"`` (the paper's one Newton step per time step), ``"bdf2"``
@@ -23,84 +24,30 @@ updated in place by every step. Self-collision is not handled.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch, as_orientation, as_vector3
+from kinema._array import as_batch, as_vector3
+from kinema.geometry import Box, Capsule, Plane, Shape, Sphere, shape_params
 
 __all__ = ["Box", "Capsule", "Cloth", "Plane", "Sphere"]
 
 MODELS = ("baraff_witkin", "mass_spring")
 
 
-@dataclass(frozen=True)
-class Plane:
-    """The half-space below the plane through ``point`` with ``normal`` is solid."""
-
-    point: Any = (0.0, 0.0, 0.0)
-    normal: Any = (0.0, 1.0, 0.0)
-    friction: float = 0.5
-    velocity: Any = (0.0, 0.0, 0.0)
-
-    def _params(self) -> tuple[str, list[float]]:
-        return "plane", as_vector3(self.point, "point") + as_vector3(self.normal, "normal")
-
-
-@dataclass(frozen=True)
-class Sphere:
-    """A solid sphere of ``radius`` (m) at ``center``."""
-
-    center: Any
-    radius: float
-    friction: float = 0.5
-    velocity: Any = (0.0, 0.0, 0.0)
-
-    def _params(self) -> tuple[str, list[float]]:
-        return "sphere", [*as_vector3(self.center, "center"), float(self.radius)]
-
-
-@dataclass(frozen=True)
-class Capsule:
-    """A solid capsule: points within ``radius`` (m) of the segment ``a``–``b``."""
-
-    a: Any
-    b: Any
-    radius: float
-    friction: float = 0.5
-    velocity: Any = (0.0, 0.0, 0.0)
-
-    def _params(self) -> tuple[str, list[float]]:
-        return "capsule", as_vector3(self.a, "a") + as_vector3(self.b, "b") + [float(self.radius)]
-
-
-@dataclass(frozen=True)
-class Box:
-    """A solid box of ``half_extents`` (m) centred at ``center``, turned by ``orientation`` (a
-    :class:`kinema.Rotation`, default none)."""
-
-    center: Any
-    half_extents: Any
-    orientation: Any = None
-    friction: float = 0.5
-    velocity: Any = (0.0, 0.0, 0.0)
-
-    def _params(self) -> tuple[str, list[float]]:
-        return "box", [
-            *as_vector3(self.center, "center"),
-            *as_orientation(self.orientation, "orientation"),
-            *as_vector3(self.half_extents, "half_extents"),
-        ]
-
-
-def _collider(c: Any) -> tuple[str, list[float]]:
-    if not isinstance(c, (Plane, Sphere, Capsule, Box)):
-        raise TypeError(f"collider must be a Plane, Sphere, Capsule or Box, got {type(c).__name__}")
-    kind, p = c._params()
-    return kind, p + as_vector3(c.velocity, "velocity") + [float(c.friction)]
+def _collider(c: Shape) -> tuple[str, list[float]]:
+    """The compiled collider's kind and parameters: the shape's, then velocity and friction."""
+    kind, p = shape_params(c)
+    if c.restitution is not None:
+        raise ValueError("restitution: cloth contacts are inelastic; leave it None for cloth")
+    if isinstance(c, Sphere) and c.inside:
+        raise ValueError("inside: cloth collides with the outside of a sphere only")
+    return kind, p + as_vector3(c.velocity, "velocity") + [
+        0.5 if c.friction is None else float(c.friction)
+    ]
 
 
 def _material(

@@ -10,7 +10,8 @@ Forces: :class:`Gravity`, :class:`Drag` (linear and quadratic ``½ρC_dA|u|u``, 
 square; negative strength repels), :class:`Vortex`, :class:`Turbulence` (curl noise, Bridson
 et al. 2007), :class:`NeighborRepulsion` (spatial hash grid, never all pairs),
 :class:`NBodyGravity` (all pairs). Colliders: :class:`Plane`, :class:`Box`, :class:`Capsule`, :class:`Sphere` (inside or
-outside) with restitution and Coulomb friction, resting contact without jitter.
+outside) with restitution and Coulomb friction, resting contact without jitter: the shapes
+of :mod:`kinema.geometry`, re-exported here.
 :class:`Emitter` recycles dead slots. :class:`Field` adds any Python callable on the batch of
 particles, evaluated once per step (held constant within the step).
 """
@@ -24,7 +25,8 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch, as_orientation, as_scalars, as_vector3
+from kinema._array import as_batch, as_scalars, as_vector3
+from kinema.geometry import Box, Capsule, Plane, Shape, Sphere, shape_params
 
 __all__ = [
     "Attractor",
@@ -140,57 +142,6 @@ class Field:
 
 
 @dataclass(frozen=True)
-class Plane:
-    """Collider: particles stay on the side of the plane ``normal`` points to."""
-
-    point: Any = (0.0, 0.0, 0.0)
-    normal: Any = (0.0, 1.0, 0.0)
-    restitution: float = 0.5
-    friction: float = 0.0
-
-
-@dataclass(frozen=True)
-class Sphere:
-    """Collider: particles stay outside the sphere (inside with ``inside=True``). A moving
-    sphere gives its ``velocity`` (m/s): restitution and friction act on the particles'
-    velocity relative to it."""
-
-    center: Any
-    radius: float
-    inside: bool = False
-    restitution: float = 0.5
-    friction: float = 0.0
-    velocity: Any = (0.0, 0.0, 0.0)
-
-
-@dataclass(frozen=True)
-class Box:
-    """Collider: particles stay outside the box of ``half_extents`` (m) centred at ``center``,
-    turned by ``orientation`` (a :class:`kinema.Rotation`, default none); ``velocity`` (m/s)
-    as for :class:`Sphere`."""
-
-    center: Any
-    half_extents: Any
-    orientation: Any = None
-    restitution: float = 0.5
-    friction: float = 0.0
-    velocity: Any = (0.0, 0.0, 0.0)
-
-
-@dataclass(frozen=True)
-class Capsule:
-    """Collider: particles stay outside the points within ``radius`` (m) of the segment
-    ``a``–``b``; ``velocity`` (m/s) as for :class:`Sphere`."""
-
-    a: Any
-    b: Any
-    radius: float
-    restitution: float = 0.5
-    friction: float = 0.0
-    velocity: Any = (0.0, 0.0, 0.0)
-
-
-@dataclass(frozen=True)
 class Emitter:
     """Emits ``rate`` particles/s from a ball of ``position_spread`` around ``position`` with
     velocities ``velocity`` ± a ball of ``velocity_spread``; they live ``lifespan`` seconds
@@ -228,44 +179,17 @@ def _rgba(color: Any, name: str) -> list[float]:
     return [*c.tolist(), 1.0] if len(c) == 3 else c.tolist()
 
 
-def _collider(c: Plane | Sphere | Capsule | Box) -> tuple[str, list[float]]:
-    if isinstance(c, Plane):
-        return "plane", [
-            *as_vector3(c.point, "point"),
-            *as_vector3(c.normal, "normal"),
-            float(c.restitution),
-            float(c.friction),
-        ]
-    if isinstance(c, Sphere):
-        return "sphere", [
-            *as_vector3(c.center, "center"),
-            float(c.radius),
-            float(bool(c.inside)),
-            float(c.restitution),
-            float(c.friction),
-            *as_vector3(c.velocity, "velocity"),
-        ]
-    if isinstance(c, Capsule):
-        return "capsule", [
-            *as_vector3(c.a, "a"),
-            *as_vector3(c.b, "b"),
-            float(c.radius),
-            float(c.restitution),
-            float(c.friction),
-            *as_vector3(c.velocity, "velocity"),
-        ]
-    if isinstance(c, Box):
-        return "box", [
-            *as_vector3(c.center, "center"),
-            *as_orientation(c.orientation, "orientation"),
-            *as_vector3(c.half_extents, "half_extents"),
-            float(c.restitution),
-            float(c.friction),
-            *as_vector3(c.velocity, "velocity"),
-        ]
-    raise ValueError(
-        f"collider: expected kinema.particles.Plane, Sphere, Capsule or Box, got {c!r}"
-    )
+def _collider(c: Shape) -> tuple[str, list[float]]:
+    """The compiled collider's kind and parameters: the shape's, then restitution, friction,
+    velocity and inside."""
+    kind, p = shape_params(c)
+    return kind, [
+        *p,
+        0.5 if c.restitution is None else float(c.restitution),
+        0.0 if c.friction is None else float(c.friction),
+        *as_vector3(c.velocity, "velocity"),
+        float(isinstance(c, Sphere) and bool(c.inside)),
+    ]
 
 
 class ParticleSystem:

@@ -17,20 +17,13 @@
 //! `ω_0 = φ_0/h_0`, `ω_{n-1} = φ_{n-2}/h_{n-2}`, as scipy chooses.
 
 use crate::error::{Error, Result};
+use crate::math::skew;
 use glam::{DMat3, DVec3};
 
 /// Largest number of fixed-point iterations on the nonlinear term.
 const MAX_ITER: usize = 100;
 /// Convergence: no key rate changes by more than `TOL (1 + |ω|)` in an iteration.
 const TOL: f64 = 1e-13;
-
-fn skew(v: DVec3) -> DMat3 {
-    DMat3::from_cols(
-        DVec3::new(0.0, v.z, -v.y),
-        DVec3::new(-v.z, 0.0, v.x),
-        DVec3::new(v.y, -v.x, 0.0),
-    )
-}
 
 /// `(1 - cos θ)/θ²`, `(θ - sin θ)/θ³` and their derivatives over `θ`:
 /// `c1'(θ)/θ = (θ sin θ - 2 (1 - cos θ))/θ⁴`, `c2'(θ)/θ = (3 sin θ - 2θ - θ cos θ)/θ⁵`.

@@ -6,13 +6,13 @@ use super::array::{compute, rows};
 use super::error::detached;
 use super::error::{reduce, Reduced};
 use crate::cloth::{
-    parse_obj, write_obj, Cloth, Collider, Material, Mesh, Model, Shape, SolveOptions, Solver,
+    parse_obj, write_obj, Cloth, Collider, Material, Mesh, Model, SolveOptions, Solver,
     Triangulation, VertexConstraint,
 };
 use crate::error::Error;
 use crate::ode::Method;
 use crate::snapshot::Snapshot;
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 use numpy::ndarray::ArrayView2;
 use numpy::{PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
@@ -22,35 +22,11 @@ fn vectors(arr: &PyReadonlyArrayDyn<'_, f64>, arg: &str) -> PyResult<Vec<DVec3>>
     Ok(rows::<3>(arr, arg, &[3])?.iter().map(|p| DVec3::from_array(*p)).collect())
 }
 
+/// A collider from its kind and parameters: the shape's ([`super::geometry::shape`]), then
+/// velocity 3 and friction.
 fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
-    let v = |k: usize| DVec3::new(p[k], p[k + 1], p[k + 2]);
-    let need = match kind {
-        "plane" => 6,
-        "sphere" => 4,
-        "capsule" => 7,
-        "box" => 10,
-        other => {
-            return Err(Error::invalid("collider", format!("unknown collider {other:?}")).into())
-        }
-    };
-    if p.len() != need + 4 {
-        return Err(Error::invalid(
-            "collider",
-            format!("expected {} parameters, got {}", need + 4, p.len()),
-        )
-        .into());
-    }
-    let shape = match kind {
-        "plane" => Shape::Plane { point: v(0), normal: v(3) },
-        "sphere" => Shape::Sphere { center: v(0), radius: p[3] },
-        "capsule" => Shape::Capsule { a: v(0), b: v(3), radius: p[6] },
-        _ => Shape::Box {
-            center: v(0),
-            rotation: DQuat::from_xyzw(p[4], p[5], p[6], p[3]),
-            half: v(7),
-        },
-    };
-    Ok(Collider { shape, velocity: v(need), friction: p[need + 3] })
+    let (shape, t) = super::geometry::shape(kind, p, 4)?;
+    Ok(Collider { shape, velocity: DVec3::new(t[0], t[1], t[2]), friction: t[3] })
 }
 
 /// A piece of cloth; see `kinema.cloth.Cloth` for the API.
@@ -233,9 +209,8 @@ impl ClothCore {
         Ok(self.cloth.constrain(&idx, constraint)?)
     }
 
-    /// Add a collider of `kind` (`plane`: point, normal; `sphere`: center, radius; `capsule`:
-    /// a, b, radius; `box`: center, orientation w x y z, half extents) followed by velocity (3)
-    /// and friction; returns its index.
+    /// Add a collider of `kind` with the shape's parameters (see [`super::geometry::shape`])
+    /// followed by velocity (3) and friction; returns its index.
     fn add_collider(&mut self, kind: &str, p: Vec<f64>) -> PyResult<usize> {
         Ok(self.cloth.add_collider(collider(kind, &p)?)?)
     }

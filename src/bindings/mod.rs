@@ -11,6 +11,7 @@ mod array;
 mod cloth;
 mod constraints;
 mod error;
+mod geometry;
 mod ik;
 mod mocap;
 mod ode;

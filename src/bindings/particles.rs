@@ -5,10 +5,11 @@ use super::array::{compute, rows};
 use super::error::detached;
 use super::error::{reduce, Reduced};
 use crate::error::Error;
+use crate::geometry::Material;
 use crate::ode::Method;
 use crate::particles::{Appearance, Collider, Emitter, Force, ParticleSystem};
 use crate::snapshot::Snapshot;
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 use numpy::ndarray::{ArrayView1, ArrayView2};
 use numpy::{PyArray1, PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
@@ -26,53 +27,12 @@ fn params(p: &[f64], count: usize, what: &str) -> PyResult<()> {
     }
 }
 
-/// A collider from its kind and parameters: `plane` (point 3, normal 3, restitution,
-/// friction), `sphere` (centre 3, radius, inside, restitution, friction, velocity 3) or
-/// `capsule` (a 3, b 3, radius, restitution, friction, velocity 3) or `box` (centre 3,
-/// orientation w x y z, half extents 3, restitution, friction, velocity 3).
+/// A collider from its kind and parameters: the shape's ([`super::geometry::shape`]), then
+/// restitution, friction, velocity 3 and inside (0 or 1).
 fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
-    Ok(match kind {
-        "plane" => {
-            params(p, 8, "plane")?;
-            Collider::Plane { point: v3(p, 0), normal: v3(p, 3), restitution: p[6], friction: p[7] }
-        }
-        "sphere" => {
-            params(p, 10, "sphere")?;
-            Collider::Sphere {
-                center: v3(p, 0),
-                radius: p[3],
-                inside: p[4] != 0.0,
-                restitution: p[5],
-                friction: p[6],
-                velocity: v3(p, 7),
-            }
-        }
-        "capsule" => {
-            params(p, 12, "capsule")?;
-            Collider::Capsule {
-                a: v3(p, 0),
-                b: v3(p, 3),
-                radius: p[6],
-                restitution: p[7],
-                friction: p[8],
-                velocity: v3(p, 9),
-            }
-        }
-        "box" => {
-            params(p, 15, "box")?;
-            Collider::Box {
-                center: v3(p, 0),
-                rotation: DQuat::from_xyzw(p[4], p[5], p[6], p[3]),
-                half: v3(p, 7),
-                restitution: p[10],
-                friction: p[11],
-                velocity: v3(p, 12),
-            }
-        }
-        other => {
-            return Err(Error::invalid("collider", format!("unknown collider {other:?}")).into())
-        }
-    })
+    let (shape, t) = super::geometry::shape(kind, p, 6)?;
+    let material = Material { restitution: t[0], friction: t[1] };
+    Ok(Collider { shape, material, velocity: DVec3::new(t[2], t[3], t[4]), inside: t[5] != 0.0 })
 }
 
 /// A fixed-capacity particle system; see `kinema.particles.ParticleSystem` for the API.
@@ -236,8 +196,8 @@ impl Particles {
         Ok(self.system.add_force(force)?)
     }
 
-    /// Add a collider: `plane` with (point 3, normal 3, restitution, friction) or `sphere`
-    /// with (center 3, radius, inside 0/1, restitution, friction).
+    /// Add a collider of `kind` with the shape's parameters (see [`super::geometry::shape`])
+    /// followed by restitution, friction, velocity (3) and inside (0/1).
     fn add_collider(&mut self, kind: &str, p: Vec<f64>) -> PyResult<()> {
         Ok(self.system.add_collider(collider(kind, &p)?)?)
     }

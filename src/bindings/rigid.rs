@@ -5,9 +5,8 @@ use super::array::compute;
 use super::error::detached;
 use super::error::{reduce, Reduced};
 use crate::error::Error;
-use crate::rigid::{
-    BodyDesc, JointDesc, JointKind, JointMethod, Motor, RotationIntegrator, Shape, World,
-};
+use crate::geometry::Solid;
+use crate::rigid::{BodyDesc, JointDesc, JointKind, JointMethod, Motor, RotationIntegrator, World};
 use crate::snapshot::Snapshot;
 use glam::{DQuat, DVec3};
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
@@ -84,10 +83,10 @@ impl RigidWorld {
             dims.get(k).copied().ok_or_else(|| Error::invalid("shape", "missing dimensions"))
         };
         let shape = match kind {
-            "sphere" => Shape::Sphere { radius: dim(0)? },
-            "box" => Shape::Box { half_extents: DVec3::new(dim(0)?, dim(1)?, dim(2)?) },
-            "capsule" => Shape::Capsule { radius: dim(0)?, height: dim(1)? },
-            "cylinder" => Shape::Cylinder { radius: dim(0)?, height: dim(1)? },
+            "sphere" => Solid::Sphere { radius: dim(0)? },
+            "box" => Solid::Box { half_extents: DVec3::new(dim(0)?, dim(1)?, dim(2)?) },
+            "capsule" => Solid::Capsule { radius: dim(0)?, height: dim(1)? },
+            "cylinder" => Solid::Cylinder { radius: dim(0)?, height: dim(1)? },
             "mesh" => {
                 let (Some(v), Some(t)) = (vertices, triangles) else {
                     return Err(
@@ -108,7 +107,7 @@ impl RigidWorld {
                     }
                     tris.push(row.map(|x| x as usize));
                 }
-                Shape::Mesh { vertices: v.iter().map(|&p| vec3(p)).collect(), triangles: tris }
+                Solid::Mesh { vertices: v.iter().map(|&p| vec3(p)).collect(), triangles: tris }
             }
             other => {
                 return Err(Error::invalid("shape", format!("unknown shape kind {other:?}")).into())

@@ -29,6 +29,7 @@
 //! inlined into that loop gets those builds.
 
 use super::bsr::LOWER;
+use crate::math::outer;
 use glam::{DMat3, DVec3};
 
 /// A Baraff–Witkin triangle: stretch and shear conditions.
@@ -276,7 +277,6 @@ pub fn triangle(
     let (alpha, beta) = (*alpha, *beta);
     // Gauss–Newton part Σ k (∂C/∂w)(∂C/∂w)ᵀ, with ∂C/∂w_u = a ŵ_u for stretch in u and a w_v
     // for shear, ∂C/∂w_v = a ŵ_v for stretch in v and a w_u for shear.
-    let outer = |p: DVec3, q: DVec3| DMat3::from_cols(p * q.x, p * q.y, p * q.z);
     let a2 = a * a;
     let g_uu = (outer(hu, hu) * ks + outer(wv, wv) * kh) * a2;
     let g_vv = (outer(hv, hv) * ks + outer(wu, wu) * kh) * a2;

@@ -67,7 +67,7 @@ impl Snapshot for Cloth {
             || "non-finite contact impulses".into(),
         )?;
         for c in &self.colliders {
-            c.validate()?;
+            c.checked()?;
         }
         self.check_elements(n)?;
         self.check_scratch(n)?;

@@ -5,6 +5,7 @@ use super::model::{self, Kind, Var};
 use super::svd::jacobi_rows;
 use super::{Method, Options, Report, Target};
 use crate::error::{Error, Result};
+use crate::math::wrap_angle;
 use crate::mocap::{Dof, Skeleton};
 use crate::rotation::{quat_to_rotvec, EulerSequence};
 use glam::{DQuat, DVec3};
@@ -603,7 +604,7 @@ impl<'a> Solver<'a> {
             let mut best: Option<f64> = None;
             for d in [phi + spread, phi - spread] {
                 for k in [-1.0, 0.0, 1.0] {
-                    let x = theta + wrap(d) + k * std::f64::consts::TAU;
+                    let x = theta + wrap_angle(d) + k * std::f64::consts::TAU;
                     if x >= lo
                         && x <= hi
                         && best.is_none_or(|b| (x - theta).abs() < (b - theta).abs())
@@ -636,7 +637,11 @@ impl<'a> Solver<'a> {
             let (angles, _) = tb.upper_seq.from_quat(m2);
             // The other Tait–Bryan solution (a + π, π - b, c + π); keep whichever fits the
             // limits better (smallest rotation left over after clamping).
-            let other = [wrap(angles[0] + PI), wrap(PI - angles[1]), wrap(angles[2] + PI)];
+            let other = [
+                wrap_angle(angles[0] + PI),
+                wrap_angle(PI - angles[1]),
+                wrap_angle(angles[2] + PI),
+            ];
             let mut chosen = [0.0; 3];
             let mut chosen_miss = f64::INFINITY;
             for cand in [angles, other] {
@@ -662,16 +667,6 @@ impl<'a> Solver<'a> {
 
 use std::f64::consts::PI;
 
-/// `a` wrapped into `(-π, π]`.
-fn wrap(a: f64) -> f64 {
-    let a = a.rem_euclid(std::f64::consts::TAU);
-    if a > PI {
-        a - std::f64::consts::TAU
-    } else {
-        a
-    }
-}
-
 /// The representative of angle `a` (mod 2π) within `limits` closest to `current`, or the
 /// limit nearest to it on the circle when none is within.
 fn fit_angle(a: f64, current: f64, (lo, hi): (f64, f64)) -> f64 {
@@ -684,7 +679,7 @@ fn fit_angle(a: f64, current: f64, (lo, hi): (f64, f64)) -> f64 {
         }
     }
     best.unwrap_or_else(|| {
-        let gap = |l: f64| wrap(l - a).abs();
+        let gap = |l: f64| wrap_angle(l - a).abs();
         if gap(lo) <= gap(hi) {
             lo
         } else {

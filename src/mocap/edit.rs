@@ -11,6 +11,7 @@
 use super::{BvhSkeleton, Dof, Motion, Skeleton};
 use crate::anim::{Extrapolation, Interpolation, Track};
 use crate::error::{filled, reserve, too_large, Error, Result};
+use crate::math::wrap_angle;
 use crate::rotation::EulerSequence;
 use glam::DQuat;
 use rayon::prelude::*;
@@ -375,12 +376,6 @@ pub trait Edit: Sync {
         }
         Ok(Motion { values, stride, frames: motion.frames, frame_rate: motion.frame_rate })
     }
-}
-
-/// `a` wrapped to `(-π, π]`: the shorter turn of an angle difference.
-fn wrap_angle(a: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    a - TAU * ((a - PI) / TAU).ceil()
 }
 
 /// Slopes of the monotone piecewise cubic through `(t_k, y_k)` per channel (`y` is

@@ -267,3 +267,68 @@ pub fn curl_noise(seed: u64, p: DVec3) -> DVec3 {
     // ψ = (n1, n2, n3): curl = (∂n3/∂y - ∂n2/∂z, ∂n1/∂z - ∂n3/∂x, ∂n2/∂x - ∂n1/∂y).
     DVec3::new(g3.y - g2.z, g1.z - g3.x, g2.x - g1.y)
 }
+
+/// The sum of the forces of `forces` that act on one particle alone (gravity, drag, damping,
+/// attractor, vortex, turbulence), in the order they were added.
+pub(super) fn particle_force(forces: &[Force], x: DVec3, v: DVec3, m: f64) -> DVec3 {
+    let mut acc = DVec3::ZERO;
+    for force in forces {
+        acc += match *force {
+            Force::Gravity { g } => gravity(g, m),
+            Force::Drag { linear, quadratic, wind } => drag(linear, quadratic, wind, v),
+            Force::Damping { rate } => damping(rate, m, v),
+            Force::Attractor { center, strength, softening } => {
+                attractor(center, strength, softening, x, m)
+            }
+            Force::Vortex { center, axis, strength, core } => {
+                vortex(center, axis, strength, core, x, m)
+            }
+            Force::Turbulence { strength, scale, seed } => turbulence(strength, scale, seed, x, m),
+            Force::Springs { .. }
+            | Force::NeighborRepulsion { .. }
+            | Force::NBodyGravity { .. } => DVec3::ZERO,
+        };
+    }
+    acc
+}
+
+#[inline(always)]
+pub(super) fn gravity(g: DVec3, m: f64) -> DVec3 {
+    m * g
+}
+
+#[inline(always)]
+pub(super) fn drag(linear: f64, quadratic: f64, wind: DVec3, v: DVec3) -> DVec3 {
+    let u = v - wind;
+    -(linear + quadratic * u.length()) * u
+}
+
+#[inline(always)]
+pub(super) fn damping(rate: f64, m: f64, v: DVec3) -> DVec3 {
+    -rate * m * v
+}
+
+#[inline(always)]
+pub(super) fn attractor(center: DVec3, strength: f64, softening: f64, x: DVec3, m: f64) -> DVec3 {
+    let r = center - x;
+    strength * m / (r.length_squared() + softening * softening).powf(1.5) * r
+}
+
+#[inline(always)]
+pub(super) fn vortex(
+    center: DVec3,
+    axis: DVec3,
+    strength: f64,
+    core: f64,
+    x: DVec3,
+    m: f64,
+) -> DVec3 {
+    let r = x - center;
+    let perp = r - r.dot(axis) * axis;
+    strength * m / (perp.length() + core) * axis.cross(perp)
+}
+
+#[inline(always)]
+pub(super) fn turbulence(strength: f64, scale: f64, seed: u64, x: DVec3, m: f64) -> DVec3 {
+    strength * m * curl_noise(seed, x / scale)
+}

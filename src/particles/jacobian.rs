@@ -34,6 +34,7 @@
 //! redoes its symbolic factorisation (see [`crate::ode::SparseJacobian`]).
 
 use super::{for_each_close_pair, particle_force, Dynamics, Force};
+use crate::math::{outer, skew};
 use crate::ode::SparseJacobian;
 use glam::{DMat3, DVec3};
 
@@ -68,20 +69,6 @@ impl JacobianWork {
             self.dv[s] += sign * kv;
         }
     }
-}
-
-/// `u wᵀ`.
-fn outer(u: DVec3, w: DVec3) -> DMat3 {
-    DMat3::from_cols(u * w.x, u * w.y, u * w.z)
-}
-
-/// `[a]ₓ`, the matrix of `p ↦ a × p`.
-fn skew(a: DVec3) -> DMat3 {
-    DMat3::from_cols(
-        DVec3::new(0.0, a.z, -a.y),
-        DVec3::new(-a.z, 0.0, a.x),
-        DVec3::new(a.y, -a.x, 0.0),
-    )
 }
 
 /// `(∂F/∂x, ∂F/∂v)` of the forces acting on one particle alone, analytic except turbulence
@@ -142,122 +129,155 @@ pub(super) fn fill(dynamics: &mut Dynamics<'_>, y: &[f64], jac: &mut SparseJacob
     };
     let n = dynamics.n;
     let (x, v) = y.split_at(3 * n);
-    let p = |i: usize| DVec3::from_slice(&x[3 * i..3 * i + 3]);
-    let vel = |i: usize| DVec3::from_slice(&v[3 * i..3 * i + 3]);
-    let (forces, mass, inv_mass, alive) =
-        (dynamics.forces, dynamics.mass, dynamics.inv_mass, dynamics.alive);
+    let (forces, alive, inv_mass) = (dynamics.forces, dynamics.alive, dynamics.inv_mass);
     let free = |i: usize| alive[i] && inv_mass[i] > 0.0;
-
-    // The pattern: every particle with itself, and the coupled pairs both ways.
-    w.close.clear();
-    for (k, force) in forces.iter().enumerate() {
-        if let Force::NeighborRepulsion { radius, .. } = force {
-            let close = &mut w.close;
-            for_each_close_pair(dynamics.cells, n, alive, x, *radius, |i, j, _, _| {
-                close.push([k as u32, i as u32, j as u32]);
-            });
-        }
-    }
-    w.entries.clear();
-    w.entries.extend((0..n as u32).map(|i| (i, i)));
-    let springs = forces.iter().filter_map(|f| match f {
-        Force::Springs { pairs, .. } => Some(pairs.iter().map(|p| [p[0] as u32, p[1] as u32])),
-        _ => None,
-    });
-    for [a, b] in springs.flatten().chain(w.close.iter().map(|c| [c[1], c[2]])) {
-        w.entries.push((a, b));
-        w.entries.push((b, a));
-    }
-    w.entries.sort_unstable();
-    w.entries.dedup();
-    w.adj.clear();
-    w.adj.extend(w.entries.iter().map(|e| e.1));
-    w.adj_ptr.clear();
-    w.adj_ptr.resize(n + 1, 0);
-    for e in &w.entries {
-        w.adj_ptr[e.0 as usize + 1] += 1;
-    }
-    for j in 0..n {
-        w.adj_ptr[j + 1] += w.adj_ptr[j];
-    }
-    w.dx.clear();
-    w.dx.resize(w.adj.len(), DMat3::ZERO);
-    w.dv.clear();
-    w.dv.resize(w.adj.len(), DMat3::ZERO);
-
-    // The blocks of ∂F/∂x and ∂F/∂v.
-    for i in (0..n).filter(|&i| free(i)) {
-        let (jx, jv) = local_blocks(forces, p(i), vel(i), mass[i]);
-        let s = w.slot(i, i);
-        w.dx[s] = jx;
-        w.dv[s] = jv;
-    }
-    let mut close = 0;
-    for (f, force) in forces.iter().enumerate() {
-        match force {
-            Force::Springs { pairs, rest, stiffness, damping } => {
-                for (pair, l) in pairs.iter().zip(rest) {
-                    let (a, b) = (pair[0], pair[1]);
-                    let d = p(a) - p(b);
-                    let len = d.length();
-                    if len == 0.0 {
-                        continue;
-                    }
-                    let dir = d / len;
-                    let rel = vel(a) - vel(b);
-                    let q = DMat3::IDENTITY - outer(dir, dir);
-                    let along = stiffness * (1.0 - l / len) + damping * rel.dot(dir) / len;
-                    let kx = -stiffness * outer(dir, dir)
-                        - along * q
-                        - damping / len * outer(dir, q * rel);
-                    let kv = -damping * outer(dir, dir);
-                    w.add_pair(a, b, kx, kv);
-                }
-            }
-            Force::NeighborRepulsion { radius, stiffness } => {
-                while close < w.close.len() && w.close[close][0] == f as u32 {
-                    let [_, i, j] = w.close[close].map(|i| i as usize);
-                    close += 1;
-                    let d = p(i) - p(j);
-                    let len = d.length();
-                    let dir = d / len;
-                    let kx = stiffness
-                        * (DMat3::from_diagonal(DVec3::splat(radius / len - 1.0))
-                            - radius / len * outer(dir, dir));
-                    w.add_pair(i, j, kx, DMat3::ZERO);
-                }
-            }
-            _ => {}
-        }
-    }
-
-    // Compressed sparse columns: the x columns, then the v columns (whose first entry is the
-    // identity of x' = v), each row block scaled by 1/m_i (zero for pinned and dead rows).
-    let scale = |i: u32| if free(i as usize) { inv_mass[i as usize] } else { 0.0 };
-    jac.col_ptr.clear();
-    jac.row_idx.clear();
-    jac.values.clear();
-    jac.col_ptr.push(0);
-    for (blocks, velocity_columns) in [(&w.dx, false), (&w.dv, true)] {
-        for j in 0..n {
-            for b in 0..3 {
-                if velocity_columns {
-                    jac.row_idx.push(3 * j + b);
-                    jac.values.push(if free(j) { 1.0 } else { 0.0 });
-                }
-                let slots = w.adj_ptr[j]..w.adj_ptr[j + 1];
-                for (&i, block) in w.adj[slots.clone()].iter().zip(&blocks[slots]) {
-                    let (k, col) = (scale(i), block.col(b));
-                    for a in 0..3 {
-                        jac.row_idx.push(3 * n + 3 * i as usize + a);
-                        jac.values.push(k * col[a]);
-                    }
-                }
-                jac.col_ptr.push(jac.row_idx.len());
-            }
-        }
-    }
+    w.pattern(forces, dynamics.cells, n, alive, x);
+    w.blocks(forces, dynamics.mass, &free, x, v);
+    w.compress(n, &free, inv_mass, jac);
     true
+}
+
+impl JacobianWork {
+    /// The pattern: every particle with itself, and the coupled pairs (springs, repulsion
+    /// pairs within range, found by the hash grid into `close`) both ways.
+    fn pattern(
+        &mut self,
+        forces: &[Force],
+        cells: &mut Vec<(u64, u32)>,
+        n: usize,
+        alive: &[bool],
+        x: &[f64],
+    ) {
+        self.close.clear();
+        for (k, force) in forces.iter().enumerate() {
+            if let Force::NeighborRepulsion { radius, .. } = force {
+                let close = &mut self.close;
+                for_each_close_pair(cells, n, alive, x, *radius, |i, j, _, _| {
+                    close.push([k as u32, i as u32, j as u32]);
+                });
+            }
+        }
+        self.entries.clear();
+        self.entries.extend((0..n as u32).map(|i| (i, i)));
+        let springs = forces.iter().filter_map(|f| match f {
+            Force::Springs { pairs, .. } => Some(pairs.iter().map(|p| [p[0] as u32, p[1] as u32])),
+            _ => None,
+        });
+        for [a, b] in springs.flatten().chain(self.close.iter().map(|c| [c[1], c[2]])) {
+            self.entries.push((a, b));
+            self.entries.push((b, a));
+        }
+        self.entries.sort_unstable();
+        self.entries.dedup();
+        self.adj.clear();
+        self.adj.extend(self.entries.iter().map(|e| e.1));
+        self.adj_ptr.clear();
+        self.adj_ptr.resize(n + 1, 0);
+        for e in &self.entries {
+            self.adj_ptr[e.0 as usize + 1] += 1;
+        }
+        for j in 0..n {
+            self.adj_ptr[j + 1] += self.adj_ptr[j];
+        }
+        self.dx.clear();
+        self.dx.resize(self.adj.len(), DMat3::ZERO);
+        self.dv.clear();
+        self.dv.resize(self.adj.len(), DMat3::ZERO);
+    }
+
+    /// The blocks of `∂F/∂x` and `∂F/∂v` at `(x, v)`: those of the forces on single particles
+    /// on the diagonal, then each spring and repulsion pair.
+    fn blocks(
+        &mut self,
+        forces: &[Force],
+        mass: &[f64],
+        free: &impl Fn(usize) -> bool,
+        x: &[f64],
+        v: &[f64],
+    ) {
+        let p = |i: usize| DVec3::from_slice(&x[3 * i..3 * i + 3]);
+        let vel = |i: usize| DVec3::from_slice(&v[3 * i..3 * i + 3]);
+        for i in (0..self.adj_ptr.len() - 1).filter(|&i| free(i)) {
+            let (jx, jv) = local_blocks(forces, p(i), vel(i), mass[i]);
+            let s = self.slot(i, i);
+            self.dx[s] = jx;
+            self.dv[s] = jv;
+        }
+        let mut close = 0;
+        for (f, force) in forces.iter().enumerate() {
+            match force {
+                Force::Springs { pairs, rest, stiffness, damping } => {
+                    for (pair, l) in pairs.iter().zip(rest) {
+                        let (a, b) = (pair[0], pair[1]);
+                        let d = p(a) - p(b);
+                        let len = d.length();
+                        if len == 0.0 {
+                            continue;
+                        }
+                        let dir = d / len;
+                        let rel = vel(a) - vel(b);
+                        let q = DMat3::IDENTITY - outer(dir, dir);
+                        let along = stiffness * (1.0 - l / len) + damping * rel.dot(dir) / len;
+                        let kx = -stiffness * outer(dir, dir)
+                            - along * q
+                            - damping / len * outer(dir, q * rel);
+                        let kv = -damping * outer(dir, dir);
+                        self.add_pair(a, b, kx, kv);
+                    }
+                }
+                Force::NeighborRepulsion { radius, stiffness } => {
+                    while close < self.close.len() && self.close[close][0] == f as u32 {
+                        let [_, i, j] = self.close[close].map(|i| i as usize);
+                        close += 1;
+                        let d = p(i) - p(j);
+                        let len = d.length();
+                        let dir = d / len;
+                        let kx = stiffness
+                            * (DMat3::from_diagonal(DVec3::splat(radius / len - 1.0))
+                                - radius / len * outer(dir, dir));
+                        self.add_pair(i, j, kx, DMat3::ZERO);
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Write the blocks into `jac` as compressed sparse columns: the x columns, then the v
+    /// columns (whose first entry is the identity of `x' = v`), each row block scaled by `1/mᵢ`
+    /// (zero for pinned and dead rows).
+    fn compress(
+        &self,
+        n: usize,
+        free: &impl Fn(usize) -> bool,
+        inv_mass: &[f64],
+        jac: &mut SparseJacobian,
+    ) {
+        let scale = |i: u32| if free(i as usize) { inv_mass[i as usize] } else { 0.0 };
+        jac.col_ptr.clear();
+        jac.row_idx.clear();
+        jac.values.clear();
+        jac.col_ptr.push(0);
+        for (blocks, velocity_columns) in [(&self.dx, false), (&self.dv, true)] {
+            for j in 0..n {
+                for b in 0..3 {
+                    if velocity_columns {
+                        jac.row_idx.push(3 * j + b);
+                        jac.values.push(if free(j) { 1.0 } else { 0.0 });
+                    }
+                    let slots = self.adj_ptr[j]..self.adj_ptr[j + 1];
+                    for (&i, block) in self.adj[slots.clone()].iter().zip(&blocks[slots]) {
+                        let (k, col) = (scale(i), block.col(b));
+                        for a in 0..3 {
+                            jac.row_idx.push(3 * n + 3 * i as usize + a);
+                            jac.values.push(k * col[a]);
+                        }
+                    }
+                    jac.col_ptr.push(jac.row_idx.len());
+                }
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -270,7 +290,7 @@ mod tests {
     /// Uniform numbers in [-1, 1) from a fixed seed.
     fn rng(seed: u64) -> impl FnMut() -> f64 {
         let mut s = seed;
-        move || (super::super::splitmix(&mut s) >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        move || (super::super::emit::splitmix(&mut s) >> 11) as f64 / (1u64 << 52) as f64 - 1.0
     }
 
     /// 8 slots: 7 live particles at random states in a ball of radius 0.6 (so that repulsion

@@ -48,7 +48,7 @@ impl Snapshot for ParticleSystem {
             f.validate(n)?;
         }
         for c in &self.colliders {
-            check(Self::checked(c.clone()).is_ok(), "colliders", || "invalid collider".into())?;
+            check(c.clone().checked().is_ok(), "colliders", || "invalid collider".into())?;
         }
         for (e, accumulated, _) in &self.emitters {
             e.validate()?;

@@ -31,21 +31,8 @@
 //! of the segments, and the segment ends and middle against a box). Cylinders and meshes
 //! collide with planes only.
 
-use super::mass::Shape;
+use crate::geometry::Solid;
 use glam::{DQuat, DVec3};
-
-/// A static plane `n · x = offset` with its surface material.
-#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
-pub struct Plane {
-    /// Unit normal, pointing out of the solid side.
-    pub normal: DVec3,
-    /// Signed distance of the plane from the origin along `normal` (m).
-    pub offset: f64,
-    /// Coefficient of restitution of the surface.
-    pub restitution: f64,
-    /// Coefficient of Coulomb friction of the surface.
-    pub friction: f64,
-}
 
 /// Penetration tolerated without correction (m).
 pub const SLOP: f64 = 1e-4;
@@ -95,7 +82,7 @@ pub(crate) struct Contact {
 /// vertices; a cylinder the lowest point of each rim, and three more rim points per cap when
 /// the cap lies within 5° of the plane (so it can stand on it).
 pub(crate) fn candidate_points(
-    shape: &Shape,
+    shape: &Solid,
     origin: DVec3,
     orient: DQuat,
     n: DVec3,
@@ -103,14 +90,14 @@ pub(crate) fn candidate_points(
 ) {
     let world = |p: DVec3| origin + orient * p;
     match shape {
-        Shape::Sphere { radius } => out.push(origin - *radius * n),
-        Shape::Capsule { radius, height } => {
+        Solid::Sphere { radius } => out.push(origin - *radius * n),
+        Solid::Capsule { radius, height } => {
             for s in [-0.5, 0.5] {
                 out.push(world(DVec3::new(0.0, s * height, 0.0)) - *radius * n);
             }
         }
-        Shape::Box { half_extents } => out.extend(corners(origin, orient, *half_extents)),
-        Shape::Cylinder { radius, height } => {
+        Solid::Box { half_extents } => out.extend(corners(origin, orient, *half_extents)),
+        Solid::Cylinder { radius, height } => {
             let axis = orient * DVec3::Y;
             let radial = n - n.dot(axis) * axis;
             let u = if radial.length() > 1e-9 {
@@ -128,7 +115,7 @@ pub(crate) fn candidate_points(
                 }
             }
         }
-        Shape::Mesh { vertices, .. } => out.extend(vertices.iter().map(|&p| world(p))),
+        Solid::Mesh { vertices, .. } => out.extend(vertices.iter().map(|&p| world(p))),
     }
 }
 
@@ -578,14 +565,14 @@ pub(crate) enum Placed {
 
 impl Placed {
     /// `shape` (body frame about the body origin) at `origin`, turned by `orient`.
-    pub fn new(shape: &Shape, origin: DVec3, orient: DQuat) -> Self {
+    pub fn new(shape: &Solid, origin: DVec3, orient: DQuat) -> Self {
         match shape {
-            Shape::Sphere { radius } => Placed::Sphere { c: origin, r: *radius },
-            Shape::Capsule { radius, height } => {
+            Solid::Sphere { radius } => Placed::Sphere { c: origin, r: *radius },
+            Solid::Capsule { radius, height } => {
                 let a = orient * DVec3::new(0.0, 0.5 * height, 0.0);
                 Placed::Capsule { p0: origin - a, p1: origin + a, r: *radius }
             }
-            Shape::Box { half_extents } => Placed::Box { c: origin, q: orient, h: *half_extents },
+            Solid::Box { half_extents } => Placed::Box { c: origin, q: orient, h: *half_extents },
             _ => Placed::Other,
         }
     }

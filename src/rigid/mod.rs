@@ -15,10 +15,7 @@
 pub mod contact;
 mod joint;
 mod joint_solver;
-mod mass;
 mod world;
 
-pub use contact::Plane;
 pub use joint::{JointDesc, JointKind, JointMethod, Motor, PENALTY_DAMPING, PENALTY_STIFFNESS};
-pub use mass::{MassProperties, Shape};
 pub use world::{BodyDesc, RotationIntegrator, World};

@@ -1,10 +1,10 @@
 //! A world of free rigid bodies stepped with one clock.
 
-use super::contact::{self, Bodies, Contact, Placed, Plane};
+use super::contact::{self, Bodies, Contact, Placed};
 use super::joint::{Joint, JointDesc, JointKind, JointMethod, Row, State, SLOTS};
 use super::joint_solver::{self as js, Mass, Multipliers};
-use super::mass::Shape;
 use crate::error::{Error, Result};
+use crate::geometry::{Material, Plane, Shape, Solid};
 use glam::{DMat3, DQuat, DVec3};
 use nalgebra::{Matrix3, SymmetricEigen};
 
@@ -62,7 +62,7 @@ impl RotationIntegrator {
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct BodyDesc {
     /// The body's shape in its own frame.
-    pub shape: Shape,
+    pub shape: Solid,
     /// Uniform density (kg/m³); exclusive with `mass`.
     pub density: Option<f64>,
     /// Total mass (kg); the density follows from the shape's volume. Exclusive with `density`.
@@ -119,13 +119,13 @@ pub struct World {
     inv_moments: Vec<DVec3>,
     /// Radius of a sphere about the centre of mass that holds the shape (m).
     bound: Vec<f64>,
-    shape: Vec<Shape>,
+    shape: Vec<Solid>,
     restitution: Vec<f64>,
     friction: Vec<f64>,
     /// Linear and angular damping rates per body (1/s), see [`World::set_damping`].
     linear_damping: Vec<f64>,
     angular_damping: Vec<f64>,
-    planes: Vec<Plane>,
+    planes: Vec<(Plane, Material)>,
     /// Sequential-impulse sweeps per step when there are contacts.
     pub contact_iterations: usize,
     /// Whether bodies collide with each other (default true); planes always collide.
@@ -352,14 +352,13 @@ impl World {
         restitution: f64,
         friction: f64,
     ) -> Result<()> {
-        if !(normal.is_finite() && normal.length() > 0.0) {
-            return Err(Error::invalid("normal", "must be a finite, non-zero vector"));
-        }
         if !offset.is_finite() {
             return Err(Error::invalid("height", "must be finite"));
         }
-        check_material(restitution, friction)?;
-        self.planes.push(Plane { normal: normal.normalize(), offset, restitution, friction });
+        let shape = Shape::Plane(Plane { point: DVec3::ZERO, normal }).checked()?;
+        let Shape::Plane(Plane { normal, .. }) = shape else { unreachable!("a plane stays one") };
+        let material = Material { restitution, friction }.checked()?;
+        self.planes.push((Plane { point: offset * normal, normal }, material));
         Ok(())
     }
 
@@ -369,7 +368,7 @@ impl World {
     ///
     /// # Errors
     /// Both density and mass given, a non-positive mass or density, an invalid shape (see
-    /// [`Shape::mass_properties`]), a non-finite position, velocity or orientation.
+    /// [`Solid::mass_properties`]), a non-finite position, velocity or orientation.
     pub fn add_body(&mut self, desc: &BodyDesc) -> Result<usize> {
         let props = match (desc.density, desc.mass) {
             (Some(_), Some(_)) => {
@@ -384,7 +383,7 @@ impl World {
                     ));
                 }
                 let unit = desc.shape.mass_properties(1.0)?;
-                super::MassProperties {
+                crate::geometry::MassProperties {
                     mass: m,
                     center_of_mass: unit.center_of_mass,
                     inertia: unit.inertia * (m / unit.mass),
@@ -421,7 +420,7 @@ impl World {
         if moments.is_nan() || moments.min_element() <= 0.0 {
             return Err(Error::invalid("shape", "has a non-positive principal moment of inertia"));
         }
-        check_material(desc.restitution, desc.friction)?;
+        Material { restitution: desc.restitution, friction: desc.friction }.checked()?;
         let q = (q_body * principal).normalize();
         let omega_principal = q.conjugate() * desc.angular_velocity;
         let energy = kinetic_energy(props.mass, moments, desc.velocity, omega_principal * moments);
@@ -642,7 +641,7 @@ impl World {
                 && self
                     .shape
                     .iter()
-                    .filter(|s| !matches!(s, Shape::Cylinder { .. } | Shape::Mesh { .. }))
+                    .filter(|s| !matches!(s, Solid::Cylinder { .. } | Solid::Mesh { .. }))
                     .count()
                     > 1;
             if self.planes.is_empty() && !pairs && self.joints.is_empty() {
@@ -1117,7 +1116,7 @@ impl World {
         for i in (0..n).filter(|&i| !self.fixed[i]) {
             let orient = q[i] * self.principal[i].conjugate();
             let origin = x[i] - orient * self.com_body[i];
-            for (k, plane) in self.planes.iter().enumerate() {
+            for (k, (plane, material)) in self.planes.iter().enumerate() {
                 self.points.clear();
                 contact::candidate_points(
                     &self.shape[i],
@@ -1127,9 +1126,9 @@ impl World {
                     &mut self.points,
                 );
                 for (j, &p) in self.points.iter().enumerate() {
-                    let gap = plane.normal.dot(p) - plane.offset;
-                    let e = self.restitution[i].max(plane.restitution);
-                    let mu = (self.friction[i] * plane.friction).sqrt();
+                    let (gap, _) = plane.distance(p);
+                    let e = self.restitution[i].max(material.restitution);
+                    let mu = (self.friction[i] * material.friction).sqrt();
                     let (vn, c) = make((i, k, j), i, None, p, plane.normal, gap, e, mu);
                     if gap <= (-vn * h).max(0.0) + 1e-9 {
                         resolvable(vn, gap, h, resting_speed, i)?;
@@ -1211,19 +1210,6 @@ fn resolvable(vn: f64, gap: f64, h: f64, resting_speed: f64, body: usize) -> Res
                 gap / h,
                 vn.abs()
             ),
-        ));
-    }
-    Ok(())
-}
-
-fn check_material(restitution: f64, friction: f64) -> Result<()> {
-    if !(0.0..=1.0).contains(&restitution) {
-        return Err(Error::invalid("restitution", format!("must be in [0, 1], got {restitution}")));
-    }
-    if !(friction.is_finite() && friction >= 0.0) {
-        return Err(Error::invalid(
-            "friction",
-            format!("must be non-negative and finite, got {friction}"),
         ));
     }
     Ok(())

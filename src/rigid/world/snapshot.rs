@@ -1,7 +1,8 @@
 //! World snapshots: what a decoded [`World`] must satisfy before it is stepped.
 
-use super::{check_material, World, SLOTS};
+use super::{World, SLOTS};
 use crate::error::Result;
+use crate::geometry::{Material, Shape};
 use crate::snapshot::{check, finite, Snapshot};
 use glam::{DQuat, DVec3};
 
@@ -71,17 +72,16 @@ impl Snapshot for World {
         )?;
         for (i, s) in self.shape.iter().enumerate() {
             s.mass_properties(1.0).map_err(|e| e.at(i))?;
-            check_material(self.restitution[i], self.friction[i]).map_err(|e| e.at(i))?;
+            Material { restitution: self.restitution[i], friction: self.friction[i] }
+                .checked()
+                .map_err(|e| e.at(i))?;
         }
-        for p in &self.planes {
-            check(
-                p.normal.is_finite()
-                    && (p.normal.length() - 1.0).abs() < 1e-6
-                    && p.offset.is_finite(),
-                "planes",
-                || "non-unit normal or non-finite offset".into(),
-            )?;
-            check_material(p.restitution, p.friction)?;
+        for (plane, material) in &self.planes {
+            Shape::Plane(*plane).checked()?;
+            check((plane.normal.length() - 1.0).abs() < 1e-6, "planes", || {
+                "a plane's normal is not unit".into()
+            })?;
+            material.checked()?;
         }
         check(self.gravity.is_finite() && self.baumgarte.is_finite(), "gravity", || {
             "non-finite gravity or Baumgarte factor".into()

@@ -17,7 +17,7 @@ use std::f64::consts::PI;
 
 /// A solid shape in its body frame (metres).
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
-pub enum Shape {
+pub enum Solid {
     /// Ball of the given radius centred at the origin.
     Sphere {
         /// Radius (m).
@@ -70,11 +70,11 @@ fn positive(arg: &str, value: f64) -> Result<f64> {
     }
 }
 
-impl Shape {
+impl Solid {
     /// Volume (m³), checking the shape's dimensions.
     ///
     /// # Errors
-    /// Non-positive or non-finite dimensions; for meshes, see [`Shape::mass_properties`].
+    /// Non-positive or non-finite dimensions; for meshes, see [`Solid::mass_properties`].
     pub fn volume(&self) -> Result<f64> {
         Ok(self.mass_properties(1.0)?.mass)
     }
@@ -83,11 +83,11 @@ impl Shape {
     pub fn bounding_radius(&self, center: DVec3) -> f64 {
         let c = center.length();
         match self {
-            Shape::Sphere { radius } => radius + c,
-            Shape::Box { half_extents } => half_extents.length() + c,
-            Shape::Capsule { radius, height } => radius + 0.5 * height + c,
-            Shape::Cylinder { radius, height } => radius.hypot(0.5 * height) + c,
-            Shape::Mesh { vertices, .. } => {
+            Solid::Sphere { radius } => radius + c,
+            Solid::Box { half_extents } => half_extents.length() + c,
+            Solid::Capsule { radius, height } => radius + 0.5 * height + c,
+            Solid::Cylinder { radius, height } => radius.hypot(0.5 * height) + c,
+            Solid::Mesh { vertices, .. } => {
                 vertices.iter().map(|v| (*v - center).length()).fold(0.0, f64::max)
             }
         }
@@ -103,13 +103,13 @@ impl Shape {
         let rho = positive("density", density)?;
         let diag = |x: f64, y: f64, z: f64| DMat3::from_diagonal(DVec3::new(x, y, z));
         let (mass, inertia) = match *self {
-            Shape::Sphere { radius } => {
+            Solid::Sphere { radius } => {
                 let r = positive("radius", radius)?;
                 let m = rho * 4.0 / 3.0 * PI * r.powi(3);
                 let i = 0.4 * m * r * r;
                 (m, diag(i, i, i))
             }
-            Shape::Box { half_extents: h } => {
+            Solid::Box { half_extents: h } => {
                 let (x, y, z) = (
                     positive("half_extents", h.x)?,
                     positive("half_extents", h.y)?,
@@ -125,13 +125,13 @@ impl Shape {
                     ),
                 )
             }
-            Shape::Cylinder { radius, height } => {
+            Solid::Cylinder { radius, height } => {
                 let (r, h) = (positive("radius", radius)?, positive("height", height)?);
                 let m = rho * PI * r * r * h;
                 let side = m / 12.0 * (3.0 * r * r + h * h);
                 (m, diag(side, 0.5 * m * r * r, side))
             }
-            Shape::Capsule { radius, height } => {
+            Solid::Capsule { radius, height } => {
                 let r = positive("radius", radius)?;
                 if !(height.is_finite() && height >= 0.0) {
                     return Err(Error::invalid(
@@ -149,7 +149,7 @@ impl Shape {
                     + 2.0 * m_cap * (0.4 * r * r + h * h / 4.0 + 3.0 * h * r / 8.0);
                 (m_cyl + 2.0 * m_cap, diag(side, axial, side))
             }
-            Shape::Mesh { ref vertices, ref triangles } => {
+            Solid::Mesh { ref vertices, ref triangles } => {
                 return mesh_mass_properties(vertices, triangles, rho)
             }
         };

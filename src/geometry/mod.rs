@@ -1,0 +1,24 @@
+//! # Geometry: the shapes every system collides with, and their queries
+//!
+//! One definition of each collision shape, shared by particles, cloth and rigid bodies (and
+//! every system to come), so a sphere means the same thing, is checked with the same messages
+//! and answers the same distance query everywhere:
+//!
+//! - [`shape`]: the world-placed shapes ([`Plane`], [`Sphere`], [`Capsule`], [`Cuboid`], and
+//!   [`Shape`], one of them) with their validation, one message per mistake;
+//! - [`query`]: signed distance with the outward normal, and the closest surface point;
+//! - [`material`]: the surface's [`Material`] (restitution, Coulomb friction), kept apart from
+//!   the shape so one shape can carry any material;
+//! - [`solid`]: the body-frame [`Solid`]s of rigid bodies (sphere, box, capsule, cylinder,
+//!   closed mesh) with their mass properties.
+//!
+//! This module imports no system of kinema (only [`crate::error`]); systems import it.
+
+pub mod material;
+pub mod query;
+pub mod shape;
+pub mod solid;
+
+pub use material::Material;
+pub use shape::{Capsule, Cuboid, Plane, Shape, Sphere};
+pub use solid::{MassProperties, Solid};

@@ -1,0 +1,126 @@
+//! The right-hand side of the particle equations of motion, `ẏ = [v; M⁻¹ f(x, v)]` over
+//! `y = [x; v]` (Witkin & Baraff, "Particle system dynamics"), as an [`OdeSystem`]: forces on
+//! single particles in one parallel pass, forces between particles (springs, the hash-grid
+//! repulsion, all-pairs gravity) sequentially in a fixed order.
+
+use super::*;
+
+/// The externally set force on slot `i` (zero when none is set).
+pub(super) fn external_force(external: &[f64], i: usize) -> DVec3 {
+    if external.is_empty() {
+        DVec3::ZERO
+    } else {
+        DVec3::from_slice(&external[3 * i..3 * i + 3])
+    }
+}
+
+/// The particle equations of motion as an [`OdeSystem`] over `y = [x; v]`.
+pub(crate) struct Dynamics<'a> {
+    pub(super) n: usize,
+    pub(super) forces: &'a [Force],
+    pub(super) mass: &'a [f64],
+    pub(super) inv_mass: &'a [f64],
+    pub(super) alive: &'a [bool],
+    pub(super) external: &'a [f64],
+    pub(super) cells: &'a mut Vec<(u64, u32)>,
+    /// Buffers of the sparse Jacobian; `None` offers none (the dense path).
+    pub(super) jacobian: Option<&'a mut jacobian::JacobianWork>,
+}
+
+impl OdeSystem for Dynamics<'_> {
+    fn dim(&self) -> usize {
+        6 * self.n
+    }
+
+    fn sparse_jacobian(&mut self, _t: f64, y: &[f64], jac: &mut SparseJacobian) -> Result<bool> {
+        Ok(jacobian::fill(self, y, jac))
+    }
+
+    fn rhs(&mut self, _t: f64, y: &[f64], dydt: &mut [f64]) -> Result<()> {
+        let n = self.n;
+        let (x, v) = y.split_at(3 * n);
+        let (dx, f) = dydt.split_at_mut(3 * n);
+        let p = |i: usize| DVec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+        let vel = |i: usize| DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+        let add = |f: &mut [f64], i: usize, a: DVec3| {
+            f[3 * i] += a.x;
+            f[3 * i + 1] += a.y;
+            f[3 * i + 2] += a.z;
+        };
+        let (all_forces, mass, alive, external) =
+            (self.forces, self.mass, self.alive, self.external);
+        // Pass 1, parallel over particles: x' = v and every force acting on one particle alone
+        // (each particle's sum in the order the forces were added, whatever the threads).
+        dx.par_chunks_mut(3 * CHUNK).zip(f.par_chunks_mut(3 * CHUNK)).enumerate().for_each(
+            |(c, (dxc, fc))| {
+                for k in 0..dxc.len() / 3 {
+                    let i = c * CHUNK + k;
+                    dxc[3 * k..3 * k + 3].copy_from_slice(&v[3 * i..3 * i + 3]);
+                    let acc = if alive[i] {
+                        particle_force(all_forces, p(i), vel(i), mass[i])
+                            + external_force(external, i)
+                    } else {
+                        DVec3::ZERO
+                    };
+                    fc[3 * k..3 * k + 3].copy_from_slice(&acc.to_array());
+                }
+            },
+        );
+        // Pass 2, sequential in a fixed order: forces between particles.
+        for force in self.forces {
+            match force {
+                Force::Springs { pairs, rest, stiffness, damping } => {
+                    for (pair, l) in pairs.iter().zip(rest) {
+                        let (a, b) = (pair[0], pair[1]);
+                        let d = p(a) - p(b);
+                        let len = d.length();
+                        if len == 0.0 {
+                            continue;
+                        }
+                        let dir = d / len;
+                        let fa =
+                            -(stiffness * (len - l) + damping * (vel(a) - vel(b)).dot(dir)) * dir;
+                        add(f, a, fa);
+                        add(f, b, -fa);
+                    }
+                }
+                Force::NeighborRepulsion { radius, stiffness } => {
+                    for_each_close_pair(self.cells, n, alive, x, *radius, |i, j, d, dist| {
+                        let fi = stiffness * (radius - dist) / dist * d;
+                        add(f, i, fi);
+                        add(f, j, -fi);
+                    });
+                }
+                Force::NBodyGravity { constant, softening } => {
+                    let free = |i: usize| self.alive[i] && self.inv_mass[i] > 0.0;
+                    for i in (0..n).filter(|&i| free(i)) {
+                        for j in (i + 1..n).filter(|&j| free(j)) {
+                            let d = p(j) - p(i);
+                            let s = (d.length_squared() + softening * softening).powf(1.5);
+                            let fi = constant * self.mass[i] * self.mass[j] / s * d;
+                            add(f, i, fi);
+                            add(f, j, -fi);
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+        // Pass 3, parallel: accelerations; pinned (where m g is infinite) and dead slots stay put.
+        let inv_mass = self.inv_mass;
+        dx.par_chunks_mut(3 * CHUNK).zip(f.par_chunks_mut(3 * CHUNK)).enumerate().for_each(
+            |(c, (dxc, fc))| {
+                for k in 0..dxc.len() / 3 {
+                    let i = c * CHUNK + k;
+                    if alive[i] && inv_mass[i] > 0.0 {
+                        fc[3 * k..3 * k + 3].iter_mut().for_each(|a| *a *= inv_mass[i]);
+                    } else {
+                        fc[3 * k..3 * k + 3].fill(0.0);
+                        dxc[3 * k..3 * k + 3].fill(0.0);
+                    }
+                }
+            },
+        );
+        Ok(())
+    }
+}
