@@ -19,6 +19,7 @@ pub mod rigid;
 pub mod rotation;
 pub mod sdf;
 pub mod snapshot;
+pub mod spline;
 
 #[cfg(feature = "python")]
 mod bindings;

@@ -6,7 +6,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::{PyBytes, PyDict, PyTuple, PyType};
+use pyo3::types::{PyDict, PyTuple, PyType};
 use std::sync::{Arc, RwLock};
 
 create_exception!(
@@ -117,21 +117,6 @@ where
         None => f(),
     })
     .map_err(PyErr::from)
-}
-
-/// What `__reduce__` returns: the class's `_from_snapshot` and its arguments.
-pub type Reduced<'py> = (Bound<'py, PyAny>, Bound<'py, PyTuple>);
-
-/// The pickle recipe `(cls._from_snapshot, (snapshot bytes, *extra))` of a compiled object.
-pub fn reduce<'py>(
-    slf: &Bound<'py, PyAny>,
-    snapshot: Vec<u8>,
-    extra: Vec<Bound<'py, PyAny>>,
-) -> PyResult<Reduced<'py>> {
-    let py = slf.py();
-    let mut args = vec![PyBytes::new(py, &snapshot).into_any()];
-    args.extend(extra);
-    Ok((slf.get_type().getattr("_from_snapshot")?, PyTuple::new(py, args)?))
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
