@@ -21,7 +21,14 @@ import os as _os
 import warnings as _warnings
 from typing import Any as _Any
 
-from kinema._kinema import KinemaError, ParseError, SimulationError, __version__, num_threads, set_num_threads
+from kinema._kinema import (
+    KinemaError,
+    ParseError,
+    SimulationError,
+    __version__,
+    num_threads,
+    set_num_threads,
+)
 from kinema.rotation import GimbalLockWarning, Rotation, Transform, slerp
 from kinema.scene import CheckpointError, Scene
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -334,7 +336,7 @@ def test_arc_length_helix_against_scipy_quad_and_bad_s():
     speed = track.derivative()
     oracle = sum(
         quad(lambda x: np.linalg.norm(speed(x)), a, b, epsabs=1e-14, epsrel=1e-14)[0]
-        for a, b in zip(u[:-1], u[1:], strict=True)
+        for a, b in itertools.pairwise(u)
     )
     assert curve.length == pytest.approx(oracle, rel=1e-11)
     # The exact helix length differs only by the Hermite approximation (h = 3π/24).
@@ -344,7 +346,9 @@ def test_arc_length_helix_against_scipy_quad_and_bad_s():
     with pytest.raises(ValueError, match=r"^s\[1\]: contains NaN"):
         curve.time_at([0.5, np.nan])
     again = pickle.loads(pickle.dumps(curve))
-    np.testing.assert_array_equal(again(np.linspace(0, curve.length, 9)), curve(np.linspace(0, curve.length, 9)))
+    np.testing.assert_array_equal(
+        again(np.linspace(0, curve.length, 9)), curve(np.linspace(0, curve.length, 9))
+    )
 
 
 def test_easing_symmetry_and_nan_and_clip_errors():
@@ -375,7 +379,7 @@ def test_easing_symmetry_and_nan_and_clip_errors():
     np.testing.assert_array_equal(t, 0.5 + np.arange(61) / 24.0)
     assert v["x"].shape == (61, 2) and isinstance(v["turn"], Rotation) and len(v["turn"]) == 61
     for fps in (0, -24, float("nan"), float("inf"), "fast"):
-        with pytest.raises(ValueError, match="^fps") as info:
+        with pytest.raises(ValueError, match=r"^fps") as info:
             clip.sample(fps)
         assert "fast" not in str(info.value)
     t2, v2 = pickle.loads(pickle.dumps(clip)).sample(24)
