@@ -127,7 +127,7 @@ pub fn frame_times(start: f64, duration: f64, fps: f64) -> Result<Vec<f64>> {
         return Err(Error::invalid("fps", "expected a finite positive number"));
     }
     let count = (duration * fps + 1e-9).floor() + 1.0;
-    if !(count < usize::MAX as f64) {
+    if count >= usize::MAX as f64 {
         return Err(crate::error::too_large("fps", count, size_of::<f64>()));
     }
     let n = count as usize;
