@@ -34,6 +34,7 @@
 //!   scale either.
 //! * Several `ROOT`s are allowed; joints are stored in file order (depth first, parents first).
 
+use super::parse::{err, number};
 use super::{Dof, Motion};
 use crate::error::{Error, Result};
 use glam::{DQuat, DVec3};
@@ -64,17 +65,6 @@ pub struct BvhSkeleton {
     /// `Frame Time` of the motion (seconds per frame). Kept with the hierarchy because
     /// [`Motion`] holds values only.
     pub frame_time: f64,
-}
-
-fn err(file: &str, line: usize, expected: impl Into<String>) -> Error {
-    Error::Parse { file: file.to_string(), line, expected: expected.into() }
-}
-
-fn number(file: &str, line: usize, tok: &str) -> Result<f64> {
-    tok.parse::<f64>()
-        .ok()
-        .filter(|v| v.is_finite())
-        .ok_or_else(|| err(file, line, "a finite number"))
 }
 
 fn channel(tok: &str) -> Option<Dof> {

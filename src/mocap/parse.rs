@@ -9,7 +9,8 @@ use crate::rotation::EulerSequence;
 use glam::{DQuat, DVec3};
 use std::collections::HashMap;
 
-fn err(file: &str, line: usize, expected: impl Into<String>) -> Error {
+/// The parse error at `line` of `file`: `expected` is what should have been there.
+pub(super) fn err(file: &str, line: usize, expected: impl Into<String>) -> Error {
     Error::Parse { file: file.to_string(), line, expected: expected.into() }
 }
 
@@ -22,7 +23,8 @@ fn lines(text: &str) -> Vec<(usize, &str)> {
         .collect()
 }
 
-fn number(file: &str, line: usize, tok: &str) -> Result<f64> {
+/// A finite number, or the parse error at `line` of `file`.
+pub(super) fn number(file: &str, line: usize, tok: &str) -> Result<f64> {
     tok.parse::<f64>()
         .ok()
         .filter(|v| v.is_finite())
