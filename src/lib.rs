@@ -20,6 +20,7 @@ pub mod particles;
 pub mod rigid;
 pub mod rotation;
 pub mod snapshot;
+pub mod spline;
 
 #[cfg(feature = "python")]
 mod bindings;

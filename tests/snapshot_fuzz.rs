@@ -6,7 +6,9 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use glam::{DQuat, DVec3};
-use kinema::anim::{Extrapolation, Interpolation, RotationInterpolation, RotationTrack, Track};
+use kinema::anim::{
+    ArcLengthCurve, Extrapolation, Interpolation, RotationInterpolation, RotationTrack, Track,
+};
 use kinema::cloth::{
     Cloth, Collider as ClothCollider, Material, Mesh, Model, SolveOptions, Solver, Triangulation,
 };
@@ -268,6 +270,13 @@ fn damaged_track_snapshots_never_panic() {
     no_panic(&r, 11, |r| {
         let mut out = vec![[0.0; 4]; probe.len()];
         let _ = r.eval_many(&probe, &mut out);
+    });
+    let t = Track::new(&times, &values, 2, Interpolation::NaturalCubic, Extrapolation::Hold);
+    let curve = ArcLengthCurve::new(t.unwrap(), 1e-8).unwrap();
+    no_panic(&curve, 16, |c| {
+        let s: Vec<[f64; 1]> = probe.iter().map(|&p| [p]).collect();
+        let mut out = vec![[0.0]; s.len()];
+        let _ = c.times_at(&s, &mut out);
     });
 }
 

@@ -12,8 +12,8 @@ checkpoints), :mod:`kinema.scenefile` (scenes from TOML), :mod:`kinema.plot` (pi
 animations), :mod:`kinema.demos` and the ``kinema`` command line (:mod:`kinema.cli`).
 
 The most used names are re-exported here: :class:`Rotation`, :class:`Transform`,
-:func:`slerp`, :class:`Scene`, the exceptions :class:`ParseError` and
-:class:`SimulationError`, and the thread pool's :func:`num_threads` / :func:`set_num_threads`.
+:func:`slerp`, :class:`Scene`, the exceptions :class:`KinemaError` (the root
+of kinema's own), :class:`ParseError`, :class:`SimulationError` and :class:`CheckpointError`, and the thread pool's :func:`num_threads` / :func:`set_num_threads`.
 SI units, +Y up, quaternions ``(w, x, y, z)``; see README.md and ARCHITECTURE.md.
 """
 
@@ -22,9 +22,16 @@ import os as _os
 import warnings as _warnings
 from typing import Any as _Any
 
-from kinema._kinema import ParseError, SimulationError, __version__, num_threads, set_num_threads
+from kinema._kinema import (
+    KinemaError,
+    ParseError,
+    SimulationError,
+    __version__,
+    num_threads,
+    set_num_threads,
+)
 from kinema.rotation import GimbalLockWarning, Rotation, Transform, slerp
-from kinema.scene import Scene
+from kinema.scene import CheckpointError, Scene
 
 
 def _threads_from_environment() -> None:
@@ -47,7 +54,9 @@ def _threads_from_environment() -> None:
 _threads_from_environment()
 
 __all__ = [
+    "CheckpointError",
     "GimbalLockWarning",
+    "KinemaError",
     "ParseError",
     "Rotation",
     "Scene",

@@ -28,7 +28,6 @@ curves, ``Clip`` samples named channels together at a frame rate.
 
 from __future__ import annotations
 
-import itertools
 import warnings
 from typing import Any
 
@@ -67,6 +66,13 @@ def _float(value: Any, name: str) -> np.ndarray:
         return np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as e:
         raise ValueError(f"{name}: cannot convert to a float64 array ({e})") from None
+
+
+def _number(value: Any, name: str) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a number") from None
 
 
 class Track:
@@ -236,53 +242,24 @@ class RotationTrack:
         return self._rates(t, 2)
 
 
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
-
-
 class ArcLengthCurve:
     """A track reparameterised by arc length: ``curve(s)`` is the point at distance ``s`` along
     the track (0 ≤ s ≤ ``length``), so sampling ``s`` uniformly moves at constant speed.
 
-    Built by :func:`reparameterize_by_arc_length`; ``time_at(s)`` gives the track time.
+    Built by :func:`reparameterize_by_arc_length`; ``time_at(s)`` gives the track time. The
+    table and Newton's method are in Rust (``kinema::anim::ArcLengthCurve``).
     """
 
-    def __init__(self, track: Track, t: np.ndarray, s: np.ndarray) -> None:
-        self._track, self._t, self._s = track, t, s
-        self._speed = track.derivative(1)
-        self.length = float(s[-1])
-
-    def _partial(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """∫_a^b |x'(t)| dt by 8-point Gauss–Legendre (a, b within one table interval)."""
-        mid, half = (a + b) / 2, (b - a) / 2
-        nodes = mid[:, None] + half[:, None] * _GL_X[None, :]
-        speed = (
-            np.abs(self._speed(nodes))
-            if self._track._scalar
-            else np.linalg.norm(self._speed(nodes), axis=-1)
-        )
-        return half * (speed @ _GL_W)
+    def __init__(self, track: Track, table: Any) -> None:
+        self._track, self._table = track, table
+        self.length = float(table.length)
 
     def time_at(self, s: Any) -> np.ndarray:
-        """Track times at arc lengths ``s`` (clamped to [0, length]), by Newton's method on
-        ``S(t) = s`` within the table interval (converged to 1e-12 of the length)."""
-        ss = np.clip(_float(s, "s"), 0.0, self.length)
-        flat = ss.ravel()
-        j = np.clip(np.searchsorted(self._s, flat, side="right") - 1, 0, len(self._t) - 2)
-        t0, s0, t1 = self._t[j], self._s[j], self._t[j + 1]
-        t = t0 + (t1 - t0) * np.where(
-            self._s[j + 1] > s0, (flat - s0) / np.maximum(self._s[j + 1] - s0, 1e-300), 0.0
-        )
-        for _ in range(30):
-            f = s0 + self._partial(t0, t) - flat
-            speed = (
-                np.abs(self._speed(t))
-                if self._track._scalar
-                else np.linalg.norm(self._speed(t), axis=-1)
-            )
-            step = np.where(speed > 0, f / np.maximum(speed, 1e-300), 0.0)
-            t = np.clip(t - step, t0, t1)
-            if np.all(np.abs(f) <= 1e-12 * max(self.length, 1e-300)):
-                break
+        """Track times at arc lengths ``s`` (clamped to [0, length]), by Newton's method
+        (safeguarded by bisection) on ``S(t) = s``, to 1e-12 of the length; a NaN ``s`` is a
+        ``ValueError``."""
+        ss = _float(s, "s")
+        t = self._table.time_at(np.ascontiguousarray(ss.reshape(-1, 1)))
         return t.reshape(ss.shape)
 
     def __call__(self, s: Any) -> Any:
@@ -291,26 +268,13 @@ class ArcLengthCurve:
 
 def reparameterize_by_arc_length(track: Track, tol: float = 1e-10) -> ArcLengthCurve:
     """Tabulate the arc length of ``track`` (over its key range) with 8-point Gauss–Legendre on
-    subintervals, halving them until the total changes by less than ``tol`` times the length,
-    and return the curve parameterised by arc length (Parent, *Computer Animation*, §3.2)."""
+    subintervals, halving them until the total changes by at most ``tol`` times the length,
+    and return the curve parameterised by arc length (Parent, *Computer Animation*, §3.2).
+    A ``tol`` not met with 4096 subintervals per key interval is a ``ValueError`` naming
+    ``tol`` (never a silently less accurate table)."""
     if not isinstance(track, Track) or track._order != 0:
         raise ValueError("track: expected a kinema.anim.Track (not a derivative)")
-    keys = track._times
-    if len(keys) < 2:
-        raise ValueError("track: needs at least two keys to have a length")
-    curve = ArcLengthCurve(track, keys, np.zeros(len(keys)))
-    total, per_segment = np.inf, 1
-    while True:
-        t = np.concatenate(
-            [np.linspace(a, b, per_segment + 1)[:-1] for a, b in itertools.pairwise(keys)]
-            + [keys[-1:]]
-        )
-        pieces = curve._partial(t[:-1], t[1:])
-        new_total = float(pieces.sum())
-        if abs(new_total - total) <= tol * max(new_total, 1e-300) or per_segment >= 4096:
-            break
-        total, per_segment = new_total, per_segment * 2
-    return ArcLengthCurve(track, t, np.concatenate([[0.0], np.cumsum(pieces)]))
+    return ArcLengthCurve(track, _kinema.ArcLengthTable(track._track, _number(tol, "tol")))
 
 
 EASINGS = ("linear", "ease_in", "ease_out", "ease_in_out", "smoothstep")
@@ -321,28 +285,19 @@ def ease(u: Any, kind: str = "ease_in_out") -> Any:
     ``"linear"``; ``"ease_in"`` (``u²``, starts at rest); ``"ease_out"`` (``1 - (1-u)²``, ends at
     rest); ``"ease_in_out"`` (sinusoidal, ``(1 - cos πu)/2``, rests at both ends, Parent §3.2.2);
     ``"smoothstep"`` (``3u² - 2u³``). Combine with :func:`reparameterize_by_arc_length` to move
-    along a path with a speed profile: ``curve(ease(u) * curve.length)``."""
-    x = np.clip(_float(u, "u"), 0.0, 1.0)
-    if kind == "linear":
-        y = x
-    elif kind == "ease_in":
-        y = x * x
-    elif kind == "ease_out":
-        y = 1.0 - (1.0 - x) ** 2
-    elif kind == "ease_in_out":
-        y = (1.0 - np.cos(np.pi * x)) / 2.0
-    elif kind == "smoothstep":
-        y = x * x * (3.0 - 2.0 * x)
-    else:
-        raise ValueError(f"kind: {kind!r} is not one of {', '.join(EASINGS)}")
-    return float(y) if np.ndim(y) == 0 else y
+    along a path with a speed profile: ``curve(ease(u) * curve.length)``. Computed in Rust
+    (``kinema::anim::Easing``); NaN is a ``ValueError``."""
+    x = _float(u, "u")
+    y = _kinema.anim_ease(np.ascontiguousarray(x.reshape(-1, 1)), kind)
+    return float(y[0, 0]) if x.ndim == 0 else y.reshape(x.shape)
 
 
 class Clip:
     """Named channels animated together: ``Clip({"position": track, "opacity": track, ...})``.
 
     ``duration`` spans the earliest to the latest key of all channels; ``sample(fps)`` evaluates
-    every channel on one frame grid and returns ``(times, {name: array})``.
+    every channel on one frame grid ``start + k / fps`` and returns ``(times, {name: array})``
+    (in Rust: ``kinema::anim::Clip``).
     """
 
     def __init__(self, channels: dict[str, Track | RotationTrack]) -> None:
@@ -350,10 +305,14 @@ class Clip:
             isinstance(c, (Track, RotationTrack)) for c in channels.values()
         ):
             raise ValueError("channels: expected a non-empty dict of Track or RotationTrack")
+        if any(isinstance(c, Track) and c._order != 0 for c in channels.values()):
+            raise ValueError("channels: expected tracks, not derivatives of tracks")
         self.channels = dict(channels)
-        times = [c._times for c in self.channels.values()]
-        self.start = float(min(t[0] for t in times))
-        self.end = float(max(t[-1] for t in times))
+        self._clip = _kinema.AnimClip(
+            list(self.channels), [c._track for c in self.channels.values()]
+        )
+        self.start = float(self._clip.start)
+        self.end = float(self._clip.end)
 
     @property
     def duration(self) -> float:
@@ -363,8 +322,11 @@ class Clip:
     def sample(self, fps: float) -> tuple[np.ndarray, dict[str, Any]]:
         """Frame times at ``fps`` frames per second (covering start to end) and each channel's
         values there (rotation channels as ``kinema.Rotation`` stacks)."""
-        if not (float(fps) > 0 and np.isfinite(fps)):
-            raise ValueError(f"fps: expected a positive number, got {fps!r}")
-        frames = int(np.floor(self.duration * fps + 1e-9)) + 1
-        t = self.start + np.arange(frames) / float(fps)
-        return t, {name: channel(t) for name, channel in self.channels.items()}
+        t, samples = self._clip.sample(_number(fps, "fps"))
+        out: dict[str, Any] = {}
+        for (name, channel), values in zip(self.channels.items(), samples, strict=True):
+            if isinstance(channel, RotationTrack):
+                out[name] = Rotation.from_quat(values)
+            else:
+                out[name] = values[:, 0] if channel._scalar else values
+        return t, out

@@ -40,6 +40,7 @@ from kinema import ode as _ode
 from kinema import particles as _particles
 from kinema import rigid as _rigid
 from kinema._array import as_vector3
+from kinema._kinema import KinemaError
 from kinema.constraints import ConstrainedSystem
 
 __all__ = [
@@ -58,7 +59,7 @@ pickle, which can run code; such files are refused)."""
 _IMPLICIT = ("implicit_euler", "trapezoidal", "bdf2")  # A-stable: no step limit
 
 
-class CheckpointError(ValueError):
+class CheckpointError(KinemaError, ValueError):
     """A file is not a readable kinema checkpoint (foreign, truncated, damaged, other version,
     invalid content), or a scene holds something a checkpoint cannot store (a Python
     function)."""

@@ -106,7 +106,7 @@ impl RotationTrack {
                 format!("expected one flag per segment ({}), got {}", n - 1, shortest.len()),
             ));
         }
-        super::track::check_times(times)?;
+        crate::spline::check_times(times)?;
         let mut keys: Vec<DQuat> = Vec::with_capacity(n);
         for (i, q) in quats.iter().enumerate() {
             let mut q = quat_from_wxyz(q).map_err(|e| e.at(i))?;
@@ -170,6 +170,11 @@ impl RotationTrack {
             (3.0 * a * tau + 2.0 * b) * tau + c,
             6.0 * a * tau + 2.0 * b,
         ]
+    }
+
+    /// Key times (s).
+    pub fn times(&self) -> &[f64] {
+        &self.times
     }
 
     /// The orientation at time `t`.

@@ -3,9 +3,11 @@
 use super::args::Int;
 use super::array::compute;
 use super::array::rows;
-use super::error::{detached, reduce, Reduced};
+use super::error::detached;
+use super::pickle::{reduce, Reduced};
 use crate::anim::{
-    subdivide, Extrapolation, Interpolation, RotationInterpolation, RotationTrack, Scheme, Track,
+    subdivide, ArcLengthCurve, Channel, Clip, Easing, Extrapolation, Interpolation,
+    RotationInterpolation, RotationTrack, Samples, Scheme, Track,
 };
 use crate::error::Error;
 use crate::snapshot::Snapshot;
@@ -37,10 +39,7 @@ pub struct KeyTrack {
 impl KeyTrack {
     /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
-        let this = slf.borrow();
-        let inner = &this.track;
-        let bytes = detached(slf.py(), || inner.to_snapshot())?;
-        reduce(slf.as_any(), bytes, vec![])
+        reduce(slf, |s| &s.track, vec![])
     }
 
     /// The object stored by `__reduce__`.
@@ -158,17 +157,14 @@ fn anim_subdivide<'py>(
 /// A keyframed orientation; see `kinema.anim.RotationTrack` for the documented API.
 #[pyclass(module = "kinema._kinema", frozen)]
 pub struct KeyRotationTrack {
-    track: RotationTrack,
+    pub(crate) track: RotationTrack,
 }
 
 #[pymethods]
 impl KeyRotationTrack {
     /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
-        let this = slf.borrow();
-        let inner = &this.track;
-        let bytes = detached(slf.py(), || inner.to_snapshot())?;
-        reduce(slf.as_any(), bytes, vec![])
+        reduce(slf, |s| &s.track, vec![])
     }
 
     /// The object stored by `__reduce__`.
@@ -218,8 +214,146 @@ impl KeyRotationTrack {
     }
 }
 
+/// A value track reparameterised by arc length; see `kinema.anim.ArcLengthCurve`.
+#[pyclass(module = "kinema._kinema", frozen)]
+pub struct ArcLengthTable {
+    curve: ArcLengthCurve,
+}
+
+#[pymethods]
+impl ArcLengthTable {
+    /// Pickle support: the object as a snapshot (track and table, see `kinema::snapshot`).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        reduce(slf, |s| &s.curve, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { curve: ArcLengthCurve::from_snapshot(data)? })
+    }
+
+    /// Tabulate the arc length of `track` to relative accuracy `tol`.
+    #[new]
+    fn new(py: Python<'_>, track: &KeyTrack, tol: f64) -> PyResult<Self> {
+        let track = track.track.clone();
+        Ok(Self { curve: detached(py, || ArcLengthCurve::new(track, tol))? })
+    }
+
+    /// Total arc length.
+    #[getter]
+    fn length(&self) -> f64 {
+        self.curve.length()
+    }
+
+    /// Track times (M, 1) at arc lengths `s` (M, 1), clamped to [0, length].
+    fn time_at<'py>(
+        &self,
+        py: Python<'py>,
+        s: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
+        let s = rows::<1>(&s, "s", &[1])?;
+        let curve = &self.curve;
+        compute(py, s.len(), &[1], |out| curve.times_at(s, out))
+    }
+}
+
+/// The easing `kind` of `u` (M, 1), clamped to [0, 1]: (M, 1).
+#[pyfunction]
+fn anim_ease<'py>(
+    py: Python<'py>,
+    u: PyReadonlyArrayDyn<'py, f64>,
+    kind: &str,
+) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
+    let easing = Easing::parse(kind)?;
+    let u = rows::<1>(&u, "u", &[1])?;
+    compute(py, u.len(), &[1], |out| easing.eval_many(u, out))
+}
+
+/// Named channels sampled together; see `kinema.anim.Clip`.
+#[pyclass(module = "kinema._kinema", frozen)]
+pub struct AnimClip {
+    clip: Clip,
+    /// The tracks it was made of, for pickling.
+    tracks: Vec<Py<PyAny>>,
+}
+
+#[pymethods]
+impl AnimClip {
+    /// Pickle support: the clip is rebuilt from its names and tracks.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        let py = slf.py();
+        let this = slf.borrow();
+        let names: Vec<&str> = this.clip.channels().iter().map(|(n, _)| n.as_str()).collect();
+        let args = (names, this.tracks.iter().map(|t| t.bind(py)).collect::<Vec<_>>());
+        Ok((slf.get_type().into_any(), args.into_pyobject(py)?))
+    }
+
+    /// A clip of `tracks` (each a `KeyTrack` or `KeyRotationTrack`) called `names`.
+    #[new]
+    fn new(names: Vec<String>, tracks: Vec<Bound<'_, PyAny>>) -> PyResult<Self> {
+        if names.len() != tracks.len() {
+            return Err(Error::invalid("channels", "needs one name per track").into());
+        }
+        let mut channels = Vec::with_capacity(tracks.len());
+        for (name, t) in names.into_iter().zip(&tracks) {
+            let channel = if let Ok(v) = t.cast::<KeyTrack>() {
+                Channel::Value(v.get().track.clone())
+            } else if let Ok(r) = t.cast::<KeyRotationTrack>() {
+                Channel::Rotation(r.get().track.clone())
+            } else {
+                return Err(Error::invalid("channels", "expected Track or RotationTrack").into());
+            };
+            channels.push((name, channel));
+        }
+        let tracks = tracks.into_iter().map(Bound::unbind).collect();
+        Ok(Self { clip: Clip::new(channels)?, tracks })
+    }
+
+    /// Time of the first key of any channel (s).
+    #[getter]
+    fn start(&self) -> f64 {
+        self.clip.start()
+    }
+
+    /// Time of the last key of any channel (s).
+    #[getter]
+    fn end(&self) -> f64 {
+        self.clip.end()
+    }
+
+    /// Frame times (F,) at `fps` and each channel's samples: (F, D) values or (F, 4)
+    /// quaternions, in channel order.
+    #[allow(clippy::type_complexity)]
+    fn sample<'py>(
+        &self,
+        py: Python<'py>,
+        fps: f64,
+    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Vec<Bound<'py, PyArray2<f64>>>)> {
+        let clip = &self.clip;
+        let (t, samples) = detached(py, || clip.sample(fps))?;
+        let frames = t.len();
+        let arrays = samples
+            .into_iter()
+            .map(|s| match s {
+                Samples::Value(v) => {
+                    let dim = v.len() / frames;
+                    PyArray1::from_vec(py, v).reshape([frames, dim])
+                }
+                Samples::Rotation(q) => {
+                    PyArray1::from_vec(py, q.into_flattened()).reshape([frames, 4])
+                }
+            })
+            .collect::<PyResult<_>>()?;
+        Ok((PyArray1::from_vec(py, t), arrays))
+    }
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<KeyTrack>()?;
     m.add_class::<KeyRotationTrack>()?;
+    m.add_class::<ArcLengthTable>()?;
+    m.add_class::<AnimClip>()?;
+    m.add_function(wrap_pyfunction!(anim_ease, m)?)?;
     m.add_function(wrap_pyfunction!(anim_subdivide, m)?)
 }

@@ -4,7 +4,8 @@
 use super::args::{counts, Int, MAX_ITERATIONS};
 use super::array::{compute, rows};
 use super::error::detached;
-use super::error::{reduce, Reduced};
+use super::pickle::{reduce, Reduced};
+use super::view::view;
 use crate::cloth::{
     parse_obj, write_obj, Cloth, Collider, Material, Mesh, Model, SolveOptions, Solver,
     Triangulation, VertexConstraint,
@@ -13,8 +14,7 @@ use crate::error::Error;
 use crate::ode::Method;
 use crate::snapshot::Snapshot;
 use glam::DVec3;
-use numpy::ndarray::ArrayView2;
-use numpy::{PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
+use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -35,33 +35,11 @@ pub struct ClothCore {
     cloth: Cloth,
 }
 
-impl ClothCore {
-    /// A read-only numpy view `(N, 3)` of positions or velocities owned by `slf`.
-    #[allow(unsafe_code)]
-    fn view<'py>(slf: &Bound<'py, Self>, velocities: bool) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let this = slf.borrow();
-        let data = if velocities { this.cloth.velocities() } else { this.cloth.positions() };
-        let flat: &[f64] = bytemuck::cast_slice(data);
-        let view = ArrayView2::from_shape((data.len(), 3), flat)
-            .map_err(|e| Error::invalid("state", e.to_string()))?;
-        // SAFETY: the buffer belongs to `slf`, which the array keeps alive as its base; the
-        // cloth's state buffers are allocated once and only overwritten in place (`step` and
-        // `set_state` copy into them), so the pointer stays valid for the array's lifetime.
-        let array = unsafe { PyArray2::borrow_from_array(&view, slf.clone().into_any()) };
-        drop(this);
-        array.readwrite().make_nonwriteable();
-        Ok(array)
-    }
-}
-
 #[pymethods]
 impl ClothCore {
     /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
-        let this = slf.borrow();
-        let inner = &this.cloth;
-        let bytes = detached(slf.py(), || inner.to_snapshot())?;
-        reduce(slf.as_any(), bytes, vec![])
+        reduce(slf, |s| &s.cloth, vec![])
     }
 
     /// The object stored by `__reduce__`.
@@ -273,14 +251,16 @@ impl ClothCore {
 
     /// Read-only view (N, 3) of the positions (m), updated in place by `step`.
     #[getter]
-    fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Self::view(slf, false)
+    fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().cloth.positions().len();
+        view(slf, &[n, 3], |c| bytemuck::cast_slice(c.cloth.positions()))
     }
 
     /// Read-only view (N, 3) of the velocities (m/s), updated in place by `step`.
     #[getter]
-    fn velocities<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Self::view(slf, true)
+    fn velocities<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().cloth.velocities().len();
+        view(slf, &[n, 3], |c| bytemuck::cast_slice(c.cloth.velocities()))
     }
 
     /// Vertex masses (N,) kg.

@@ -4,8 +4,8 @@
 use super::anim::KeyTrack;
 use super::args::{counts, Int};
 use super::error::detached;
-use super::error::{reduce, Reduced};
 use super::particles::Particles;
+use super::pickle::{recipe, Reduced};
 use crate::constraints::{
     ConstrainedSystem, Constraint, ConstraintFunction, ConstraintSolver, Curve, ReducedBead,
     ReducedPendulum,
@@ -140,7 +140,7 @@ impl Constrained {
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
         let this = slf.borrow();
         let bytes = this.system.to_snapshot()?;
-        reduce(slf.as_any(), bytes, vec![this.particles.bind(slf.py()).clone().into_any()])
+        recipe(slf.as_any(), &bytes, vec![this.particles.bind(slf.py()).clone().into_any()])
     }
 
     /// The system stored by `__reduce__`, on `particles` (its constraints must refer to

@@ -3,31 +3,82 @@
 
 use crate::error::Error;
 use pyo3::create_exception;
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyException, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyTuple};
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyDict, PyTuple, PyType};
 use std::sync::{Arc, RwLock};
 
 create_exception!(
-    _kinema,
-    SimulationError,
-    PyRuntimeError,
-    "A simulation diverged or a solver failed; the state is left at the last good step."
+    kinema,
+    KinemaError,
+    PyException,
+    "The root of kinema's own exceptions: `except kinema.KinemaError` catches a failed \
+     simulation, an unreadable file and a bad checkpoint alike."
 );
-create_exception!(
-    _kinema,
-    ParseError,
-    PyValueError,
-    "A file could not be parsed; the message gives the file, the line and what was expected."
-);
+
+/// `SimulationError(KinemaError, RuntimeError)`, made once.
+static SIMULATION_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+/// `ParseError(KinemaError, ValueError)`, made once.
+static PARSE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+
+/// The class `name(KinemaError, base)` of module `kinema`. Python's exceptions take one base
+/// in `create_exception!`; these need two (the root and the builtin they always derived
+/// from, so `except ValueError` keeps catching a `ParseError`), so they are made by calling
+/// `type(name, bases, namespace)` as a `class` statement would.
+fn subclass<'py>(
+    py: Python<'py>,
+    cell: &'static PyOnceLock<Py<PyType>>,
+    name: &str,
+    base: Bound<'py, PyType>,
+    doc: &str,
+) -> Bound<'py, PyType> {
+    cell.get_or_init(py, || {
+        let make = || -> PyResult<Py<PyType>> {
+            let namespace = PyDict::new(py);
+            namespace.set_item("__module__", "kinema")?;
+            namespace.set_item("__doc__", doc)?;
+            let bases = PyTuple::new(py, [py.get_type::<KinemaError>(), base])?;
+            let class = py.get_type::<PyType>().call1((name, bases, namespace))?;
+            Ok(class.cast_into::<PyType>()?.unbind())
+        };
+        make().expect("creating an exception class cannot fail")
+    })
+    .bind(py)
+    .clone()
+}
+
+/// `kinema.SimulationError`: a simulation diverged or a solver failed.
+pub fn simulation_error(py: Python<'_>) -> Bound<'_, PyType> {
+    subclass(
+        py,
+        &SIMULATION_ERROR,
+        "SimulationError",
+        py.get_type::<PyRuntimeError>(),
+        "A simulation diverged or a solver failed; the state is left at the last good step.",
+    )
+}
+
+/// `kinema.ParseError`: a file could not be parsed.
+pub fn parse_error(py: Python<'_>) -> Bound<'_, PyType> {
+    subclass(
+        py,
+        &PARSE_ERROR,
+        "ParseError",
+        py.get_type::<PyValueError>(),
+        "A file could not be parsed; the message gives the file, the line and what was expected.",
+    )
+}
 
 impl From<Error> for PyErr {
     fn from(e: Error) -> PyErr {
         let msg = e.to_string();
         match e {
             Error::InvalidInput { .. } | Error::Shape { .. } => PyValueError::new_err(msg),
-            Error::Parse { .. } => ParseError::new_err(msg),
-            Error::Diverged { .. } | Error::SolverFailed { .. } => SimulationError::new_err(msg),
+            Error::Parse { .. } => Python::attach(|py| PyErr::from_type(parse_error(py), msg)),
+            Error::Diverged { .. } | Error::SolverFailed { .. } => {
+                Python::attach(|py| PyErr::from_type(simulation_error(py), msg))
+            }
         }
     }
 }
@@ -68,24 +119,10 @@ where
     .map_err(PyErr::from)
 }
 
-/// What `__reduce__` returns: the class's `_from_snapshot` and its arguments.
-pub type Reduced<'py> = (Bound<'py, PyAny>, Bound<'py, PyTuple>);
-
-/// The pickle recipe `(cls._from_snapshot, (snapshot bytes, *extra))` of a compiled object.
-pub fn reduce<'py>(
-    slf: &Bound<'py, PyAny>,
-    snapshot: Vec<u8>,
-    extra: Vec<Bound<'py, PyAny>>,
-) -> PyResult<Reduced<'py>> {
-    let py = slf.py();
-    let mut args = vec![PyBytes::new(py, &snapshot).into_any()];
-    args.extend(extra);
-    Ok((slf.get_type().getattr("_from_snapshot")?, PyTuple::new(py, args)?))
-}
-
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
-    m.add("SimulationError", py.get_type::<SimulationError>())?;
-    m.add("ParseError", py.get_type::<ParseError>())?;
+    m.add("KinemaError", py.get_type::<KinemaError>())?;
+    m.add("SimulationError", simulation_error(py))?;
+    m.add("ParseError", parse_error(py))?;
     Ok(())
 }

@@ -1,7 +1,7 @@
 //! `kinema.mocap`: Acclaim skeletons, BVH hierarchies and their motions.
 
 use super::args::Int;
-use super::error::{detached, reduce, Reduced};
+use super::pickle::{reduce, Reduced};
 use crate::error::Error;
 use crate::mocap::{
     parse_amc, parse_asf, parse_bvh, write_amc, write_asf, write_bvh, BvhSkeleton, Dof, Edit,
@@ -50,10 +50,7 @@ fn renamed(e: Error) -> Error {
 impl PySkeleton {
     /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
-        let this = slf.borrow();
-        let inner = &this.skeleton;
-        let bytes = detached(slf.py(), || inner.to_snapshot())?;
-        reduce(slf.as_any(), bytes, vec![])
+        reduce(slf, |s| &s.skeleton, vec![])
     }
 
     /// The object stored by `__reduce__`, validated (a bad parent index, a non-unit axis...
@@ -200,10 +197,8 @@ impl PySkeleton {
 impl PyMotion {
     /// Pickle support: the skeleton and the motion as a snapshot.
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
-        let this = slf.borrow();
-        let inner = &this.motion;
-        let bytes = detached(slf.py(), || inner.to_snapshot())?;
-        reduce(slf.as_any(), bytes, vec![this.skeleton.bind(slf.py()).clone().into_any()])
+        let skeleton = slf.borrow().skeleton.clone_ref(slf.py()).into_bound(slf.py());
+        reduce(slf, |s| &s.motion, vec![skeleton])
     }
 
     /// The motion stored by `__reduce__`, for `skeleton`, validated.
@@ -380,10 +375,7 @@ pub struct PyBvhSkeleton {
 impl PyBvhSkeleton {
     /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
-        let this = slf.borrow();
-        let inner = &this.skeleton;
-        let bytes = detached(slf.py(), || inner.to_snapshot())?;
-        reduce(slf.as_any(), bytes, vec![])
+        reduce(slf, |s| &s.skeleton, vec![])
     }
 
     /// The object stored by `__reduce__`, validated (a bad parent index, a non-unit axis...

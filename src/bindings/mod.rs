@@ -16,8 +16,10 @@ mod ik;
 mod mocap;
 mod ode;
 mod particles;
+mod pickle;
 mod rigid;
 mod rotation;
+mod view;
 
 /// Use `n` threads (1 to `MAX_THREADS` = 1024) in every parallel kernel from now on (any
 /// time, as often as wanted; results are bitwise the same for any thread count).

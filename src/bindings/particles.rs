@@ -3,15 +3,15 @@
 use super::args::Int;
 use super::array::{compute, rows};
 use super::error::detached;
-use super::error::{reduce, Reduced};
+use super::pickle::{reduce, Reduced};
+use super::view::view;
 use crate::error::Error;
 use crate::geometry::Material;
 use crate::ode::Method;
 use crate::particles::{Appearance, Collider, Emitter, Force, ParticleSystem};
 use crate::snapshot::Snapshot;
 use glam::DVec3;
-use numpy::ndarray::{ArrayView1, ArrayView2};
-use numpy::{PyArray1, PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
+use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -41,49 +41,11 @@ pub struct Particles {
     pub(crate) system: ParticleSystem,
 }
 
-impl Particles {
-    /// A read-only numpy view `(capacity, width)` of the buffer `data` picks from the system
-    /// owned by `slf` (positions, velocities or colours).
-    #[allow(unsafe_code)]
-    fn view<'py>(
-        slf: &Bound<'py, Self>,
-        width: usize,
-        data: fn(&ParticleSystem) -> &[f64],
-    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let this = slf.borrow();
-        let view = ArrayView2::from_shape((this.system.capacity(), width), data(&this.system))
-            .map_err(|e| Error::invalid("state", e.to_string()))?;
-        // SAFETY: the buffer belongs to `slf`, which the array keeps alive as its base; the
-        // system's state and colour buffers have a fixed capacity and are never reallocated,
-        // only written in place (`step`, `set_state`, emission, rollback, `set_appearance`),
-        // so the pointer stays valid for the array's lifetime.
-        let array = unsafe { PyArray2::borrow_from_array(&view, slf.clone().into_any()) };
-        drop(this);
-        array.readwrite().make_nonwriteable();
-        Ok(array)
-    }
-
-    /// A read-only numpy view `(capacity,)` of the sizes owned by `slf`.
-    #[allow(unsafe_code)]
-    fn sizes_view<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let this = slf.borrow();
-        let view = ArrayView1::from(this.system.sizes());
-        // SAFETY: as in `view`: the size buffer has the fixed capacity, written in place.
-        let array = unsafe { PyArray1::borrow_from_array(&view, slf.clone().into_any()) };
-        drop(this);
-        array.readwrite().make_nonwriteable();
-        Ok(array)
-    }
-}
-
 #[pymethods]
 impl Particles {
     /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
-        let this = slf.borrow();
-        let inner = &this.system;
-        let bytes = detached(slf.py(), || inner.to_snapshot())?;
-        reduce(slf.as_any(), bytes, vec![])
+        reduce(slf, |s| &s.system, vec![])
     }
 
     /// The object stored by `__reduce__`.
@@ -250,26 +212,30 @@ impl Particles {
 
     /// Read-only view (capacity, 3) of the positions (m), updated in place by `step`.
     #[getter]
-    fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Self::view(slf, 3, ParticleSystem::positions)
+    fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().system.capacity();
+        view(slf, &[n, 3], |p| p.system.positions())
     }
 
     /// Read-only view (capacity, 3) of the velocities (m/s), updated in place by `step`.
     #[getter]
-    fn velocities<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Self::view(slf, 3, ParticleSystem::velocities)
+    fn velocities<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().system.capacity();
+        view(slf, &[n, 3], |p| p.system.velocities())
     }
 
     /// Read-only view (capacity, 4) of the colours (linear RGBA in [0, 1]).
     #[getter]
-    fn colors<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        Self::view(slf, 4, |s| s.colors().as_flattened())
+    fn colors<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().system.capacity();
+        view(slf, &[n, 4], |p| p.system.colors().as_flattened())
     }
 
     /// Read-only view (capacity,) of the sizes (diameters, m).
     #[getter]
-    fn sizes<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        Self::sizes_view(slf)
+    fn sizes<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().system.capacity();
+        view(slf, &[n], |p| p.system.sizes())
     }
 
     /// Overwrite the colours (capacity, 4) and sizes (capacity, 1) of every slot.

@@ -3,7 +3,7 @@
 use super::args::{Int, MAX_ITERATIONS};
 use super::array::compute;
 use super::error::detached;
-use super::error::{reduce, Reduced};
+use super::pickle::{reduce, Reduced};
 use crate::error::Error;
 use crate::geometry::Solid;
 use crate::rigid::{BodyDesc, JointDesc, JointKind, JointMethod, Motor, RotationIntegrator, World};
@@ -28,10 +28,7 @@ pub struct RigidWorld {
 impl RigidWorld {
     /// Pickle support: the object as a snapshot (model and state, see `kinema::snapshot`).
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
-        let this = slf.borrow();
-        let inner = &this.world;
-        let bytes = detached(slf.py(), || inner.to_snapshot())?;
-        reduce(slf.as_any(), bytes, vec![])
+        reduce(slf, |s| &s.world, vec![])
     }
 
     /// The object stored by `__reduce__`.

@@ -5,8 +5,8 @@
 //! closest point to a position by Newton's method on `f(u) = x'(u) · (x(u) - p) = 0`, started
 //! from a guess (the parameter tracked from the previous step).
 
-use crate::anim::Track;
 use crate::error::{Error, Result};
+use crate::spline::Track;
 use glam::DVec3;
 use std::f64::consts::TAU;
 

@@ -34,6 +34,7 @@
 //!   scale either.
 //! * Several `ROOT`s are allowed; joints are stored in file order (depth first, parents first).
 
+use super::parse::{err, number};
 use super::{Dof, Motion};
 use crate::error::{Error, Result};
 use glam::{DQuat, DVec3};
@@ -64,17 +65,6 @@ pub struct BvhSkeleton {
     /// `Frame Time` of the motion (seconds per frame). Kept with the hierarchy because
     /// [`Motion`] holds values only.
     pub frame_time: f64,
-}
-
-fn err(file: &str, line: usize, expected: impl Into<String>) -> Error {
-    Error::Parse { file: file.to_string(), line, expected: expected.into() }
-}
-
-fn number(file: &str, line: usize, tok: &str) -> Result<f64> {
-    tok.parse::<f64>()
-        .ok()
-        .filter(|v| v.is_finite())
-        .ok_or_else(|| err(file, line, "a finite number"))
 }
 
 fn channel(tok: &str) -> Option<Dof> {
@@ -158,6 +148,15 @@ fn header_value<'a>(
     Ok((ln, words[kw.len()]))
 }
 
+/// The joints read so far from the hierarchy and the blocks still open.
+struct Hierarchy<'a> {
+    file: &'a str,
+    joints: Vec<BvhJoint>,
+    offset_seen: Vec<bool>,
+    channels_seen: Vec<bool>,
+    stack: Vec<Open>,
+}
+
 /// Parse a BVH file; `file` names it in errors.
 ///
 /// Tolerates what real files contain: CRLF, tabs, blank lines, a byte-order mark, keywords in
@@ -191,176 +190,38 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
         // What the hierarchy misses is reported where it ends: at MOTION, or the last line.
         last_line: motion_at.map_or(last_line, |m| lines[m].0),
     };
+    let joints = parse_hierarchy(&mut toks, last_line)?;
+    let Some(motion_at) = motion_at else {
+        return Err(err(file, last_line, "MOTION after the hierarchy (file truncated?)"));
+    };
+    let (frame_time, motion) = parse_motion(file, &lines[motion_at..], last_line, &joints)?;
+    Ok((BvhSkeleton { joints, frame_time }, motion))
+}
+
+/// The joints of the `HIERARCHY` section (every token before `MOTION`).
+fn parse_hierarchy(toks: &mut Tokens<'_>, last_line: usize) -> Result<Vec<BvhJoint>> {
+    let file = toks.file;
     match toks.next() {
         Some((_, t)) if t.eq_ignore_ascii_case("HIERARCHY") => {}
         Some((ln, _)) => return Err(err(file, ln, "HIERARCHY at the start")),
         None => return Err(err(file, last_line, "HIERARCHY at the start, found nothing")),
     }
-    let mut joints: Vec<BvhJoint> = Vec::new();
-    let mut offset_seen: Vec<bool> = Vec::new();
-    let mut channels_seen: Vec<bool> = Vec::new();
-    let mut stack: Vec<Open> = Vec::new();
+    let mut h = Hierarchy {
+        file,
+        joints: Vec::new(),
+        offset_seen: Vec::new(),
+        channels_seen: Vec::new(),
+        stack: Vec::new(),
+    };
     while let Some((ln, tok)) = toks.next() {
-        let key = tok.to_ascii_lowercase();
-        let top_joint = match stack.last() {
-            Some(Open::Joint(j, _)) => Some(*j),
-            _ => None,
-        };
-        match key.as_str() {
-            "root" | "joint" => {
-                if key == "root" && !stack.is_empty() {
-                    return Err(err(
-                        file,
-                        ln,
-                        "OFFSET, CHANNELS, JOINT, End Site or } inside a joint, found ROOT",
-                    ));
-                }
-                if key == "joint" && top_joint.is_none() {
-                    return Err(err(
-                        file,
-                        ln,
-                        if stack.is_empty() {
-                            "ROOT at the top level, found JOINT"
-                        } else {
-                            "OFFSET or } in an End Site, found JOINT"
-                        },
-                    ));
-                }
-                // The name is the rest of the keyword's line, up to a `{`.
-                let mut name: Vec<&str> = Vec::new();
-                let mut brace = false;
-                while let Some(&(l, t)) = toks.toks.get(toks.pos) {
-                    if l != ln {
-                        break;
-                    }
-                    toks.pos += 1;
-                    if t == "{" {
-                        brace = true;
-                        break;
-                    }
-                    name.push(t);
-                }
-                if name.is_empty() {
-                    return Err(err(file, ln, format!("a joint name after {tok}")));
-                }
-                if !brace {
-                    let (l, t) = toks.expect("{ after the joint name")?;
-                    if t != "{" {
-                        return Err(err(file, l, "{ after the joint name"));
-                    }
-                }
-                joints.push(BvhJoint {
-                    name: name.join(" "),
-                    parent: top_joint,
-                    offset: DVec3::ZERO,
-                    channels: Vec::new(),
-                    end_site: None,
-                });
-                offset_seen.push(false);
-                channels_seen.push(false);
-                stack.push(Open::Joint(joints.len() - 1, ln));
-            }
-            "end" => {
-                let j = top_joint.ok_or_else(|| err(file, ln, "End Site only inside a joint"))?;
-                let (l, t) = toks.expect("Site after End")?;
-                if !t.eq_ignore_ascii_case("site") {
-                    return Err(err(file, l, "Site after End"));
-                }
-                let (l, t) = toks.expect("{ after End Site")?;
-                if t != "{" {
-                    return Err(err(file, l, "{ after End Site"));
-                }
-                if joints[j].end_site.is_some() {
-                    return Err(err(
-                        file,
-                        ln,
-                        format!("one End Site in joint {:?}", joints[j].name),
-                    ));
-                }
-                stack.push(Open::EndSite(j, ln, None));
-            }
-            "offset" => {
-                let v = toks.numbers::<3>("three numbers after OFFSET")?;
-                match stack.last_mut() {
-                    Some(Open::Joint(j, _)) => {
-                        if std::mem::replace(&mut offset_seen[*j], true) {
-                            return Err(err(
-                                file,
-                                ln,
-                                format!("one OFFSET in joint {:?}", joints[*j].name),
-                            ));
-                        }
-                        joints[*j].offset = DVec3::from_array(v);
-                    }
-                    Some(Open::EndSite(_, _, o)) => {
-                        if o.replace(DVec3::from_array(v)).is_some() {
-                            return Err(err(file, ln, "one OFFSET in an End Site"));
-                        }
-                    }
-                    None => return Err(err(file, ln, "ROOT before OFFSET")),
-                }
-            }
-            "channels" => {
-                let j = top_joint.ok_or_else(|| {
-                    err(
-                        file,
-                        ln,
-                        if stack.is_empty() {
-                            "ROOT before CHANNELS"
-                        } else {
-                            "OFFSET or } in an End Site, found CHANNELS"
-                        },
-                    )
-                })?;
-                if std::mem::replace(&mut channels_seen[j], true) {
-                    return Err(err(
-                        file,
-                        ln,
-                        format!("one CHANNELS line in joint {:?}", joints[j].name),
-                    ));
-                }
-                let (l, t) = toks.expect("a channel count after CHANNELS")?;
-                let n: usize = t
-                    .parse()
-                    .ok()
-                    .filter(|&n| n <= 64)
-                    .ok_or_else(|| err(file, l, "a channel count (0 to 64) after CHANNELS"))?;
-                let mut channels = Vec::with_capacity(n);
-                for _ in 0..n {
-                    let (l, t) = toks.expect(&format!("{n} channel names"))?;
-                    let c = channel(t).ok_or_else(|| {
-                        err(file, l, format!("{n} channel names (Xposition ... Zrotation)"))
-                    })?;
-                    if matches!(c, Dof::Translation(_)) && channels.contains(&c) {
-                        return Err(err(
-                            file,
-                            l,
-                            format!("each position channel once, {t} is repeated"),
-                        ));
-                    }
-                    channels.push(c);
-                }
-                joints[j].channels = channels;
-            }
-            "}" => match stack.pop() {
-                Some(Open::Joint(j, _)) => {
-                    if !offset_seen[j] {
-                        return Err(err(
-                            file,
-                            ln,
-                            format!("an OFFSET in joint {:?} before its }}", joints[j].name),
-                        ));
-                    }
-                }
-                Some(Open::EndSite(j, _, o)) => {
-                    let o =
-                        o.ok_or_else(|| err(file, ln, "an OFFSET in the End Site before its }"))?;
-                    joints[j].end_site = Some(o);
-                }
-                None => return Err(err(file, ln, "ROOT or MOTION, found an unmatched }")),
-            },
+        match tok.to_ascii_lowercase().as_str() {
+            key @ ("root" | "joint") => h.joint(toks, ln, tok, key == "root")?,
+            "end" => h.end_site(toks, ln)?,
+            "offset" => h.offset(toks, ln)?,
+            "channels" => h.channels(toks, ln)?,
+            "}" => h.close(ln)?,
             _ => {
-                let what = match stack.last() {
+                let what = match h.stack.last() {
                     None => "ROOT or MOTION",
                     Some(Open::Joint(..)) => "OFFSET, CHANNELS, JOINT, End Site or }",
                     Some(Open::EndSite(..)) => "OFFSET or } in an End Site",
@@ -369,27 +230,195 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
             }
         }
     }
-    if let Some(open) = stack.last() {
+    if let Some(open) = h.stack.last() {
         let what = match open {
             Open::Joint(j, l) => {
-                format!("}} to close joint {:?} opened at line {l}", joints[*j].name)
+                format!("}} to close joint {:?} opened at line {l}", h.joints[*j].name)
             }
             Open::EndSite(_, l, _) => format!("}} to close the End Site opened at line {l}"),
         };
         return Err(err(file, toks.last_line, format!("{what} (file truncated?)")));
     }
-    if joints.is_empty() {
+    if h.joints.is_empty() {
         return Err(err(file, toks.last_line, "a ROOT joint after HIERARCHY"));
     }
-    let Some(motion_at) = motion_at else {
-        return Err(err(file, last_line, "MOTION after the hierarchy (file truncated?)"));
-    };
-    let (mln, mline) = lines[motion_at];
+    Ok(h.joints)
+}
+
+impl Hierarchy<'_> {
+    /// The joint whose block is innermost, if the innermost block is a joint.
+    fn top_joint(&self) -> Option<usize> {
+        match self.stack.last() {
+            Some(Open::Joint(j, _)) => Some(*j),
+            _ => None,
+        }
+    }
+
+    /// `ROOT name {` or `JOINT name {` at line `ln`: open a new joint.
+    fn joint(&mut self, toks: &mut Tokens<'_>, ln: usize, tok: &str, root: bool) -> Result<()> {
+        let file = self.file;
+        let parent = self.top_joint();
+        if root && !self.stack.is_empty() {
+            let what = "OFFSET, CHANNELS, JOINT, End Site or } inside a joint, found ROOT";
+            return Err(err(file, ln, what));
+        }
+        if !root && parent.is_none() {
+            let what = if self.stack.is_empty() {
+                "ROOT at the top level, found JOINT"
+            } else {
+                "OFFSET or } in an End Site, found JOINT"
+            };
+            return Err(err(file, ln, what));
+        }
+        // The name is the rest of the keyword's line, up to a `{`.
+        let mut name: Vec<&str> = Vec::new();
+        let mut brace = false;
+        while let Some(&(l, t)) = toks.toks.get(toks.pos) {
+            if l != ln {
+                break;
+            }
+            toks.pos += 1;
+            if t == "{" {
+                brace = true;
+                break;
+            }
+            name.push(t);
+        }
+        if name.is_empty() {
+            return Err(err(file, ln, format!("a joint name after {tok}")));
+        }
+        if !brace {
+            let (l, t) = toks.expect("{ after the joint name")?;
+            if t != "{" {
+                return Err(err(file, l, "{ after the joint name"));
+            }
+        }
+        self.joints.push(BvhJoint {
+            name: name.join(" "),
+            parent,
+            offset: DVec3::ZERO,
+            channels: Vec::new(),
+            end_site: None,
+        });
+        self.offset_seen.push(false);
+        self.channels_seen.push(false);
+        self.stack.push(Open::Joint(self.joints.len() - 1, ln));
+        Ok(())
+    }
+
+    /// `End Site {` at line `ln`.
+    fn end_site(&mut self, toks: &mut Tokens<'_>, ln: usize) -> Result<()> {
+        let file = self.file;
+        let j = self.top_joint().ok_or_else(|| err(file, ln, "End Site only inside a joint"))?;
+        let (l, t) = toks.expect("Site after End")?;
+        if !t.eq_ignore_ascii_case("site") {
+            return Err(err(file, l, "Site after End"));
+        }
+        let (l, t) = toks.expect("{ after End Site")?;
+        if t != "{" {
+            return Err(err(file, l, "{ after End Site"));
+        }
+        if self.joints[j].end_site.is_some() {
+            let what = format!("one End Site in joint {:?}", self.joints[j].name);
+            return Err(err(file, ln, what));
+        }
+        self.stack.push(Open::EndSite(j, ln, None));
+        Ok(())
+    }
+
+    /// `OFFSET x y z` at line `ln`, of the innermost joint or End Site.
+    fn offset(&mut self, toks: &mut Tokens<'_>, ln: usize) -> Result<()> {
+        let file = self.file;
+        let v = toks.numbers::<3>("three numbers after OFFSET")?;
+        match self.stack.last_mut() {
+            Some(Open::Joint(j, _)) => {
+                if std::mem::replace(&mut self.offset_seen[*j], true) {
+                    let what = format!("one OFFSET in joint {:?}", self.joints[*j].name);
+                    return Err(err(file, ln, what));
+                }
+                self.joints[*j].offset = DVec3::from_array(v);
+            }
+            Some(Open::EndSite(_, _, o)) => {
+                if o.replace(DVec3::from_array(v)).is_some() {
+                    return Err(err(file, ln, "one OFFSET in an End Site"));
+                }
+            }
+            None => return Err(err(file, ln, "ROOT before OFFSET")),
+        }
+        Ok(())
+    }
+
+    /// `CHANNELS n name…` at line `ln`, of the innermost joint.
+    fn channels(&mut self, toks: &mut Tokens<'_>, ln: usize) -> Result<()> {
+        let file = self.file;
+        let j = self.top_joint().ok_or_else(|| {
+            let what = if self.stack.is_empty() {
+                "ROOT before CHANNELS"
+            } else {
+                "OFFSET or } in an End Site, found CHANNELS"
+            };
+            err(file, ln, what)
+        })?;
+        if std::mem::replace(&mut self.channels_seen[j], true) {
+            let what = format!("one CHANNELS line in joint {:?}", self.joints[j].name);
+            return Err(err(file, ln, what));
+        }
+        let (l, t) = toks.expect("a channel count after CHANNELS")?;
+        let n: usize = t
+            .parse()
+            .ok()
+            .filter(|&n| n <= 64)
+            .ok_or_else(|| err(file, l, "a channel count (0 to 64) after CHANNELS"))?;
+        let mut channels = Vec::with_capacity(n);
+        for _ in 0..n {
+            let (l, t) = toks.expect(&format!("{n} channel names"))?;
+            let c = channel(t).ok_or_else(|| {
+                err(file, l, format!("{n} channel names (Xposition ... Zrotation)"))
+            })?;
+            if matches!(c, Dof::Translation(_)) && channels.contains(&c) {
+                return Err(err(file, l, format!("each position channel once, {t} is repeated")));
+            }
+            channels.push(c);
+        }
+        self.joints[j].channels = channels;
+        Ok(())
+    }
+
+    /// `}` at line `ln`: close the innermost joint or End Site.
+    fn close(&mut self, ln: usize) -> Result<()> {
+        let file = self.file;
+        match self.stack.pop() {
+            Some(Open::Joint(j, _)) => {
+                if !self.offset_seen[j] {
+                    let what =
+                        format!("an OFFSET in joint {:?} before its }}", self.joints[j].name);
+                    return Err(err(file, ln, what));
+                }
+            }
+            Some(Open::EndSite(j, _, o)) => {
+                let o = o.ok_or_else(|| err(file, ln, "an OFFSET in the End Site before its }"))?;
+                self.joints[j].end_site = Some(o);
+            }
+            None => return Err(err(file, ln, "ROOT or MOTION, found an unmatched }")),
+        }
+        Ok(())
+    }
+}
+
+/// The `MOTION` section (`lines` from the `MOTION` line on): the frame time (s) and the
+/// frames, rotations converted to radians.
+fn parse_motion(
+    file: &str,
+    lines: &[(usize, &str)],
+    last_line: usize,
+    joints: &[BvhJoint],
+) -> Result<(f64, Motion)> {
+    let (mln, mline) = lines[0];
     if mline.split_whitespace().count() != 1 {
         return Err(err(file, mln, "MOTION alone on its line"));
     }
     // `Frames: N` and `Frame Time: dt`, in this order as every writer puts them.
-    let mut rest = lines[motion_at + 1..].iter();
+    let mut rest = lines[1..].iter();
     let (fln, ftok) = header_value(file, last_line, rest.next(), "Frames")?;
     let frames: usize = ftok.parse().map_err(|_| err(file, fln, "a frame count after Frames:"))?;
     let (tln, ttok) = header_value(file, last_line, rest.next(), "Frame Time")?;
@@ -406,25 +435,10 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
     let mut read = 0usize;
     for &(ln, line) in rest {
         if read == frames {
-            return Err(err(
-                file,
-                ln,
-                format!("the end of the file after {frames} frames (Frames: {frames})"),
-            ));
+            let what = format!("the end of the file after {frames} frames (Frames: {frames})");
+            return Err(err(file, ln, what));
         }
-        let before = values.len();
-        for t in line.split_whitespace() {
-            let k = values.len() - before;
-            if k == stride {
-                break;
-            }
-            let v = number(file, ln, t)?;
-            values.push(if kinds[k] { v.to_radians() } else { v });
-        }
-        let n = line.split_whitespace().count();
-        if n != stride {
-            return Err(err(file, ln, format!("{stride} values in frame {}, found {n}", read + 1)));
-        }
+        frame_values(file, ln, line, &kinds, read, &mut values)?;
         read += 1;
     }
     if read < frames && stride > 0 {
@@ -434,10 +448,29 @@ pub fn parse_bvh(text: &str, file: &str) -> Result<(BvhSkeleton, Motion)> {
             format!("{frames} frames (Frames: {frames}), found {read} (file truncated?)"),
         ));
     }
-    Ok((
-        BvhSkeleton { joints, frame_time },
-        Motion { values, stride, frames, frame_rate: 1.0 / frame_time },
-    ))
+    Ok((frame_time, Motion { values, stride, frames, frame_rate: 1.0 / frame_time }))
+}
+
+/// Append the values of frame `read` (0-based), line `ln`, to `values`: one per channel,
+/// rotations (`kinds[k]` true) converted from degrees to radians.
+fn frame_values(
+    file: &str,
+    ln: usize,
+    line: &str,
+    kinds: &[bool],
+    read: usize,
+    values: &mut Vec<f64>,
+) -> Result<()> {
+    let stride = kinds.len();
+    for (t, &rotation) in line.split_whitespace().zip(kinds) {
+        let v = number(file, ln, t)?;
+        values.push(if rotation { v.to_radians() } else { v });
+    }
+    let n = line.split_whitespace().count();
+    if n != stride {
+        return Err(err(file, ln, format!("{stride} values in frame {}, found {n}", read + 1)));
+    }
+    Ok(())
 }
 
 /// Shortest fixed-point text of `rad` in degrees that reads back (through `to_radians`, as the

@@ -9,10 +9,10 @@
 //! rotation for two). A skeleton only says how its values are laid out ([`Edit`]).
 
 use super::{BvhSkeleton, Dof, Motion, Skeleton};
-use crate::anim::{Extrapolation, Interpolation, Track};
 use crate::error::{filled, reserve, too_large, Error, Result};
 use crate::math::wrap_angle;
 use crate::rotation::EulerSequence;
+use crate::spline::{Extrapolation, Interpolation, Track};
 use glam::DQuat;
 use rayon::prelude::*;
 

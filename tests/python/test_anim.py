@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -298,3 +300,90 @@ def test_eased_motion_along_a_path_covers_the_analytic_arc_length(kind):
         "smoothstep": 3 * u**2 - 2 * u**3,
     }[kind]
     np.testing.assert_allclose(parabola_arc(p[:, 0]), eased * parabola_arc(2.0), atol=1e-8)
+
+
+def test_an_arc_length_tolerance_that_cannot_be_met_is_an_error_not_a_cap():
+    from kinema.anim import reparameterize_by_arc_length
+
+    # The cusp (t², t³) (a cubic: the Lagrange polynomial through 4 keys is exact) has a speed
+    # with a kink at t = 0, inside a key interval and never on a subdivision point: the table
+    # converges at second order, reaching 1e-6 and never 1e-12.
+    t = np.array([-1.0, -0.35, 0.6, 1.2])
+    cusp = Track(t, np.stack([t**2, t**3], axis=1), "polynomial")
+    half = lambda x: ((4 + 9 * x**2) ** 1.5 - 8) / 27  # noqa: E731
+    curve = reparameterize_by_arc_length(cusp, tol=1e-6)
+    assert curve.length == pytest.approx(half(1.0) + half(1.2), rel=1e-6)
+    with pytest.raises(ValueError, match=r"^tol: cannot be met"):
+        reparameterize_by_arc_length(cusp, tol=1e-12)
+    for bad in (0.0, -1.0, float("nan"), "x"):
+        with pytest.raises(ValueError, match="tol"):
+            reparameterize_by_arc_length(cusp, tol=bad)
+
+
+def test_arc_length_helix_against_scipy_quad_and_bad_s():
+    import pickle
+
+    from scipy.integrate import quad
+
+    from kinema.anim import reparameterize_by_arc_length
+
+    u = np.linspace(0, 3 * np.pi, 25)
+    r, p = 0.7, 0.4
+    pts = np.stack([r * np.cos(u), r * np.sin(u), p * u / (2 * np.pi)], axis=1)
+    tan = np.stack([-r * np.sin(u), r * np.cos(u), np.full_like(u, p / (2 * np.pi))], axis=1)
+    track = Track(u, pts, "hermite", tangents=tan)
+    curve = reparameterize_by_arc_length(track, tol=1e-12)
+    speed = track.derivative()
+    oracle = sum(
+        quad(lambda x: np.linalg.norm(speed(x)), a, b, epsabs=1e-14, epsrel=1e-14)[0]
+        for a, b in itertools.pairwise(u)
+    )
+    assert curve.length == pytest.approx(oracle, rel=1e-11)
+    # The exact helix length differs only by the Hermite approximation (h = 3π/24).
+    assert curve.length == pytest.approx(3 * np.pi * np.hypot(r, p / (2 * np.pi)), rel=1e-4)
+    assert np.ndim(curve.time_at(1.0)) == 0
+    assert curve.time_at([[0.5, 1.0]]).shape == (1, 2)
+    with pytest.raises(ValueError, match=r"^s\[1\]: contains NaN"):
+        curve.time_at([0.5, np.nan])
+    again = pickle.loads(pickle.dumps(curve))
+    np.testing.assert_array_equal(
+        again(np.linspace(0, curve.length, 9)), curve(np.linspace(0, curve.length, 9))
+    )
+
+
+def test_easing_symmetry_and_nan_and_clip_errors():
+    import pickle
+
+    from kinema import Rotation
+    from kinema.anim import Clip, RotationTrack, ease
+
+    u = np.linspace(0, 1, 101)
+    for kind in ["linear", "ease_in_out", "smoothstep"]:
+        np.testing.assert_allclose(ease(u, kind) + ease(1 - u, kind), 1.0, atol=1e-15)
+    np.testing.assert_allclose(ease(u, "ease_out"), 1 - ease(1 - u, "ease_in"), atol=1e-15)
+    assert ease(-2.0, "smoothstep") == 0.0 and ease(5.0, "ease_in") == 1.0
+    with pytest.raises(ValueError, match=r"^u\[0\]: contains NaN"):
+        ease([np.nan])
+    with pytest.raises(ValueError, match="kind") as info:
+        ease(0.5, "bounce")
+    assert "bounce" not in str(info.value)
+
+    clip = Clip(
+        {
+            "x": Track([0.5, 2.0], [[0.0, 0.0], [3.0, 1.0]], "linear"),
+            "turn": RotationTrack([1.0, 3.0], Rotation.random(2, seed=1)),
+        }
+    )
+    assert (clip.start, clip.end, clip.duration) == (0.5, 3.0, 2.5)
+    t, v = clip.sample(24)
+    np.testing.assert_array_equal(t, 0.5 + np.arange(61) / 24.0)
+    assert v["x"].shape == (61, 2) and isinstance(v["turn"], Rotation) and len(v["turn"]) == 61
+    for fps in (0, -24, float("nan"), float("inf"), "fast"):
+        with pytest.raises(ValueError, match=r"^fps") as info:
+            clip.sample(fps)
+        assert "fast" not in str(info.value)
+    t2, v2 = pickle.loads(pickle.dumps(clip)).sample(24)
+    np.testing.assert_array_equal(t2, t)
+    np.testing.assert_array_equal(v2["x"], v["x"])
+    with pytest.raises(ValueError, match="channels"):
+        Clip({"v": Track([0.0, 1.0], [0.0, 1.0]).derivative()})
