@@ -26,6 +26,7 @@
 use super::{evaluate, Constrained, Constraint, Rows, PROJECTION_ITERATIONS, PROJECTION_TOL};
 use crate::error::{Error, Result};
 use crate::linalg::SparseCholesky;
+use crate::math::outer;
 use glam::DMat3;
 
 /// The Newton iteration stops when `max |C|` is at most [`PROJECTION_TOL`] and its last step
@@ -161,8 +162,7 @@ fn entries(
         };
         let g = rows.blocks(r)[0].1;
         let tension = lambda.get(r).map_or(0.0, |&l| (-l).max(0.0));
-        let k = tension / (rows.rows[r].c + length)
-            * (DMat3::IDENTITY - DMat3::from_cols(g * g.x, g * g.y, g * g.z));
+        let k = tension / (rows.rows[r].c + length) * (DMat3::IDENTITY - outer(g, g));
         block(i, i, k);
         if let Some(j) = j {
             block(j, j, k);
