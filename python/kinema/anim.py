@@ -216,6 +216,11 @@ class RotationTrack:
         )
         self._times = t.copy()
 
+    @property
+    def times(self) -> np.ndarray:
+        """The key times ``(N,)`` (a copy)."""
+        return self._times.copy()
+
     def __call__(self, t: Any) -> Rotation:
         """The orientation(s) at time ``t`` (a single Rotation for a scalar ``t``)."""
         tt = _float(t, "t")

@@ -146,6 +146,68 @@ class Rotation:
         return cls._make(_kinema.euler_to_quat(seq, flat), shape)
 
     @classmethod
+    def from_mrp(cls, mrp: Any) -> Self:
+        """Rotations from modified Rodrigues parameters ``(..., 3)``: axis times
+        ``tan(angle / 4)`` (Schaub & Junkins 2003, sec. 3.8)."""
+        p, shape = as_stack(mrp, "mrp", (3,))
+        return cls._make(_kinema.mrp_to_quat(p), shape)
+
+    @classmethod
+    def create_group(cls, group: str, axis: str = "Z") -> Self:
+        """The elements of a finite rotation group as a stack: ``"I"`` (icosahedral, 60),
+        ``"O"`` (octahedral, 24), ``"T"`` (tetrahedral, 12), ``"Cn"`` (cyclic, ``n``
+        rotations about ``axis``) or ``"Dn"`` (dihedral, ``2n``: ``Cn`` and ``n`` half turns
+        about axes normal to ``axis``); ``axis`` is ``"X"``, ``"Y"`` or ``"Z"``."""
+        if not isinstance(group, str):
+            raise ValueError("group: must be a string such as 'O' or 'D6'")
+        if not isinstance(axis, str):
+            raise ValueError("axis: expected one of 'X', 'Y', 'Z'")
+        q = _kinema.rotation_group(group, axis)
+        return cls._make(q, (len(q),))
+
+    @classmethod
+    def align_vectors(
+        cls, a: Any, b: Any, weights: Any = None, return_sensitivity: bool = False
+    ) -> tuple[Any, ...]:
+        """The rotation ``C`` minimising ``Σ wᵢ |aᵢ - C bᵢ|²`` over vectors ``a``, ``b``
+        ``(3,)`` or ``(N, 3)`` (Wahba's problem by the SVD, Markley 1988), with its ``rssd``
+        ``sqrt(Σ wᵢ |aᵢ - C bᵢ|²)``, and with ``return_sensitivity`` the 3x3 sensitivity
+        matrix (covariance of the rotation-vector error per unit vector noise, times the mean
+        weight; Markley 1988 eq. 38).
+
+        ``weights`` ``(N,)`` are non-negative; one may be ``inf``: that primary pair is
+        aligned exactly, and the others only turn ``C`` about it (no sensitivity then). A
+        single pair is always primary (the shortest arc). Warns when ``C`` is not unique (all
+        vectors on one line).
+        """
+        av, single_a = as_batch(a, "a", (3,))
+        bv, single_b = as_batch(b, "b", (3,))
+        if av.shape != bv.shape:
+            raise ValueError(f"b: expected the shape of a, {av.shape[1:] if single_a else av.shape}")
+        n = len(av)
+        if weights is None or n == 1:
+            w = np.ones(n)
+            if weights is not None and np.ndim(weights) != 1:
+                raise ValueError("weights: expected shape (N,)")
+        else:
+            w = np.asarray(weights, dtype=np.float64)
+            if w.shape != (n,):
+                raise ValueError(f"weights: expected shape ({n},), got {w.shape}")
+        if return_sensitivity and (n == 1 or np.isinf(w).any()):
+            raise ValueError("return_sensitivity: no sensitivity with an infinite weight or one vector pair")
+        row = _kinema.align_vectors(av, bv, np.ascontiguousarray(w.reshape(-1, 1)))[0]
+        if row[14]:
+            warnings.warn(
+                "Optimal rotation is not uniquely or poorly defined for the given sets of vectors.",
+                UserWarning,
+                stacklevel=2,
+            )
+        rot = cls._make(np.ascontiguousarray(row[None, :4]), ())
+        if return_sensitivity:
+            return rot, float(row[4]), row[5:14].reshape(3, 3).copy()
+        return rot, float(row[4])
+
+    @classmethod
     def identity(cls, n: int | None = None, *, shape: int | tuple[int, ...] | None = None) -> Self:
         """The identity: single if ``n`` and ``shape`` are None, else a stack of ``n`` or of
         ``shape`` (give one of them)."""
@@ -222,11 +284,16 @@ class Rotation:
         angles, locked = _kinema.quat_to_euler(_check_seq(seq), self._quat)
         if locked:
             warnings.warn(
-                f"gimbal lock in {locked} of {len(angles)} rotations (sequence {seq!r}): third angle set to 0",
+                f"Gimbal lock in {locked} of {len(angles)} rotations (sequence {seq!r}): third angle set to 0",
                 GimbalLockWarning,
                 stacklevel=2,
             )
         return self._out(np.rad2deg(angles) if degrees else angles)
+
+    def as_mrp(self) -> np.ndarray:
+        """Modified Rodrigues parameters ``(*shape, 3)`` of norm at most 1 (the angle taken
+        in ``[0, pi]``)."""
+        return self._out(_kinema.quat_to_mrp(self._quat))
 
     # ------------------------------------------------------------------ algebra
     def apply(self, vectors: Any, *, inverse: bool = False) -> np.ndarray:
@@ -250,8 +317,10 @@ class Rotation:
         """The rotation ``n`` times: the same axis, ``n`` times the angle in ``[0, pi]``
         (``r ** 0.5`` is the half-way rotation; ``-1`` the inverse, ``0`` the identity)."""
         if modulus is not None:
-            raise NotImplementedError("modulus is not supported")
-        p = _float(n, "n")
+            raise NotImplementedError("modulus not supported")
+        if np.size(n) != 1:
+            raise ValueError("n: Array exponent must be a scalar (one element)")
+        p = _float(np.reshape(n, ()), "n")
         if p == 1:
             return self._make(self._quat.copy(), self._shape)
         if p == -1:
@@ -281,6 +350,66 @@ class Rotation:
         else:
             tol = np.deg2rad(_float(atol, "atol")) if degrees else _float(atol, "atol")
         return (other * self.inv()).magnitude() < tol
+
+    def mean(self, weights: Any = None, *, axis: int | tuple[int, ...] | None = None) -> Self:
+        """The weighted mean rotation (Markley et al. 2007, eq. 13): the rotation minimising
+        the weighted sum of squared chordal (Frobenius) distances of the matrices.
+
+        ``weights`` (non-negative, broadcast to ``shape``; all equal when None) weigh the
+        rotations; ``axis`` (an int or a tuple) names the axes averaged over, all of them by
+        default (the result is then single), as numpy's reductions.
+        """
+        shape = self._shape or (1,)
+        if math.prod(shape) == 0:
+            raise ValueError("self: the mean of an empty stack is undefined")
+        nd = len(shape)
+        axes = tuple(range(nd)) if axis is None else (axis,) if np.ndim(axis) == 0 else axis
+        if not isinstance(axes, tuple) or not all(
+            isinstance(a, (int, np.integer)) and not isinstance(a, bool) and -nd <= a < nd
+            for a in axes
+        ):
+            raise ValueError(f"axis: expected None, or ints in [-{nd}, {nd})")
+        over = sorted({int(a) % nd for a in axes})
+        keep = [a for a in range(nd) if a not in over]
+        order = [*keep, *over]
+        size = math.prod(shape[a] for a in over)
+        q = self._quat.reshape((*shape, 4)).transpose((*order, nd))
+        w = np.ones(shape) if weights is None else np.asarray(weights, dtype=np.float64)
+        try:
+            w = np.broadcast_to(w, shape)
+        except ValueError:
+            raise ValueError(f"weights: shape {w.shape} does not broadcast to {shape}") from None
+        m = _kinema.quat_mean(
+            np.ascontiguousarray(q.reshape(-1, 4)),
+            np.ascontiguousarray(w.transpose(order).reshape(-1, 1)),
+            size,
+        )
+        return self._make(m, tuple(shape[a] for a in keep) if self._shape else ())
+
+    def reduce(
+        self,
+        left: Rotation | None = None,
+        right: Rotation | None = None,
+        return_indices: bool = False,
+    ) -> Any:
+        """The rotations ``l * p * r`` of smallest angle, ``l`` from ``left`` and ``r`` from
+        ``right`` (None: the identity alone), e.g. an orientation reduced by the symmetry
+        groups of two crystals (:meth:`create_group`). With ``return_indices`` also the indices
+        of the chosen ``l`` and ``r`` (None for an absent side), arrays of ``shape``."""
+        none = np.zeros((0, 4))
+        for name, g in (("left", left), ("right", right)):
+            if g is not None and not isinstance(g, Rotation):
+                raise ValueError(f"{name}: expected a Rotation or None")
+        out = _kinema.quat_reduce(
+            self._quat,
+            none if left is None else left._quat,
+            none if right is None else right._quat,
+        )
+        rot = self._make(np.ascontiguousarray(out[:, :4]), self._shape)
+        if not return_indices:
+            return rot
+        li, ri = (self._out(out[:, k].astype(np.intp)) for k in (4, 5))
+        return rot, None if left is None else li, None if right is None else ri
 
     # ------------------------------------------------------------------ container
     @property
@@ -350,6 +479,18 @@ class Rotation:
     def _out(self, arr: np.ndarray) -> np.ndarray:
         """Kernel rows ``(N, *item)`` as ``(*shape, *item)``."""
         return arr.reshape((*self._shape, *arr.shape[1:]))
+
+
+def _pickled(state: Any, what: str, item: tuple[int, ...]) -> tuple[np.ndarray, bool]:
+    """The ``(array (N, *item), single)`` pickle state of a Transform, checked for its types
+    and shape (one item when single)."""
+    if not (isinstance(state, tuple) and len(state) == 2 and isinstance(state[1], bool)):
+        raise ValueError(f"state: expected ({what}, single), not a kinema pickle")
+    array = np.ascontiguousarray(state[0], dtype=np.float64)
+    if array.shape[1:] != item or array.ndim != 1 + len(item) or (state[1] and len(array) != 1):
+        shape = ", ".join(["1" if state[1] else "N", *map(str, item)])
+        raise ValueError(f"state: {what} must have shape ({shape}), got {array.shape}")
+    return array, state[1]
 
 
 def _float(value: Any, name: str) -> float:

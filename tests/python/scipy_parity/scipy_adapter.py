@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import importlib.util
 import pathlib
+import warnings
 from types import ModuleType
 from typing import Any
 
@@ -40,6 +41,21 @@ class Rotation(kinema.Rotation):
 
     def as_quat(self, canonical: bool = False, *, scalar_first: bool = False) -> Any:  # type: ignore[override]
         return super().as_quat(canonical=canonical, scalar_first=scalar_first)
+
+    @classmethod
+    def identity(cls, num: int | None = None, *, shape: Any = None) -> Rotation:  # type: ignore[override]
+        return super().identity(num, shape=shape)  # type: ignore[return-value]
+
+    @classmethod
+    def random(cls, num: int | None = None, rng: Any = None, *, shape: Any = None) -> Rotation:  # type: ignore[override]
+        return super().random(num, rng=rng, shape=shape)  # type: ignore[return-value]
+
+    def as_euler(self, seq: str, degrees: bool = False, *, suppress_warnings: bool = False) -> Any:  # type: ignore[override]
+        # kinema silences its GimbalLockWarning through the warnings filter.
+        with warnings.catch_warnings():
+            if suppress_warnings:
+                warnings.simplefilter("ignore", kinema.GimbalLockWarning)
+            return super().as_euler(seq, degrees=degrees)
 
 
 def _wrap(r: kinema.Rotation) -> Rotation:
