@@ -12,8 +12,8 @@ angles), Grassia 1998 (exponential map), Shoemake 1985 (slerp).
 
 from __future__ import annotations
 
-import warnings
 import math
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any, overload
 
@@ -146,6 +146,37 @@ class Rotation:
         return cls._make(_kinema.euler_to_quat(seq, flat), shape)
 
     @classmethod
+    def from_davenport(cls, axes: Any, order: str, angles: Any, *, degrees: bool = False) -> Self:
+        """Rotations by Davenport angles: turns by ``angles`` ``(..., n)`` about ``n`` (1 to 3)
+        ``axes`` ``(n, 3)`` (any non-zero vectors, normalised here; consecutive ones
+        orthogonal to 1e-7), ``order`` ``"extrinsic"``/``"e"`` (fixed axes, the first turn
+        first) or ``"intrinsic"``/``"i"`` (axes moving with the body). Euler angles are the
+        case of coordinate axes (Davenport 1973; Shuster & Markley 2003)."""
+        if order not in ("e", "extrinsic", "i", "intrinsic"):
+            raise ValueError("order should be 'e'/'extrinsic' or 'i'/'intrinsic'")
+        ax, _ = as_stack(axes, "axes", (3,))
+        if not 1 <= len(ax) <= 3:
+            raise ValueError("axes: expected 1 to 3 axes")
+        norms = np.linalg.norm(ax, axis=1)
+        if not (norms > 0).all() or not np.isfinite(norms).all():
+            raise ValueError("axes: must be finite and non-zero")
+        ax = ax / norms[:, None]
+        if (np.abs(np.sum(ax[1:] * ax[:-1], axis=1)) > 1e-7).any():
+            raise ValueError("axes: consecutive axes must be orthogonal")
+        flat, shape = as_stack(angles if np.ndim(angles) else [angles], "angles", (len(ax),))
+        if degrees:
+            flat = np.deg2rad(flat)
+        q = _kinema.rotvec_to_quat(np.zeros((len(flat), 3)))
+        for k, axis in enumerate(ax):
+            turn = _kinema.axis_angle_to_quat(axis[None], np.ascontiguousarray(flat[:, k : k + 1]))
+            q = (
+                _kinema.quat_multiply(turn, q)
+                if order[0] == "e"
+                else _kinema.quat_multiply(q, turn)
+            )
+        return cls._make(q, shape)
+
+    @classmethod
     def from_mrp(cls, mrp: Any) -> Self:
         """Rotations from modified Rodrigues parameters ``(..., 3)``: axis times
         ``tan(angle / 4)`` (Schaub & Junkins 2003, sec. 3.8)."""
@@ -181,9 +212,11 @@ class Rotation:
         vectors on one line).
         """
         av, single_a = as_batch(a, "a", (3,))
-        bv, single_b = as_batch(b, "b", (3,))
+        bv, _ = as_batch(b, "b", (3,))
         if av.shape != bv.shape:
-            raise ValueError(f"b: expected the shape of a, {av.shape[1:] if single_a else av.shape}")
+            raise ValueError(
+                f"b: expected the shape of a, {av.shape[1:] if single_a else av.shape}"
+            )
         n = len(av)
         if weights is None or n == 1:
             w = np.ones(n)
@@ -194,7 +227,9 @@ class Rotation:
             if w.shape != (n,):
                 raise ValueError(f"weights: expected shape ({n},), got {w.shape}")
         if return_sensitivity and (n == 1 or np.isinf(w).any()):
-            raise ValueError("return_sensitivity: no sensitivity with an infinite weight or one vector pair")
+            raise ValueError(
+                "return_sensitivity: no sensitivity with an infinite weight or one vector pair"
+            )
         row = _kinema.align_vectors(av, bv, np.ascontiguousarray(w.reshape(-1, 1)))[0]
         if row[14]:
             warnings.warn(
@@ -242,7 +277,9 @@ class Rotation:
         if not rotations:
             return cls._make(np.zeros((0, 4)), (0,))
         try:
-            q = np.concatenate([r._quat.reshape((*r._shape, 4) if r._shape else (1, 4)) for r in rotations])
+            q = np.concatenate(
+                [r._quat.reshape((*r._shape, 4) if r._shape else (1, 4)) for r in rotations]
+            )
         except ValueError:
             raise ValueError("rotations: stacks must agree in every axis but the first") from None
         return cls._make(np.ascontiguousarray(q.reshape(-1, 4)), q.shape[:-1])
@@ -325,7 +362,9 @@ class Rotation:
             return self._make(self._quat.copy(), self._shape)
         if p == -1:
             return self.inv()
-        return self._make(_kinema.rotvec_to_quat(p * _kinema.quat_to_rotvec(self._quat)), self._shape)
+        return self._make(
+            _kinema.rotvec_to_quat(p * _kinema.quat_to_rotvec(self._quat)), self._shape
+        )
 
     def inv(self) -> Self:
         """The inverse rotations (conjugate quaternions)."""
@@ -336,7 +375,9 @@ class Rotation:
         a = _kinema.quat_angle(self._quat)[:, 0]
         return float(a[0]) if self.single else a.reshape(self._shape)
 
-    def approx_equal(self, other: Rotation, atol: float | None = None, *, degrees: bool = False) -> Any:
+    def approx_equal(
+        self, other: Rotation, atol: float | None = None, *, degrees: bool = False
+    ) -> Any:
         """Whether each rotation is less than ``atol`` from ``other`` (the angle of
         ``other * self.inv()``; q and -q are equal), as scipy's ``approx_equal``.
 
@@ -345,7 +386,9 @@ class Rotation:
         """
         if atol is None:
             if degrees:
-                warnings.warn("atol: not given, so degrees has no effect; using 1e-8 rad", stacklevel=2)
+                warnings.warn(
+                    "atol: not given, so degrees has no effect; using 1e-8 rad", stacklevel=2
+                )
             tol = 1e-8
         else:
             tol = np.deg2rad(_float(atol, "atol")) if degrees else _float(atol, "atol")
@@ -363,7 +406,8 @@ class Rotation:
         if math.prod(shape) == 0:
             raise ValueError("self: the mean of an empty stack is undefined")
         nd = len(shape)
-        axes = tuple(range(nd)) if axis is None else (axis,) if np.ndim(axis) == 0 else axis
+        axes: Any = tuple(range(nd)) if axis is None else axis
+        axes = (axes,) if np.ndim(axes) == 0 else axes
         if not isinstance(axes, tuple) or not all(
             isinstance(a, (int, np.integer)) and not isinstance(a, bool) and -nd <= a < nd
             for a in axes
@@ -469,7 +513,9 @@ class Rotation:
             raise ValueError("state: expected (quaternions, shape), not a kinema pickle")
         quat = np.ascontiguousarray(state[0], dtype=np.float64)
         if quat.shape != (math.prod(state[1]), 4):
-            raise ValueError(f"state: quaternions must have shape (prod(shape), 4), got {quat.shape}")
+            raise ValueError(
+                f"state: quaternions must have shape (prod(shape), 4), got {quat.shape}"
+            )
         norms = np.linalg.norm(quat, axis=1)
         bad = np.flatnonzero(~(np.abs(norms - 1.0) <= 1e-9))
         if bad.size:

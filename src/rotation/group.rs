@@ -204,6 +204,8 @@ mod tests {
             assert!(q.w.abs() > 1.0 - 1e-15 && i >= 0 && j >= 0);
             let (q, _, j) = reduce(*p, &[], &g);
             assert!(q.w.abs() > 1.0 - 1e-15 && j >= 0);
+            let (q, i, j) = reduce(*p, &g, &[]);
+            assert!(q.w.abs() > 1.0 - 1e-15 && i >= 0 && j == -1);
         }
         let p = DQuat::from_rotation_z(0.3);
         assert_eq!(reduce(p, &[], &[]), (p, -1, -1));

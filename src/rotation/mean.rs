@@ -48,13 +48,13 @@ mod tests {
             (got[0] - 1.0).abs() < 1e-14 && got[1..].iter().all(|c| c.abs() < 1e-14),
             "{got:?}"
         );
-        // Weight 3:1 on two rotations about one axis: the mean is on that axis.
-        let axis = DVec3::new(0.0, 0.6, 0.8);
-        let q = mean(&[DQuat::from_axis_angle(axis, 1.0), DQuat::IDENTITY], &[3.0, 1.0]).unwrap();
-        assert!(
-            q[1].abs() < 1e-14 && (q[2] * 0.8 - q[3] * 0.6).abs() < 1e-14 && q[3] > 0.0,
-            "{q:?}"
-        );
+        // Weights 3:1 on the identity and a turn by `a` about one axis: the mean turns about
+        // that axis by atan2(sin a, 3 + cos a) (maximise 3cos²φ + cos²(φ - a/2), φ half the angle).
+        let (axis, a) = (DVec3::new(0.0, 0.6, 0.8), 1.0_f64);
+        let q = mean(&[DQuat::from_axis_angle(axis, a), DQuat::IDENTITY], &[1.0, 3.0]).unwrap();
+        let want = DQuat::from_axis_angle(axis, a.sin().atan2(3.0 + a.cos()));
+        assert!((q[0] - want.w).abs() < 1e-15 && (q[3] - want.z).abs() < 1e-15, "{q:?}");
+        assert!(q[1].abs() < 1e-15 && (q[2] * 0.8 - q[3] * 0.6).abs() < 1e-15);
         assert!(mean(&[p], &[-1.0]).is_err() && mean(&[], &[]).is_err());
         assert!(mean(&[p, m], &[0.0, 0.0]).is_err());
     }

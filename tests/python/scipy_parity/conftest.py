@@ -2,8 +2,9 @@
 
 scipy's tests take an ``xp`` fixture (the array namespace); here it is always numpy. The
 expected failures are read from the "scipy parity" table of ``docs/rotations.md`` (rows
-``| `file::pattern` | reason |``, ``pattern`` an fnmatch pattern on the test's name) and
-marked strict, so a test that starts passing must leave the table.
+``| `file::name` | reason |``, ``name`` an fnmatch pattern on the test function's name, or
+one parametrised case such as ``test_x[numpy-2]`` exactly) and marked strict, so a test that
+starts passing must leave the table.
 """
 
 from __future__ import annotations
@@ -32,7 +33,15 @@ def known_failures() -> list[tuple[str, str, str]]:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    for marker in ("array_api_backends", "skip_xp_backends", "xfail_xp_backends", "skip_xp_invalid_arg", "thread_unsafe", "fail_slow", "slow"):
+    for marker in (
+        "array_api_backends",
+        "skip_xp_backends",
+        "xfail_xp_backends",
+        "skip_xp_invalid_arg",
+        "thread_unsafe",
+        "fail_slow",
+        "slow",
+    ):
         config.addinivalue_line("markers", f"{marker}: used by scipy's test files")
 
 
@@ -44,7 +53,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         file = item.path.name.removeprefix("test_scipy_")
         file = f"test_{file}"
         for f, pattern, reason in rows:
-            if f == file and fnmatch.fnmatchcase(item.name, pattern):
+            name = getattr(item, "originalname", item.name)
+            if f == file and (item.name == pattern or fnmatch.fnmatchcase(name, pattern)):
                 item.add_marker(pytest.mark.xfail(reason=reason, strict=True))
                 break
 

@@ -47,8 +47,11 @@ class Rotation(kinema.Rotation):
         return super().identity(num, shape=shape)  # type: ignore[return-value]
 
     @classmethod
-    def random(cls, num: int | None = None, rng: Any = None, *, shape: Any = None) -> Rotation:  # type: ignore[override]
-        return super().random(num, rng=rng, shape=shape)  # type: ignore[return-value]
+    def random(  # type: ignore[override]
+        cls, num: int | None = None, rng: Any = None, *, shape: Any = None, random_state: Any = None
+    ) -> Rotation:
+        # random_state is scipy's older name of rng.
+        return super().random(num, rng=rng if random_state is None else random_state, shape=shape)  # type: ignore[return-value]
 
     def as_euler(self, seq: str, degrees: bool = False, *, suppress_warnings: bool = False) -> Any:  # type: ignore[override]
         # kinema silences its GimbalLockWarning through the warnings filter.
@@ -56,6 +59,14 @@ class Rotation(kinema.Rotation):
             if suppress_warnings:
                 warnings.simplefilter("ignore", kinema.GimbalLockWarning)
             return super().as_euler(seq, degrees=degrees)
+
+
+def _plain(r: Any) -> Any:
+    """The adapter's rotations as kinema's own class (scalar-first default), for kinema code
+    that reads ``as_quat()``; anything else unchanged, for kinema to refuse."""
+    if isinstance(r, kinema.Rotation):
+        return kinema.Rotation.from_quat(r.as_quat(scalar_first=True))
+    return r
 
 
 def _wrap(r: kinema.Rotation) -> Rotation:
@@ -67,7 +78,7 @@ class Slerp:
     """scipy's ``Slerp(times, rotations)``: kinema's ``RotationTrack`` with ``"slerp"``."""
 
     def __init__(self, times: Any, rotations: kinema.Rotation) -> None:
-        self._track = RotationTrack(times, rotations, "slerp")
+        self._track = RotationTrack(times, _plain(rotations), "slerp")
 
     def __call__(self, times: Any) -> Rotation:
         return _wrap(self._track(times))
@@ -81,7 +92,7 @@ class RotationSpline:
     ``"spline"``; ``order`` 1 and 2 are its angular velocity and acceleration."""
 
     def __init__(self, times: Any, rotations: kinema.Rotation) -> None:
-        self._track = RotationTrack(times, rotations, "spline")
+        self._track = RotationTrack(times, _plain(rotations), "spline")
 
     def __call__(self, times: Any, order: int = 0) -> Any:
         if order == 1:
@@ -96,7 +107,7 @@ class RotationSpline:
         return getattr(self._track, name)
 
 
-RigidTransform = getattr(kinema, "Transform")
+RigidTransform = kinema.Transform
 
 ADAPTED = {
     "Rotation": Rotation,
@@ -126,5 +137,8 @@ def load(filename: str) -> dict[str, Any]:
     return {
         k: v
         for k, v in vars(module).items()
-        if k.startswith(("test", "Test")) or k == "pytestmark" or hasattr(v, "_fixture_function_marker") or type(v).__name__ == "FixtureFunctionDefinition"
+        if k.startswith(("test", "Test"))
+        or k == "pytestmark"
+        or hasattr(v, "_fixture_function_marker")
+        or type(v).__name__ == "FixtureFunctionDefinition"
     }
