@@ -45,7 +45,7 @@ pub fn align_vectors(a: &[[f64; 3]], b: &[[f64; 3]], weights: &[f64]) -> Result<
         ensure_finite("a", x).map_err(|e| e.at(k))?;
         ensure_finite("b", y).map_err(|e| e.at(k))?;
     }
-    if let Some(k) = weights.iter().position(|w| !(*w >= 0.0)) {
+    if let Some(k) = weights.iter().position(|w| w.is_nan() || *w < 0.0) {
         return Err(Error::invalid("weights", "must be non-negative").at(k));
     }
     let infinite: Vec<usize> = (0..a.len()).filter(|&k| weights[k] == f64::INFINITY).collect();
