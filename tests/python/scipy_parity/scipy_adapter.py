@@ -96,9 +96,9 @@ class RotationSpline:
 
     def __call__(self, times: Any, order: int = 0) -> Any:
         if order == 1:
-            return self._track.angular_velocity(times)
+            return self._track.angular_velocity(times, frame="body")
         if order == 2:
-            return self._track.angular_acceleration(times)
+            return self._track.angular_acceleration(times, frame="body")
         if order != 0:
             raise ValueError("order must be 0, 1 or 2")
         return _wrap(self._track(times))
