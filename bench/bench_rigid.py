@@ -35,7 +35,7 @@ def spin_state(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions, orientations (w x y z) and world angular velocities of the free bodies."""
     rng = np.random.default_rng(0)
     x = rng.uniform(-20, 20, (n, 3))
-    q = Rotation.random(n, seed=1).as_quat()
+    q = Rotation.random(n, rng=1).as_quat()
     w = rng.normal(scale=3.0, size=(n, 3))
     return x, q, w
 

@@ -1,9 +1,9 @@
 """kinema: physically based animation with a fast Rust core.
 
 One submodule per subject, each loaded on first use (``import kinema; kinema.cloth`` works,
-PEP 562): :mod:`kinema.rotation` (rotations, Euler angles, slerp, transforms),
-:mod:`kinema.ode` (integrators and stability), :mod:`kinema.geometry` (collision shapes),
-:mod:`kinema.particles` (forces, colliders,
+PEP 562): :mod:`kinema.rotation` (rotations, Euler angles, slerp), :mod:`kinema.transform` (4x4
+transforms), :mod:`kinema.ode` (integrators and stability), :mod:`kinema.geometry` (collision
+shapes), :mod:`kinema.particles` (forces, colliders,
 emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`kinema.rigid`
 (rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
@@ -30,8 +30,9 @@ from kinema._kinema import (
     num_threads,
     set_num_threads,
 )
-from kinema.rotation import GimbalLockWarning, Rotation, Transform, slerp
+from kinema.rotation import GimbalLockWarning, Rotation, slerp
 from kinema.scene import CheckpointError, Scene
+from kinema.transform import Transform
 
 
 def _threads_from_environment() -> None:
@@ -85,6 +86,7 @@ _SUBMODULES = frozenset(
         "rotation",
         "scene",
         "scenefile",
+        "transform",
     }
 )
 

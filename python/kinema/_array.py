@@ -31,6 +31,27 @@ def as_batch(value: object, name: str, row_shape: tuple[int, ...]) -> tuple[np.n
     raise ValueError(f"{name}: expected shape ({expected}) or (N, {expected}), got {arr.shape}")
 
 
+def as_stack(
+    value: object, name: str, row_shape: tuple[int, ...]
+) -> tuple[np.ndarray, tuple[int, ...]]:
+    """Convert ``value`` of shape ``(*lead, *row_shape)`` (any number of leading axes) to a
+    C-contiguous float64 batch ``(prod(lead), *row_shape)``; returns it and ``lead``.
+
+    Raises ValueError naming ``name`` for values that cannot be converted to float64 or whose
+    trailing axes are not ``row_shape``.
+    """
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{name}: cannot convert to a float64 array ({e})") from None
+    k = len(row_shape)
+    if arr.ndim < k or arr.shape[arr.ndim - k :] != row_shape:
+        expected = ", ".join(str(d) for d in row_shape)
+        raise ValueError(f"{name}: expected shape (..., {expected}), got {arr.shape}")
+    lead = arr.shape[: arr.ndim - k]
+    return np.ascontiguousarray(arr.reshape((-1, *row_shape))), lead
+
+
 def as_scalars(value: object, name: str) -> tuple[np.ndarray, bool]:
     """Convert a scalar or 1-D array-like to a float64 column ``(N, 1)``; see :func:`as_batch`."""
     try:

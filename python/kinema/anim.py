@@ -222,24 +222,36 @@ class RotationTrack:
         )
         self._times = t.copy()
 
+    @property
+    def times(self) -> np.ndarray:
+        """The key times ``(N,)`` (a copy)."""
+        return self._times.copy()
+
     def __call__(self, t: Any) -> Rotation:
         """The orientation(s) at time ``t`` (a single Rotation for a scalar ``t``)."""
         tt = _float(t, "t")
         q = self._track.eval(np.ascontiguousarray(tt.reshape(-1, 1)))
         return Rotation.from_quat(q[0] if tt.ndim == 0 else q)
 
-    def _rates(self, t: Any, order: int) -> np.ndarray:
+    def _rates(self, t: Any, order: int, frame: str) -> np.ndarray:
+        if frame not in ("world", "body"):
+            raise ValueError("frame: expected 'world' or 'body'")
         tt = _float(t, "t")
         w = self._track.rates(np.ascontiguousarray(tt.reshape(-1, 1)), order)
+        if frame == "body":
+            # ω_body = Rᵀ ω_world, and its derivative Rᵀ α_world (the term Rᵀ (ω × ω) is 0).
+            w = self(tt.reshape(-1)).apply(w, inverse=True)
         return w[0] if tt.ndim == 0 else w.reshape(*tt.shape, 3)
 
-    def angular_velocity(self, t: Any) -> np.ndarray:
-        """Angular velocity (rad/s, world frame), ``(3,)`` or ``t.shape + (3,)``."""
-        return self._rates(t, 1)
+    def angular_velocity(self, t: Any, *, frame: str = "world") -> np.ndarray:
+        """Angular velocity (rad/s), ``(3,)`` or ``t.shape + (3,)``, in the world frame or,
+        with ``frame="body"``, in the rotating body's frame (as scipy's ``RotationSpline``)."""
+        return self._rates(t, 1, frame)
 
-    def angular_acceleration(self, t: Any) -> np.ndarray:
-        """Angular acceleration (rad/s², world frame), ``(3,)`` or ``t.shape + (3,)``."""
-        return self._rates(t, 2)
+    def angular_acceleration(self, t: Any, *, frame: str = "world") -> np.ndarray:
+        """Angular acceleration (rad/s²), ``(3,)`` or ``t.shape + (3,)``, in the world frame or,
+        with ``frame="body"``, in the body frame (``Rᵀ α``)."""
+        return self._rates(t, 2, frame)
 
 
 class ArcLengthCurve:

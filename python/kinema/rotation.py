@@ -1,4 +1,4 @@
-"""3D rotations: a batched ``Rotation``, spherical interpolation and homogeneous transforms.
+"""3D rotations: ``Rotation`` (one or a stack of any shape) and spherical interpolation.
 
 Conventions: quaternions are scalar-first ``(w, x, y, z)`` (pass ``scalar_first=False`` for
 scipy's order); Euler sequences are 3-letter strings, upper case intrinsic (rotations about the
@@ -12,16 +12,20 @@ angles), Grassia 1998 (exponential map), Shoemake 1985 (slerp).
 
 from __future__ import annotations
 
+import math
 import warnings
-from collections.abc import Callable, Iterable, Sequence
-from typing import Any, overload
+from collections.abc import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch, as_scalars
+from kinema._array import as_batch, as_scalars, as_stack
 
-__all__ = ["GIMBAL_LOCK_TOL", "GimbalLockWarning", "Rotation", "Transform", "gimbal_lock", "slerp"]
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
+__all__ = ["GIMBAL_LOCK_TOL", "GimbalLockWarning", "Rotation", "gimbal_lock", "slerp"]
 
 GIMBAL_LOCK_TOL: float = _kinema.GIMBAL_LOCK_TOL
 """Radians from the singular middle angle within which Euler angles count as gimbal-locked."""
@@ -34,73 +38,78 @@ class GimbalLockWarning(UserWarning):
     """
 
 
-def _check_seq(seq: object) -> str:
-    if not isinstance(seq, str):
-        raise ValueError(f"seq: expected a 3-letter string such as 'XYZ' or 'zxz', got {seq!r}")
+def _check_seq(seq: object, lengths: tuple[int, ...] = (3,)) -> str:
+    """``seq`` if it is a string of one of ``lengths``; the letters are checked in Rust."""
+    if not isinstance(seq, str) or len(seq) not in lengths:
+        n = " or ".join(map(str, lengths))
+        raise ValueError(f"seq: expected a string of {n} axes such as 'XYZ' or 'zxz'")
     return seq
 
 
 class Rotation:
-    """One rotation or a stack of N rotations, stored as unit quaternions ``(N, 4)``.
+    """One rotation or a stack of rotations of any shape, stored as unit quaternions.
 
     Build one with a ``from_*`` class method, :meth:`identity` or :meth:`random`. A rotation
-    made from a single item (shape ``(4,)``, ``(3, 3)``, ``(3,)``...) is *single*: its
-    ``as_*`` methods return single items and it has no ``len()``; a stack is indexed and
-    sliced like an array. ``r1 * r2`` applies ``r2`` first, then ``r1``.
+    made from a single item (shape ``(4,)``, ``(3, 3)``, ``(3,)``...) is *single*
+    (``shape == ()``): its ``as_*`` methods return single items and it has no ``len()``. A
+    stack made from ``(*shape, 4)`` quaternions has that ``shape``; ``len``, indexing,
+    assignment and iteration act on its first axis, as on a numpy array. ``r1 * r2`` applies
+    ``r2`` first, then ``r1``; stacks broadcast as numpy arrays do.
     """
 
-    __slots__ = ("_quat", "_single")
+    __slots__ = ("_quat", "_shape")
 
     _quat: np.ndarray
-    _single: bool
+    _shape: tuple[int, ...]
 
     def __init__(self, quat: Any, *, scalar_first: bool = True) -> None:
         """Same as :meth:`from_quat`."""
         other = Rotation.from_quat(quat, scalar_first=scalar_first)
-        self._quat, self._single = other._quat, other._single
+        self._quat, self._shape = other._quat, other._shape
 
     @classmethod
-    def _make(cls, quat: np.ndarray, single: bool) -> Rotation:
+    def _make(cls, quat: np.ndarray, shape: tuple[int, ...]) -> Self:
+        """A rotation of leading ``shape`` from unit quaternions ``(prod(shape), 4)``."""
         r = object.__new__(cls)
         r._quat = quat
-        r._single = single
+        r._shape = tuple(shape)
         return r
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_quat(cls, quat: Any, *, scalar_first: bool = True) -> Rotation:
-        """Rotations from quaternions ``(4,)`` or ``(N, 4)``, normalised to unit length.
+    def from_quat(cls, quat: Any, *, scalar_first: bool = True) -> Self:
+        """Rotations from quaternions ``(..., 4)``, normalised to unit length.
 
         ``scalar_first=False`` reads ``(x, y, z, w)`` (scipy's order). A zero or non-finite
-        quaternion raises ValueError naming its index.
+        quaternion raises ValueError naming its index (in the flattened stack).
         """
-        q, single = as_batch(quat, "quat", (4,))
+        q, shape = as_stack(quat, "quat", (4,))
         if not scalar_first:
             q = np.ascontiguousarray(q[:, [3, 0, 1, 2]])
-        return cls._make(_kinema.quat_normalize(q, False), single)
+        return cls._make(_kinema.quat_normalize(q, False), shape)
 
     @classmethod
-    def from_matrix(cls, matrix: Any, *, orthonormalize: bool = False) -> Rotation:
-        """Rotations from matrices ``(3, 3)`` or ``(N, 3, 3)`` acting on column vectors.
+    def from_matrix(cls, matrix: Any, *, orthonormalize: bool = False) -> Self:
+        """Rotations from matrices ``(..., 3, 3)`` acting on column vectors.
 
         A matrix further than ``ROTATION_MATRIX_TOL`` (1e-6) from orthonormal, or with a
         negative determinant, raises ValueError unless ``orthonormalize=True`` replaces it by
         the nearest rotation (polar decomposition by SVD, after an exact power-of-two scaling,
         so any finite matrix works, ``1e160 * I`` or subnormal entries included).
         """
-        m, single = as_batch(matrix, "matrix", (3, 3))
-        return cls._make(_kinema.matrix_to_quat(m, orthonormalize), single)
+        m, shape = as_stack(matrix, "matrix", (3, 3))
+        return cls._make(_kinema.matrix_to_quat(m, orthonormalize), shape)
 
     @classmethod
-    def from_rotvec(cls, rotvec: Any, *, degrees: bool = False) -> Rotation:
-        """Rotations from rotation vectors ``(3,)`` or ``(N, 3)``: axis times angle."""
-        v, single = as_batch(rotvec, "rotvec", (3,))
+    def from_rotvec(cls, rotvec: Any, *, degrees: bool = False) -> Self:
+        """Rotations from rotation vectors ``(..., 3)``: axis times angle."""
+        v, shape = as_stack(rotvec, "rotvec", (3,))
         if degrees:
             v = np.deg2rad(v)
-        return cls._make(_kinema.rotvec_to_quat(v), single)
+        return cls._make(_kinema.rotvec_to_quat(v), shape)
 
     @classmethod
-    def from_axis_angle(cls, axis: Any, angle: Any, *, degrees: bool = False) -> Rotation:
+    def from_axis_angle(cls, axis: Any, angle: Any, *, degrees: bool = False) -> Self:
         """Rotations by ``angle`` about ``axis`` (normalised here; a zero axis is an error).
 
         ``axis`` is ``(3,)`` or ``(N, 3)``, ``angle`` a scalar or ``(N,)``; one broadcasts
@@ -110,76 +119,199 @@ class Rotation:
         t, single_angle = as_scalars(angle, "angle")
         if degrees:
             t = np.deg2rad(t)
-        return cls._make(_kinema.axis_angle_to_quat(a, t), single_axis and single_angle)
+        q = _kinema.axis_angle_to_quat(a, t)
+        return cls._make(q, () if single_axis and single_angle else (len(q),))
 
     @classmethod
-    def from_euler(cls, seq: str, angles: Any, *, degrees: bool = False) -> Rotation:
-        """Rotations from Euler angles ``(3,)`` or ``(N, 3)`` in sequence ``seq``.
+    def from_euler(cls, seq: str, angles: Any, *, degrees: bool = False) -> Self:
+        """Rotations from Euler angles in sequence ``seq`` of 1, 2 or 3 axes.
 
-        ``seq`` has 3 letters from x, y, z: upper case for intrinsic rotations (about the
-        body's moving axes, "Euler angles"), lower case for extrinsic rotations (about the
-        fixed world axes, "fixed angles"). ``XYZ`` with ``(a, b, c)`` equals ``zyx`` with
-        ``(c, b, a)``.
+        ``seq`` has letters from x, y, z, consecutive ones different: upper case for
+        intrinsic rotations (about the body's moving axes, "Euler angles"), lower case for
+        extrinsic rotations (about the fixed world axes, "fixed angles"). ``angles`` is
+        ``(..., len(seq))`` (a scalar counts as ``(1,)``). ``XYZ`` with
+        ``(a, b, c)`` equals ``zyx`` with ``(c, b, a)``. Sequences of one or two axes are the
+        three-axis sequence completed by a zero angle (which is exactly the identity).
         """
-        a, single = as_batch(angles, "angles", (3,))
+        seq = _check_seq(seq, (1, 2, 3))
+        a = angles if np.ndim(angles) else [angles]
+        flat, shape = as_stack(a, "angles", (len(seq),))
         if degrees:
-            a = np.deg2rad(a)
-        return cls._make(_kinema.euler_to_quat(_check_seq(seq), a), single)
+            flat = np.deg2rad(flat)
+        if len(seq) < 3:
+            other = next(c for c in "xyz" if c != seq[-1].lower())
+            other = other.upper() if seq.isupper() else other
+            seq = (seq + other + seq[0])[:3] if len(seq) == 1 else seq + seq[0]
+            flat = np.ascontiguousarray(np.pad(flat, ((0, 0), (0, 3 - flat.shape[1]))))
+        return cls._make(_kinema.euler_to_quat(seq, flat), shape)
 
     @classmethod
-    def identity(cls, n: int | None = None) -> Rotation:
-        """The identity: single if ``n`` is None, else a stack of ``n``."""
-        q = _quats(n, np.zeros)
+    def from_davenport(cls, axes: Any, order: str, angles: Any, *, degrees: bool = False) -> Self:
+        """Rotations by Davenport angles: turns by ``angles`` ``(..., n)`` about ``n`` (1 to 3)
+        ``axes`` ``(n, 3)`` (any non-zero vectors, normalised here; consecutive ones
+        orthogonal to 1e-7), ``order`` ``"extrinsic"``/``"e"`` (fixed axes, the first turn
+        first) or ``"intrinsic"``/``"i"`` (axes moving with the body). Euler angles are the
+        case of coordinate axes (Davenport 1973; Shuster & Markley 2003)."""
+        if order not in ("e", "extrinsic", "i", "intrinsic"):
+            raise ValueError("order should be 'e'/'extrinsic' or 'i'/'intrinsic'")
+        ax, _ = as_stack(axes, "axes", (3,))
+        if not 1 <= len(ax) <= 3:
+            raise ValueError("axes: expected 1 to 3 axes")
+        norms = np.linalg.norm(ax, axis=1)
+        if not (norms > 0).all() or not np.isfinite(norms).all():
+            raise ValueError("axes: must be finite and non-zero")
+        ax = ax / norms[:, None]
+        if (np.abs(np.sum(ax[1:] * ax[:-1], axis=1)) > 1e-7).any():
+            raise ValueError("axes: consecutive axes must be orthogonal")
+        flat, shape = as_stack(angles if np.ndim(angles) else [angles], "angles", (len(ax),))
+        if degrees:
+            flat = np.deg2rad(flat)
+        q = _kinema.rotvec_to_quat(np.zeros((len(flat), 3)))
+        for k, axis in enumerate(ax):
+            turn = _kinema.axis_angle_to_quat(axis[None], np.ascontiguousarray(flat[:, k : k + 1]))
+            q = (
+                _kinema.quat_multiply(turn, q)
+                if order[0] == "e"
+                else _kinema.quat_multiply(q, turn)
+            )
+        return cls._make(q, shape)
+
+    @classmethod
+    def from_mrp(cls, mrp: Any) -> Self:
+        """Rotations from modified Rodrigues parameters ``(..., 3)``: axis times
+        ``tan(angle / 4)`` (Schaub & Junkins 2003, sec. 3.8)."""
+        p, shape = as_stack(mrp, "mrp", (3,))
+        return cls._make(_kinema.mrp_to_quat(p), shape)
+
+    @classmethod
+    def create_group(cls, group: str, axis: str = "Z") -> Self:
+        """The elements of a finite rotation group as a stack: ``"I"`` (icosahedral, 60),
+        ``"O"`` (octahedral, 24), ``"T"`` (tetrahedral, 12), ``"Cn"`` (cyclic, ``n``
+        rotations about ``axis``) or ``"Dn"`` (dihedral, ``2n``: ``Cn`` and ``n`` half turns
+        about axes normal to ``axis``); ``axis`` is ``"X"``, ``"Y"`` or ``"Z"``."""
+        if not isinstance(group, str):
+            raise ValueError("group: must be a string such as 'O' or 'D6'")
+        if not isinstance(axis, str):
+            raise ValueError("axis: expected one of 'X', 'Y', 'Z'")
+        q = _kinema.rotation_group(group, axis)
+        return cls._make(q, (len(q),))
+
+    @classmethod
+    def align_vectors(
+        cls, a: Any, b: Any, weights: Any = None, return_sensitivity: bool = False
+    ) -> tuple[Any, ...]:
+        """The rotation ``C`` minimising ``Σ wᵢ |aᵢ - C bᵢ|²`` over vectors ``a``, ``b``
+        ``(3,)`` or ``(N, 3)`` (Wahba's problem by the SVD, Markley 1988), with its ``rssd``
+        ``sqrt(Σ wᵢ |aᵢ - C bᵢ|²)``, and with ``return_sensitivity`` the 3x3 sensitivity
+        matrix (covariance of the rotation-vector error per unit vector noise, times the mean
+        weight; Markley 1988 eq. 38).
+
+        ``weights`` ``(N,)`` are non-negative; one may be ``inf``: that primary pair is
+        aligned exactly, and the others only turn ``C`` about it (no sensitivity then). A
+        single pair is always primary (the shortest arc). Warns when ``C`` is not unique (all
+        vectors on one line).
+        """
+        av, single_a = as_batch(a, "a", (3,))
+        bv, _ = as_batch(b, "b", (3,))
+        if av.shape != bv.shape:
+            raise ValueError(
+                f"b: expected the shape of a, {av.shape[1:] if single_a else av.shape}"
+            )
+        n = len(av)
+        if weights is None or n == 1:
+            w = np.ones(n)
+            if weights is not None and np.ndim(weights) != 1:
+                raise ValueError("weights: expected shape (N,)")
+        else:
+            w = np.asarray(weights, dtype=np.float64)
+            if w.shape != (n,):
+                raise ValueError(f"weights: expected shape ({n},), got {w.shape}")
+        if return_sensitivity and (n == 1 or np.isinf(w).any()):
+            raise ValueError(
+                "return_sensitivity: no sensitivity with an infinite weight or one vector pair"
+            )
+        row = _kinema.align_vectors(av, bv, np.ascontiguousarray(w.reshape(-1, 1)))[0]
+        if row[14]:
+            warnings.warn(
+                "Optimal rotation is not uniquely or poorly defined for the given sets of vectors.",
+                UserWarning,
+                stacklevel=2,
+            )
+        rot = cls._make(np.ascontiguousarray(row[None, :4]), ())
+        if return_sensitivity:
+            return rot, float(row[4]), row[5:14].reshape(3, 3).copy()
+        return rot, float(row[4])
+
+    @classmethod
+    def identity(cls, n: int | None = None, *, shape: int | tuple[int, ...] | None = None) -> Self:
+        """The identity: single if ``n`` and ``shape`` are None, else a stack of ``n`` or of
+        ``shape`` (give one of them)."""
+        lead = _lead(n, shape)
+        q = _quats(lead, np.zeros)
         q[:, 0] = 1.0
-        return cls._make(q, n is None)
+        return cls._make(q, lead)
 
     @classmethod
     def random(
-        cls, n: int | None = None, *, seed: int | np.random.Generator | None = None
-    ) -> Rotation:
+        cls,
+        n: int | None = None,
+        *,
+        rng: int | np.random.Generator | None = None,
+        shape: int | tuple[int, ...] | None = None,
+    ) -> Self:
         """Rotations drawn uniformly (Haar measure): normalised Gaussian 4-vectors.
 
-        Single if ``n`` is None, else a stack of ``n``; ``seed`` makes the draw repeatable.
+        Single if ``n`` and ``shape`` are None, else a stack of ``n`` or of ``shape``; ``rng``
+        (a seed or a ``numpy.random.Generator``) makes the draw repeatable.
         """
-        rng = np.random.default_rng(seed)
-        q = _quats(n, rng.standard_normal)
-        return cls._make(_kinema.quat_normalize(q, False), n is None)
+        lead = _lead(n, shape)
+        q = _quats(lead, np.random.default_rng(rng).standard_normal)
+        return cls._make(_kinema.quat_normalize(q, False), lead)
 
     @classmethod
-    def concatenate(cls, rotations: Sequence[Rotation]) -> Rotation:
-        """One stack holding all rotations of ``rotations`` in order."""
+    def concatenate(cls, rotations: Sequence[Rotation]) -> Self:
+        """One stack holding all rotations of ``rotations`` in order, joined along the first
+        axis (a single rotation counts as a stack of one)."""
         if not all(isinstance(r, Rotation) for r in rotations):
             raise ValueError("rotations: every item must be a Rotation")
-        quats = [r._quat for r in rotations]
-        return cls._make(np.concatenate(quats) if quats else np.zeros((0, 4)), False)
+        if not rotations:
+            return cls._make(np.zeros((0, 4)), (0,))
+        try:
+            q = np.concatenate(
+                [r._quat.reshape((*r._shape, 4) if r._shape else (1, 4)) for r in rotations]
+            )
+        except ValueError:
+            raise ValueError("rotations: stacks must agree in every axis but the first") from None
+        return cls._make(np.ascontiguousarray(q.reshape(-1, 4)), q.shape[:-1])
 
     # ------------------------------------------------------------------ conversion
     def as_quat(self, *, scalar_first: bool = True, canonical: bool = False) -> np.ndarray:
-        """Unit quaternions ``(4,)`` or ``(N, 4)``; ``canonical`` picks the sign with w >= 0."""
+        """Unit quaternions ``(*shape, 4)``; ``canonical`` picks the sign with w >= 0."""
         q = _kinema.quat_normalize(self._quat, True) if canonical else self._quat.copy()
         if not scalar_first:
             q = q[:, [1, 2, 3, 0]]
         return self._out(q)
 
     def as_matrix(self) -> np.ndarray:
-        """Rotation matrices ``(3, 3)`` or ``(N, 3, 3)``."""
+        """Rotation matrices ``(*shape, 3, 3)``."""
         return self._out(_kinema.quat_to_matrix(self._quat))
 
     def as_rotvec(self, *, degrees: bool = False) -> np.ndarray:
-        """Rotation vectors ``(3,)`` or ``(N, 3)`` with angle (their norm) in ``[0, pi]``."""
+        """Rotation vectors ``(*shape, 3)`` with angle (their norm) in ``[0, pi]``."""
         v = _kinema.quat_to_rotvec(self._quat)
         return self._out(np.rad2deg(v) if degrees else v)
 
     def as_axis_angle(self, *, degrees: bool = False) -> tuple[np.ndarray, Any]:
-        """Unit axes ``(3,)``/``(N, 3)`` and angles in ``[0, pi]``; the identity has axis +x."""
+        """Unit axes ``(*shape, 3)`` and angles ``shape`` in ``[0, pi]``; the identity has
+        axis +x (a float angle for a single rotation)."""
         aa = _kinema.quat_to_axis_angle(self._quat)
         angle = np.rad2deg(aa[:, 3]) if degrees else aa[:, 3]
-        if self._single:
+        if self.single:
             return aa[0, :3].copy(), float(angle[0])
-        return np.ascontiguousarray(aa[:, :3]), angle.copy()
+        return self._out(np.ascontiguousarray(aa[:, :3])), angle.reshape(self._shape)
 
     def as_euler(self, seq: str, *, degrees: bool = False) -> np.ndarray:
-        """Euler angles ``(3,)`` or ``(N, 3)`` in sequence ``seq`` (see :meth:`from_euler`).
+        """Euler angles ``(*shape, 3)`` in sequence ``seq`` of 3 axes (see :meth:`from_euler`).
 
         First and third angles lie in ``(-pi, pi]``; the middle one in ``[-pi/2, pi/2]``
         (Tait–Bryan) or ``[0, pi]`` (proper Euler). At gimbal lock the third angle is set to 0,
@@ -189,110 +321,267 @@ class Rotation:
         angles, locked = _kinema.quat_to_euler(_check_seq(seq), self._quat)
         if locked:
             warnings.warn(
-                f"gimbal lock in {locked} of {len(angles)} rotations (sequence {seq!r}): third angle set to 0",
+                f"Gimbal lock in {locked} of {len(angles)} rotations (sequence {seq!r}): third angle set to 0",
                 GimbalLockWarning,
                 stacklevel=2,
             )
         return self._out(np.rad2deg(angles) if degrees else angles)
 
+    def as_mrp(self) -> np.ndarray:
+        """Modified Rodrigues parameters ``(*shape, 3)`` of norm at most 1 (the angle taken
+        in ``[0, pi]``)."""
+        return self._out(_kinema.quat_to_mrp(self._quat))
+
     # ------------------------------------------------------------------ algebra
     def apply(self, vectors: Any, *, inverse: bool = False) -> np.ndarray:
-        """Rotate ``vectors`` ``(3,)`` or ``(N, 3)``; one rotation or one vector broadcasts.
+        """Rotate ``vectors`` ``(..., 3)``: the rotations' shape and the vectors' leading
+        shape broadcast (numpy rules); the result is ``(*broadcast, 3)``.
 
         ``inverse=True`` applies the inverse rotations.
         """
-        v, single_v = as_batch(vectors, "vectors", (3,))
-        out = _kinema.quat_apply(self._quat, v, inverse)
-        return out[0] if self._single and single_v else out
+        v, vshape = as_stack(vectors, "vectors", (3,))
+        q, v, shape = _broadcast(self._quat, self._shape, v, vshape, "vectors")
+        return _kinema.quat_apply(q, v, inverse).reshape((*shape, 3))
 
-    def __mul__(self, other: Rotation) -> Rotation:
-        """Composition: ``(r1 * r2).apply(v) == r1.apply(r2.apply(v))``."""
+    def __mul__(self, other: Rotation) -> Self:
+        """Composition: ``(r1 * r2).apply(v) == r1.apply(r2.apply(v))``; shapes broadcast."""
         if not isinstance(other, Rotation):
             return NotImplemented
-        q = _kinema.quat_multiply(self._quat, other._quat)
-        return Rotation._make(q, self._single and other._single)
+        a, b, shape = _broadcast(self._quat, self._shape, other._quat, other._shape, "other")
+        return self._make(_kinema.quat_multiply(a, b), shape)
 
-    def inv(self) -> Rotation:
+    def __pow__(self, n: float, modulus: None = None) -> Self:
+        """The rotation ``n`` times: the same axis, ``n`` times the angle in ``[0, pi]``
+        (``r ** 0.5`` is the half-way rotation; ``-1`` the inverse, ``0`` the identity)."""
+        if modulus is not None:
+            raise NotImplementedError("modulus not supported")
+        if np.size(n) != 1:
+            raise ValueError("n: Array exponent must be a scalar (one element)")
+        p = _float(np.reshape(n, ()), "n")
+        if p == 1:
+            return self._make(self._quat.copy(), self._shape)
+        if p == -1:
+            return self.inv()
+        return self._make(
+            _kinema.rotvec_to_quat(p * _kinema.quat_to_rotvec(self._quat)), self._shape
+        )
+
+    def inv(self) -> Self:
         """The inverse rotations (conjugate quaternions)."""
-        q = self._quat * np.array([1.0, -1.0, -1.0, -1.0])
-        return Rotation._make(q, self._single)
+        return self._make(self._quat * np.array([1.0, -1.0, -1.0, -1.0]), self._shape)
 
     def magnitude(self) -> Any:
-        """Rotation angles in radians, in ``[0, pi]``: a float or ``(N,)``."""
+        """Rotation angles in radians, in ``[0, pi]``: a float or an array of ``shape``."""
         a = _kinema.quat_angle(self._quat)[:, 0]
-        return float(a[0]) if self._single else a
+        return float(a[0]) if self.single else a.reshape(self._shape)
 
-    def approx_equal(self, other: Rotation, atol: float = 1e-12) -> Any:
-        """Whether each rotation is within ``atol`` radians of ``other`` (q and -q are equal)."""
-        return (other * self.inv()).magnitude() <= atol
+    def approx_equal(
+        self, other: Rotation, atol: float | None = None, *, degrees: bool = False
+    ) -> Any:
+        """Whether each rotation is less than ``atol`` from ``other`` (the angle of
+        ``other * self.inv()``; q and -q are equal), as scipy's ``approx_equal``.
+
+        ``atol`` is in radians, or degrees when ``degrees``; None means 1e-8 radians (and
+        warns when ``degrees`` is set, which then has nothing to apply to).
+        """
+        if atol is None:
+            if degrees:
+                warnings.warn(
+                    "atol: not given, so degrees has no effect; using 1e-8 rad", stacklevel=2
+                )
+            tol = 1e-8
+        else:
+            tol = np.deg2rad(_float(atol, "atol")) if degrees else _float(atol, "atol")
+        return (other * self.inv()).magnitude() < tol
+
+    def mean(self, weights: Any = None, *, axis: int | tuple[int, ...] | None = None) -> Self:
+        """The weighted mean rotation (Markley et al. 2007, eq. 13): the rotation minimising
+        the weighted sum of squared chordal (Frobenius) distances of the matrices.
+
+        ``weights`` (non-negative, broadcast to ``shape``; all equal when None) weigh the
+        rotations; ``axis`` (an int or a tuple) names the axes averaged over, all of them by
+        default (the result is then single), as numpy's reductions.
+        """
+        shape = self._shape or (1,)
+        if math.prod(shape) == 0:
+            raise ValueError("self: the mean of an empty stack is undefined")
+        nd = len(shape)
+        axes: Any = tuple(range(nd)) if axis is None else axis
+        axes = (axes,) if np.ndim(axes) == 0 else axes
+        if not isinstance(axes, tuple) or not all(
+            isinstance(a, (int, np.integer)) and not isinstance(a, bool) and -nd <= a < nd
+            for a in axes
+        ):
+            raise ValueError(f"axis: expected None, or ints in [-{nd}, {nd})")
+        over = sorted({int(a) % nd for a in axes})
+        keep = [a for a in range(nd) if a not in over]
+        order = [*keep, *over]
+        size = math.prod(shape[a] for a in over)
+        q = self._quat.reshape((*shape, 4)).transpose((*order, nd))
+        w = np.ones(shape) if weights is None else np.asarray(weights, dtype=np.float64)
+        try:
+            w = np.broadcast_to(w, shape)
+        except ValueError:
+            raise ValueError(f"weights: shape {w.shape} does not broadcast to {shape}") from None
+        m = _kinema.quat_mean(
+            np.ascontiguousarray(q.reshape(-1, 4)),
+            np.ascontiguousarray(w.transpose(order).reshape(-1, 1)),
+            size,
+        )
+        return self._make(m, tuple(shape[a] for a in keep) if self._shape else ())
+
+    def reduce(
+        self,
+        left: Rotation | None = None,
+        right: Rotation | None = None,
+        return_indices: bool = False,
+    ) -> Any:
+        """The rotations ``l * p * r`` of smallest angle, ``l`` from ``left`` and ``r`` from
+        ``right`` (None: the identity alone), e.g. an orientation reduced by the symmetry
+        groups of two crystals (:meth:`create_group`). With ``return_indices`` also the indices
+        of the chosen ``l`` and ``r`` (None for an absent side), arrays of ``shape``."""
+        none = np.zeros((0, 4))
+        for name, g in (("left", left), ("right", right)):
+            if g is not None and not isinstance(g, Rotation):
+                raise ValueError(f"{name}: expected a Rotation or None")
+        out = _kinema.quat_reduce(
+            self._quat,
+            none if left is None else left._quat,
+            none if right is None else right._quat,
+        )
+        rot = self._make(np.ascontiguousarray(out[:, :4]), self._shape)
+        if not return_indices:
+            return rot
+        li, ri = (self._out(out[:, k].astype(np.intp)) for k in (4, 5))
+        return rot, None if left is None else li, None if right is None else ri
 
     # ------------------------------------------------------------------ container
     @property
     def single(self) -> bool:
-        """True for a single rotation, False for a stack (even of length 1)."""
-        return self._single
+        """True for a single rotation (``shape == ()``), False for a stack (even of length 1)."""
+        return self._shape == ()
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """The stack's shape, ``()`` for a single rotation."""
+        return self._shape
 
     def __len__(self) -> int:
-        if self._single:
+        if self.single:
             raise TypeError("a single rotation has no len()")
-        return len(self._quat)
+        return self._shape[0]
 
-    def __getitem__(self, index: Any) -> Rotation:
-        if self._single:
+    def __getitem__(self, index: Any) -> Self:
+        if self.single:
             raise TypeError("a single rotation cannot be indexed")
-        q = self._quat[index]
-        return Rotation._make(np.ascontiguousarray(q.reshape(-1, 4)), q.ndim == 1)
+        q = self._quat.reshape((*self._shape, 4))[index]
+        if q.ndim == 0 or q.shape[-1] != 4:
+            raise IndexError("index: too many indices for the rotation stack")
+        return self._make(np.array(q.reshape(-1, 4)), q.shape[:-1])
 
-    def __iter__(self) -> Iterable[Rotation]:
-        if self._single:
+    def __setitem__(self, index: Any, value: Rotation) -> None:
+        """Replace the rotations at ``index`` (first axes, as numpy) by ``value`` (broadcast)."""
+        if self.single:
+            raise TypeError("a single rotation does not support item assignment")
+        if not isinstance(value, Rotation):
+            raise TypeError("value: expected a Rotation")
+        self._quat.reshape((*self._shape, 4))[index] = value._quat.reshape((*value._shape, 4))
+
+    def __iter__(self) -> Iterator[Self]:
+        if self.single:
             raise TypeError("a single rotation is not iterable")
-        return (self[i] for i in range(len(self._quat)))
+        return (self[i] for i in range(self._shape[0]))
 
     def __repr__(self) -> str:
-        if self._single:
+        if self.single:
             return f"Rotation.from_quat({self._quat[0].tolist()})"
-        return f"Rotation(<{len(self._quat)} rotations>)"
+        return f"Rotation(<shape {self._shape}>)"
 
-    def __getstate__(self) -> tuple[np.ndarray, bool]:
-        return self._quat, self._single
+    def __getstate__(self) -> tuple[np.ndarray, tuple[int, ...]]:
+        return self._quat, self._shape
 
     def __setstate__(self, state: Any) -> None:
-        """Unpickle, validating: quaternions ``(N, 4)`` of unit length (to 1e-9) and a bool
-        (``(1, 4)`` when single); anything else (a damaged or foreign pickle) raises
-        ValueError."""
-        quat, single = _pickled(state, "quaternions", (4,))
+        """Unpickle, validating: quaternions ``(prod(shape), 4)`` of unit length (to 1e-9)
+        and the shape, a tuple of non-negative ints; anything else (a damaged or foreign
+        pickle) raises ValueError."""
+        if not (
+            isinstance(state, tuple)
+            and len(state) == 2
+            and isinstance(state[1], tuple)
+            and all(isinstance(d, int) and not isinstance(d, bool) and d >= 0 for d in state[1])
+        ):
+            raise ValueError("state: expected (quaternions, shape), not a kinema pickle")
+        quat = np.ascontiguousarray(state[0], dtype=np.float64)
+        if quat.shape != (math.prod(state[1]), 4):
+            raise ValueError(
+                f"state: quaternions must have shape (prod(shape), 4), got {quat.shape}"
+            )
         norms = np.linalg.norm(quat, axis=1)
         bad = np.flatnonzero(~(np.abs(norms - 1.0) <= 1e-9))
         if bad.size:
             raise ValueError(f"state: quaternion {bad[0]} is not unit (norm {norms[bad[0]]})")
-        self._quat, self._single = quat, single
+        self._quat, self._shape = quat, state[1]
 
     def _out(self, arr: np.ndarray) -> np.ndarray:
-        return arr[0] if self._single else arr
+        """Kernel rows ``(N, *item)`` as ``(*shape, *item)``."""
+        return arr.reshape((*self._shape, *arr.shape[1:]))
 
 
-def _pickled(state: Any, what: str, item: tuple[int, ...]) -> tuple[np.ndarray, bool]:
-    """The ``(array (N, *item), single)`` pickle state of a Rotation or Transform, checked for
-    its types and shape (one item when single)."""
-    if not (isinstance(state, tuple) and len(state) == 2 and isinstance(state[1], bool)):
-        raise ValueError(f"state: expected ({what}, single), not a kinema pickle")
-    array = np.ascontiguousarray(state[0], dtype=np.float64)
-    if array.shape[1:] != item or array.ndim != 1 + len(item) or (state[1] and len(array) != 1):
-        shape = ", ".join(["1" if state[1] else "N", *map(str, item)])
-        raise ValueError(f"state: {what} must have shape ({shape}), got {array.shape}")
-    return array, state[1]
+def _float(value: Any, name: str) -> float:
+    """A finite real number, or ValueError naming ``name``."""
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a real number") from None
+    if not math.isfinite(f):
+        raise ValueError(f"{name}: must be finite")
+    return f
 
 
-def _count(n: object) -> int:
+def _broadcast(
+    a: np.ndarray, a_shape: tuple[int, ...], b: np.ndarray, b_shape: tuple[int, ...], name: str
+) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
+    """Rows of ``a`` and ``b`` (leading shapes ``a_shape``, ``b_shape``) broadcast for a
+    kernel that pairs rows one to one or one against N; numpy's rules, copying only when
+    neither side is one row and the shapes differ."""
+    try:
+        shape = np.broadcast_shapes(a_shape, b_shape)
+    except ValueError:
+        raise ValueError(f"{name}: shape {b_shape} does not broadcast against {a_shape}") from None
+    if len(a) == 1 or len(b) == 1 or a_shape == b_shape:
+        return a, b, shape
+
+    def full(rows: np.ndarray, lead: tuple[int, ...]) -> np.ndarray:
+        item = rows.shape[1:]
+        return np.ascontiguousarray(
+            np.broadcast_to(rows.reshape((*lead, *item)), (*shape, *item)).reshape((-1, *item))
+        )
+
+    return full(a, a_shape), full(b, b_shape), shape
+
+
+def _lead(n: object, shape: object) -> tuple[int, ...]:
+    """The stack shape of ``identity``/``random``: ``()`` (single), ``(n,)`` or ``shape``."""
+    if n is not None and shape is not None:
+        raise ValueError("n, shape: give at most one of them")
+    if shape is None:
+        return () if n is None else (_count(n, "n"),)
+    dims = (shape,) if isinstance(shape, (int, np.integer)) else shape
+    if not isinstance(dims, tuple):
+        raise ValueError("shape: expected an int or a tuple of ints")
+    return tuple(_count(d, "shape") for d in dims)
+
+
+def _count(n: object, name: str) -> int:
     if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 0:
-        raise ValueError(f"n: expected a non-negative integer, got {n!r}")
+        raise ValueError(f"{name}: expected a non-negative integer")
     return int(n)
 
 
-def _quats(n: int | None, make: Callable[[tuple[int, int]], np.ndarray]) -> np.ndarray:
-    """``make((count, 4))`` for a stack of ``n`` (one when None); numpy's MemoryError, which
-    names no argument, becomes one naming ``n``."""
-    count = 1 if n is None else _count(n)
+def _quats(shape: tuple[int, ...], make: Callable[[tuple[int, int]], np.ndarray]) -> np.ndarray:
+    """``make((count, 4))`` for a stack of ``shape``; numpy's MemoryError, which names no
+    argument, becomes one naming ``n``."""
+    count = math.prod(shape)
     try:
         return make((count, 4))
     except MemoryError:
@@ -317,7 +606,7 @@ def slerp(r0: Rotation, r1: Rotation, t: Any, *, shortest: bool = True) -> Rotat
         raise ValueError("r0, r1: expected Rotation objects")
     tt, single_t = as_scalars(t, "t")
     q = _kinema.quat_slerp(r0._quat, r1._quat, tt, shortest)
-    return Rotation._make(q, r0.single and r1.single and single_t)
+    return Rotation._make(q, () if r0.single and r1.single and single_t else (len(q),))
 
 
 def gimbal_lock(
@@ -334,118 +623,3 @@ def gimbal_lock(
         a = np.deg2rad(a)
     locked = _kinema.euler_gimbal_lock(_check_seq(seq), a, float(atol))[:, 0] != 0.0
     return bool(locked[0]) if single else locked
-
-
-class Transform:
-    """One homogeneous 4x4 affine transform or a stack of N, acting on column vectors.
-
-    ``Transform(rotation, translation, scale)`` builds ``M = T R S``: scale along the body
-    axes (a scalar or per-axis ``(3,)``/``(N, 3)``), then rotate, then translate. Any affine
-    matrix with last row ``(0, 0, 0, 1)`` is accepted by :meth:`from_matrix`. ``t1 * t2``
-    applies ``t2`` first.
-    """
-
-    __slots__ = ("_matrix", "_single")
-
-    _matrix: np.ndarray
-    _single: bool
-
-    def __init__(
-        self,
-        rotation: Rotation | None = None,
-        translation: Any = None,
-        scale: Any = None,
-    ) -> None:
-        rot = Rotation.identity() if rotation is None else rotation
-        if not isinstance(rot, Rotation):
-            raise ValueError(f"rotation: expected a Rotation, got {type(rot).__name__}")
-        t, single_t = as_batch(
-            (0.0, 0.0, 0.0) if translation is None else translation, "translation", (3,)
-        )
-        s_arr = np.asarray(1.0 if scale is None else scale, dtype=np.float64)
-        s, single_s = as_batch(
-            np.broadcast_to(s_arr, (3,)) if s_arr.ndim == 0 else s_arr, "scale", (3,)
-        )
-        self._matrix = _kinema.transform_from_parts(rot._quat, t, s)
-        self._single = rot.single and single_t and single_s
-
-    @classmethod
-    def _make(cls, matrix: np.ndarray, single: bool) -> Transform:
-        t = object.__new__(cls)
-        t._matrix = matrix
-        t._single = single
-        return t
-
-    @classmethod
-    def from_matrix(cls, matrix: Any) -> Transform:
-        """Transforms from affine matrices ``(4, 4)`` or ``(N, 4, 4)`` (last row 0, 0, 0, 1)."""
-        m, single = as_batch(matrix, "matrix", (4, 4))
-        return cls._make(_kinema.transform_validate(m), single)
-
-    def as_matrix(self) -> np.ndarray:
-        """The matrices, ``(4, 4)`` or ``(N, 4, 4)``."""
-        m = self._matrix.copy()
-        return m[0] if self._single else m
-
-    @property
-    def translation(self) -> np.ndarray:
-        """The translation column, ``(3,)`` or ``(N, 3)``."""
-        t = np.ascontiguousarray(self._matrix[:, :3, 3])
-        return t[0] if self._single else t
-
-    def apply(self, points: Any) -> np.ndarray:
-        """Transform points ``(3,)`` or ``(N, 3)``: ``M [p; 1]``."""
-        return self._apply(points, "points", directions=False)
-
-    def apply_directions(self, vectors: Any) -> np.ndarray:
-        """Transform direction vectors ``(3,)`` or ``(N, 3)``: ``M [d; 0]`` (no translation).
-
-        For surface normals under non-uniform scale use the inverse transpose instead.
-        """
-        return self._apply(vectors, "vectors", directions=True)
-
-    def _apply(self, values: Any, name: str, *, directions: bool) -> np.ndarray:
-        p, single_p = as_batch(values, name, (3,))
-        out = _kinema.transform_apply(self._matrix, p, directions)
-        return out[0] if self._single and single_p else out
-
-    def __mul__(self, other: Transform) -> Transform:
-        """Composition: ``(t1 * t2).apply(p) == t1.apply(t2.apply(p))``."""
-        if not isinstance(other, Transform):
-            return NotImplemented
-        m = _kinema.transform_compose(self._matrix, other._matrix)
-        return Transform._make(m, self._single and other._single)
-
-    def inv(self) -> Transform:
-        """The inverse transforms; a singular linear part raises ValueError."""
-        return Transform._make(_kinema.transform_invert(self._matrix), self._single)
-
-    @property
-    def single(self) -> bool:
-        """True for a single transform, False for a stack."""
-        return self._single
-
-    def __len__(self) -> int:
-        if self._single:
-            raise TypeError("a single transform has no len()")
-        return len(self._matrix)
-
-    def __getitem__(self, index: Any) -> Transform:
-        if self._single:
-            raise TypeError("a single transform cannot be indexed")
-        m = self._matrix[index]
-        return Transform._make(np.ascontiguousarray(m.reshape(-1, 4, 4)), m.ndim == 2)
-
-    def __repr__(self) -> str:
-        if self._single:
-            return f"Transform.from_matrix({self._matrix[0].tolist()})"
-        return f"Transform(<{len(self._matrix)} transforms>)"
-
-    def __getstate__(self) -> tuple[np.ndarray, bool]:
-        return self._matrix, self._single
-
-    def __setstate__(self, state: Any) -> None:
-        """Unpickle, validating as :meth:`from_matrix` does: affine ``(N, 4, 4)`` with last
-        row ``(0, 0, 0, 1)`` and finite entries, and a bool; else ValueError."""
-        matrix, single = _pickled(state, "matrices", (4, 4))
-        self._matrix, self._single = _kinema.transform_validate(matrix), single

@@ -222,6 +222,103 @@ fn quat_slerp<'py>(
     })
 }
 
+/// Modified Rodrigues parameters (N, 3) of quaternions (N, 4), norm at most 1.
+#[pyfunction]
+fn quat_to_mrp<'py>(py: Python<'py>, quat: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Array<'py>> {
+    let input = rows::<4>(&quat, "quat", &[4])?;
+    compute(py, input.len(), &[3], |out| map(input, out, |r| Ok(rot::quat_to_mrp(q(r)?))))
+}
+
+/// Quaternions (N, 4) of modified Rodrigues parameters (N, 3).
+#[pyfunction]
+fn mrp_to_quat<'py>(py: Python<'py>, mrp: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Array<'py>> {
+    let input = rows::<3>(&mrp, "mrp", &[3])?;
+    compute(py, input.len(), &[4], |out| map(input, out, |p| Ok(wxyz(rot::quat_from_mrp(p)?))))
+}
+
+/// Weighted mean rotations (M, 4) of M consecutive groups of `size` quaternions each
+/// (M * size, 4), with weights (M * size, 1).
+#[pyfunction]
+fn quat_mean<'py>(
+    py: Python<'py>,
+    quat: PyReadonlyArrayDyn<'py, f64>,
+    weights: PyReadonlyArrayDyn<'py, f64>,
+    size: usize,
+) -> PyResult<Array<'py>> {
+    let (quat, weights) = (rows::<4>(&quat, "quat", &[4])?, rows::<1>(&weights, "weights", &[1])?);
+    if size == 0 || quat.len() % size != 0 || weights.len() != quat.len() {
+        return Err(Error::invalid("weights", "must hold one weight per rotation").into());
+    }
+    compute(py, quat.len() / size, &[4], |out| {
+        fill(out, |i| {
+            let rows = &quat[i * size..(i + 1) * size];
+            let qs = rows.iter().map(q).collect::<Result<Vec<_>>>()?;
+            let w: Vec<f64> = weights[i * size..(i + 1) * size].iter().map(|w| w[0]).collect();
+            rot::mean(&qs, &w)
+        })
+    })
+}
+
+/// The elements (M, 4) of rotation group `group` (`"I"`, `"O"`, `"T"`, `"Cn"`, `"Dn"`) about
+/// `axis` (`"X"`, `"Y"`, `"Z"`).
+#[pyfunction]
+fn rotation_group<'py>(py: Python<'py>, group: &str, axis: &str) -> PyResult<Array<'py>> {
+    let g = rot::create_group(group, axis)?;
+    compute(py, g.len(), &[4], |out| {
+        out.copy_from_slice(&g);
+        Ok(())
+    })
+}
+
+/// Rows (N, 6): the reduced quaternion `l p r` of each p (N, 4) with the smallest angle over
+/// l in `left` (L, 4) and r in `right` (R, 4) (empty: the identity), then the indices of l
+/// and r (-1 for an empty list).
+#[pyfunction]
+fn quat_reduce<'py>(
+    py: Python<'py>,
+    quat: PyReadonlyArrayDyn<'py, f64>,
+    left: PyReadonlyArrayDyn<'py, f64>,
+    right: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let input = rows::<4>(&quat, "quat", &[4])?;
+    let left = rows::<4>(&left, "left", &[4])?.iter().map(q).collect::<Result<Vec<_>>>()?;
+    let right = rows::<4>(&right, "right", &[4])?.iter().map(q).collect::<Result<Vec<_>>>()?;
+    compute(py, input.len(), &[6], |out| {
+        map(input, out, |r| {
+            let (p, i, j) = rot::reduce(q(r)?, &left, &right);
+            let [w, x, y, z] = wxyz(p);
+            Ok([w, x, y, z, i as f64, j as f64])
+        })
+    })
+}
+
+/// The rotation best aligning vectors b (N, 3) onto a (N, 3) with weights (N, 1) (one may be
+/// infinite): one row (1, 15) of the quaternion, the rssd, the row-major 3x3 sensitivity (NaN
+/// with a primary pair) and 1.0 when the rotation is not unique.
+#[pyfunction]
+fn align_vectors<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArrayDyn<'py, f64>,
+    b: PyReadonlyArrayDyn<'py, f64>,
+    weights: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let (a, b) = (rows::<3>(&a, "a", &[3])?, rows::<3>(&b, "b", &[3])?);
+    let weights = rows::<1>(&weights, "weights", &[1])?;
+    compute(py, 1, &[15], |out| {
+        let w: Vec<f64> = weights.iter().map(|w| w[0]).collect();
+        let r = rot::align_vectors(a, b, &w)?;
+        let mut row = [f64::NAN; 15];
+        row[..4].copy_from_slice(&wxyz(r.rotation));
+        row[4] = r.rssd;
+        if let Some(s) = r.sensitivity {
+            row[5..14].copy_from_slice(&s);
+        }
+        row[14] = f64::from(u8::from(r.degenerate));
+        out[0] = row;
+        Ok(())
+    })
+}
+
 /// Affine transforms (N, 4, 4) from unit quaternions (N, 4), translations (N, 3) and per-axis
 /// scales (N, 3), all broadcast one against N: `M = T R S`.
 #[pyfunction]
@@ -314,6 +411,12 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(quat_angle, m)?)?;
     m.add_function(wrap_pyfunction!(quat_apply, m)?)?;
     m.add_function(wrap_pyfunction!(quat_slerp, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_to_mrp, m)?)?;
+    m.add_function(wrap_pyfunction!(mrp_to_quat, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_mean, m)?)?;
+    m.add_function(wrap_pyfunction!(rotation_group, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_reduce, m)?)?;
+    m.add_function(wrap_pyfunction!(align_vectors, m)?)?;
     m.add_function(wrap_pyfunction!(transform_from_parts, m)?)?;
     m.add_function(wrap_pyfunction!(transform_validate, m)?)?;
     m.add_function(wrap_pyfunction!(transform_compose, m)?)?;

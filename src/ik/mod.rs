@@ -58,7 +58,7 @@
 
 mod model;
 mod solver;
-mod svd;
+pub(crate) mod svd;
 
 pub use solver::Solver;
 

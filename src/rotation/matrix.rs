@@ -18,19 +18,22 @@ pub const ROTATION_MATRIX_TOL: f64 = 1e-6;
 #[inline(always)]
 pub fn quat_to_matrix(q: DQuat) -> [f64; 9] {
     let (w, x, y, z) = (q.w, q.x, q.y, q.z);
-    let (xx, yy, zz) = (x * x, y * y, z * z);
+    let (ww, xx, yy, zz) = (w * w, x * x, y * y, z * z);
     let (xy, xz, yz) = (x * y, x * z, y * z);
     let (wx, wy, wz) = (w * x, w * y, w * z);
+    // The diagonal as `w² + x² - y² - z²` (not `1 - 2(y² + z²)`): where the exact entry is 0
+    // (a quarter turn, `w² = y²`, `x = z = 0`) the terms cancel exactly instead of leaving
+    // the rounding of `1 - 2·0.5…` (2.2e-16).
     [
-        1.0 - 2.0 * (yy + zz),
+        (ww + xx) - (yy + zz),
         2.0 * (xy - wz),
         2.0 * (xz + wy),
         2.0 * (xy + wz),
-        1.0 - 2.0 * (xx + zz),
+        (ww + yy) - (xx + zz),
         2.0 * (yz - wx),
         2.0 * (xz - wy),
         2.0 * (yz + wx),
-        1.0 - 2.0 * (xx + yy),
+        (ww + zz) - (xx + yy),
     ]
 }
 

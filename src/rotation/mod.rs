@@ -1,5 +1,6 @@
 //! 3D rotations: unit quaternions, matrices, Euler and fixed angles, rotation vectors,
-//! axis-angle, spherical interpolation and homogeneous transforms.
+//! axis-angle, modified Rodrigues parameters, spherical interpolation, weighted means, the
+//! finite rotation groups and homogeneous transforms.
 //!
 //! Conventions (see `ARCHITECTURE.md`):
 //! - Quaternions are scalar-first `(w, x, y, z)` at every array boundary, with the Hamilton
@@ -13,19 +14,27 @@
 //! Every function that accepts user data checks it and returns [`crate::Error`] instead of
 //! producing NaN: zero or non-finite quaternions, matrices that are not rotations, zero axes.
 
+mod align;
 mod euler;
+mod group;
 mod matrix;
+mod mean;
+mod mrp;
 mod quat;
 mod rotvec;
 mod slerp;
 mod transform;
 mod trig;
 
+pub use align::{align_vectors, Alignment};
 pub use euler::{EulerSequence, GIMBAL_LOCK_TOL};
+pub use group::{create_group, reduce};
 pub use matrix::{
     is_rotation_matrix, orthonormalize, quat_from_matrix, quat_to_matrix, quats_to_matrices,
     ROTATION_MATRIX_TOL,
 };
+pub use mean::mean;
+pub use mrp::{quat_from_mrp, quat_to_mrp};
 pub use quat::{canonical, quat_from_wxyz, quat_to_wxyz, rotation_angle};
 pub use rotvec::{
     quat_from_axis_angle, quat_from_rotvec, quat_to_axis_angle, quat_to_rotvec, quats_from_rotvecs,

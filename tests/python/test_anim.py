@@ -123,7 +123,7 @@ def test_rotation_track_slerp_matches_scipy_and_squad_is_smooth():
     from kinema.anim import RotationTrack
 
     times = np.array([0.0, 0.7, 1.5, 2.0, 3.1])
-    keys = Rotation.random(5, seed=5)
+    keys = Rotation.random(5, rng=5)
     s = np.linspace(0, 3.1, 401)
     ours = RotationTrack(times, keys, "slerp")(s)
     ref = Slerp(times, R.from_quat(keys.as_quat(), scalar_first=True))(s)
@@ -262,7 +262,7 @@ def test_easing_and_clips():
     clip = Clip(
         {
             "opacity": Track([0.0, 2.0], [0.0, 1.0], "linear"),
-            "turn": RotationTrack([0.5, 1.5], Rotation.random(2, seed=0)),
+            "turn": RotationTrack([0.5, 1.5], Rotation.random(2, rng=0)),
         }
     )
     assert clip.duration == 2.0

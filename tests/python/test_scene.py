@@ -502,7 +502,7 @@ def test_main_objects_pickle(tmp_path: Path):
     ):
         pickle.dumps(custom)
 
-    rt = anim.RotationTrack([0, 1, 2], kinema.Rotation.random(3, seed=2), interpolation="spline")
+    rt = anim.RotationTrack([0, 1, 2], kinema.Rotation.random(3, rng=2), interpolation="spline")
     rt2 = pickle.loads(pickle.dumps(rt))
     assert np.array_equal(rt(0.7).as_quat(), rt2(0.7).as_quat())
     skel = mocap.read_asf(DATA / "07-walk.asf")
@@ -510,7 +510,7 @@ def test_main_objects_pickle(tmp_path: Path):
     s2, m2 = pickle.loads(pickle.dumps((skel, motion)))
     assert np.array_equal(s2.forward_kinematics(m2)[0], skel.forward_kinematics(motion)[0])
     assert m2.frame_rate == motion.frame_rate
-    tf = kinema.Transform(kinema.Rotation.random(2, seed=1), [[1, 2, 3], [4, 5, 6]])
+    tf = kinema.Transform(kinema.Rotation.random(2, rng=1), [[1, 2, 3], [4, 5, 6]])
     assert np.array_equal(pickle.loads(pickle.dumps(tf)).as_matrix(), tf.as_matrix())
 
 
