@@ -371,7 +371,7 @@ def test_easing_symmetry_and_nan_and_clip_errors():
     clip = Clip(
         {
             "x": Track([0.5, 2.0], [[0.0, 0.0], [3.0, 1.0]], "linear"),
-            "turn": RotationTrack([1.0, 3.0], Rotation.random(2, seed=1)),
+            "turn": RotationTrack([1.0, 3.0], Rotation.random(2, rng=1)),
         }
     )
     assert (clip.start, clip.end, clip.duration) == (0.5, 3.0, 2.5)
