@@ -119,8 +119,45 @@ pub fn filled<T: Clone>(arg: &str, n: usize, value: T) -> Result<Vec<T>> {
 /// Room for `additional` more items in `v` (`Vec::try_reserve`), or an
 /// [`Error::InvalidInput`] naming `arg` with the size asked for, instead of aborting the
 /// process when the allocator refuses.
+///
+/// Linux grants far more memory than it has (overcommit) and kills the process when the pages
+/// are touched, so a buffer that must grow beyond [`CHECKED_BYTES`] is also refused when it
+/// would not fit in the memory available now ([`available_memory`]).
 pub fn reserve<T>(arg: &str, v: &mut Vec<T>, additional: usize) -> Result<()> {
+    let bytes = v.len().saturating_add(additional).saturating_mul(size_of::<T>());
+    if v.len() + additional > v.capacity()
+        && bytes > CHECKED_BYTES
+        && available_memory().is_some_and(|free| bytes > free)
+    {
+        return Err(too_large(arg, additional, size_of::<T>()));
+    }
     v.try_reserve(additional).map_err(|_| too_large(arg, additional, size_of::<T>()))
+}
+
+/// Buffers larger than this (bytes) are checked against the available memory before they
+/// are allocated.
+pub const CHECKED_BYTES: usize = 64 << 20;
+
+/// The memory (bytes) the process can use now, where the system says: Linux's
+/// `MemAvailable` plus free swap (`/proc/meminfo`), and the room left under the cgroup v2
+/// limit (`/sys/fs/cgroup/memory.max` minus `memory.current`) when there is one. `None`
+/// elsewhere.
+pub fn available_memory() -> Option<usize> {
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let field = |name: &str| {
+        meminfo.lines().find_map(|l| {
+            let kib = l.strip_prefix(name)?.trim().strip_suffix("kB")?.trim();
+            kib.parse::<usize>().ok().map(|k| k.saturating_mul(1024))
+        })
+    };
+    let mut free = field("MemAvailable:")?.saturating_add(field("SwapFree:").unwrap_or(0));
+    let cgroup = |name: &str| {
+        std::fs::read_to_string(format!("/sys/fs/cgroup/{name}")).ok()?.trim().parse::<usize>().ok()
+    };
+    if let (Some(limit), Some(used)) = (cgroup("memory.max"), cgroup("memory.current")) {
+        free = free.min(limit.saturating_sub(used));
+    }
+    Some(free)
 }
 
 /// The error for `count` items of `bytes` bytes each that cannot be allocated.
@@ -129,4 +166,22 @@ pub fn too_large(arg: &str, count: impl fmt::Display, bytes: usize) -> Error {
         arg,
         format!("needs {count} items of {bytes} bytes, more memory than can be allocated"),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_buffer_beyond_the_available_memory_is_refused_before_it_is_allocated() {
+        // Linux's allocator grants this (overcommit); touching it would get the process killed.
+        let Some(free) = available_memory() else { return };
+        let mut v: Vec<u8> = Vec::new();
+        let err = reserve("count", &mut v, free + CHECKED_BYTES).unwrap_err();
+        assert!(err.to_string().starts_with("count: needs"), "{err}");
+        assert_eq!(v.capacity(), 0);
+        // Small buffers are not checked and are granted.
+        reserve("count", &mut v, 1024).unwrap();
+        assert!(v.capacity() >= 1024);
+    }
 }

@@ -7,7 +7,19 @@ boundary").
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
+
+
+def real(value: object, name: str) -> float:
+    """``value`` (a Python or numpy real number, or a 0-d array of one) as a ``float``;
+    anything else raises ``TypeError`` naming ``name`` (never quoting the value)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if not isinstance(value, numbers.Real):
+        raise TypeError(f"{name}: expected a real number, got {type(value).__name__}")
+    return float(value)
 
 
 def as_batch(value: object, name: str, row_shape: tuple[int, ...]) -> tuple[np.ndarray, bool]:

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
+from kinema._array import real
 from kinema.rotation import Rotation
 
 __all__ = [
@@ -137,7 +138,7 @@ class Track:
             if handles is None:
                 raise ValueError("handles: required for bezier interpolation")
             extra = _float(handles, "handles").reshape(2 * (len(t) - 1), dim)
-        params = [float(tension), float(continuity), float(bias)]
+        params = [real(tension, "tension"), real(continuity, "continuity"), real(bias, "bias")]
         self._track = _kinema.KeyTrack(
             np.ascontiguousarray(t.reshape(-1, 1)),
             np.ascontiguousarray(v2),

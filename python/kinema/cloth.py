@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch, as_vector3
+from kinema._array import as_batch, as_vector3, real
 from kinema.geometry import Box, Capsule, Plane, Shape, Sphere, shape_params
 
 __all__ = ["Box", "Capsule", "Cloth", "Plane", "Sphere"]
@@ -108,7 +108,7 @@ class Cloth:
             mat = _material(model, density, stretch, shear, bend, damping, air_damping)
             _core = _kinema.ClothCore(x, tri, corner_uv, model, mat, as_vector3(gravity, "gravity"))
         self._core = _core
-        self._core.set_thickness(float(thickness))
+        self._core.set_thickness(real(thickness, "thickness"))
         self.model = model
 
     @classmethod
@@ -140,7 +140,7 @@ class Cloth:
         mat = _material(model, density, stretch, shear, bend, damping, air_damping)
         g = as_vector3(gravity, "gravity")
         core = _kinema.ClothCore.grid(
-            nx, ny, float(width), float(height), triangulation, model, mat, g
+            nx, ny, real(width, "width"), real(height, "height"), triangulation, model, mat, g
         )
         return cls(None, None, model=model, thickness=thickness, _core=core)
 
@@ -253,13 +253,13 @@ class Cloth:
         last good step.
         """
         self._core.step(
-            float(dt),
+            real(dt, "dt"),
             steps,
             integrator,
             solver,
-            float(tol),
+            real(tol, "tol"),
             max_iterations,
-            float(max_strain_change),
+            real(max_strain_change, "max_strain_change"),
         )
 
     def set_state(self, positions: Any, velocities: Any = None) -> None:
@@ -317,7 +317,7 @@ class Cloth:
         eigenvalues ``(-c ± √(c² - 4ω²)) / 2`` must lie in an explicit integrator's stability
         region (:func:`kinema.ode.max_stable_dt`); ``kinema.Scene`` checks that before a run."""
         omega, c = self._core.fastest_mode()
-        return float(omega), float(c)
+        return real(omega, "omega"), float(c)
 
     def energy(self) -> dict[str, float]:
         """``kinetic``, ``potential`` (gravity, ``-Σ m g·x``) and ``elastic`` energy in J."""

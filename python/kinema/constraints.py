@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_vector3
+from kinema._array import as_vector3, real
 from kinema.anim import Track
 from kinema.particles import ParticleSystem
 
@@ -238,12 +238,12 @@ class ConstrainedSystem:
         self._particles = particle_system
         self._sys = _kinema.Constrained(
             particle_system._sys,
-            float(ks),
-            float(kd),
+            real(ks, "ks"),
+            real(kd, "kd"),
             solver,
             formulation,
             float(stiffness or 0.0),
-            float(damping),
+            real(damping, "damping"),
             formulation != "penalty" if stabilize is None else bool(stabilize),
         )
 
@@ -314,7 +314,7 @@ class ConstrainedSystem:
         ``"projection"``, multipliers only); on failure ``kinema.SimulationError`` (or the
         exception a :class:`Custom` callable raised) and the last good state. The GIL is
         released unless a :class:`Custom` constraint needs Python."""
-        self._sys.step(float(dt), _steps(steps), method)
+        self._sys.step(real(dt, "dt"), _steps(steps), method)
 
     def violation(self) -> tuple[float, float]:
         """``(max |C|, max |Ċ|)`` over all constraints (m, m/s)."""
@@ -364,15 +364,15 @@ class ReducedBead:
             kind,
             params,
             track,
-            float(mass),
+            real(mass, "mass"),
             as_vector3(gravity, "gravity"),
-            float(u),
-            float(u_dot),
+            real(u, "u"),
+            real(u_dot, "u_dot"),
         )
 
     def step(self, dt: float, steps: int = 1, method: str = "rk4") -> None:
         """Advance ``steps`` steps of ``dt`` seconds with an ODE ``method`` (GIL released)."""
-        self._sys.step(float(dt), _steps(steps), method)
+        self._sys.step(real(dt, "dt"), _steps(steps), method)
 
     @property
     def u(self) -> float:
@@ -438,12 +438,12 @@ class ReducedPendulum:
             masses_.tolist(),
             angles_.tolist(),
             rates_.tolist(),
-            float(g),
+            real(g, "g"),
         )
 
     def step(self, dt: float, steps: int = 1, method: str = "rk4") -> None:
         """Advance ``steps`` steps of ``dt`` seconds with an ODE ``method`` (GIL released)."""
-        self._sys.step(float(dt), _steps(steps), method)
+        self._sys.step(real(dt, "dt"), _steps(steps), method)
 
     @property
     def angles(self) -> np.ndarray:

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_vector3
+from kinema._array import as_vector3, real
 
 __all__ = ["IkReport", "chain", "jacobian", "solve"]
 
@@ -130,11 +130,11 @@ def solve(
         orientations,
         method,
         bool(joint_limits),
-        float(rest_weight),
-        float(limit_weight),
+        real(rest_weight, "rest_weight"),
+        real(limit_weight, "limit_weight"),
         rest_pose,
         bool(free_root),
-        float(tol),
+        real(tol, "tol"),
         int(max_iters),
     )
 

@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
+from kinema._array import real
 
 __all__ = [
     "SAMPLE_DIR",
@@ -94,7 +95,9 @@ def read_amc(path: str | os.PathLike[str], skeleton: Any, frame_rate: float = 12
     CMU database was captured at 120 Hz."""
     if not isinstance(skeleton, _kinema.AsfSkeleton):
         raise ValueError("skeleton: expected a skeleton from kinema.mocap.read_asf")
-    return _kinema.mocap_parse_amc(_text(path), os.fspath(path), skeleton, float(frame_rate))
+    return _kinema.mocap_parse_amc(
+        _text(path), os.fspath(path), skeleton, real(frame_rate, "frame_rate")
+    )
 
 
 def bone_length_error(skeleton: Any, positions: np.ndarray) -> float:

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
+from kinema._array import real
 
 __all__ = [
     "METHODS",
@@ -103,14 +104,14 @@ def solve(
         raise ValueError(f"max_steps: expected a positive integer, got {max_steps!r}")
     if method == "dopri5":
         t, states, _, _ = _kinema.ode_solve_adaptive(
-            f, y, t0, t1, float(rtol), float(atol), max_steps
+            f, y, t0, t1, real(rtol, "rtol"), real(atol, "atol"), max_steps
         )
         return t, states
     if method not in METHODS:
         raise ValueError(f"method: {method!r} is not one of {', '.join([*METHODS, 'dopri5'])}")
-    if dt is None or not (float(dt) > 0 and math.isfinite(float(dt))):
+    if dt is None or not (real(dt, "dt") > 0 and math.isfinite(real(dt, "dt"))):
         raise ValueError(f"dt: fixed-step method {method!r} needs a positive finite dt, got {dt!r}")
-    count = (t1 - t0) / float(dt)
+    count = (t1 - t0) / real(dt, "dt")
     if not count - 1e-9 <= max_steps:
         raise ValueError(
             f"dt: {dt!r} over t_span ({t0}, {t1}) needs {count:.3g} steps, more than "
@@ -183,7 +184,9 @@ def max_stable_dt_oscillator(method: str, omega: float, damping: float = 0.0) ->
     both eigenvalues at once. ``inf`` for A-stable methods."""
     if method not in METHODS:
         raise ValueError(f"method: {method!r} is not one of {', '.join(METHODS)}")
-    return _kinema.ode_max_stable_dt_oscillator(method, float(omega), float(damping))
+    return _kinema.ode_max_stable_dt_oscillator(
+        method, real(omega, "omega"), real(damping, "damping")
+    )
 
 
 # ----------------------------------------------------------------------------- problems
@@ -331,5 +334,5 @@ def work_precision(
                 _, y = solve(f, prob.y0, prob.t_span, dt=dt, method=method, jac=prob.jac)
             elapsed = time.perf_counter() - start
             err = float(np.max(np.abs(y[-1] - exact)))
-            rows.append(WorkPrecisionRow(prob.name, method, float(dt), err, elapsed, calls[0]))
+            rows.append(WorkPrecisionRow(prob.name, method, real(dt, "dt"), err, elapsed, calls[0]))
     return rows

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch, as_scalars, as_vector3
+from kinema._array import as_batch, as_scalars, as_vector3, real
 from kinema.geometry import Box, Capsule, Plane, Shape, Sphere, shape_params
 
 __all__ = [
@@ -355,7 +355,7 @@ class ParticleSystem:
             raise ValueError(f"sparse_jacobian: expected a bool, got {sparse_jacobian!r}")
         sparse = bool(sparse_jacobian)
         if not self._fields:
-            self._sys.step(float(dt), int(steps), method, sparse)
+            self._sys.step(real(dt, "dt"), int(steps), method, sparse)
             return
         for _ in range(int(steps)):
             x, v = self.positions, self.velocities
@@ -368,7 +368,7 @@ class ParticleSystem:
                     )
                 total += f
             self._sys.set_external_forces(np.ascontiguousarray(total))
-            self._sys.step(float(dt), 1, method, sparse)
+            self._sys.step(real(dt, "dt"), 1, method, sparse)
 
     @property
     def positions(self) -> np.ndarray:

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch, as_vector3
+from kinema._array import as_batch, as_vector3, real
 from kinema.rotation import Rotation
 
 __all__ = [
@@ -313,10 +313,12 @@ class World:
             as_vector3(velocity, "velocity"),
             as_vector3(angular_velocity, "angular_velocity"),
             bool(fixed),
-            float(restitution),
-            float(friction),
+            real(restitution, "restitution"),
+            real(friction, "friction"),
         )
-        self._world.set_damping(index, float(linear_damping), float(angular_damping))
+        self._world.set_damping(
+            index, real(linear_damping, "linear_damping"), real(angular_damping, "angular_damping")
+        )
         self._shapes.append(shape)
         return int(index)
 
@@ -326,7 +328,12 @@ class World:
         """Add the ground: the static plane ``y = height`` (m), solid below, with its
         ``restitution`` and Coulomb ``friction``. Bodies then collide with it (sequential
         impulses; see docs/rigid.md)."""
-        self._world.add_plane([0.0, 1.0, 0.0], float(height), float(restitution), float(friction))
+        self._world.add_plane(
+            [0.0, 1.0, 0.0],
+            real(height, "height"),
+            real(restitution, "restitution"),
+            real(friction, "friction"),
+        )
 
     def add_joint(
         self,
@@ -383,8 +390,8 @@ class World:
             limits,
             motor,
             method,
-            PENALTY_STIFFNESS if stiffness is None else float(stiffness),
-            PENALTY_DAMPING if damping is None else float(damping),
+            PENALTY_STIFFNESS if stiffness is None else real(stiffness, "stiffness"),
+            PENALTY_DAMPING if damping is None else real(damping, "damping"),
         )
 
     @property
@@ -440,7 +447,7 @@ class World:
 
     @baumgarte.setter
     def baumgarte(self, beta: float) -> None:
-        self._world.baumgarte = float(beta)
+        self._world.baumgarte = real(beta, "beta")
 
     @property
     def shapes(self) -> list[Shape]:
@@ -462,7 +469,7 @@ class World:
         """
         if not isinstance(steps, (int, np.integer)) or steps < 0:
             raise ValueError(f"steps: expected a non-negative integer, got {steps!r}")
-        self._world.step(float(dt), int(steps))
+        self._world.step(real(dt, "dt"), int(steps))
 
     def apply_force(self, body: int, force: Any, point: Any = None) -> None:
         """Apply ``force`` (N, world frame) at world ``point`` (m; default the centre of mass)

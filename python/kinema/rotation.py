@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, overload
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_batch, as_scalars, as_stack
+from kinema._array import as_batch, as_scalars, as_stack, real
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -621,5 +621,5 @@ def gimbal_lock(
     a, single = as_batch(angles, "angles", (3,))
     if degrees:
         a = np.deg2rad(a)
-    locked = _kinema.euler_gimbal_lock(_check_seq(seq), a, float(atol))[:, 0] != 0.0
+    locked = _kinema.euler_gimbal_lock(_check_seq(seq), a, real(atol, "atol"))[:, 0] != 0.0
     return bool(locked[0]) if single else locked

@@ -39,7 +39,7 @@ from kinema import cloth as _cloth
 from kinema import ode as _ode
 from kinema import particles as _particles
 from kinema import rigid as _rigid
-from kinema._array import as_vector3
+from kinema._array import as_vector3, real
 from kinema._kinema import KinemaError
 from kinema.constraints import ConstrainedSystem
 
@@ -197,7 +197,7 @@ class Scene:
             raise ValueError(f"dt: must be positive and finite, got {dt}")
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps: must be an integer >= 1, got {substeps}")
-        self._dt = float(dt)
+        self._dt = real(dt, "dt")
         self._substeps = int(substeps)
         self._h = self._dt / self._substeps
         self._entries: list[_Entry] = []

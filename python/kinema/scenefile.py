@@ -75,6 +75,7 @@ from typing import Any
 import numpy as np
 
 from kinema import anim, cloth, mocap, particles, rigid
+from kinema._array import real
 from kinema._kinema import ParseError
 from kinema.rotation import Rotation
 from kinema.scene import AnimatedSphere, Character, Scene
@@ -157,7 +158,7 @@ def load(
         scene = Scene(dt=dt, substeps=substeps)
     except (ValueError, TypeError) as e:
         raise ValueError(f"{path}: [scene]: {e}") from None
-    n = int(frames) if frames is not None else round(float(duration) / dt)
+    n = int(frames) if frames is not None else round(real(duration, "duration") / dt)
     roots = [path.parent, Path(__file__).parent / "data", *map(Path, read_dirs)]
 
     def inside(name: Any, key: str) -> Path:

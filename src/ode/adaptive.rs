@@ -6,7 +6,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::OdeSystem;
-use crate::error::{Error, Result};
+use crate::error::{reserve, Error, Result};
 
 const C: [f64; 7] = [0.0, 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0, 1.0];
 const A: [[f64; 6]; 7] = [
@@ -134,6 +134,10 @@ pub fn solve_adaptive<S: OdeSystem>(
             t = if last { t1 } else { t + h };
             y.copy_from_slice(&y_new);
             k.swap(0, 6); // first same as last
+                          // The output grows by a step's state: refused (naming the step bound) when it
+                          // no longer fits in memory, instead of the process being killed.
+            reserve("max_steps", &mut out.t, 1)?;
+            reserve("max_steps", &mut out.y, n)?;
             out.t.push(t);
             out.y.extend_from_slice(&y);
             steps += 1;

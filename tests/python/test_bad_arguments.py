@@ -40,6 +40,7 @@ CASES: list[tuple[str, str, str]] = [
     # particles
     ("capacity negative", "particles.ParticleSystem(np.zeros((1, 3)), capacity=-1)", "capacity"),
     ("capacity 10**12", "particles.ParticleSystem(np.zeros((1, 3)), capacity=10**12)", "capacity"),
+    ("capacity beyond memory", "particles.ParticleSystem(np.zeros((1, 3)), capacity=10**9)", "capacity"),
     ("capacity 2**62", "particles.ParticleSystem(np.zeros((1, 3)), capacity=2**62)", "capacity"),
     ("capacity 2**64", "particles.ParticleSystem(np.zeros((1, 3)), capacity=2**64)", "capacity"),
     ("capacity 10**30", "particles.ParticleSystem(np.zeros((1, 3)), capacity=10**30)", "capacity"),
@@ -75,9 +76,18 @@ CASES: list[tuple[str, str, str]] = [
     ("particle collider index", "ps.set_collider(-1, particles.Plane())", "index"),
     # cloth
     ("grid 10**6 x 10**6", "cloth.Cloth.grid(10**6, 10**6)", "nx, ny"),
+    # Sizes the allocator grants (overcommit) but the memory cannot hold: refused up front
+    # instead of the process being killed when the pages are touched.
+    ("grid beyond memory", "cloth.Cloth.grid(10**5, 10**4)", "nx, ny"),
     ("grid negative", "cloth.Cloth.grid(-1, 3)", "nx"),
     ("grid huge", "cloth.Cloth.grid(3, 2**70)", "ny"),
     ("grid float", "cloth.Cloth.grid(2.5, 3)", "nx"),
+    # Real-number arguments given a string or None name the argument (not float()'s words).
+    ("cloth dt string", "cl.step('fast')", "dt"),
+    ("world dt None", "world.step(None)", "dt"),
+    ("constraints dt string", "cs.step('0.01')", "dt"),
+    ("ode rtol None", "ode.solve(lambda t, y: -y, [1.0], (0, 1), method='dopri5', rtol=None)", "rtol"),
+    ("friction string", "world.add_ground(friction='high')", "friction"),
     ("cloth steps negative", "cl.step(0.01, -1)", "steps"),
     ("cloth max_iterations zero", "cl.step(0.01, max_iterations=0)", "max_iterations"),
     ("cloth max_iterations negative", "cl.step(0.01, max_iterations=-1)", "max_iterations"),
@@ -154,8 +164,10 @@ CASES: list[tuple[str, str, str]] = [
 # Cases that aborted the process or hung before they were guarded: run in a subprocess.
 RISKY = {
     "capacity 10**12",
+    "capacity beyond memory",
     "capacity 2**62",
     "grid 10**6 x 10**6",
+    "grid beyond memory",
     "ode dt 1e-12",
     "ode dt 1e-320",
     "ode dense jacobian 10**5",
