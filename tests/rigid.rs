@@ -527,8 +527,9 @@ fn undamped_fingerprint() -> Vec<u64> {
 
 #[test]
 fn zero_damping_leaves_the_undamped_steps_bit_for_bit() {
-    // The bits zero damping gives (recorded when damping was added; the free update takes
-    // the undamped closed form, the contact step multiplies by e^0 = 1).
+    // The bits of the same scenario on the commit before damping existed (857cd90, checked
+    // 2026-11-26): zero damping changes nothing (the free update takes the undamped closed
+    // form, the contact step multiplies by e^0 = 1).
     const BEFORE: [u64; 26] = [
         0x3ff43fe4b17e4b1e,
         0xc014a7fffffffffb,
