@@ -39,6 +39,8 @@ fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
 #[pyclass(module = "kinema._kinema")]
 pub struct Particles {
     pub(crate) system: ParticleSystem,
+    /// The undo point of [`Particles::_mark`] (kept to reuse its buffers).
+    saved: Option<ParticleSystem>,
 }
 
 #[pymethods]
@@ -51,7 +53,7 @@ impl Particles {
     /// The object stored by `__reduce__`.
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { system: ParticleSystem::from_snapshot(data)? })
+        Ok(Self { system: ParticleSystem::from_snapshot(data)?, saved: None })
     }
 
     /// Become the system of snapshot `data` (same capacity), in place: views of the state
@@ -59,6 +61,23 @@ impl Particles {
     fn _restore(&mut self, py: Python<'_>, data: &[u8]) -> PyResult<()> {
         let system = &mut self.system;
         detached(py, || system.restore(ParticleSystem::from_snapshot(data)?))
+    }
+
+    /// Remember the system as it is now (a scene's undo point before a frame; no
+    /// serialisation, and no allocation after the first time).
+    fn _mark(&mut self) {
+        match &mut self.saved {
+            Some(saved) => self.system.save_into(saved),
+            None => self.saved = Some(self.system.clone()),
+        }
+    }
+
+    /// Put the system back as it was at the last [`Particles::_mark`], in place (views of
+    /// the state stay valid).
+    fn _rollback(&mut self) {
+        if let Some(saved) = &self.saved {
+            saved.save_into(&mut self.system);
+        }
     }
 
     /// `positions` (N, 3) m, `velocities` (N, 3) m/s, `masses` (N, 1) kg (inf pins), and room
@@ -80,7 +99,7 @@ impl Particles {
             .map(|p| DVec3::from_array(*p))
             .collect();
         let m: Vec<f64> = rows::<1>(&masses, "masses", &[1])?.iter().map(|p| p[0]).collect();
-        Ok(Particles { system: ParticleSystem::new(&x, &v, &m, capacity)? })
+        Ok(Particles { system: ParticleSystem::new(&x, &v, &m, capacity)?, saved: None })
     }
 
     /// Add a force by kind with its parameters (see `kinema.particles` for each layout).

@@ -70,6 +70,41 @@ pub struct Stepper {
 }
 
 impl Stepper {
+    /// Copy what carries from step to step (the method, the previous step of the multistep
+    /// methods, the settings and counters) into `saved`, reusing its buffers; the stage and
+    /// Newton workspaces are not copied. A stepper of another method or size is cloned whole.
+    pub fn save_into(&self, saved: &mut Stepper) {
+        if saved.method != self.method || saved.n != self.n {
+            *saved = self.clone();
+            return;
+        }
+        // Destructured so that a new field cannot be forgotten here.
+        let Stepper {
+            method: _,
+            n: _,
+            k: _,
+            stage: _,
+            y_new: _,
+            prev,
+            prev_h,
+            sub: _,
+            jac: _,
+            lu: _,
+            pivots: _,
+            sparse: _,
+            newton_tol,
+            max_newton,
+            nfev,
+            njev,
+        } = self;
+        saved.prev.clone_from(prev);
+        saved.prev_h = *prev_h;
+        saved.newton_tol = *newton_tol;
+        saved.max_newton = *max_newton;
+        saved.nfev = *nfev;
+        saved.njev = *njev;
+    }
+
     /// A stepper for systems of dimension `n`.
     ///
     /// # Errors

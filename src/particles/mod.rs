@@ -201,6 +201,58 @@ impl ParticleSystem {
         Ok(())
     }
 
+    /// Copy this system's state and parameters into `saved`, reusing `saved`'s buffers (no
+    /// allocation once they have the size): a scene's undo point before a frame, cheaper than
+    /// a snapshot (no serialisation). Workspaces are not copied. `saved.save_into(self)` puts
+    /// the system back in place (same buffers, so views of the state stay valid).
+    pub fn save_into(&self, saved: &mut ParticleSystem) {
+        // Destructured so that a new field cannot be forgotten here.
+        let ParticleSystem {
+            n,
+            y,
+            backup: _,
+            rollback: _,
+            summary: _,
+            mass,
+            inv_mass,
+            age,
+            age_pending,
+            lifespan,
+            alive,
+            color,
+            size,
+            forces,
+            colliders,
+            emitters,
+            cells: _,
+            external,
+            stepper,
+            jacobian: _,
+            time,
+            stats,
+        } = self;
+        saved.n = *n;
+        saved.y.clone_from(y);
+        saved.mass.clone_from(mass);
+        saved.inv_mass.clone_from(inv_mass);
+        saved.age.clone_from(age);
+        saved.age_pending = *age_pending;
+        saved.lifespan.clone_from(lifespan);
+        saved.alive.clone_from(alive);
+        saved.color.clone_from(color);
+        saved.size.clone_from(size);
+        saved.forces.clone_from(forces);
+        saved.colliders.clone_from(colliders);
+        saved.emitters.clone_from(emitters);
+        saved.external.clone_from(external);
+        match (&mut saved.stepper, stepper) {
+            (Some(to), Some(from)) => from.save_into(to),
+            (to, from) => to.clone_from(from),
+        }
+        saved.time = *time;
+        saved.stats = *stats;
+    }
+
     /// Number of slots (live and dead).
     pub fn capacity(&self) -> usize {
         self.n

@@ -594,15 +594,18 @@ def test_rigid_boxes_are_colliders_for_cloth_and_particles():
 
 
 def _cores(scene: Scene) -> list[bytes]:
-    """Snapshot bytes of the scene's rigid worlds and particle systems (a cloth's carry the
-    timings of its last step, so cloths are compared through ``fingerprint``)."""
-    out = []
-    for s in scene.systems:
-        if isinstance(s, particles.ParticleSystem):
-            out.append(s._sys.__reduce__()[1][0])
-        elif isinstance(s, rigid.World):
-            out.append(s._world.__reduce__()[1][0])
-    return out
+    """Snapshot bytes of the scene's rigid worlds (a cloth's carry the timings of its last
+    step, so cloths are compared through ``fingerprint``; a particle system's carry its step
+    workspaces, which a scene's undo does not copy, so they are compared by stepping)."""
+    return [s._world.__reduce__()[1][0] for s in scene.systems if isinstance(s, rigid.World)]
+
+
+def _steps_alike(restored: particles.ParticleSystem, copy: bytes, method: str) -> bool:
+    """Whether ``restored`` and the pickled ``copy`` step to the same bits (3 steps)."""
+    other = pickle.loads(copy)
+    for system in (restored, other):
+        system.step(1 / 600, 3, method=method)
+    return same([restored.positions, restored.velocities], [other.positions, other.velocities])
 
 
 def test_a_frame_where_the_last_system_diverges_leaves_the_scene_as_before():
@@ -616,6 +619,7 @@ def test_a_frame_where_the_last_system_diverges_leaves_the_scene_as_before():
     pair_views = (pair.positions, pair.velocities)
     for _ in range(100):
         before, cores = fingerprint(scene), _cores(scene)
+        copies = [pickle.dumps(s) for s in scene.systems if isinstance(s, particles.ParticleSystem)]
         frame, time = scene.frame, scene.time
         colliders = [len(e.colliders) for e in scene._entries]
         try:
@@ -634,6 +638,12 @@ def test_a_frame_where_the_last_system_diverges_leaves_the_scene_as_before():
     # Views taken before the failure still show the (restored) state.
     assert np.array_equal(pair_views[0], pair.positions)
     assert np.isfinite(pair.positions).all()
+    # The restored particle systems step as copies taken before the frame (the culprit is
+    # about to diverge whatever steps it).
+    restored = [s for s in scene.systems if isinstance(s, particles.ParticleSystem)]
+    assert restored[-1] is pair
+    for system, copy in zip(restored[:-1], copies[:-1], strict=True):
+        assert _steps_alike(system, copy, "implicit_euler")
     # The scene goes on once the culprit is calmed and stepped stably.
     pair.set_state([[0.0, 3.0, 0.0], [0.5, 3.0, 0.0]], np.zeros((2, 3)))
     scene._entries[-1].options["method"] = "implicit_euler"
