@@ -21,7 +21,6 @@ from kinema import SimulationError
 from kinema.constraints import ConstrainedSystem, Distance
 from kinema.particles import Gravity, ParticleSystem
 
-
 # CG needs about two iterations per rod on a chain (its condition number grows with the
 # square of the length): beyond this size one RK4 step takes minutes, so it is not timed.
 CG_LARGEST = 10_000

@@ -40,7 +40,11 @@ CASES: list[tuple[str, str, str]] = [
     # particles
     ("capacity negative", "particles.ParticleSystem(np.zeros((1, 3)), capacity=-1)", "capacity"),
     ("capacity 10**12", "particles.ParticleSystem(np.zeros((1, 3)), capacity=10**12)", "capacity"),
-    ("capacity beyond memory", "particles.ParticleSystem(np.zeros((1, 3)), capacity=10**9)", "capacity"),
+    (
+        "capacity beyond memory",
+        "particles.ParticleSystem(np.zeros((1, 3)), capacity=10**9)",
+        "capacity",
+    ),
     ("capacity 2**62", "particles.ParticleSystem(np.zeros((1, 3)), capacity=2**62)", "capacity"),
     ("capacity 2**64", "particles.ParticleSystem(np.zeros((1, 3)), capacity=2**64)", "capacity"),
     ("capacity 10**30", "particles.ParticleSystem(np.zeros((1, 3)), capacity=10**30)", "capacity"),
@@ -86,7 +90,11 @@ CASES: list[tuple[str, str, str]] = [
     ("cloth dt string", "cl.step('fast')", "dt"),
     ("world dt None", "world.step(None)", "dt"),
     ("constraints dt string", "cs.step('0.01')", "dt"),
-    ("ode rtol None", "ode.solve(lambda t, y: -y, [1.0], (0, 1), method='dopri5', rtol=None)", "rtol"),
+    (
+        "ode rtol None",
+        "ode.solve(lambda t, y: -y, [1.0], (0, 1), method='dopri5', rtol=None)",
+        "rtol",
+    ),
     ("friction string", "world.add_ground(friction='high')", "friction"),
     ("cloth steps negative", "cl.step(0.01, -1)", "steps"),
     ("cloth max_iterations zero", "cl.step(0.01, max_iterations=0)", "max_iterations"),
