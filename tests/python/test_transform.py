@@ -147,9 +147,9 @@ def test_bad_input_names_the_argument():
     with pytest.raises(ValueError, match="exp_coords") as e:
         Transform.from_exp_coords([np.nan, 0.0, 0.0, 0.0, 0.0, 1234.5])
     assert "1234.5" not in str(e.value)
-    with pytest.raises(ValueError, match="dual_quat.*real part"):
+    with pytest.raises(ValueError, match=r"dual_quat.*real part"):
         Transform.from_dual_quat(np.zeros(8))
-    with pytest.raises(ValueError, match="dual_quat.*shape"):
+    with pytest.raises(ValueError, match=r"dual_quat.*shape"):
         Transform.from_dual_quat(np.zeros(7))
     scaled = Transform(scale=2.0)
     for rigid_only in (scaled.as_exp_coords, scaled.as_dual_quat, lambda: scaled**0.5):
