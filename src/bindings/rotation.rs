@@ -394,6 +394,47 @@ fn transform_apply<'py>(
     })
 }
 
+/// Rigid transforms (N, 4, 4) from exponential coordinates (N, 6): rotation vector (rad),
+/// then the twist's translational part.
+#[pyfunction]
+fn transform_from_exp_coords<'py>(
+    py: Python<'py>,
+    exp_coords: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let xs = rows::<6>(&exp_coords, "exp_coords", &[6])?;
+    compute(py, xs.len(), &[4, 4], |out| map(xs, out, rot::transform_from_exp_coords))
+}
+
+/// Exponential coordinates (N, 6) of rigid transforms (N, 4, 4).
+#[pyfunction]
+fn transform_to_exp_coords<'py>(
+    py: Python<'py>,
+    matrix: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let ms = rows::<16>(&matrix, "matrix", &[4, 4])?;
+    compute(py, ms.len(), &[6], |out| map(ms, out, rot::transform_to_exp_coords))
+}
+
+/// Rigid transforms (N, 4, 4) from dual quaternions (N, 8), scalar-first halves, normalised.
+#[pyfunction]
+fn transform_from_dual_quat<'py>(
+    py: Python<'py>,
+    dual_quat: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let ds = rows::<8>(&dual_quat, "dual_quat", &[8])?;
+    compute(py, ds.len(), &[4, 4], |out| map(ds, out, rot::transform_from_dual_quat))
+}
+
+/// Unit dual quaternions (N, 8), scalar-first halves, of rigid transforms (N, 4, 4).
+#[pyfunction]
+fn transform_to_dual_quat<'py>(
+    py: Python<'py>,
+    matrix: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let ms = rows::<16>(&matrix, "matrix", &[4, 4])?;
+    compute(py, ms.len(), &[8], |out| map(ms, out, rot::transform_to_dual_quat))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("GIMBAL_LOCK_TOL", rot::GIMBAL_LOCK_TOL)?;
     m.add("ROTATION_MATRIX_TOL", rot::ROTATION_MATRIX_TOL)?;
@@ -422,5 +463,9 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(transform_compose, m)?)?;
     m.add_function(wrap_pyfunction!(transform_invert, m)?)?;
     m.add_function(wrap_pyfunction!(transform_apply, m)?)?;
+    m.add_function(wrap_pyfunction!(transform_from_exp_coords, m)?)?;
+    m.add_function(wrap_pyfunction!(transform_to_exp_coords, m)?)?;
+    m.add_function(wrap_pyfunction!(transform_from_dual_quat, m)?)?;
+    m.add_function(wrap_pyfunction!(transform_to_dual_quat, m)?)?;
     Ok(())
 }

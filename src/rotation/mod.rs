@@ -22,6 +22,7 @@ mod mean;
 mod mrp;
 mod quat;
 mod rotvec;
+mod screw;
 mod slerp;
 mod transform;
 mod trig;
@@ -38,6 +39,10 @@ pub use mrp::{quat_from_mrp, quat_to_mrp};
 pub use quat::{canonical, quat_from_wxyz, quat_to_wxyz, rotation_angle};
 pub use rotvec::{
     quat_from_axis_angle, quat_from_rotvec, quat_to_axis_angle, quat_to_rotvec, quats_from_rotvecs,
+};
+pub use screw::{
+    rigid_parts, transform_from_dual_quat, transform_from_exp_coords, transform_to_dual_quat,
+    transform_to_exp_coords,
 };
 pub use slerp::slerp;
 pub use transform::{

@@ -303,7 +303,7 @@ def test_transform_bad_input():
         Transform.from_matrix(np.ones((4, 4)))
     with pytest.raises(ValueError, match="singular"):
         Transform(scale=[1.0, 0.0, 1.0]).inv()
-    with pytest.raises(ValueError, match=r"points.*shape"):
+    with pytest.raises(ValueError, match=r"vector.*shape"):
         Transform().apply(np.zeros((2, 4)))
     with pytest.raises(ValueError, match="translation"):
         Transform(translation=[np.nan, 0, 0])

@@ -107,7 +107,34 @@ class RotationSpline:
         return getattr(self._track, name)
 
 
-RigidTransform = kinema.Transform
+class RigidTransform(kinema.Transform):
+    """kinema's Transform with scipy's constructor ``RigidTransform(matrix)``, scalar-last
+    dual quaternions and rotations in scipy's quaternion order."""
+
+    __slots__ = ()
+
+    def __init__(self, matrix: Any, normalize: bool = True, copy: bool = True) -> None:
+        t = kinema.Transform.from_matrix(matrix)
+        self._matrix, self._shape = t._matrix, t.shape
+
+    @classmethod
+    def identity(cls, num: int | None = None, *, shape: Any = None) -> RigidTransform:  # type: ignore[override]
+        return super().identity(num, shape=shape)  # type: ignore[return-value]
+
+    @classmethod
+    def from_dual_quat(cls, dual_quat: Any, *, scalar_first: bool = False) -> RigidTransform:  # type: ignore[override]
+        return super().from_dual_quat(dual_quat, scalar_first=scalar_first)  # type: ignore[return-value]
+
+    def as_dual_quat(self, *, scalar_first: bool = False) -> Any:  # type: ignore[override]
+        return super().as_dual_quat(scalar_first=scalar_first)
+
+    @property
+    def rotation(self) -> Rotation:  # type: ignore[override]
+        return _wrap(super().rotation)
+
+    def as_components(self) -> tuple[Any, Rotation]:  # type: ignore[override]
+        return self.translation, self.rotation
+
 
 ADAPTED = {
     "Rotation": Rotation,
