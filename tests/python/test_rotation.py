@@ -446,6 +446,16 @@ def test_unpickling_validates_rotations():
             pickle.loads(pickle.dumps(bad))
 
 
+def test_orthonormalize_of_a_reflected_matrix_flips_its_smallest_direction():
+    # m = U diag(σ) Vᵀ with one negative σ of the smallest magnitude, in every slot: the
+    # nearest rotation (Kabsch / polar with the sign fix) is U Vᵀ, whichever slot it sits in.
+    u, v = Rotation.random(2, rng=7).as_matrix()
+    for sigma in ([-1.0, 3.0, 2.0], [3.0, -1.0, 2.0], [3.0, 2.0, -1.0], [5.0, 4.0, -3.9]):
+        m = u @ np.diag(sigma) @ v.T
+        got = Rotation.from_matrix(m, orthonormalize=True).as_matrix()
+        np.testing.assert_allclose(got, u @ v.T, atol=1e-12, err_msg=str(sigma))
+
+
 def test_from_matrix_orthonormalizes_huge_and_tiny_matrices():
     r = Rotation.from_rotvec([0.3, -0.2, 0.9])
     # 1e-315 is subnormal (~25 significant bits left): close, not exact.
