@@ -14,13 +14,14 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
 
 from kinema import _kinema
 from kinema._array import as_batch, as_scalars, as_stack, real
+from kinema._stack import Stack
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -46,7 +47,7 @@ def _check_seq(seq: object, lengths: tuple[int, ...] = (3,)) -> str:
     return seq
 
 
-class Rotation:
+class Rotation(Stack):
     """One rotation or a stack of rotations of any shape, stored as unit quaternions.
 
     Build one with a ``from_*`` class method, :meth:`identity` or :meth:`random`. A rotation
@@ -58,6 +59,8 @@ class Rotation:
     """
 
     __slots__ = ("_quat", "_shape")
+    _NOUN = "rotation"
+    _ITEM = (4,)
 
     _quat: np.ndarray
     _shape: tuple[int, ...]
@@ -456,42 +459,6 @@ class Rotation:
         return rot, None if left is None else li, None if right is None else ri
 
     # ------------------------------------------------------------------ container
-    @property
-    def single(self) -> bool:
-        """True for a single rotation (``shape == ()``), False for a stack (even of length 1)."""
-        return self._shape == ()
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """The stack's shape, ``()`` for a single rotation."""
-        return self._shape
-
-    def __len__(self) -> int:
-        if self.single:
-            raise TypeError("a single rotation has no len()")
-        return self._shape[0]
-
-    def __getitem__(self, index: Any) -> Self:
-        if self.single:
-            raise TypeError("a single rotation cannot be indexed")
-        q = self._quat.reshape((*self._shape, 4))[index]
-        if q.ndim == 0 or q.shape[-1] != 4:
-            raise IndexError("index: too many indices for the rotation stack")
-        return self._make(np.array(q.reshape(-1, 4)), q.shape[:-1])
-
-    def __setitem__(self, index: Any, value: Rotation) -> None:
-        """Replace the rotations at ``index`` (first axes, as numpy) by ``value`` (broadcast)."""
-        if self.single:
-            raise TypeError("a single rotation does not support item assignment")
-        if not isinstance(value, Rotation):
-            raise TypeError("value: expected a Rotation")
-        self._quat.reshape((*self._shape, 4))[index] = value._quat.reshape((*value._shape, 4))
-
-    def __iter__(self) -> Iterator[Self]:
-        if self.single:
-            raise TypeError("a single rotation is not iterable")
-        return (self[i] for i in range(self._shape[0]))
-
     def __repr__(self) -> str:
         if self.single:
             return f"Rotation.from_quat({self._quat[0].tolist()})"
@@ -504,27 +471,15 @@ class Rotation:
         """Unpickle, validating: quaternions ``(prod(shape), 4)`` of unit length (to 1e-9)
         and the shape, a tuple of non-negative ints; anything else (a damaged or foreign
         pickle) raises ValueError."""
-        if not (
-            isinstance(state, tuple)
-            and len(state) == 2
-            and isinstance(state[1], tuple)
-            and all(isinstance(d, int) and not isinstance(d, bool) and d >= 0 for d in state[1])
-        ):
-            raise ValueError("state: expected (quaternions, shape), not a kinema pickle")
-        quat = np.ascontiguousarray(state[0], dtype=np.float64)
-        if quat.shape != (math.prod(state[1]), 4):
-            raise ValueError(
-                f"state: quaternions must have shape (prod(shape), 4), got {quat.shape}"
-            )
+        quat, shape = self._state(state, "quaternions")
         norms = np.linalg.norm(quat, axis=1)
         bad = np.flatnonzero(~(np.abs(norms - 1.0) <= 1e-9))
         if bad.size:
             raise ValueError(f"state: quaternion {bad[0]} is not unit (norm {norms[bad[0]]})")
-        self._quat, self._shape = quat, state[1]
+        self._quat, self._shape = quat, shape
 
-    def _out(self, arr: np.ndarray) -> np.ndarray:
-        """Kernel rows ``(N, *item)`` as ``(*shape, *item)``."""
-        return arr.reshape((*self._shape, *arr.shape[1:]))
+    def _data(self) -> np.ndarray:
+        return self._quat
 
 
 def _float(value: Any, name: str) -> float:

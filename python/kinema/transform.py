@@ -5,19 +5,20 @@ core (``kinema._kinema``, ``src/rotation/transform.rs`` and ``src/rotation/screw
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from kinema import _kinema
 from kinema._array import as_stack
+from kinema._stack import Stack
 from kinema.rotation import Rotation, _broadcast, _float, _lead
 
 __all__ = ["Transform"]
 
 
-class Transform:
+class Transform(Stack):
     """One homogeneous 4x4 transform or a stack of any shape, acting on column vectors.
 
     ``Transform(rotation, translation, scale)`` builds ``M = T R S``: scale along the body
@@ -31,6 +32,8 @@ class Transform:
     """
 
     __slots__ = ("_matrix", "_shape")
+    _NOUN = "transform"
+    _ITEM = (4, 4)
 
     _matrix: np.ndarray
     _shape: tuple[int, ...]
@@ -219,42 +222,6 @@ class Transform:
         return self._make(*_parts(rot, mean_t, None))
 
     # ------------------------------------------------------------------ container
-    @property
-    def single(self) -> bool:
-        """True for a single transform (``shape == ()``), False for a stack."""
-        return self._shape == ()
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """The stack's shape, ``()`` for a single transform."""
-        return self._shape
-
-    def __len__(self) -> int:
-        if self.single:
-            raise TypeError("a single transform has no len()")
-        return self._shape[0]
-
-    def __getitem__(self, index: Any) -> Transform:
-        if self.single:
-            raise TypeError("a single transform cannot be indexed")
-        m = self._matrix.reshape((*self._shape, 4, 4))[index]
-        if m.ndim < 2 or m.shape[-2:] != (4, 4):
-            raise IndexError("index: too many indices for the transform stack")
-        return self._make(np.array(m.reshape(-1, 4, 4)), m.shape[:-2])
-
-    def __setitem__(self, index: Any, value: Transform) -> None:
-        """Replace the transforms at ``index`` (first axes, as numpy) by ``value`` (broadcast)."""
-        if self.single:
-            raise TypeError("a single transform does not support item assignment")
-        if not isinstance(value, Transform):
-            raise TypeError("value: expected a Transform")
-        self._matrix.reshape((*self._shape, 4, 4))[index] = value._out(value._matrix)
-
-    def __iter__(self) -> Iterator[Transform]:
-        if self.single:
-            raise TypeError("a single transform is not iterable")
-        return (self[i] for i in range(self._shape[0]))
-
     def __repr__(self) -> str:
         if self.single:
             return f"Transform.from_matrix({self._matrix[0].tolist()})"
@@ -267,23 +234,11 @@ class Transform:
         """Unpickle, validating as :meth:`from_matrix` does: affine ``(prod(shape), 4, 4)``
         with last row ``(0, 0, 0, 1)`` and finite entries, and the shape, a tuple of
         non-negative ints; else ValueError."""
-        if not (
-            isinstance(state, tuple)
-            and len(state) == 2
-            and isinstance(state[1], tuple)
-            and all(isinstance(d, int) and not isinstance(d, bool) and d >= 0 for d in state[1])
-        ):
-            raise ValueError("state: expected (matrices, shape), not a kinema pickle")
-        matrix = np.ascontiguousarray(state[0], dtype=np.float64)
-        if matrix.shape != (math.prod(state[1]), 4, 4):
-            raise ValueError(
-                f"state: matrices must have shape (prod(shape), 4, 4), got {matrix.shape}"
-            )
-        self._matrix, self._shape = _kinema.transform_validate(matrix), state[1]
+        matrix, shape = self._state(state, "matrices")
+        self._matrix, self._shape = _kinema.transform_validate(matrix), shape
 
-    def _out(self, arr: np.ndarray) -> np.ndarray:
-        """Kernel rows ``(N, *item)`` as ``(*shape, *item)``."""
-        return arr.reshape((*self._shape, *arr.shape[1:]))
+    def _data(self) -> np.ndarray:
+        return self._matrix
 
 
 def _parts(rotation: Any, translation: Any, scale: Any) -> tuple[np.ndarray, tuple[int, ...]]:
