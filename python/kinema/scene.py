@@ -566,11 +566,11 @@ class Scene:
 
 def _checkpoint(entry: _Entry) -> Callable[[], None]:
     """A function that puts ``entry``'s system (and the scene's record of its colliders) back
-    as it is now: its compiled object is restored in place (views of its state stay valid),
-    from a copy kept in retained buffers where the object offers one (particles: ``_mark`` /
-    ``_rollback``), otherwise from a snapshot. A constrained system holding a Python function cannot be snapshotted:
-    its particles are restored, while its multiplier warm start and step counters keep the
-    failed step's values (they change no result beyond the solver tolerance)."""
+    as it is now: each compiled object keeps an undo point (``_mark``) and goes back to it in
+    place (``_rollback``), so views of its state stay valid. A constrained system holding a
+    Python function refuses its mark: its particles are restored, while its multiplier warm
+    start and step counters keep the failed step's values (they change no result beyond the
+    solver tolerance)."""
     obj, colliders = entry.obj, list(entry.colliders)
     cores: list[Any]
     if isinstance(obj, ConstrainedSystem):
@@ -581,22 +581,16 @@ def _checkpoint(entry: _Entry) -> Callable[[], None]:
         cores = [obj._sys]
     else:
         cores = [obj._world]
-    saved: list[tuple[Any, Any]] = []
+    marked: list[Any] = []
     for core in cores:
-        if hasattr(core, "_mark"):  # an in-memory copy into retained buffers, no serialisation
-            core._mark()
-            saved.append((core, None))
-            continue
         with contextlib.suppress(ValueError):  # refused when a constraint is a Python function
-            saved.append((core, core.__reduce__()[1][0]))
+            core._mark()
+            marked.append(core)
     count = getattr(obj, "_colliders", None)
 
     def restore() -> None:
-        for core, data in saved:
-            if data is None:
-                core._rollback()
-            else:
-                core._restore(data)
+        for core in marked:
+            core._rollback()
         entry.colliders[:] = colliders
         if count is not None:
             obj._colliders = count

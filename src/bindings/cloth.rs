@@ -33,6 +33,8 @@ fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
 #[pyclass(module = "kinema._kinema")]
 pub struct ClothCore {
     cloth: Cloth,
+    /// The undo point of [`ClothCore::_mark`], a snapshot (empty before the first).
+    saved: Vec<u8>,
 }
 
 #[pymethods]
@@ -45,14 +47,24 @@ impl ClothCore {
     /// The object stored by `__reduce__`.
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { cloth: Cloth::from_snapshot(data)? })
+        Ok(Self { cloth: Cloth::from_snapshot(data)?, saved: Vec::new() })
     }
 
-    /// Become the cloth of snapshot `data` (same vertex count), in place: views of the
+    /// Remember the cloth as it is now (a scene's undo point before a frame), as a snapshot.
+    fn _mark(&mut self, py: Python<'_>) -> PyResult<()> {
+        let cloth = &self.cloth;
+        self.saved = detached(py, || cloth.to_snapshot())?;
+        Ok(())
+    }
+
+    /// Put the cloth back as it was at the last [`ClothCore::_mark`], in place: views of the
     /// positions and velocities stay valid.
-    fn _restore(&mut self, py: Python<'_>, data: &[u8]) -> PyResult<()> {
-        let cloth = &mut self.cloth;
-        detached(py, || cloth.restore(Cloth::from_snapshot(data)?))
+    fn _rollback(&mut self, py: Python<'_>) -> PyResult<()> {
+        let (cloth, saved) = (&mut self.cloth, &self.saved);
+        if saved.is_empty() {
+            return Ok(());
+        }
+        detached(py, || cloth.restore(Cloth::from_snapshot(saved)?))
     }
 
     /// A cloth from `vertices` (N, 3) m and `triangles` (M, 3) indices (as float64), with
@@ -365,7 +377,8 @@ impl ClothCore {
             damping: m[4],
             air_damping: m[5],
         };
-        Ok(ClothCore { cloth: Cloth::new(mesh, model, material, DVec3::from_array(gravity))? })
+        let cloth = Cloth::new(mesh, model, material, DVec3::from_array(gravity))?;
+        Ok(ClothCore { cloth, saved: Vec::new() })
     }
 }
 

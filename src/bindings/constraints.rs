@@ -120,6 +120,8 @@ pub struct Constrained {
     system: ConstrainedSystem,
     /// The exception raised by a custom constraint's callable during the current call.
     error: Arc<Mutex<Option<PyErr>>>,
+    /// The undo point of [`Constrained::_mark`], a snapshot (empty before the first).
+    saved: Vec<u8>,
 }
 
 impl Constrained {
@@ -149,13 +151,23 @@ impl Constrained {
     fn _from_snapshot(py: Python<'_>, data: &[u8], particles: Py<Particles>) -> PyResult<Self> {
         let system = ConstrainedSystem::from_snapshot(data)?;
         system.check_particles(particles.borrow(py).system.capacity())?;
-        Ok(Constrained { particles, system, error: Arc::default() })
+        Ok(Constrained { particles, system, error: Arc::default(), saved: Vec::new() })
     }
 
-    /// Become the constraint system of snapshot `data`, in place (the particles are restored
-    /// on their own).
-    fn _restore(&mut self, data: &[u8]) -> PyResult<()> {
-        self.system = ConstrainedSystem::from_snapshot(data)?;
+    /// Remember the constraint system as it is now (a scene's undo point before a frame; the
+    /// particles are marked on their own), as a snapshot: refused with a `ValueError` when a
+    /// constraint is a Python function.
+    fn _mark(&mut self) -> PyResult<()> {
+        self.saved.clear(); // no stale undo point if the snapshot is refused
+        self.saved = self.system.to_snapshot()?;
+        Ok(())
+    }
+
+    /// Put the constraint system back as it was at the last [`Constrained::_mark`].
+    fn _rollback(&mut self) -> PyResult<()> {
+        if !self.saved.is_empty() {
+            self.system = ConstrainedSystem::from_snapshot(&self.saved)?;
+        }
         Ok(())
     }
 
@@ -198,7 +210,7 @@ impl Constrained {
             }
         };
         system.set_stabilization(stabilize)?;
-        Ok(Constrained { particles, system, error: Arc::default() })
+        Ok(Constrained { particles, system, error: Arc::default(), saved: Vec::new() })
     }
 
     /// Add a constraint: `distance` (i, j, [length]), `on_sphere` (i, -, [center 3, radius]),

@@ -56,13 +56,6 @@ impl Particles {
         Ok(Self { system: ParticleSystem::from_snapshot(data)?, saved: None })
     }
 
-    /// Become the system of snapshot `data` (same capacity), in place: views of the state
-    /// stay valid.
-    fn _restore(&mut self, py: Python<'_>, data: &[u8]) -> PyResult<()> {
-        let system = &mut self.system;
-        detached(py, || system.restore(ParticleSystem::from_snapshot(data)?))
-    }
-
     /// Remember the system as it is now (a scene's undo point before a frame; no
     /// serialisation, and no allocation after the first time).
     fn _mark(&mut self) {

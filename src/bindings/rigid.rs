@@ -22,6 +22,8 @@ fn vec3(v: [f64; 3]) -> DVec3 {
 #[pyclass(module = "kinema._kinema")]
 pub struct RigidWorld {
     world: World,
+    /// The undo point of [`RigidWorld::_mark`].
+    saved: Option<World>,
 }
 
 #[pymethods]
@@ -34,13 +36,19 @@ impl RigidWorld {
     /// The object stored by `__reduce__`.
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { world: World::from_snapshot(data)? })
+        Ok(Self { world: World::from_snapshot(data)?, saved: None })
     }
 
-    /// Become the world of snapshot `data`, in place.
-    fn _restore(&mut self, data: &[u8]) -> PyResult<()> {
-        self.world = World::from_snapshot(data)?;
-        Ok(())
+    /// Remember the world as it is now (a scene's undo point before a frame), as a copy.
+    fn _mark(&mut self) {
+        self.saved = Some(self.world.clone());
+    }
+
+    /// Put the world back as it was at the last [`RigidWorld::_mark`].
+    fn _rollback(&mut self) {
+        if let Some(saved) = &self.saved {
+            self.world.clone_from(saved);
+        }
     }
 
     /// An empty world with gravity (m/s², world frame), a rotation integrator name and
@@ -52,7 +60,7 @@ impl RigidWorld {
         }
         let mut world = World::new(vec3(gravity), RotationIntegrator::parse(integrator)?);
         world.collisions = collisions;
-        Ok(RigidWorld { world })
+        Ok(RigidWorld { world, saved: None })
     }
 
     /// Add a body; `kind` is sphere | box | capsule | cylinder | mesh with `dims` its

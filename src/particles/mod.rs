@@ -185,22 +185,6 @@ impl ParticleSystem {
         })
     }
 
-    /// Become `other` (e.g. an earlier [`crate::snapshot::Snapshot`] of this system), copying
-    /// its state into this system's state buffer, which stays in place so views of it stay
-    /// valid (a scene undoes a failed step this way).
-    ///
-    /// # Errors
-    /// [`Error::InvalidInput`] (argument `"data"`) if `other` has another capacity.
-    pub fn restore(&mut self, other: ParticleSystem) -> Result<()> {
-        if other.y.len() != self.y.len() {
-            return Err(Error::invalid("data", "is a particle system of another capacity"));
-        }
-        let mut y = std::mem::take(&mut self.y);
-        y.copy_from_slice(&other.y);
-        *self = ParticleSystem { y, ..other };
-        Ok(())
-    }
-
     /// Copy this system's state and parameters into `saved`, reusing `saved`'s buffers (no
     /// allocation once they have the size): a scene's undo point before a frame, cheaper than
     /// a snapshot (no serialisation). Workspaces are not copied. `saved.save_into(self)` puts
