@@ -47,6 +47,11 @@ class Stack:
             raise TypeError(f"a single {self._NOUN} has no len()")
         return self._shape[0]
 
+    def __bool__(self) -> bool:
+        """Always true, even for an empty stack (as scipy): a stack is a value, not a
+        container whose emptiness tests false."""
+        return True
+
     def __getitem__(self, index: Any) -> Self:
         if self.single:
             raise TypeError(f"a single {self._NOUN} cannot be indexed")

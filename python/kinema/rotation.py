@@ -151,32 +151,25 @@ class Rotation(Stack):
     @classmethod
     def from_davenport(cls, axes: Any, order: str, angles: Any, *, degrees: bool = False) -> Self:
         """Rotations by Davenport angles: turns by ``angles`` ``(..., n)`` about ``n`` (1 to 3)
-        ``axes`` ``(n, 3)`` (any non-zero vectors, normalised here; consecutive ones
-        orthogonal to 1e-7), ``order`` ``"extrinsic"``/``"e"`` (fixed axes, the first turn
-        first) or ``"intrinsic"``/``"i"`` (axes moving with the body). Euler angles are the
-        case of coordinate axes (Davenport 1973; Shuster & Markley 2003)."""
-        if order not in ("e", "extrinsic", "i", "intrinsic"):
-            raise ValueError("order should be 'e'/'extrinsic' or 'i'/'intrinsic'")
-        ax, _ = as_stack(axes, "axes", (3,))
-        if not 1 <= len(ax) <= 3:
-            raise ValueError("axes: expected 1 to 3 axes")
-        norms = np.linalg.norm(ax, axis=1)
-        if not (norms > 0).all() or not np.isfinite(norms).all():
-            raise ValueError("axes: must be finite and non-zero")
-        ax = ax / norms[:, None]
-        if (np.abs(np.sum(ax[1:] * ax[:-1], axis=1)) > 1e-7).any():
-            raise ValueError("axes: consecutive axes must be orthogonal")
-        flat, shape = as_stack(angles if np.ndim(angles) else [angles], "angles", (len(ax),))
+        ``axes`` ``(..., n, 3)`` (one set for all, ``(n, 3)`` or a single axis ``(3,)``, or a
+        set per rotation; leading shapes broadcast with the angles'), any non-zero vectors,
+        normalised here, consecutive ones orthogonal to 1e-7; ``order`` ``"extrinsic"``/``"e"``
+        (fixed axes, the first turn first) or ``"intrinsic"``/``"i"`` (axes moving with the
+        body). Euler angles are the case of coordinate axes (Davenport 1973; Shuster & Markley
+        2003)."""
+        intrinsic = _order(order)
+        ax, ax_shape = _davenport_axes(axes, None)
+        n = ax.shape[1]
+        flat, shape = as_stack(angles if np.ndim(angles) else [angles], "angles", (n,))
         if degrees:
             flat = np.deg2rad(flat)
-        q = _kinema.rotvec_to_quat(np.zeros((len(flat), 3)))
-        for k, axis in enumerate(ax):
-            turn = _kinema.axis_angle_to_quat(axis[None], np.ascontiguousarray(flat[:, k : k + 1]))
-            q = (
-                _kinema.quat_multiply(turn, q)
-                if order[0] == "e"
-                else _kinema.quat_multiply(q, turn)
+        ax, flat, shape = _broadcast(ax, ax_shape, flat, shape, "angles")
+        q = _kinema.rotvec_to_quat(np.zeros((max(len(ax), len(flat)), 3)))
+        for k in range(n):
+            turn = _kinema.axis_angle_to_quat(
+                np.ascontiguousarray(ax[:, k]), np.ascontiguousarray(flat[:, k : k + 1])
             )
+            q = _kinema.quat_multiply(q, turn) if intrinsic else _kinema.quat_multiply(turn, q)
         return cls._make(q, shape)
 
     @classmethod
@@ -221,14 +214,15 @@ class Rotation(Stack):
                 f"b: expected the shape of a, {av.shape[1:] if single_a else av.shape}"
             )
         n = len(av)
-        if weights is None or n == 1:
-            w = np.ones(n)
-            if weights is not None and np.ndim(weights) != 1:
-                raise ValueError("weights: expected shape (N,)")
-        else:
-            w = np.asarray(weights, dtype=np.float64)
-            if w.shape != (n,):
-                raise ValueError(f"weights: expected shape ({n},), got {w.shape}")
+        w = np.ones(n)
+        if weights is not None:
+            given = np.asarray(weights, dtype=np.float64)
+            if given.shape != (n,):
+                raise ValueError(f"weights: expected shape ({n},), got {given.shape}")
+            if np.isnan(given).any() or (given < 0).any():
+                raise ValueError("weights: must not be negative or NaN")
+            if n > 1:  # a single pair is primary whatever its weight
+                w = given
         if return_sensitivity and (n == 1 or np.isinf(w).any()):
             raise ValueError(
                 "return_sensitivity: no sensitivity with an infinite weight or one vector pair"
@@ -329,6 +323,30 @@ class Rotation(Stack):
                 stacklevel=2,
             )
         return self._out(np.rad2deg(angles) if degrees else angles)
+
+    def as_davenport(self, axes: Any, order: str, *, degrees: bool = False) -> np.ndarray:
+        """Davenport angles ``(*shape, 3)`` about 3 ``axes`` ``(..., 3, 3)`` (normalised;
+        consecutive ones orthogonal to 1e-7; one set for all or a set per rotation, leading
+        shapes broadcast), ``order`` as in :meth:`from_davenport`.
+
+        With ``n3 = R_n2(λ) n1`` the middle angle lies in ``[λ, λ + π]`` for ``λ <= 0`` and in
+        ``[λ - π, λ]`` otherwise (``λ`` of ``n1``, ``n3`` swapped for intrinsic order), which
+        for coordinate axes are the ranges of :meth:`as_euler`, whose angles these then are;
+        first and third in ``(-pi, pi]``. Bernardes & Viollet 2022, sec. 3. At gimbal lock the
+        third angle is set to 0 and a :class:`GimbalLockWarning` is issued.
+        """
+        intrinsic = _order(order)
+        ax, ax_shape = _davenport_axes(axes, 3)
+        ax, q, shape = _broadcast(ax.reshape(-1, 9), ax_shape, self._quat, self._shape, "axes")
+        angles, locked = _kinema.quat_to_davenport(ax, intrinsic, q)
+        if locked:
+            warnings.warn(
+                f"Gimbal lock in {locked} of {len(angles)} rotations: third angle set to 0",
+                GimbalLockWarning,
+                stacklevel=2,
+            )
+        angles = np.rad2deg(angles) if degrees else angles
+        return angles.reshape((*shape, 3))
 
     def as_mrp(self) -> np.ndarray:
         """Modified Rodrigues parameters ``(*shape, 3)`` of norm at most 1 (the angle taken
@@ -513,6 +531,35 @@ def _broadcast(
         )
 
     return full(a, a_shape), full(b, b_shape), shape
+
+
+def _order(order: object) -> bool:
+    """Whether a Davenport ``order`` is intrinsic."""
+    if order not in ("e", "extrinsic", "i", "intrinsic"):
+        raise ValueError("order: expected 'e'/'extrinsic' or 'i'/'intrinsic'")
+    return str(order)[0] == "i"
+
+
+def _davenport_axes(axes: Any, count: int | None) -> tuple[np.ndarray, tuple[int, ...]]:
+    """Davenport axes ``(..., n, 3)`` (or one axis ``(3,)``) as unit rows ``(M, n, 3)`` and
+    their leading shape; ``n`` must be ``count`` if given, else 1 to 3."""
+    try:
+        a = np.asarray(axes, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"axes: cannot convert to a float64 array ({e})") from None
+    if a.ndim == 1:
+        a = a[None]
+    n = a.shape[-2] if a.ndim >= 2 else 0
+    if a.shape[-1:] != (3,) or not 1 <= n <= 3 or (count is not None and n != count):
+        want = f"{count}, 3)" if count else "n, 3) with n from 1 to 3"
+        raise ValueError(f"axes: expected shape (..., {want}, got {a.shape}")
+    norms = np.linalg.norm(a, axis=-1, keepdims=True)
+    if not (norms > 0).all() or not np.isfinite(norms).all():
+        raise ValueError("axes: must be finite and non-zero")
+    a = a / norms
+    if (np.abs(np.sum(a[..., 1:, :] * a[..., :-1, :], axis=-1)) > 1e-7).any():
+        raise ValueError("axes: consecutive axes must be orthogonal")
+    return np.ascontiguousarray(a.reshape(-1, n, 3)), a.shape[:-2]
 
 
 def _lead(n: object, shape: object) -> tuple[int, ...]:

