@@ -58,7 +58,6 @@
 
 mod model;
 mod solver;
-pub(crate) mod svd;
 
 pub use solver::Solver;
 

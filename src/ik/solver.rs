@@ -2,7 +2,7 @@
 //! effector, buffers sized for the task) and the iterations of every method on it.
 
 use super::model::{self, Kind, Var};
-use super::svd::jacobi_rows;
+use crate::math::svd::jacobi_rows;
 use super::{Method, Options, Report, Target};
 use crate::error::{Error, Result};
 use crate::math::wrap_angle;

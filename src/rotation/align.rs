@@ -7,7 +7,7 @@
 //! primary `a` and then turns about it to best align the rest.
 
 use crate::error::{ensure_finite, Error, Result};
-use crate::ik::svd::jacobi_rows;
+use crate::math::svd::jacobi_rows;
 use glam::{DQuat, DVec3};
 use nalgebra::Matrix3;
 

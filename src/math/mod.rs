@@ -1,5 +1,7 @@
-//! Small math helpers shared by every system: outer products, cross-product matrices and
-//! angle wrapping. Imports no system of kinema.
+//! Small math helpers shared by every system: outer products, cross-product matrices,
+//! angle wrapping, and the small dense SVD ([`svd`]). Imports no system of kinema.
+
+pub(crate) mod svd;
 
 use glam::{DMat3, DVec3};
 use std::f64::consts::{PI, TAU};
