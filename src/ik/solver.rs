@@ -2,9 +2,9 @@
 //! effector, buffers sized for the task) and the iterations of every method on it.
 
 use super::model::{self, Kind, Var};
-use crate::math::svd::jacobi_rows;
 use super::{Method, Options, Report, Target};
 use crate::error::{Error, Result};
+use crate::math::svd::jacobi_rows;
 use crate::math::wrap_angle;
 use crate::mocap::{Dof, Skeleton};
 use crate::rotation::{quat_to_rotvec, EulerSequence};
