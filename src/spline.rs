@@ -167,6 +167,176 @@ fn spline_slopes(t: &[f64], p: &[f64], ends: Option<(f64, f64)>) -> Vec<f64> {
     m
 }
 
+/// Check the keys of a track: at least one key and one channel, `n x dim` finite values,
+/// strictly increasing finite times.
+fn check_keys(times: &[f64], values: &[f64], dim: usize) -> Result<()> {
+    let n = times.len();
+    if n == 0 || dim == 0 {
+        return Err(Error::invalid("times", "a track needs at least one key and one channel"));
+    }
+    if values.len() != n * dim {
+        return Err(Error::invalid(
+            "values",
+            format!("expected {n} x {dim} values, got {}", values.len()),
+        ));
+    }
+    check_times(times)?;
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(Error::InvalidInput {
+            arg: "values".into(),
+            index: Some(i / dim),
+            reason: "contains NaN or infinity".into(),
+        });
+    }
+    Ok(())
+}
+
+/// `len` finite numbers in `v`, else an error naming `arg`.
+fn check_finite(arg: &str, v: &[f64], len: usize) -> Result<()> {
+    if v.len() != len {
+        return Err(Error::invalid(arg, format!("expected {len} numbers, got {}", v.len())));
+    }
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err(Error::invalid(arg, "contains NaN or infinity"));
+    }
+    Ok(())
+}
+
+/// Newton's divided differences of the points `(times[k], p[k])`, in place: the coefficients
+/// of the interpolating polynomial in Newton form.
+fn divided_differences(times: &[f64], mut a: Vec<f64>) -> Vec<f64> {
+    let n = a.len();
+    for j in 1..n {
+        for k in (j..n).rev() {
+            a[k] = (a[k] - a[k - 1]) / (times[k] - times[k - j]);
+        }
+    }
+    a
+}
+
+/// The outgoing and incoming tangents (per unit of each segment's local parameter) of a
+/// Kochanek–Bartels spline with tension `t`, continuity `cc` and bias `b` through `p`
+/// (Kochanek & Bartels 1984, eqs. 8–9 for unequal key spacing); the end keys take the
+/// chord of their segment.
+fn kochanek_bartels_tangents(
+    times: &[f64],
+    p: &[f64],
+    (t, cc, b): (f64, f64, f64),
+) -> (Vec<f64>, Vec<f64>) {
+    let n = p.len();
+    let h = |k: usize| times[k + 1] - times[k];
+    let mut out = vec![0.0; n];
+    let mut inc = vec![0.0; n];
+    for k in 0..n {
+        if k == 0 || k == n - 1 {
+            let d = if k == 0 { p[1] - p[0] } else { p[n - 1] - p[n - 2] };
+            out[k] = d;
+            inc[k] = d;
+            continue;
+        }
+        let (back, fwd) = (p[k] - p[k - 1], p[k + 1] - p[k]);
+        let (h0, h1) = (h(k - 1), h(k));
+        let td = 0.5 * (1.0 - t) * ((1.0 + cc) * (1.0 + b) * back + (1.0 - cc) * (1.0 - b) * fwd);
+        let ts = 0.5 * (1.0 - t) * ((1.0 - cc) * (1.0 + b) * back + (1.0 + cc) * (1.0 - b) * fwd);
+        out[k] = td * 2.0 * h1 / (h0 + h1);
+        inc[k] = ts * 2.0 * h0 / (h0 + h1);
+    }
+    (out, inc)
+}
+
+impl Interpolation {
+    /// Check the scheme's own parameters for a track of `n` keys and `dim` channels.
+    fn check(&self, n: usize, dim: usize) -> Result<()> {
+        match self {
+            Interpolation::ClampedCubic { start, end } => {
+                check_finite("end_tangents", start, dim)?;
+                check_finite("end_tangents", end, dim)
+            }
+            Interpolation::Hermite { tangents } => check_finite("tangents", tangents, n * dim),
+            Interpolation::Bezier { handles } => {
+                check_finite("handles", handles, (n.saturating_sub(1)) * 2 * dim)
+            }
+            Interpolation::Cardinal { tension } => check_finite("tension", &[*tension], 1),
+            Interpolation::KochanekBartels { tension, continuity, bias } => {
+                check_finite("tension", &[*tension, *continuity, *bias], 3)
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// The cubic `[a0, a1, a2, a3]` in the local parameter of each segment of channel `c`
+    /// (of `dim`) through the points `p` (at least two) at `times`; zero for
+    /// [`Interpolation::Polynomial`], which is stored in Newton form instead.
+    fn cubics(&self, times: &[f64], p: &[f64], c: usize, dim: usize) -> Vec<[f64; 4]> {
+        let n = p.len();
+        let h = |k: usize| times[k + 1] - times[k];
+        let hermites = |out: &[f64], inc: &[f64]| -> Vec<[f64; 4]> {
+            (0..n - 1).map(|k| hermite(p[k], p[k + 1], out[k] * h(k), inc[k + 1] * h(k))).collect()
+        };
+        match self {
+            Interpolation::Step => (0..n - 1).map(|k| [p[k], 0.0, 0.0, 0.0]).collect(),
+            Interpolation::Linear => {
+                (0..n - 1).map(|k| [p[k], p[k + 1] - p[k], 0.0, 0.0]).collect()
+            }
+            // Stored in Newton form instead (`Track::newton`).
+            Interpolation::Polynomial => vec![[0.0; 4]; n - 1],
+            Interpolation::NaturalCubic => {
+                let m = spline_slopes(times, p, None);
+                hermites(&m, &m)
+            }
+            Interpolation::ClampedCubic { start, end } => {
+                let m = spline_slopes(times, p, Some((start[c], end[c])));
+                hermites(&m, &m)
+            }
+            Interpolation::Hermite { tangents } => {
+                let m: Vec<f64> = (0..n).map(|k| tangents[k * dim + c]).collect();
+                hermites(&m, &m)
+            }
+            Interpolation::Cardinal { tension } => {
+                let m: Vec<f64> = (0..n)
+                    .map(|k| {
+                        let (lo, hi) = (k.saturating_sub(1), (k + 1).min(n - 1));
+                        (1.0 - tension) * (p[hi] - p[lo]) / (times[hi] - times[lo])
+                    })
+                    .collect();
+                hermites(&m, &m)
+            }
+            Interpolation::KochanekBartels { tension, continuity, bias } => {
+                let (out, inc) =
+                    kochanek_bartels_tangents(times, p, (*tension, *continuity, *bias));
+                (0..n - 1).map(|k| hermite(p[k], p[k + 1], out[k], inc[k + 1])).collect()
+            }
+            Interpolation::Bezier { handles } => (0..n - 1)
+                .map(|k| {
+                    let (h0, h1) = (handles[(2 * k) * dim + c], handles[(2 * k + 1) * dim + c]);
+                    let (p0, p1) = (p[k], p[k + 1]);
+                    [
+                        p0,
+                        3.0 * (h0 - p0),
+                        3.0 * (p0 - 2.0 * h0 + h1),
+                        -p0 + 3.0 * h0 - 3.0 * h1 + p1,
+                    ]
+                })
+                .collect(),
+            Interpolation::BSpline => {
+                let q = |i: isize| p[i.clamp(0, n as isize - 1) as usize];
+                (0..n - 1)
+                    .map(|k| {
+                        let i = k as isize;
+                        let (a, b, cq, d) = (q(i - 1), q(i), q(i + 1), q(i + 2));
+                        [
+                            (a + 4.0 * b + cq) / 6.0,
+                            (cq - a) / 2.0,
+                            (a - 2.0 * b + cq) / 2.0,
+                            (-a + 3.0 * b - 3.0 * cq + d) / 6.0,
+                        ]
+                    })
+                    .collect()
+            }
+        }
+    }
+}
+
 /// Key times must be finite and strictly increasing; the error names the first bad index
 /// (or pair of indices).
 pub(crate) fn check_times(times: &[f64]) -> Result<()> {
@@ -206,165 +376,27 @@ impl Track {
         extrapolate: Extrapolation,
     ) -> Result<Self> {
         let n = times.len();
-        if n == 0 || dim == 0 {
-            return Err(Error::invalid("times", "a track needs at least one key and one channel"));
-        }
-        if values.len() != n * dim {
-            return Err(Error::invalid(
-                "values",
-                format!("expected {n} x {dim} values, got {}", values.len()),
-            ));
-        }
-        check_times(times)?;
-        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-            return Err(Error::InvalidInput {
-                arg: "values".into(),
-                index: Some(i / dim),
-                reason: "contains NaN or infinity".into(),
-            });
-        }
-        let finite = |arg: &str, v: &[f64], len: usize| -> Result<()> {
-            if v.len() != len {
-                return Err(Error::invalid(
-                    arg,
-                    format!("expected {len} numbers, got {}", v.len()),
-                ));
-            }
-            if v.iter().any(|x| !x.is_finite()) {
-                return Err(Error::invalid(arg, "contains NaN or infinity"));
-            }
-            Ok(())
-        };
-        match &interpolation {
-            Interpolation::ClampedCubic { start, end } => {
-                finite("end_tangents", start, dim)?;
-                finite("end_tangents", end, dim)?;
-            }
-            Interpolation::Hermite { tangents } => finite("tangents", tangents, n * dim)?,
-            Interpolation::Bezier { handles } => {
-                finite("handles", handles, (n.saturating_sub(1)) * 2 * dim)?
-            }
-            Interpolation::Cardinal { tension } => finite("tension", &[*tension], 1)?,
-            Interpolation::KochanekBartels { tension, continuity, bias } => {
-                finite("tension", &[*tension, *continuity, *bias], 3)?
-            }
-            _ => {}
-        }
+        check_keys(times, values, dim)?;
+        interpolation.check(n, dim)?;
         let segments = n.saturating_sub(1);
         let mut coeffs = vec![[0.0; 4]; segments * dim];
         let mut newton = None;
-        let key = |k: usize, c: usize| values[k * dim + c];
-        let h = |k: usize| times[k + 1] - times[k];
-        for c in 0..dim {
-            let p: Vec<f64> = (0..n).map(|k| key(k, c)).collect();
-            if n == 1 {
-                continue;
-            }
-            let set_hermite =
-                |coeffs: &mut Vec<[f64; 4]>, slopes_out: &[f64], slopes_in: &[f64]| {
-                    for k in 0..segments {
-                        coeffs[k * dim + c] =
-                            hermite(p[k], p[k + 1], slopes_out[k] * h(k), slopes_in[k + 1] * h(k));
-                    }
-                };
-            match &interpolation {
-                Interpolation::Step => {
-                    (0..segments).for_each(|k| coeffs[k * dim + c] = [p[k], 0.0, 0.0, 0.0])
-                }
-                Interpolation::Linear => (0..segments)
-                    .for_each(|k| coeffs[k * dim + c] = [p[k], p[k + 1] - p[k], 0.0, 0.0]),
-                Interpolation::Polynomial => {
-                    // Newton divided differences, in place.
-                    let mut a = p.clone();
-                    for j in 1..n {
-                        for k in (j..n).rev() {
-                            a[k] = (a[k] - a[k - 1]) / (times[k] - times[k - j]);
-                        }
-                    }
-                    let store = newton.get_or_insert_with(|| vec![0.0; n * dim]);
-                    for k in 0..n {
-                        store[k * dim + c] = a[k];
-                    }
-                }
-                Interpolation::NaturalCubic => {
-                    let m = spline_slopes(times, &p, None);
-                    set_hermite(&mut coeffs, &m, &m);
-                }
-                Interpolation::ClampedCubic { start, end } => {
-                    let m = spline_slopes(times, &p, Some((start[c], end[c])));
-                    set_hermite(&mut coeffs, &m, &m);
-                }
-                Interpolation::Hermite { tangents } => {
-                    let m: Vec<f64> = (0..n).map(|k| tangents[k * dim + c]).collect();
-                    set_hermite(&mut coeffs, &m, &m);
-                }
-                Interpolation::Cardinal { tension } => {
-                    let m: Vec<f64> = (0..n)
-                        .map(|k| {
-                            let (lo, hi) = (k.saturating_sub(1), (k + 1).min(n - 1));
-                            (1.0 - tension) * (p[hi] - p[lo]) / (times[hi] - times[lo])
-                        })
-                        .collect();
-                    set_hermite(&mut coeffs, &m, &m);
-                }
-                Interpolation::KochanekBartels { tension, continuity, bias } => {
-                    let (t, cc, b) = (*tension, *continuity, *bias);
-                    // Tangents per unit of the local parameter: outgoing (TD) and incoming (TS).
-                    let mut out = vec![0.0; n];
-                    let mut inc = vec![0.0; n];
-                    for k in 0..n {
-                        if k == 0 || k == n - 1 {
-                            let d = if k == 0 { p[1] - p[0] } else { p[n - 1] - p[n - 2] };
-                            out[k] = d;
-                            inc[k] = d;
-                            continue;
-                        }
-                        let (back, fwd) = (p[k] - p[k - 1], p[k + 1] - p[k]);
-                        let (h0, h1) = (h(k - 1), h(k));
-                        let td = 0.5
-                            * (1.0 - t)
-                            * ((1.0 + cc) * (1.0 + b) * back + (1.0 - cc) * (1.0 - b) * fwd);
-                        let ts = 0.5
-                            * (1.0 - t)
-                            * ((1.0 - cc) * (1.0 + b) * back + (1.0 + cc) * (1.0 - b) * fwd);
-                        out[k] = td * 2.0 * h1 / (h0 + h1);
-                        inc[k] = ts * 2.0 * h0 / (h0 + h1);
-                    }
-                    for k in 0..segments {
-                        coeffs[k * dim + c] = hermite(p[k], p[k + 1], out[k], inc[k + 1]);
-                    }
-                }
-                Interpolation::Bezier { handles } => {
-                    for k in 0..segments {
-                        let (h0, h1) = (handles[(2 * k) * dim + c], handles[(2 * k + 1) * dim + c]);
-                        let (p0, p1) = (p[k], p[k + 1]);
-                        coeffs[k * dim + c] = [
-                            p0,
-                            3.0 * (h0 - p0),
-                            3.0 * (p0 - 2.0 * h0 + h1),
-                            -p0 + 3.0 * h0 - 3.0 * h1 + p1,
-                        ];
-                    }
-                }
-                Interpolation::BSpline => {
-                    let q = |i: isize| p[i.clamp(0, n as isize - 1) as usize];
-                    for k in 0..segments {
-                        let i = k as isize;
-                        let (a, b, cq, d) = (q(i - 1), q(i), q(i + 1), q(i + 2));
-                        coeffs[k * dim + c] = [
-                            (a + 4.0 * b + cq) / 6.0,
-                            (cq - a) / 2.0,
-                            (a - 2.0 * b + cq) / 2.0,
-                            (-a + 3.0 * b - 3.0 * cq + d) / 6.0,
-                        ];
-                    }
-                }
-            }
-        }
-        // A single key: a constant, stored as one flat segment.
         if n == 1 {
+            // A single key: a constant, stored as one flat segment.
             coeffs = (0..dim).map(|c| [values[c], 0.0, 0.0, 0.0]).collect();
-            newton = None;
+        }
+        for c in (0..dim).filter(|_| n > 1) {
+            let p: Vec<f64> = (0..n).map(|k| values[k * dim + c]).collect();
+            for (k, cubic) in interpolation.cubics(times, &p, c, dim).into_iter().enumerate() {
+                coeffs[k * dim + c] = cubic;
+            }
+            if interpolation == Interpolation::Polynomial {
+                let a = divided_differences(times, p);
+                let store = newton.get_or_insert_with(|| vec![0.0; n * dim]);
+                for (k, a) in a.into_iter().enumerate() {
+                    store[k * dim + c] = a;
+                }
+            }
         }
         let last_step_value =
             (interpolation == Interpolation::Step).then(|| values[(n - 1) * dim..].to_vec());

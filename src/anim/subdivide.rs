@@ -53,23 +53,7 @@ pub fn subdivide(
     iterations: usize,
     closed: bool,
 ) -> Result<Vec<f64>> {
-    if dim == 0 || !points.len().is_multiple_of(dim) {
-        return Err(Error::invalid("points", "must be an (n, dim) array"));
-    }
-    let n = points.len() / dim;
-    if n < if closed { 3 } else { 2 } {
-        return Err(Error::invalid(
-            "points",
-            format!("need at least {} points, got {n}", if closed { 3 } else { 2 }),
-        ));
-    }
-    if let Some(i) = points.iter().position(|v| !v.is_finite()) {
-        return Err(Error::InvalidInput {
-            arg: "points".into(),
-            index: Some(i / dim),
-            reason: "contains NaN or infinity".into(),
-        });
-    }
+    let n = check_points(points, dim, closed)?;
     let room = (iterations < usize::BITS as usize)
         .then(|| points.len().checked_mul(1 << iterations))
         .flatten()
@@ -94,69 +78,103 @@ pub fn subdivide(
                 next.push(w.iter().map(|&(wt, i)| wt * p(i)[c]).sum());
             }
         };
-        let edges = if closed { m } else { m - 1 };
         match scheme {
-            Scheme::Chaikin => {
-                if !closed {
-                    push(&[(1.0, 0)]);
-                }
-                for i in 0..edges as isize {
-                    push(&[(0.75, i), (0.25, i + 1)]);
-                    push(&[(0.25, i), (0.75, i + 1)]);
-                }
-                if !closed {
-                    push(&[(1.0, m as isize - 1)]);
-                }
-            }
-            Scheme::BSpline => {
-                for i in 0..m as isize {
-                    if !closed && (i == 0 || i == m as isize - 1) {
-                        push(&[(1.0, i)]);
-                    } else {
-                        push(&[(0.125, i - 1), (0.75, i), (0.125, i + 1)]);
-                    }
-                    if closed || i < m as isize - 1 {
-                        push(&[(0.5, i), (0.5, i + 1)]);
-                    }
-                }
-            }
-            Scheme::FourPoint => {
-                for i in 0..m as isize {
-                    push(&[(1.0, i)]);
-                    if closed || i < m as isize - 1 {
-                        if closed || (i > 0 && i + 2 < m as isize) {
-                            push(&[
-                                (-1.0 / 16.0, i - 1),
-                                (9.0 / 16.0, i),
-                                (9.0 / 16.0, i + 1),
-                                (-1.0 / 16.0, i + 2),
-                            ]);
-                        } else if i == 0 && m > 2 {
-                            // Mirror the missing left neighbour: p_{-1} = 2 p_0 - p_1.
-                            push(&[
-                                (-2.0 / 16.0, 0),
-                                (1.0 / 16.0, 1),
-                                (9.0 / 16.0, 0),
-                                (9.0 / 16.0, 1),
-                                (-1.0 / 16.0, 2),
-                            ]);
-                        } else if i + 2 == m as isize && m > 2 {
-                            let (a, b) = (i, i + 1);
-                            push(&[
-                                (-1.0 / 16.0, a - 1),
-                                (9.0 / 16.0, a),
-                                (9.0 / 16.0, b),
-                                (-2.0 / 16.0, b),
-                                (1.0 / 16.0, a),
-                            ]);
-                        } else {
-                            push(&[(0.5, i), (0.5, i + 1)]);
-                        }
-                    }
-                }
-            }
+            Scheme::Chaikin => chaikin(m as isize, closed, &mut push),
+            Scheme::BSpline => bspline(m as isize, closed, &mut push),
+            Scheme::FourPoint => four_point(m as isize, closed, &mut push),
         }
         std::mem::swap(&mut cur, &mut next);
     }
     Ok(cur)
+}
+
+/// The number of points of `points` (`n x dim`, row-major), after checking the shape, the
+/// count (2 at least, 3 when closed) and that every coordinate is finite.
+fn check_points(points: &[f64], dim: usize, closed: bool) -> Result<usize> {
+    if dim == 0 || !points.len().is_multiple_of(dim) {
+        return Err(Error::invalid("points", "must be an (n, dim) array"));
+    }
+    let n = points.len() / dim;
+    if n < if closed { 3 } else { 2 } {
+        return Err(Error::invalid(
+            "points",
+            format!("need at least {} points, got {n}", if closed { 3 } else { 2 }),
+        ));
+    }
+    if let Some(i) = points.iter().position(|v| !v.is_finite()) {
+        return Err(Error::InvalidInput {
+            arg: "points".into(),
+            index: Some(i / dim),
+            reason: "contains NaN or infinity".into(),
+        });
+    }
+    Ok(n)
+}
+
+/// One round of Chaikin's corner cutting on `m` points: `push` receives each new point as
+/// weights on the old ones (indices wrap when `closed`, clamp otherwise).
+fn chaikin(m: isize, closed: bool, push: &mut impl FnMut(&[(f64, isize)])) {
+    let edges = if closed { m } else { m - 1 };
+    if !closed {
+        push(&[(1.0, 0)]);
+    }
+    for i in 0..edges {
+        push(&[(0.75, i), (0.25, i + 1)]);
+        push(&[(0.25, i), (0.75, i + 1)]);
+    }
+    if !closed {
+        push(&[(1.0, m - 1)]);
+    }
+}
+
+/// One round of cubic B-spline subdivision (see [`chaikin`] for `push`).
+fn bspline(m: isize, closed: bool, push: &mut impl FnMut(&[(f64, isize)])) {
+    for i in 0..m {
+        if !closed && (i == 0 || i == m - 1) {
+            push(&[(1.0, i)]);
+        } else {
+            push(&[(0.125, i - 1), (0.75, i), (0.125, i + 1)]);
+        }
+        if closed || i < m - 1 {
+            push(&[(0.5, i), (0.5, i + 1)]);
+        }
+    }
+}
+
+/// One round of the interpolating four-point scheme (see [`chaikin`] for `push`); an open
+/// curve mirrors the missing neighbour at each end (`p_{-1} = 2 p_0 - p_1`).
+fn four_point(m: isize, closed: bool, push: &mut impl FnMut(&[(f64, isize)])) {
+    for i in 0..m {
+        push(&[(1.0, i)]);
+        if !closed && i == m - 1 {
+            continue;
+        }
+        if closed || (i > 0 && i + 2 < m) {
+            push(&[
+                (-1.0 / 16.0, i - 1),
+                (9.0 / 16.0, i),
+                (9.0 / 16.0, i + 1),
+                (-1.0 / 16.0, i + 2),
+            ]);
+        } else if i == 0 && m > 2 {
+            push(&[
+                (-2.0 / 16.0, 0),
+                (1.0 / 16.0, 1),
+                (9.0 / 16.0, 0),
+                (9.0 / 16.0, 1),
+                (-1.0 / 16.0, 2),
+            ]);
+        } else if i + 2 == m && m > 2 {
+            let (a, b) = (i, i + 1);
+            push(&[
+                (-1.0 / 16.0, a - 1),
+                (9.0 / 16.0, a),
+                (9.0 / 16.0, b),
+                (-2.0 / 16.0, b),
+                (1.0 / 16.0, a),
+            ]);
+        } else {
+            push(&[(0.5, i), (0.5, i + 1)]);
+        }
+    }
 }

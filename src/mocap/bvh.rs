@@ -630,7 +630,30 @@ impl BvhSkeleton {
 /// whitespace); a non-finite value or a non-positive frame time.
 pub fn write_bvh(skeleton: &BvhSkeleton, motion: &Motion) -> Result<String> {
     skeleton.validate_motion(motion)?;
-    let sk = skeleton;
+    check_writable(skeleton, motion)?;
+    let mut s = String::from("HIERARCHY\n");
+    let columns = write_hierarchy(skeleton, &mut s);
+    let _ = writeln!(s, "MOTION\nFrames: {}\nFrame Time: {}", motion.frames, skeleton.frame_time);
+    for f in 0..motion.frames {
+        let row = &motion.values[f * motion.stride..(f + 1) * motion.stride];
+        for (i, &(c, rotation)) in columns.iter().enumerate() {
+            if i > 0 {
+                s.push(' ');
+            }
+            if rotation {
+                s.push_str(&degrees_text(row[c]));
+            } else {
+                let _ = write!(s, "{}", row[c]);
+            }
+        }
+        s.push('\n');
+    }
+    Ok(s)
+}
+
+/// What [`write_bvh`] needs beyond a valid skeleton and motion: a positive frame time, joint
+/// names BVH can hold, finite offsets and values.
+fn check_writable(sk: &BvhSkeleton, motion: &Motion) -> Result<()> {
     if !(sk.frame_time.is_finite() && sk.frame_time > 0.0) {
         return Err(Error::invalid(
             "frame_time",
@@ -656,8 +679,13 @@ pub fn write_bvh(skeleton: &BvhSkeleton, motion: &Motion) -> Result<String> {
             Error::invalid("motion", "contains NaN or infinity").at(i / motion.stride.max(1))
         );
     }
-    // Children in index order, written depth first; the motion columns follow the order in
-    // which the joints are written.
+    Ok(())
+}
+
+/// Write the `HIERARCHY` section's joints into `s`, children in index order, depth first (an
+/// explicit stack, so deep hierarchies cannot overflow); returns the motion columns in the
+/// order the joints are written: `(column of the motion, is a rotation)`.
+fn write_hierarchy(sk: &BvhSkeleton, s: &mut String) -> Vec<(usize, bool)> {
     let n = sk.joints.len();
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
     for (i, j) in sk.joints.iter().enumerate() {
@@ -671,9 +699,8 @@ pub fn write_bvh(skeleton: &BvhSkeleton, motion: &Motion) -> Result<String> {
         first_channel.push(k);
         k += j.channels.len();
     }
-    let mut columns: Vec<(usize, bool)> = Vec::with_capacity(motion.stride);
-    let mut s = String::from("HIERARCHY\n");
-    // (joint, depth, closing?) — an explicit stack, so deep hierarchies cannot overflow.
+    let mut columns = Vec::with_capacity(k);
+    // (joint, depth, closing?)
     let roots = (0..n).filter(|&i| sk.joints[i].parent.is_none());
     let mut stack: Vec<(usize, usize, bool)> = roots.rev().map(|r| (r, 0, false)).collect();
     while let Some((j, depth, closing)) = stack.pop() {
@@ -708,22 +735,5 @@ pub fn write_bvh(skeleton: &BvhSkeleton, motion: &Motion) -> Result<String> {
         stack.push((j, depth, true));
         stack.extend(children[j].iter().rev().map(|&c| (c, depth + 1, false)));
     }
-    let _ = writeln!(s, "MOTION\nFrames: {}\nFrame Time: {}", motion.frames, sk.frame_time);
-    for f in 0..motion.frames {
-        let row = &motion.values[f * motion.stride..(f + 1) * motion.stride];
-        let mut first = true;
-        for &(c, rotation) in &columns {
-            if !first {
-                s.push(' ');
-            }
-            first = false;
-            if rotation {
-                s.push_str(&degrees_text(row[c]));
-            } else {
-                let _ = write!(s, "{}", row[c]);
-            }
-        }
-        s.push('\n');
-    }
-    Ok(s)
+    columns
 }
