@@ -357,8 +357,10 @@ impl<'a> Solver<'a> {
         false
     }
 
-    /// One Jacobian step of `method` into `dq` for task error `err`, with the clamping loop; returns the
-    /// largest null-space component (0 without a secondary objective).
+    /// One Jacobian step of `method` into `dq` for task error `err`, with the clamping loop:
+    /// dofs whose step would cross a limit are clamped to it, taken out, and the rest is
+    /// solved again for the residual. Returns the largest null-space component (0 without a
+    /// secondary objective).
     fn step(&mut self, q: &[f64], err: &[f64], method: Method) -> f64 {
         let (m, n) = (self.rows, self.vars.len());
         self.free.fill(true);
@@ -380,103 +382,16 @@ impl<'a> Solver<'a> {
                 }
             }
             match method {
-                Method::Transpose => {
-                    // g = Jᵀ res, h = J g, α = ⟨res, h⟩ / |h|².
-                    for c in 0..n {
-                        self.z[c] = (0..m).map(|r| self.a[r * n + c] * self.res[r]).sum();
-                    }
-                    let (mut num, mut den) = (0.0, 0.0);
-                    for r in 0..m {
-                        let h: f64 = (0..n).map(|c| self.a[r * n + c] * self.z[c]).sum();
-                        num += self.res[r] * h;
-                        den += h * h;
-                    }
-                    let alpha = if den > 0.0 { num / den } else { 0.0 };
-                    for c in 0..n {
-                        if self.free[c] {
-                            self.dq[c] = alpha * self.z[c];
-                        }
-                    }
-                }
+                Method::Transpose => self.transpose_step(),
                 Method::PseudoInverse | Method::Dls => {
-                    jacobi_rows(&mut self.a, m, n, &mut self.v, &mut self.s2);
-                    let s2max = self.s2[..m].iter().fold(0.0_f64, |a, b| a.max(*b));
-                    let cut = RANK_TOL * RANK_TOL * s2max;
-                    let lambda2 = if method == Method::Dls {
-                        let s2min = self.s2[..m].iter().fold(f64::INFINITY, |a, b| a.min(*b));
-                        let eps = DLS_EPSILON * self.scale;
-                        let lmax = DLS_LAMBDA * self.scale;
-                        if s2min < eps * eps {
-                            (1.0 - s2min / (eps * eps)) * lmax * lmax
-                        } else {
-                            0.0
-                        }
-                    } else {
-                        0.0
-                    };
-                    for i in 0..m {
-                        let s2 = self.s2[i];
-                        if s2 <= cut || s2 == 0.0 {
-                            continue;
-                        }
-                        let ve: f64 = (0..m).map(|r| self.v[r * m + i] * self.res[r]).sum();
-                        let coef = ve / (s2 + lambda2);
-                        for c in 0..n {
-                            self.dq[c] += coef * self.a[i * n + c];
-                        }
-                    }
+                    let cut = self.svd_step(method);
                     if secondary {
-                        for (c, v) in self.vars.iter().enumerate() {
-                            let x = q[v.index];
-                            let mut z = -o.rest_weight * (x - self.rest[v.index]);
-                            if v.hi.is_finite() && v.lo.is_finite() && v.hi > v.lo {
-                                let (mid, half) = (0.5 * (v.hi + v.lo), 0.5 * (v.hi - v.lo));
-                                z -= o.limit_weight * (x - mid) / (half * half);
-                            }
-                            self.z[c] = if self.free[c] { z } else { 0.0 };
-                        }
-                        for i in 0..m {
-                            let s2 = self.s2[i];
-                            if s2 <= cut || s2 == 0.0 {
-                                continue;
-                            }
-                            let az: f64 = (0..n).map(|c| self.a[i * n + c] * self.z[c]).sum();
-                            for c in 0..n {
-                                self.z[c] -= az / s2 * self.a[i * n + c];
-                            }
-                        }
-                        null_step = self.z.iter().fold(0.0_f64, |a, b| a.max(b.abs()));
-                        for c in 0..n {
-                            self.dq[c] += self.z[c];
-                        }
+                        null_step = self.null_space_step(q, cut);
                     }
                 }
                 Method::TwoBone | Method::Ccd => unreachable!("not a Jacobian method"),
             }
-            // Cap the free part of the step.
-            let big =
-                (0..n).filter(|&c| self.free[c]).fold(0.0_f64, |a, c| a.max(self.dq[c].abs()));
-            if big > MAX_STEP {
-                for c in 0..n {
-                    if self.free[c] {
-                        self.dq[c] *= MAX_STEP / big;
-                    }
-                }
-            }
-            // Clamp dofs that would cross a limit, take them out and re-solve the rest.
-            let mut clamped = false;
-            for (c, v) in self.vars.iter().enumerate() {
-                if !self.free[c] {
-                    continue;
-                }
-                let x = q[v.index] + self.dq[c];
-                if x > v.hi || x < v.lo {
-                    self.dq[c] = x.clamp(v.lo, v.hi) - q[v.index];
-                    self.free[c] = false;
-                    clamped = true;
-                }
-            }
-            if !clamped {
+            if !self.cap_and_clamp(q) {
                 return null_step;
             }
             self.res.copy_from_slice(err);
@@ -488,6 +403,120 @@ impl<'a> Solver<'a> {
                 }
             }
         }
+    }
+
+    /// The Jacobian-transpose step on the free dofs: `g = Jᵀ res`, `h = J g`,
+    /// `dq = α g` with `α = ⟨res, h⟩ / |h|²` (Buss 2004; see the module docs of `ik`).
+    fn transpose_step(&mut self) {
+        let (m, n) = (self.rows, self.vars.len());
+        for c in 0..n {
+            self.z[c] = (0..m).map(|r| self.a[r * n + c] * self.res[r]).sum();
+        }
+        let (mut num, mut den) = (0.0, 0.0);
+        for r in 0..m {
+            let h: f64 = (0..n).map(|c| self.a[r * n + c] * self.z[c]).sum();
+            num += self.res[r] * h;
+            den += h * h;
+        }
+        let alpha = if den > 0.0 { num / den } else { 0.0 };
+        for c in 0..n {
+            if self.free[c] {
+                self.dq[c] = alpha * self.z[c];
+            }
+        }
+    }
+
+    /// The pseudo-inverse or damped least-squares step `dq = Σ σᵢ/(σᵢ² + λ²) uᵢ vᵢᵀ res` by
+    /// the SVD of the free columns (`λ² = 0` for the pseudo-inverse; Chiaverini 1997's
+    /// adaptive damping for DLS, see the module docs of `ik`); returns the cut below which
+    /// squared singular values count as zero.
+    fn svd_step(&mut self, method: Method) -> f64 {
+        let (m, n) = (self.rows, self.vars.len());
+        jacobi_rows(&mut self.a, m, n, &mut self.v, &mut self.s2);
+        let s2max = self.s2[..m].iter().fold(0.0_f64, |a, b| a.max(*b));
+        let cut = RANK_TOL * RANK_TOL * s2max;
+        let lambda2 = if method == Method::Dls {
+            let s2min = self.s2[..m].iter().fold(f64::INFINITY, |a, b| a.min(*b));
+            let eps = DLS_EPSILON * self.scale;
+            let lmax = DLS_LAMBDA * self.scale;
+            if s2min < eps * eps {
+                (1.0 - s2min / (eps * eps)) * lmax * lmax
+            } else {
+                0.0
+            }
+        } else {
+            0.0
+        };
+        for i in 0..m {
+            let s2 = self.s2[i];
+            if s2 <= cut || s2 == 0.0 {
+                continue;
+            }
+            let ve: f64 = (0..m).map(|r| self.v[r * m + i] * self.res[r]).sum();
+            let coef = ve / (s2 + lambda2);
+            for c in 0..n {
+                self.dq[c] += coef * self.a[i * n + c];
+            }
+        }
+        cut
+    }
+
+    /// Add the secondary objective (towards the rest pose and away from the limits)
+    /// projected on the null space of the free Jacobian, `(I - J⁺J) z` (Liégeois 1977), to
+    /// `dq`; returns its largest component.
+    fn null_space_step(&mut self, q: &[f64], cut: f64) -> f64 {
+        let (m, n) = (self.rows, self.vars.len());
+        let o = &self.options;
+        for (c, v) in self.vars.iter().enumerate() {
+            let x = q[v.index];
+            let mut z = -o.rest_weight * (x - self.rest[v.index]);
+            if v.hi.is_finite() && v.lo.is_finite() && v.hi > v.lo {
+                let (mid, half) = (0.5 * (v.hi + v.lo), 0.5 * (v.hi - v.lo));
+                z -= o.limit_weight * (x - mid) / (half * half);
+            }
+            self.z[c] = if self.free[c] { z } else { 0.0 };
+        }
+        for i in 0..m {
+            let s2 = self.s2[i];
+            if s2 <= cut || s2 == 0.0 {
+                continue;
+            }
+            let az: f64 = (0..n).map(|c| self.a[i * n + c] * self.z[c]).sum();
+            for c in 0..n {
+                self.z[c] -= az / s2 * self.a[i * n + c];
+            }
+        }
+        for c in 0..n {
+            self.dq[c] += self.z[c];
+        }
+        self.z.iter().fold(0.0_f64, |a, b| a.max(b.abs()))
+    }
+
+    /// Cap the free part of `dq` at `MAX_STEP`, then clamp the dofs that would cross a limit
+    /// and take them out; whether any was clamped.
+    fn cap_and_clamp(&mut self, q: &[f64]) -> bool {
+        let n = self.vars.len();
+        let big = (0..n).filter(|&c| self.free[c]).fold(0.0_f64, |a, c| a.max(self.dq[c].abs()));
+        if big > MAX_STEP {
+            for c in 0..n {
+                if self.free[c] {
+                    self.dq[c] *= MAX_STEP / big;
+                }
+            }
+        }
+        let mut clamped = false;
+        for (c, v) in self.vars.iter().enumerate() {
+            if !self.free[c] {
+                continue;
+            }
+            let x = q[v.index] + self.dq[c];
+            if x > v.hi || x < v.lo {
+                self.dq[c] = x.clamp(v.lo, v.hi) - q[v.index];
+                self.free[c] = false;
+                clamped = true;
+            }
+        }
+        clamped
     }
 
     fn ccd(&mut self, q: &mut [f64], targets: &[Target]) -> Report {
