@@ -1,6 +1,6 @@
-"""Batched rotation kernels at N = 10^6 against scipy.spatial.transform (and numpy-quaternion
-when installed), timed in one process. Prints a markdown table of best-of-k wall times and the
-speed-up ratio (peer time / kinema time).
+"""Batched rotation kernels at N = 10^6 against scipy.spatial.transform, numpy-quaternion (when
+installed) and the plain numpy a user would write, timed in one process. Prints a markdown
+table of best-of-k wall times and the speed-up ratios (peer time / kinema time).
 
 Run: python bench/bench_rotation.py [--quick] [--n 1000000] [--repeat 5]
 (--quick: N = 10^5, best of 3.)
@@ -67,6 +67,8 @@ def main() -> None:
     mats = theirs.as_matrix()
     eul = theirs.as_euler("xyz")
     rv = theirs.as_rotvec()
+    b_vec = rng.standard_normal((n, 3))
+    a_vec = theirs.apply(b_vec) + 0.01 * rng.standard_normal((n, 3))
     key = R.from_quat(q_xyzw[:2])
     sl = Slerp([0.0, 1.0], key)
     o0, o1 = ours[0], ours[1]
@@ -94,7 +96,16 @@ def main() -> None:
         ("apply (N rotations, N vectors)", lambda: ours.apply(v), lambda: theirs.apply(v), None),
         ("compose r1 * r2", lambda: ours * ours2, lambda: theirs * theirs2, None),
         ("slerp (2 keys, N times)", lambda: slerp(o0, o1, t), lambda: sl(t), None),
+        # Unweighted: numpy-quaternion's mean and alignment take no weights.
+        ("mean", ours.mean, theirs.mean, None),
+        (
+            "align_vectors (N pairs)",
+            lambda: Rotation.align_vectors(a_vec, b_vec),
+            lambda: R.align_vectors(a_vec, b_vec),
+            None,
+        ),
     ]
+    plain = plain_numpy(q, v, a_vec, b_vec)
     if npq is not None:
         qa, qb = npq.as_quat_array(q), npq.as_quat_array(q[::-1].copy())
         extra = {
@@ -109,6 +120,10 @@ def main() -> None:
             "as_rotvec": lambda: npq.as_rotation_vector(qa),
             "from_rotvec": lambda: npq.from_rotation_vector(rv),
             "slerp (2 keys, N times)": lambda: npq.slerp(qa[0], qa[1], 0.0, 1.0, t),
+            "mean": lambda: npq.mean_rotor_in_chordal_metric(qa),
+            "align_vectors (N pairs)": lambda: npq.optimal_alignment_in_Euclidean_metric(
+                a_vec, b_vec
+            ),
         }
         cases = [(name, a, b, extra.get(name)) for name, a, b, _ in cases]
 
@@ -122,18 +137,75 @@ def main() -> None:
     if npq is not None:
         header += " numpy-quaternion (ms) | npq / kinema |"
         sep += "---:|---:|"
+    header += " numpy (ms) | numpy / kinema |"
+    sep += "---:|---:|"
     print(header)
     print(sep)
     for name, mine, scipy_fn, npq_fn in cases:
         a, b = best(mine, k), best(scipy_fn, k)
         row = f"| {name} | {a:.1f} | {b:.1f} | {b / a:.1f}x |"
-        if npq is not None:
-            if npq_fn is None:
+        peers = [npq_fn] if npq is not None else []
+        for fn in [*peers, plain.get(name)]:
+            if fn is None:
                 row += " – | – |"
             else:
-                c = best(npq_fn, k)
+                c = best(fn, k)
                 row += f" {c:.1f} | {c / a:.1f}x |"
         print(row)
+
+
+def plain_numpy(
+    q: np.ndarray, v: np.ndarray, a_vec: np.ndarray, b_vec: np.ndarray
+) -> dict[str, Callable[[], object]]:
+    """The operations as a numpy user writes them (scalar-first quaternions ``q``)."""
+    q2 = q[::-1].copy()
+
+    def as_matrix() -> np.ndarray:
+        qw, qx, qy, qz = q.T
+        return np.stack(
+            [
+                1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw),
+                2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw),
+                2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy),
+            ],
+            axis=-1,
+        ).reshape(-1, 3, 3)  # fmt: skip
+
+    def apply() -> np.ndarray:
+        u, s = q[:, 1:], q[:, :1]
+        t = 2.0 * np.cross(u, v)
+        return v + s * t + np.cross(u, t)
+
+    def compose() -> np.ndarray:
+        aw, ax, ay, az = q.T
+        bw, bx, by, bz = q2.T
+        return np.stack(
+            [
+                aw * bw - ax * bx - ay * by - az * bz,
+                aw * bx + ax * bw + ay * bz - az * by,
+                aw * by - ax * bz + ay * bw + az * bx,
+                aw * bz + ax * by - ay * bx + az * bw,
+            ],
+            axis=-1,
+        )
+
+    def mean() -> np.ndarray:
+        m = q.T @ q
+        return np.linalg.eigh(m)[1][:, -1]
+
+    def align() -> np.ndarray:
+        u, _, vt = np.linalg.svd(a_vec.T @ b_vec)
+        d = np.sign(np.linalg.det(u @ vt))
+        return u @ np.diag([1.0, 1.0, d]) @ vt
+
+    return {
+        "from_quat (normalise)": lambda: q / np.linalg.norm(q, axis=1, keepdims=True),
+        "as_matrix": as_matrix,
+        "apply (N rotations, N vectors)": apply,
+        "compose r1 * r2": compose,
+        "mean": mean,
+        "align_vectors (N pairs)": align,
+    }
 
 
 if __name__ == "__main__":

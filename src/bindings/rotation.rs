@@ -270,10 +270,8 @@ fn quat_mean<'py>(
     }
     compute(py, quat.len() / size, &[4], |out| {
         fill(out, |i| {
-            let rows = &quat[i * size..(i + 1) * size];
-            let qs = rows.iter().map(q).collect::<Result<Vec<_>>>()?;
-            let w: Vec<f64> = weights[i * size..(i + 1) * size].iter().map(|w| w[0]).collect();
-            rot::mean(&qs, &w)
+            let group = i * size..(i + 1) * size;
+            rot::mean(&quat[group.clone()], weights[group].as_flattened())
         })
     })
 }

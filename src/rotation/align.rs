@@ -6,6 +6,7 @@
 //! one primary pair of infinite weight, the rotation that maps the primary `b` exactly onto the
 //! primary `a` and then turns about it to best align the rest.
 
+use crate::batch::sum;
 use crate::error::{ensure_finite, Error, Result};
 use crate::math::svd::jacobi_rows;
 use glam::{DQuat, DVec3};
@@ -41,30 +42,45 @@ pub fn align_vectors(a: &[[f64; 3]], b: &[[f64; 3]], weights: &[f64]) -> Result<
             "must hold as many vectors as a (at least one), and weights one per vector",
         ));
     }
-    for (k, (x, y)) in a.iter().zip(b).enumerate() {
-        ensure_finite("a", x).map_err(|e| e.at(k))?;
-        ensure_finite("b", y).map_err(|e| e.at(k))?;
-    }
-    if let Some(k) = weights.iter().position(|w| w.is_nan() || *w < 0.0) {
-        return Err(Error::invalid("weights", "must be non-negative").at(k));
-    }
-    let infinite: Vec<usize> = (0..a.len()).filter(|&k| weights[k] == f64::INFINITY).collect();
-    match (infinite.len(), a.len()) {
-        (0, 1) => primary(a, b, weights, 0),
-        (0, _) => Ok(kabsch(a, b, weights)),
-        (1, _) => primary(a, b, weights, infinite[0]),
+    // Σ w a bᵀ (row-major), Σ w (|a|² + |b|²), Σ w over the finite weights, and the number
+    // of infinite ones, in one pass that checks every input.
+    let s = sum(a.len(), |k| {
+        let (x, y, w) = (a[k], b[k], weights[k]);
+        ensure_finite("a", &x)?;
+        ensure_finite("b", &y)?;
+        if w.is_nan() || w < 0.0 {
+            return Err(Error::invalid("weights", "must be non-negative"));
+        }
+        let mut t = [0.0; 12];
+        if w == f64::INFINITY {
+            t[11] = 1.0;
+            return Ok(t);
+        }
+        for (i, &xi) in x.iter().enumerate() {
+            for (j, &yj) in y.iter().enumerate() {
+                t[3 * i + j] = w * xi * yj;
+            }
+        }
+        let norms =
+            x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + y[0] * y[0] + y[1] * y[1] + y[2] * y[2];
+        t[9] = w * norms;
+        t[10] = w;
+        Ok(t)
+    })?;
+    let infinite = weights.iter().position(|w| *w == f64::INFINITY);
+    match (s[11], a.len()) {
+        (0.0, 1) => primary(a, b, weights, 0),
+        (0.0, _) => Ok(kabsch(&s, a.len())),
+        (1.0, _) => primary(a, b, weights, infinite.unwrap_or(0)),
         _ => Err(Error::invalid("weights", "may hold at most one infinite weight")),
     }
 }
 
-fn kabsch(a: &[[f64; 3]], b: &[[f64; 3]], weights: &[f64]) -> Alignment {
-    let mut m = Matrix3::zeros();
-    let mut sq = 0.0;
-    for ((x, y), w) in a.iter().zip(b).zip(weights) {
-        let (x, y) = (nalgebra::Vector3::from(*x), nalgebra::Vector3::from(*y));
-        m += *w * x * y.transpose();
-        sq += w * (x.norm_squared() + y.norm_squared());
-    }
+/// The least-squares rotation from the sums of [`align_vectors`]'s pass over `n` pairs:
+/// `B = Σ w a bᵀ` (`sums[..9]`), `Σ w (|a|² + |b|²)` (`sums[9]`) and `Σ w` (`sums[10]`).
+fn kabsch(sums: &[f64; 12], n: usize) -> Alignment {
+    let m = Matrix3::from_row_slice(&sums[..9]);
+    let sq = sums[9];
     // The SVD by one-sided Jacobi rotations (accurate for the small singular values even when
     // the weights span many orders of magnitude, where nalgebra's bidiagonal SVD loses them):
     // with the rows of B orthogonalised, B = Σ σᵢ vᵢ uᵢᵀ, vᵢ the columns of V.
@@ -94,7 +110,7 @@ fn kabsch(a: &[[f64; 3]], b: &[[f64; 3]], weights: &[f64]) -> Alignment {
     let rssd = (sq - 2.0 * (s[0] + s[1] + s[2])).max(0.0).sqrt();
     let zeta = (s[0] + s[1]) * (s[1] + s[2]) * (s[2] + s[0]);
     let kappa = s[0] * s[1] + s[1] * s[2] + s[2] * s[0];
-    let mean_w = weights.iter().sum::<f64>() / weights.len() as f64;
+    let mean_w = sums[10] / n as f64;
     let cov = (Matrix3::identity() * kappa + m * m.transpose()) * (mean_w / zeta);
     let sensitivity = std::array::from_fn(|k| cov[(k / 3, k % 3)]);
     Alignment {
