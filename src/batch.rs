@@ -141,6 +141,23 @@ pub fn by_component<const I: usize>(rows: &[[f64; I]]) -> [[f64; LANES]; I] {
     c
 }
 
+/// A kernel on blocks of [`LANES`] pairs of rows (one of `a`, one of `b`) for [`lanes2`]; see
+/// [`LaneKernel`] for the rules.
+pub trait PairKernel<const A: usize, const B: usize, const O: usize>: Sync {
+    /// Fill `out` from the pairs `a[k]`, `b[k]` (at most [`LANES`]; `first` is the index of
+    /// the first) and return a count to be summed over the blocks.
+    ///
+    /// # Errors
+    /// A bad row, with its index.
+    fn block(
+        &self,
+        first: usize,
+        a: &[[f64; A]],
+        b: &[[f64; B]],
+        out: &mut [[f64; O]],
+    ) -> Result<usize>;
+}
+
 /// `kernel.block` on every block of [`LANES`] rows (the last one may be shorter), in parallel
 /// chunks of [`CHUNK`] rows, each chunk compiled for the SIMD instruction set found at run
 /// time (AVX2 or AVX-512 through `pulp`), so that a block's loops over its lanes vectorise. Returns the
@@ -151,38 +168,73 @@ pub fn lanes<const I: usize, const O: usize>(
     out: &mut [[f64; O]],
     kernel: &impl LaneKernel<I, O>,
 ) -> Result<usize> {
-    if input.len() != out.len() {
-        return Err(Error::invalid("out", "must have as many rows as the input"));
+    // Rows of no numbers take no memory: the single-input kernel is a pair kernel whose
+    // second rows are empty.
+    let none = vec![[0.0; 0]; input.len()];
+    lanes2(input, &none, out, &Single(kernel))
+}
+
+/// [`lanes`] for a kernel on pairs of rows `a[i]`, `b[i]` (all three of one length).
+///
+/// # Errors
+/// Lengths that differ, or the lowest failing block's error.
+pub fn lanes2<const A: usize, const B: usize, const O: usize>(
+    a: &[[f64; A]],
+    b: &[[f64; B]],
+    out: &mut [[f64; O]],
+    kernel: &impl PairKernel<A, B, O>,
+) -> Result<usize> {
+    if a.len() != out.len() || b.len() != out.len() {
+        return Err(Error::invalid("out", "must have as many rows as the inputs"));
     }
     let arch = pulp::Arch::new();
     let chunks: Vec<Result<usize>> = out
         .par_chunks_mut(CHUNK)
-        .zip(input.par_chunks(CHUNK))
+        .zip(a.par_chunks(CHUNK))
+        .zip(b.par_chunks(CHUNK))
         .enumerate()
-        .map(|(c, (out, input))| arch.dispatch(LaneChunk { start: c * CHUNK, input, out, kernel }))
+        .map(|(c, ((out, a), b))| arch.dispatch(LaneChunk { start: c * CHUNK, a, b, out, kernel }))
         .collect();
     chunks.into_iter().sum()
 }
 
-/// One parallel chunk of [`lanes`].
-struct LaneChunk<'a, const I: usize, const O: usize, K> {
+/// A [`LaneKernel`] as a [`PairKernel`] whose second rows are empty.
+struct Single<'a, K>(&'a K);
+
+impl<const I: usize, const O: usize, K: LaneKernel<I, O>> PairKernel<I, 0, O> for Single<'_, K> {
+    #[inline(always)]
+    fn block(
+        &self,
+        first: usize,
+        a: &[[f64; I]],
+        _: &[[f64; 0]],
+        out: &mut [[f64; O]],
+    ) -> Result<usize> {
+        self.0.block(first, a, out)
+    }
+}
+
+/// One parallel chunk of [`lanes2`].
+struct LaneChunk<'a, const A: usize, const B: usize, const O: usize, K> {
     start: usize,
-    input: &'a [[f64; I]],
+    a: &'a [[f64; A]],
+    b: &'a [[f64; B]],
     out: &'a mut [[f64; O]],
     kernel: &'a K,
 }
 
-impl<const I: usize, const O: usize, K: LaneKernel<I, O>> pulp::WithSimd
-    for LaneChunk<'_, I, O, K>
+impl<const A: usize, const B: usize, const O: usize, K: PairKernel<A, B, O>> pulp::WithSimd
+    for LaneChunk<'_, A, B, O, K>
 {
     type Output = Result<usize>;
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> Result<usize> {
-        let LaneChunk { start, input, out, kernel } = self;
+        let LaneChunk { start, a, b, out, kernel } = self;
         let mut count = 0;
-        for (b, (rows, out)) in input.chunks(LANES).zip(out.chunks_mut(LANES)).enumerate() {
-            count += kernel.block(start + b * LANES, rows, out)?;
+        let blocks = a.chunks(LANES).zip(b.chunks(LANES)).zip(out.chunks_mut(LANES));
+        for (k, ((a, b), out)) in blocks.enumerate() {
+            count += kernel.block(start + k * LANES, a, b, out)?;
         }
         Ok(count)
     }

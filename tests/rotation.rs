@@ -299,6 +299,35 @@ fn batched_matrices_equal_the_row_by_row_ones_bitwise() {
     assert!(err.contains("777"), "{err}");
 }
 
+#[test]
+fn batched_products_equal_the_row_by_row_ones_bitwise() {
+    let mut rnd = xorshift(9);
+    let mut unit = || quat_to_wxyz(DQuat::from_xyzw(rnd(), rnd(), rnd(), rnd()).normalize());
+    // Unit rows, scaled rows (normalised first) on either side, and a ragged end.
+    let a: Vec<[f64; 4]> =
+        (0..10_007).map(|r| unit().map(|c| if r % 13 == 0 { 3.0 * c } else { c })).collect();
+    let b: Vec<[f64; 4]> =
+        (0..10_007).map(|r| unit().map(|c| if r % 17 == 0 { 1e-200 * c } else { c })).collect();
+    let row = |x: &[f64; 4], y: &[f64; 4]| {
+        quat_to_wxyz(quat_from_wxyz(x).unwrap() * quat_from_wxyz(y).unwrap()).map(f64::to_bits)
+    };
+    let mut out = vec![[0.0; 4]; a.len()];
+    multiply_quats(&a, &b, &mut out).unwrap();
+    for ((x, y), o) in a.iter().zip(&b).zip(&out) {
+        assert_eq!(row(x, y), o.map(f64::to_bits), "{x:?} {y:?}");
+    }
+    // One against N, both ways.
+    multiply_quats(&a[..1], &b, &mut out).unwrap();
+    assert_eq!(out[5000].map(f64::to_bits), row(&a[0], &b[5000]));
+    multiply_quats(&a, &b[..1], &mut out).unwrap();
+    assert_eq!(out[5000].map(f64::to_bits), row(&a[5000], &b[0]));
+    let mut bad = b.clone();
+    bad[4_099] = [0.0; 4];
+    let err = multiply_quats(&a, &bad, &mut out).unwrap_err().to_string();
+    assert!(err.contains("4099"), "{err}");
+    assert!(multiply_quats(&a[..3], &b[..2], &mut out[..3]).is_err());
+}
+
 /// The nearest rotation does not depend on the matrix's scale: huge and tiny (even subnormal)
 /// multiples of a rotation orthonormalise to that rotation, not to NaN; non-finite and zero
 /// matrices are refused.

@@ -45,7 +45,7 @@ fn quat_multiply<'py>(
 ) -> PyResult<Array<'py>> {
     let (a, b) = (rows::<4>(&a, "a", &[4])?, rows::<4>(&b, "b", &[4])?);
     let n = broadcast_len(("a", a.len()), ("b", b.len()))?;
-    compute(py, n, &[4], |out| map2(a, b, out, |x, y| Ok(wxyz(q(x)? * q(y)?))))
+    compute(py, n, &[4], |out| rot::multiply_quats(a, b, out))
 }
 
 /// Rotation matrices (N, 3, 3) of quaternions (N, 4).
