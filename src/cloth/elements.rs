@@ -273,6 +273,31 @@ pub fn triangle(
     for m in 0..3 {
         acc.f[t.verts[m]] -= fu * du[m] + fv * dv[m];
     }
+    let warp = Warp { wu, wv, hu, hv, inv_lu, inv_lv, ks, kh, s };
+    triangle_jacobian(t, &warp, damping, acc);
+}
+
+/// A triangle's deformation at the current positions, shared by its forces and Jacobian:
+/// `w_u`, `w_v`, their directions `ŵ` and inverse lengths, the stiffnesses per rest area and
+/// `s = k C + k_d Ċ` of its three conditions (stretch u, stretch v, shear).
+struct Warp {
+    wu: DVec3,
+    wv: DVec3,
+    hu: DVec3,
+    hv: DVec3,
+    inv_lu: f64,
+    inv_lv: f64,
+    ks: f64,
+    kh: f64,
+    s: [f64; 3],
+}
+
+/// The matrix blocks `-(α ∂d/∂v + β ∂f/∂x)` and the product `(∂f/∂x) u` of one triangle (see
+/// [`triangle`]), when `acc` asks for them.
+#[inline(always)]
+fn triangle_jacobian(t: &Triangle, warp: &Warp, damping: f64, acc: &mut Accumulator) {
+    let Warp { wu, wv, hu, hv, inv_lu, inv_lv, ks, kh, s } = *warp;
+    let (a, du, dv) = (t.area, &t.du, &t.dv);
     let Some((blocks, alpha, beta)) = acc.matrix.as_mut() else { return };
     let (alpha, beta) = (*alpha, *beta);
     // Gauss–Newton part Σ k (∂C/∂w)(∂C/∂w)ᵀ, with ∂C/∂w_u = a ŵ_u for stretch in u and a w_v
