@@ -5,7 +5,8 @@
 //! here and redone as two half steps by [`Solver::step`].
 
 use super::elements::Accumulator;
-use super::{ContactState, Elasticity, LinearSolver, Model, SolveOptions, Solver, State};
+use super::solver::Implicit;
+use super::{ContactState, Elasticity, LinearSolver, Model, Solver, State};
 use super::{StepStats, VertexConstraint};
 use crate::error::{Error, Result};
 use crate::ode::bdf2_weights;
@@ -13,20 +14,18 @@ use glam::{DMat3, DVec3};
 use std::time::Instant;
 
 impl Solver {
-    /// One linearised implicit step of `h` (BDF2 when `bdf2` and the state has a history);
+    /// One linearised implicit step of `h` (BDF2 when `how.bdf2` and the state has a history);
     /// returns `false` (and takes no step) when `check` is set and the step changes a stretch
     /// ratio by more than allowed. The numbers of the step are added to `stats`.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn step_implicit(
         &mut self,
-        model: &Model,
+        how: Implicit,
         state: &mut State,
         stats: &mut StepStats,
         h: f64,
-        bdf2: bool,
-        options: SolveOptions,
         check: bool,
     ) -> Result<bool> {
+        let Implicit { model, bdf2, options } = how;
         let t0 = Instant::now();
         // Variable-step BDF2 (Choi & Ko 2002, eq. 12, at a constant step): with (c, γ) of
         // `bdf2_weights`, x₊ = x + c (x - x₋) + γh v₊, v₊ = v + c (v - v₋) + γh M⁻¹ f₊.

@@ -144,11 +144,10 @@ impl Solver {
         for s in 0..steps {
             self.saved.clone_from(state);
             let mut stats = StepStats { converged: true, ..StepStats::default() };
+            let implicit = |bdf2| Implicit { model, bdf2, options };
             let result = match method {
-                Method::ImplicitEuler => {
-                    self.adaptive(model, state, &mut stats, dt, false, options, 0)
-                }
-                Method::Bdf2 => self.adaptive(model, state, &mut stats, dt, true, options, 0),
+                Method::ImplicitEuler => self.adaptive(implicit(false), state, &mut stats, dt, 0),
+                Method::Bdf2 => self.adaptive(implicit(true), state, &mut stats, dt, 0),
                 Method::Trapezoidal => Err(Error::invalid(
                     "integrator",
                     "trapezoidal is not offered for cloth; use implicit_euler or bdf2",
@@ -173,29 +172,30 @@ impl Solver {
     /// when it changes a stretch ratio by more than `options.max_strain_change`. BDF2 keeps its
     /// history through the halving: halving and the steps after it change the step by a ratio
     /// of 1/2 or 2, which the variable-step coefficients take.
-    /// An implicit step of `h`, redone as two half steps (recursively, at most five times)
-    /// when it changes a stretch ratio by more than `options.max_strain_change`. BDF2 keeps its
-    /// history through the halving: halving and the steps after it change the step by a ratio
-    /// of 1/2 or 2, which the variable-step coefficients take.
-    #[allow(clippy::too_many_arguments)]
     fn adaptive(
         &mut self,
-        model: &Model,
+        how: Implicit,
         state: &mut State,
         stats: &mut StepStats,
         h: f64,
-        bdf2: bool,
-        options: SolveOptions,
         depth: u32,
     ) -> Result<()> {
         const MAX_HALVINGS: u32 = 5;
-        let check = depth < MAX_HALVINGS;
-        if self.step_implicit(model, state, stats, h, bdf2, options, check)? {
+        if self.step_implicit(how, state, stats, h, depth < MAX_HALVINGS)? {
             return Ok(());
         }
-        self.adaptive(model, state, stats, 0.5 * h, bdf2, options, depth + 1)?;
-        self.adaptive(model, state, stats, 0.5 * h, bdf2, options, depth + 1)
+        self.adaptive(how, state, stats, 0.5 * h, depth + 1)?;
+        self.adaptive(how, state, stats, 0.5 * h, depth + 1)
     }
+}
+
+/// What the implicit substeps of one step share: the model, BDF2 or implicit Euler, and the
+/// options.
+#[derive(Clone, Copy)]
+pub(super) struct Implicit<'a> {
+    pub(super) model: &'a Model,
+    pub(super) bdf2: bool,
+    pub(super) options: SolveOptions,
 }
 
 /// The arguments of a step: a positive finite `dt`, a positive finite tolerance with at least
