@@ -3,8 +3,8 @@
 
 use glam::DVec3;
 use kinema::cloth::{
-    dihedral_angle, parse_obj, write_obj, Cloth, Collider, Material, Mesh, Model, SolveOptions,
-    Solver, Triangulation, VertexConstraint,
+    dihedral_angle, parse_obj, write_obj, Cloth, Collider, Elasticity, LinearSolver, Material,
+    Mesh, SolveOptions, Triangulation, VertexConstraint,
 };
 use kinema::geometry::{Plane, Shape, Sphere};
 use kinema::ode::Method;
@@ -12,17 +12,22 @@ use kinema::Error;
 
 const G: DVec3 = DVec3::new(0.0, -9.81, 0.0);
 
-fn grid(n: usize, model: Model, material: Material) -> Cloth {
+fn grid(n: usize, model: Elasticity, material: Material) -> Cloth {
     let mesh = Mesh::grid(n, n, 1.0, 1.0, Triangulation::Alternating).unwrap();
     Cloth::new(mesh, model, material, G).unwrap()
 }
 
 fn pcg(tol: f64) -> SolveOptions {
-    SolveOptions { solver: Solver::Pcg, tol, max_iterations: 10_000, ..SolveOptions::default() }
+    SolveOptions {
+        solver: LinearSolver::Pcg,
+        tol,
+        max_iterations: 10_000,
+        ..SolveOptions::default()
+    }
 }
 
 fn cholesky() -> SolveOptions {
-    SolveOptions { solver: Solver::Cholesky, ..SolveOptions::default() }
+    SolveOptions { solver: LinearSolver::Cholesky, ..SolveOptions::default() }
 }
 
 /// A reproducible pseudo-random perturbation in [-1, 1]^3.
@@ -50,7 +55,7 @@ fn grid_layout_masses_and_obj_round_trip() {
     }
     let cloth = Cloth::new(
         mesh.clone(),
-        Model::BaraffWitkin,
+        Elasticity::BaraffWitkin,
         Material { density: 0.3, ..Material::default() },
         G,
     )
@@ -108,7 +113,7 @@ fn degenerate_meshes_are_rejected_with_the_culprit() {
     // Bad material.
     let mesh = Mesh::grid(2, 2, 1.0, 1.0, Triangulation::Regular).unwrap();
     let bad = Material { stretch: -1.0, ..Material::default() };
-    assert!(Cloth::new(mesh, Model::BaraffWitkin, bad, G)
+    assert!(Cloth::new(mesh, Elasticity::BaraffWitkin, bad, G)
         .unwrap_err()
         .to_string()
         .contains("stretch"));
@@ -154,7 +159,7 @@ fn dihedral_angle_gradient_matches_finite_differences() {
 /// Forces are minus the gradient of the elastic plus gravitational energy, for both models.
 #[test]
 fn forces_are_the_negative_energy_gradient() {
-    for model in [Model::BaraffWitkin, Model::MassSpring] {
+    for model in [Elasticity::BaraffWitkin, Elasticity::MassSpring] {
         let material = Material { damping: 0.0, bend: 1e-2, ..Material::default() };
         let mut cloth = grid(4, model, material);
         let x: Vec<DVec3> =
@@ -188,7 +193,7 @@ fn forces_are_the_negative_energy_gradient() {
 }
 
 fn hanging(n: usize, material: Material) -> Cloth {
-    let mut cloth = grid(n, Model::BaraffWitkin, material);
+    let mut cloth = grid(n, Elasticity::BaraffWitkin, material);
     // Hang it vertically: the grid's z becomes -y.
     let x: Vec<DVec3> = cloth.positions().iter().map(|p| DVec3::new(p.x, -p.z, 0.0)).collect();
     cloth.set_state(&x, &vec![DVec3::ZERO; x.len()]).unwrap();
@@ -200,7 +205,7 @@ fn hanging(n: usize, material: Material) -> Cloth {
 fn cloth_pinned_at_two_corners_comes_to_rest_with_decreasing_energy() {
     let n = 12;
     let material = Material { damping: 0.02, air_damping: 1.0, ..Material::default() };
-    let mut cloth = grid(n, Model::BaraffWitkin, material);
+    let mut cloth = grid(n, Elasticity::BaraffWitkin, material);
     cloth.pin(&[0, n - 1], None).unwrap();
     let total = |c: &Cloth| {
         let (k, p, e) = c.energy();
@@ -326,11 +331,11 @@ fn pcg_and_cholesky_agree_and_constraints_hold_to_machine_precision() {
 
 #[test]
 fn pinned_everything_stays_put() {
-    let mut cloth = grid(3, Model::BaraffWitkin, Material::default());
+    let mut cloth = grid(3, Elasticity::BaraffWitkin, Material::default());
     let all: Vec<usize> = (0..9).collect();
     cloth.pin(&all, None).unwrap();
     let start = cloth.positions().to_vec();
-    for solver in [Solver::Pcg, Solver::Cholesky] {
+    for solver in [LinearSolver::Pcg, LinearSolver::Cholesky] {
         cloth
             .step(0.1, 3, Method::ImplicitEuler, SolveOptions { solver, ..SolveOptions::default() })
             .unwrap();
@@ -345,7 +350,7 @@ fn bdf2_is_second_order_and_damps_less_than_implicit_euler() {
     let material =
         Material { stretch: 20.0, shear: 2.0, bend: 1e-4, damping: 0.0, ..Material::default() };
     let swing = |method: Method, dt: f64, t: f64| {
-        let mut cloth = grid(5, Model::BaraffWitkin, material);
+        let mut cloth = grid(5, Elasticity::BaraffWitkin, material);
         cloth.pin(&[0, 1, 2, 3, 4], None).unwrap();
         cloth.step(dt, (t / dt).round() as usize, method, pcg(1e-12)).unwrap();
         cloth
@@ -370,7 +375,7 @@ fn bdf2_is_second_order_and_damps_less_than_implicit_euler() {
         k + p + e
     };
     let start = {
-        let c = grid(5, Model::BaraffWitkin, material);
+        let c = grid(5, Elasticity::BaraffWitkin, material);
         let (k, p, e) = c.energy();
         k + p + e
     };
@@ -388,7 +393,7 @@ fn bdf2_stays_second_order_when_the_step_alternates() {
         Material { stretch: 20.0, shear: 2.0, bend: 1e-4, damping: 0.0, ..Material::default() };
     let options = SolveOptions { max_strain_change: f64::INFINITY, ..pcg(1e-12) };
     let swinging = || {
-        let mut cloth = grid(5, Model::BaraffWitkin, material);
+        let mut cloth = grid(5, Elasticity::BaraffWitkin, material);
         cloth.pin(&[0, 1, 2, 3, 4], None).unwrap();
         cloth
     };
@@ -415,7 +420,7 @@ fn explicit_and_implicit_agree_at_small_steps() {
     let material =
         Material { stretch: 100.0, shear: 10.0, bend: 1e-4, damping: 0.0, ..Material::default() };
     let run = |method: Method, dt: f64| {
-        let mut cloth = grid(4, Model::MassSpring, material);
+        let mut cloth = grid(4, Elasticity::MassSpring, material);
         cloth.pin(&[0, 3], None).unwrap();
         cloth.step(dt, (0.2 / dt).round() as usize, method, pcg(1e-12)).unwrap();
         cloth.positions().to_vec()
@@ -428,7 +433,7 @@ fn explicit_and_implicit_agree_at_small_steps() {
 
 #[test]
 fn cloth_drapes_over_a_sphere_and_rests_on_the_ground_without_penetration() {
-    let mut cloth = grid(12, Model::BaraffWitkin, Material::default());
+    let mut cloth = grid(12, Elasticity::BaraffWitkin, Material::default());
     let lifted: Vec<DVec3> =
         cloth.positions().iter().map(|p| *p + DVec3::new(0.0, 0.5, 0.0)).collect();
     cloth.set_state(&lifted, &vec![DVec3::ZERO; lifted.len()]).unwrap();
@@ -458,7 +463,7 @@ fn friction_holds_cloth_on_a_slope_and_frictionless_cloth_slides() {
     let normal = DVec3::new(-angle.sin(), angle.cos(), 0.0);
     let slide = |mu: f64| {
         let mut cloth =
-            grid(4, Model::BaraffWitkin, Material { stretch: 1e4, ..Material::default() });
+            grid(4, Elasticity::BaraffWitkin, Material { stretch: 1e4, ..Material::default() });
         // Lay the cloth on the slope, a thickness above it.
         let x: Vec<DVec3> = cloth
             .positions()
@@ -500,7 +505,7 @@ fn friction_holds_cloth_on_a_slope_and_frictionless_cloth_slides() {
 
 #[test]
 fn moving_collider_pushes_the_cloth() {
-    let mut cloth = grid(6, Model::BaraffWitkin, Material::default());
+    let mut cloth = grid(6, Elasticity::BaraffWitkin, Material::default());
     let ground = Shape::Plane(Plane { point: DVec3::new(0.0, -0.01, 0.0), normal: DVec3::Y });
     // A floor rising at 1 m/s lifts the cloth with it.
     cloth
@@ -520,7 +525,7 @@ fn moving_collider_pushes_the_cloth() {
 
 #[test]
 fn bad_steps_leave_the_state_untouched() {
-    let mut cloth = grid(3, Model::BaraffWitkin, Material::default());
+    let mut cloth = grid(3, Elasticity::BaraffWitkin, Material::default());
     let start = cloth.positions().to_vec();
     assert!(cloth.step(f64::NAN, 1, Method::ImplicitEuler, SolveOptions::default()).is_err());
     assert!(cloth.step(0.1, 1, Method::Trapezoidal, SolveOptions::default()).is_err());
@@ -534,7 +539,7 @@ fn bad_steps_leave_the_state_untouched() {
     assert!(cloth.add_collider(bad).is_err());
     // An explicit step far beyond stability diverges, reports it, and keeps the last good state.
     let stiff = Material { stretch: 1e8, ..Material::default() };
-    let mut cloth2 = grid(3, Model::BaraffWitkin, stiff);
+    let mut cloth2 = grid(3, Elasticity::BaraffWitkin, stiff);
     let x: Vec<DVec3> =
         cloth2.positions().iter().enumerate().map(|(i, p)| *p + 0.05 * jitter(i)).collect();
     cloth2.set_state(&x, &vec![DVec3::ZERO; 9]).unwrap();

@@ -3,7 +3,7 @@
 //! bytes are refused with a clear error.
 
 use glam::{DQuat, DVec3};
-use kinema::cloth::{Cloth, Material, Mesh, Model, SolveOptions, Solver, Triangulation};
+use kinema::cloth::{Cloth, Elasticity, LinearSolver, Material, Mesh, SolveOptions, Triangulation};
 use kinema::geometry::{self, Solid as Shape};
 use kinema::ode::Method;
 use kinema::particles::{Appearance, Collider, Emitter, Force, ParticleSystem};
@@ -46,9 +46,9 @@ fn vec_bits(values: &[DVec3]) -> Vec<u64> {
 
 #[test]
 fn cloth_resumes_bit_for_bit_with_bdf2_history_and_either_solver() {
-    for solver in [Solver::Pcg, Solver::Cholesky] {
+    for solver in [LinearSolver::Pcg, LinearSolver::Cholesky] {
         let mesh = Mesh::grid(8, 8, 1.0, 1.0, Triangulation::Alternating).unwrap();
-        let mut cloth = Cloth::new(mesh, Model::BaraffWitkin, Material::default(), G).unwrap();
+        let mut cloth = Cloth::new(mesh, Elasticity::BaraffWitkin, Material::default(), G).unwrap();
         cloth.pin(&[0, 7], None).unwrap();
         let options = SolveOptions { solver, ..SolveOptions::default() };
         resume_matches(
@@ -188,7 +188,7 @@ fn jointed_chains_resume_bit_for_bit_in_every_formulation() {
 #[test]
 fn foreign_damaged_and_truncated_snapshots_are_refused() {
     let mesh = Mesh::grid(3, 3, 1.0, 1.0, Triangulation::Regular).unwrap();
-    let cloth = Cloth::new(mesh, Model::MassSpring, Material::default(), G).unwrap();
+    let cloth = Cloth::new(mesh, Elasticity::MassSpring, Material::default(), G).unwrap();
     let bytes = cloth.to_snapshot().unwrap();
     let message = |r: Result<World, Error>| r.unwrap_err().to_string();
     assert!(message(World::from_snapshot(&bytes)).contains("'Cloth'"));

@@ -10,7 +10,8 @@ use kinema::anim::{
     ArcLengthCurve, Extrapolation, Interpolation, RotationInterpolation, RotationTrack, Track,
 };
 use kinema::cloth::{
-    Cloth, Collider as ClothCollider, Material, Mesh, Model, SolveOptions, Solver, Triangulation,
+    Cloth, Collider as ClothCollider, Elasticity, LinearSolver, Material, Mesh, SolveOptions,
+    Triangulation,
 };
 use kinema::constraints::{ConstrainedSystem, Constraint, ConstraintSolver};
 use kinema::geometry::{self, Solid as Shape};
@@ -94,7 +95,7 @@ fn no_panic<T: Snapshot>(system: &T, seed: u64, exercise: impl Fn(&mut T)) -> (u
 
 fn cloth() -> Cloth {
     let mesh = Mesh::grid(4, 4, 1.0, 1.0, Triangulation::Alternating).unwrap();
-    let mut c = Cloth::new(mesh, Model::BaraffWitkin, Material::default(), G).unwrap();
+    let mut c = Cloth::new(mesh, Elasticity::BaraffWitkin, Material::default(), G).unwrap();
     c.pin(&[0, 3], None).unwrap();
     c.add_collider(ClothCollider {
         shape: geometry::Shape::Plane(geometry::Plane {
@@ -113,7 +114,7 @@ fn cloth() -> Cloth {
 fn damaged_cloth_snapshots_never_panic() {
     let mut springs = Cloth::new(
         Mesh::grid(3, 3, 1.0, 1.0, Triangulation::Regular).unwrap(),
-        Model::MassSpring,
+        Elasticity::MassSpring,
         Material::default(),
         G,
     )
@@ -121,7 +122,7 @@ fn damaged_cloth_snapshots_never_panic() {
     springs.step(0.01, 1, Method::ImplicitEuler, SolveOptions::default()).unwrap();
     for (seed, c) in [(1, cloth()), (2, springs)] {
         no_panic(&c, seed, |c| {
-            for solver in [Solver::Pcg, Solver::Cholesky] {
+            for solver in [LinearSolver::Pcg, LinearSolver::Cholesky] {
                 let options = SolveOptions { solver, ..SolveOptions::default() };
                 let _ = c.step(0.01, 1, Method::Bdf2, options);
                 let _ = c.step(0.01, 1, Method::ImplicitEuler, options);

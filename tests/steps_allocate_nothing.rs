@@ -6,7 +6,9 @@ mod common;
 use common::process_allocations;
 
 use glam::{DQuat, DVec3};
-use kinema::cloth::{self, Cloth, Material, Mesh, Model, SolveOptions, Solver, Triangulation};
+use kinema::cloth::{
+    self, Cloth, Elasticity, LinearSolver, Material, Mesh, SolveOptions, Triangulation,
+};
 use kinema::constraints::{ConstrainedSystem, Constraint, ConstraintSolver};
 use kinema::geometry::{self, Solid as Shape};
 use kinema::ode::Method;
@@ -105,10 +107,10 @@ fn particle_scenes() -> Vec<(String, usize)> {
 fn cloth_scenes() -> Vec<(String, usize)> {
     let mut found = Vec::new();
     let runs = [
-        (Model::BaraffWitkin, Method::ImplicitEuler, Solver::Pcg),
-        (Model::BaraffWitkin, Method::ImplicitEuler, Solver::Cholesky),
-        (Model::BaraffWitkin, Method::Bdf2, Solver::Pcg),
-        (Model::MassSpring, Method::ImplicitEuler, Solver::Pcg),
+        (Elasticity::BaraffWitkin, Method::ImplicitEuler, LinearSolver::Pcg),
+        (Elasticity::BaraffWitkin, Method::ImplicitEuler, LinearSolver::Cholesky),
+        (Elasticity::BaraffWitkin, Method::Bdf2, LinearSolver::Pcg),
+        (Elasticity::MassSpring, Method::ImplicitEuler, LinearSolver::Pcg),
     ];
     for (model, method, solver) in runs {
         let mesh = Mesh::grid(16, 16, 1.0, 1.0, Triangulation::Alternating).unwrap();

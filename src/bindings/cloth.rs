@@ -7,8 +7,8 @@ use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::cloth::{
-    parse_obj, write_obj, Cloth, Collider, Material, Mesh, Model, SolveOptions, Solver,
-    Triangulation, VertexConstraint,
+    parse_obj, write_obj, Cloth, Collider, Elasticity, LinearSolver, Material, Mesh, SolveOptions,
+    State, Triangulation, VertexConstraint,
 };
 use crate::error::Error;
 use crate::ode::Method;
@@ -33,8 +33,8 @@ fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
 #[pyclass(module = "kinema._kinema")]
 pub struct ClothCore {
     cloth: Cloth,
-    /// The undo point of [`ClothCore::_mark`], a snapshot (empty before the first).
-    saved: Vec<u8>,
+    /// The undo point of [`ClothCore::_mark`], a copy of the state (none before the first).
+    saved: Option<State>,
 }
 
 #[pymethods]
@@ -47,24 +47,25 @@ impl ClothCore {
     /// The object stored by `__reduce__`.
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { cloth: Cloth::from_snapshot(data)?, saved: Vec::new() })
+        Ok(Self { cloth: Cloth::from_snapshot(data)?, saved: None })
     }
 
-    /// Remember the cloth as it is now (a scene's undo point before a frame), as a snapshot.
-    fn _mark(&mut self, py: Python<'_>) -> PyResult<()> {
-        let cloth = &self.cloth;
-        self.saved = detached(py, || cloth.to_snapshot())?;
-        Ok(())
-    }
-
-    /// Put the cloth back as it was at the last [`ClothCore::_mark`], in place: views of the
-    /// positions and velocities stay valid.
-    fn _rollback(&mut self, py: Python<'_>) -> PyResult<()> {
-        let (cloth, saved) = (&mut self.cloth, &self.saved);
-        if saved.is_empty() {
-            return Ok(());
+    /// Remember the cloth's state as it is now (a scene's undo point before a frame): copied
+    /// into a retained state (no allocation after the first mark). The model does not change
+    /// during a frame.
+    fn _mark(&mut self) {
+        match &mut self.saved {
+            Some(saved) => saved.clone_from(self.cloth.state()),
+            None => self.saved = Some(self.cloth.state().clone()),
         }
-        detached(py, || cloth.restore(Cloth::from_snapshot(saved)?))
+    }
+
+    /// Put the state back as it was at the last [`ClothCore::_mark`], in place: views of the
+    /// positions and velocities stay valid.
+    fn _rollback(&mut self) {
+        if let Some(saved) = &self.saved {
+            self.cloth.state_mut().clone_from(saved);
+        }
     }
 
     /// A cloth from `vertices` (N, 3) m and `triangles` (M, 3) indices (as float64), with
@@ -230,8 +231,8 @@ impl ClothCore {
             Error::invalid("integrator", format!("{integrator:?} is not implicit_euler, bdf2 or an explicit method of kinema.ode"))
         })?;
         let solver = match solver {
-            "pcg" => Solver::Pcg,
-            "cholesky" => Solver::Cholesky,
+            "pcg" => LinearSolver::Pcg,
+            "cholesky" => LinearSolver::Cholesky,
             other => {
                 return Err(Error::invalid(
                     "solver",
@@ -359,8 +360,8 @@ impl ClothCore {
 impl ClothCore {
     fn build(mesh: Mesh, model: &str, m: [f64; 6], gravity: [f64; 3]) -> PyResult<Self> {
         let model = match model {
-            "baraff_witkin" => Model::BaraffWitkin,
-            "mass_spring" => Model::MassSpring,
+            "baraff_witkin" => Elasticity::BaraffWitkin,
+            "mass_spring" => Elasticity::MassSpring,
             other => {
                 return Err(Error::invalid(
                     "model",
@@ -378,7 +379,7 @@ impl ClothCore {
             air_damping: m[5],
         };
         let cloth = Cloth::new(mesh, model, material, DVec3::from_array(gravity))?;
-        Ok(ClothCore { cloth, saved: Vec::new() })
+        Ok(ClothCore { cloth, saved: None })
     }
 }
 

@@ -1,13 +1,14 @@
-//! The stages of building a cloth from its mesh ([`Cloth::new`]): the material checked, lumped
+//! The stages of building a cloth's model from its mesh ([`super::Model::new`]): the material checked, lumped
 //! vertex masses, the bending hinges of the triangle model (Baraff & Witkin 1998, §4.3, with
 //! the discrete-shells stiffness scaling of Grinspun et al. 2003) or the springs of the
 //! mass-spring model (Provot 1995: structural, shear and bend springs), the mass shares that
-//! bound the indefinite curvature terms, and each element's slots in the block matrix.
+//! bound the indefinite curvature terms, the block pattern of the implicit matrix and each
+//! element's slots in it.
 
-use super::model::{Hinge, Spring, Triangle};
-use super::{dihedral_angle, BlockMatrix, ContactState, Material, Model, Scratch, Topology};
+use super::elements::{Hinge, Spring, Triangle};
+use super::{dihedral_angle, BlockMatrix, Elasticity, Material, Topology};
 use crate::error::{Error, Result};
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 
 impl Material {
     /// Check every parameter: finite, `density` and `stretch` positive, the others `>= 0`.
@@ -103,18 +104,40 @@ pub(super) fn springs(topology: &Topology, x: &[DVec3], material: &Material) -> 
     springs
 }
 
+/// The block pattern coupling the vertices of every element: triangles and hinges in the
+/// triangle model, springs in the mass-spring model.
+pub(super) fn pattern(
+    n: usize,
+    model: Elasticity,
+    elements: &[Triangle],
+    hinges: &[Hinge],
+    springs: &[Spring],
+) -> BlockMatrix {
+    match model {
+        Elasticity::BaraffWitkin => BlockMatrix::from_elements(
+            n,
+            elements.iter().map(|t| &t.verts[..]).chain(hinges.iter().map(|h| &h.verts[..])),
+        ),
+        Elasticity::MassSpring => {
+            BlockMatrix::from_elements(n, springs.iter().map(|s| &s.verts[..]))
+        }
+    }
+}
+
 /// Mass shares for the indefinite curvature terms: half of `mᵢ / (conditions at i)`, the least
 /// over an element's vertices.
 pub(super) fn mass_shares(
-    model: Model,
+    model: Elasticity,
     mass: &[f64],
     elements: &mut [Triangle],
     springs: &mut [Spring],
 ) {
     let mut count = vec![0usize; mass.len()];
     match model {
-        Model::BaraffWitkin => elements.iter().flat_map(|t| t.verts).for_each(|v| count[v] += 3),
-        Model::MassSpring => springs.iter().flat_map(|s| s.verts).for_each(|v| count[v] += 1),
+        Elasticity::BaraffWitkin => {
+            elements.iter().flat_map(|t| t.verts).for_each(|v| count[v] += 3)
+        }
+        Elasticity::MassSpring => springs.iter().flat_map(|s| s.verts).for_each(|v| count[v] += 1),
     }
     let share = |v: usize| 0.5 * mass[v] / count[v].max(1) as f64;
     for t in elements {
@@ -128,7 +151,7 @@ pub(super) fn mass_shares(
 /// Each element's slots in `matrix`: the block of every pair of its vertices (a triangle's
 /// only in the triangle model, where it is in the pattern).
 pub(super) fn slots(
-    model: Model,
+    model: Elasticity,
     matrix: &BlockMatrix,
     elements: &mut [Triangle],
     hinges: &mut [Hinge],
@@ -136,7 +159,7 @@ pub(super) fn slots(
 ) {
     for t in elements {
         t.slots = std::array::from_fn(|k| {
-            if model == Model::BaraffWitkin {
+            if model == Elasticity::BaraffWitkin {
                 matrix.slot(t.verts[k / 3], t.verts[k % 3])
             } else {
                 0
@@ -148,34 +171,5 @@ pub(super) fn slots(
     }
     for s in springs {
         s.slots = std::array::from_fn(|k| matrix.slot(s.verts[k / 2], s.verts[k % 2]));
-    }
-}
-
-impl Scratch {
-    /// The work vectors of a cloth of `n` vertices.
-    pub(super) fn new(n: usize) -> Scratch {
-        let zero = vec![DVec3::ZERO; n];
-        Scratch {
-            f: zero.clone(),
-            ku: zero.clone(),
-            u: zero.clone(),
-            b: zero.clone(),
-            dv: zero.clone(),
-            q: zero.clone(),
-            filter: vec![DMat3::IDENTITY; n],
-            z: zero.clone(),
-            y: zero.clone(),
-            pcg: super::pcg::Work::default(),
-            constrained: Vec::with_capacity(n),
-            contact_normal: Vec::with_capacity(n),
-            states: vec![ContactState::Free; n],
-            x_new: zero.clone(),
-            v_new: zero.clone(),
-            hx: zero.clone(),
-            hv: zero.clone(),
-            flat: Vec::new(),
-            ex: zero.clone(),
-            ev: zero,
-        }
     }
 }

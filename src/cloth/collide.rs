@@ -5,132 +5,114 @@
 //! pulls), vertices that still penetrate after the solve are projected out, and the colliders
 //! are moved on by `velocity · h`.
 
-use super::*;
+use super::{Model, Solver, State, VertexConstraint};
+use crate::error::{Error, Result};
+use crate::geometry::{material, Shape};
+use crate::math::outer;
+use glam::{DMat3, DVec3};
 
-impl Cloth {
-    /// Add a collider; returns its index.
-    ///
-    /// # Errors
-    /// Invalid shape, velocity or friction.
-    pub fn add_collider(&mut self, collider: Collider) -> Result<usize> {
-        self.colliders.push(collider.checked()?);
-        Ok(self.colliders.len() - 1)
-    }
-
-    /// Replace collider `index` (to move it along a path of the user's choosing).
-    ///
-    /// # Errors
-    /// A bad index or an invalid collider.
-    pub fn set_collider(&mut self, index: usize, collider: Collider) -> Result<()> {
-        let count = self.colliders.len();
-        let slot = self.colliders.get_mut(index).ok_or_else(|| {
-            Error::invalid("index", format!("no collider {index} (have {count})"))
-        })?;
-        *slot = collider.checked()?;
-        Ok(())
-    }
-
-    /// The colliders, at the cloth's current time.
-    pub fn colliders(&self) -> &[Collider] {
-        &self.colliders
-    }
-
-    /// Filter, prescribed velocity change and position correction of every vertex for a step
-    /// to `t + h`, given the step's effective `h_eff` and BDF2 history displacement `cx`.
-    pub(super) fn build_constraints(&mut self, h: f64, h_eff: f64) {
-        let Scratch { filter, z, y, constrained, contact_normal, hx, .. } = &mut self.scratch;
-        constrained.clear();
-        contact_normal.clear();
-        for i in 0..self.x.len() {
-            let (x, v) = (self.x[i], self.v[i]);
-            let cx = hx[i];
-            let (mut s, mut zi, mut yi) = (DMat3::IDENTITY, DVec3::ZERO, DVec3::ZERO);
-            match self.constraints[i] {
+impl Solver {
+    /// Filter `S`, prescribed velocity change `z` and position correction `y` of every vertex
+    /// for a step to `t + h` (Baraff & Witkin §5.3, §6), given the step's effective `h_eff` and
+    /// the BDF2 history displacements in the scratch.
+    pub(super) fn build_constraints(&mut self, model: &Model, state: &State, h: f64, h_eff: f64) {
+        let s = &mut self.scratch;
+        s.constrained.clear();
+        s.contact_normal.clear();
+        for i in 0..state.len() {
+            let (x, v, cx) = (state.x[i], state.v[i], s.hx[i]);
+            let (filter, zi, yi) = match state.constraints[i] {
                 Some(VertexConstraint::Pinned(p)) => {
-                    s = DMat3::ZERO;
-                    zi = (p - x - cx) / h_eff - v;
+                    (DMat3::ZERO, (p - x - cx) / h_eff - v, DVec3::ZERO)
                 }
                 Some(VertexConstraint::Plane(n)) => {
-                    s = DMat3::IDENTITY - outer(n, n);
-                    zi = -n * n.dot(v);
+                    (DMat3::IDENTITY - outer(n, n), -n * n.dot(v), DVec3::ZERO)
                 }
-                Some(VertexConstraint::Line(d)) => {
-                    s = outer(d, d);
-                    zi = -(v - d * d.dot(v));
-                }
-                Some(VertexConstraint::Velocity(target)) => {
-                    s = DMat3::ZERO;
-                    zi = target - v;
-                }
-                None => {
-                    // The deepest contact wins.
-                    let mut best: Option<(f64, DVec3, DVec3, f64)> = None;
-                    for col in &self.colliders {
-                        let shape = col.shape.translated(col.velocity * h);
-                        let (predicted, _) = shape.distance(x + h * v);
-                        // Contacts live in a band of two thicknesses so that a vertex resting
-                        // at `thickness` stays in contact; released vertices leave freely
-                        // unless they would penetrate.
-                        if predicted >= 2.0 * self.thickness
-                            || (self.contact[i] == ContactState::Released && predicted >= 0.0)
-                        {
-                            continue;
-                        }
-                        let (now, n) = shape.distance(x);
-                        if best.is_none_or(|b| now < b.0) {
-                            best = Some((now, n, col.velocity, col.friction));
-                        }
-                    }
-                    if let Some((now, n, vc, mu)) = best {
+                Some(VertexConstraint::Line(d)) => (outer(d, d), -(v - d * d.dot(v)), DVec3::ZERO),
+                Some(VertexConstraint::Velocity(target)) => (DMat3::ZERO, target - v, DVec3::ZERO),
+                None => match deepest_contact(model, state, i, h) {
+                    Some((now, n, vc, mu)) => {
                         // End the step at `thickness` from the surface: a vertex still above
                         // it approaches at the speed that lands it there; one below moves
                         // with the surface and the position correction `y` lifts it out.
-                        let gap = self.thickness - now - n.dot(cx) - h_eff * n.dot(vc);
+                        let gap = model.thickness - now - n.dot(cx) - h_eff * n.dot(vc);
                         let approach = if gap < 0.0 { gap / h_eff } else { 0.0 };
-                        yi = n * gap.max(0.0);
-                        s = DMat3::IDENTITY - outer(n, n);
-                        zi = n * (n.dot(vc) + approach - n.dot(v));
                         // The normal impulse of the last step, or on a new contact the one
                         // that stops the approach (forces are added once assembled).
-                        let jn = match self.contact[i] {
+                        let jn = match state.contact[i] {
                             ContactState::Touching(jn) => jn,
-                            _ => self.mass[i] * (-n.dot(v - vc)).max(0.0),
+                            _ => model.mass[i] * (-n.dot(v - vc)).max(0.0),
                         };
-                        contact_normal.push((i, n, vc, mu, jn));
+                        s.contact_normal.push((i, n, vc, mu, jn));
+                        let z = n * (n.dot(vc) + approach - n.dot(v));
+                        (DMat3::IDENTITY - outer(n, n), z, n * gap.max(0.0))
                     }
-                }
+                    None => (DMat3::IDENTITY, DVec3::ZERO, DVec3::ZERO),
+                },
+            };
+            if filter != DMat3::IDENTITY {
+                s.constrained.push(i);
             }
-            if s != DMat3::IDENTITY {
-                constrained.push(i);
-            }
-            filter[i] = s;
-            z[i] = zi;
-            y[i] = yi;
+            s.filter[i] = filter;
+            s.z[i] = zi;
+            s.y[i] = yi;
         }
     }
 
     /// The fallback for vertices that were not in contact at the start of the step but end it
     /// inside a collider (dragged in by their neighbours): put them back at `thickness` and
     /// remove their approaching normal velocity.
-    pub(super) fn project_penetrating(&self, scratch: &mut Scratch, h: f64) {
-        for col in &self.colliders {
+    pub(super) fn project_penetrating(&mut self, model: &Model, state: &State, h: f64) {
+        let s = &mut self.scratch;
+        for col in &state.colliders {
             let shape = col.shape.translated(col.velocity * h);
-            for i in 0..self.x.len() {
-                if self.constraints[i].is_some() || scratch.filter[i] != DMat3::IDENTITY {
+            for i in 0..state.len() {
+                if state.constraints[i].is_some() || s.filter[i] != DMat3::IDENTITY {
                     continue;
                 }
-                let (d, normal) = shape.distance(scratch.x_new[i]);
+                let (d, normal) = shape.distance(s.x_new[i]);
                 if d < 0.0 {
-                    scratch.x_new[i] += normal * (self.thickness - d);
-                    let vn = (scratch.v_new[i] - col.velocity).dot(normal);
+                    s.x_new[i] += normal * (model.thickness - d);
+                    let vn = (s.v_new[i] - col.velocity).dot(normal);
                     if vn < 0.0 {
-                        scratch.v_new[i] -= normal * vn;
+                        s.v_new[i] -= normal * vn;
                     }
                 }
             }
         }
     }
+}
 
+/// The contact of free vertex `i` for a step of `h`, the deepest of the colliders it would come
+/// within `2 thickness` of: `(distance now, normal, collider velocity, friction)`.
+fn deepest_contact(
+    model: &Model,
+    state: &State,
+    i: usize,
+    h: f64,
+) -> Option<(f64, DVec3, DVec3, f64)> {
+    let (x, v) = (state.x[i], state.v[i]);
+    let mut best: Option<(f64, DVec3, DVec3, f64)> = None;
+    for col in &state.colliders {
+        let shape = col.shape.translated(col.velocity * h);
+        let (predicted, _) = shape.distance(x + h * v);
+        // Contacts live in a band of two thicknesses so that a vertex resting at `thickness`
+        // stays in contact; released vertices leave freely unless they would penetrate.
+        if predicted >= 2.0 * model.thickness
+            || (state.contact[i] == ContactState::Released && predicted >= 0.0)
+        {
+            continue;
+        }
+        let (now, n) = shape.distance(x);
+        if best.is_none_or(|b| now < b.0) {
+            best = Some((now, n, col.velocity, col.friction));
+        }
+    }
+    best
+}
+
+impl State {
+    /// Move the colliders on by `velocity · h` and the time by `h`.
     pub(super) fn advance_colliders(&mut self, h: f64) {
         for c in &mut self.colliders {
             c.shape = c.shape.translated(c.velocity * h);

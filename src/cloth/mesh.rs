@@ -263,92 +263,113 @@ impl Topology {
 /// # Errors
 /// [`Error::Parse`] with the line and what was expected.
 pub fn parse_obj(text: &str, file: &str) -> Result<Mesh> {
-    let mut positions = Vec::new();
-    let mut texcoords: Vec<[f64; 2]> = Vec::new();
-    let mut triangles = Vec::new();
-    let mut corner_uv: Vec<Option<[[f64; 2]; 3]>> = Vec::new();
-    let err = |line: usize, expected: &str| Error::Parse {
-        file: file.to_string(),
-        line,
-        expected: expected.to_string(),
-    };
+    const FINITE_V: &str = "three finite numbers after 'v'";
+    let mut obj = Obj { file, ..Obj::default() };
     for (number, raw) in text.lines().enumerate() {
         let line = number + 1;
         let content = raw.split('#').next().unwrap_or("").trim();
         let mut words = content.split_whitespace();
-        let Some(keyword) = words.next() else { continue };
-        match keyword {
-            "v" => {
-                let xs: Vec<f64> = words
-                    .take(3)
-                    .map(str::parse)
-                    .collect::<Result<_, _>>()
-                    .map_err(|_| err(line, "three numbers after 'v'"))?;
-                if xs.len() != 3 || xs.iter().any(|x| !x.is_finite()) {
-                    return Err(err(line, "three finite numbers after 'v'"));
+        match words.next() {
+            Some("v") => {
+                let [x, y, z] = obj.numbers(words, line, "three numbers after 'v'", FINITE_V)?;
+                if ![x, y, z].iter().all(|x| x.is_finite()) {
+                    return Err(obj.err(line, FINITE_V));
                 }
-                positions.push([xs[0], xs[1], xs[2]]);
+                obj.positions.push([x, y, z]);
             }
-            "vt" => {
-                let xs: Vec<f64> = words
-                    .take(2)
-                    .map(str::parse)
-                    .collect::<Result<_, _>>()
-                    .map_err(|_| err(line, "two numbers after 'vt'"))?;
-                if xs.len() != 2 {
-                    return Err(err(line, "two numbers after 'vt'"));
-                }
-                texcoords.push([xs[0], xs[1]]);
+            Some("vt") => {
+                let uv =
+                    obj.numbers(words, line, "two numbers after 'vt'", "two numbers after 'vt'")?;
+                obj.texcoords.push(uv);
             }
-            "f" => {
-                let mut corners = Vec::new();
-                for word in words {
-                    let mut parts = word.split('/');
-                    let resolve = |s: Option<&str>, count: usize| -> Result<Option<usize>> {
-                        match s {
-                            None | Some("") => Ok(None),
-                            Some(s) => {
-                                let i: i64 =
-                                    s.parse().map_err(|_| err(line, "integer indices in 'f'"))?;
-                                let idx = if i > 0 { i - 1 } else { count as i64 + i };
-                                if i == 0 || idx < 0 || idx >= count as i64 {
-                                    return Err(err(
-                                        line,
-                                        "indices that refer to earlier 'v'/'vt' lines",
-                                    ));
-                                }
-                                Ok(Some(idx as usize))
-                            }
-                        }
-                    };
-                    let v = resolve(parts.next(), positions.len())?
-                        .ok_or_else(|| err(line, "a vertex index"))?;
-                    let vt = resolve(parts.next(), texcoords.len())?;
-                    corners.push((v, vt));
-                }
-                if corners.len() < 3 {
-                    return Err(err(line, "at least three vertices per face"));
-                }
-                for k in 1..corners.len() - 1 {
-                    let tri = [corners[0], corners[k], corners[k + 1]];
-                    triangles.push(tri.map(|c| c.0));
-                    corner_uv.push(match (tri[0].1, tri[1].1, tri[2].1) {
-                        (Some(a), Some(b), Some(c)) => {
-                            Some([texcoords[a], texcoords[b], texcoords[c]])
-                        }
-                        _ => None,
-                    });
-                }
-            }
+            Some("f") => obj.face(words, line)?,
             _ => {}
         }
     }
+    let Obj { positions, triangles, corner_uv, .. } = obj;
     let uv = if !corner_uv.is_empty() && corner_uv.iter().all(Option::is_some) {
         Some(corner_uv.into_iter().flatten().collect())
     } else {
         None
     };
     Mesh::new(positions, triangles, uv)
+}
+
+/// What [`parse_obj`] has read so far.
+#[derive(Default)]
+struct Obj<'a> {
+    file: &'a str,
+    positions: Vec<[f64; 3]>,
+    texcoords: Vec<[f64; 2]>,
+    triangles: Vec<[usize; 3]>,
+    /// Per triangle, its corners' texture coordinates when all three have one.
+    corner_uv: Vec<Option<[[f64; 2]; 3]>>,
+}
+
+impl Obj<'_> {
+    /// The parse error at `line`.
+    fn err(&self, line: usize, expected: &str) -> Error {
+        Error::Parse { file: self.file.to_string(), line, expected: expected.to_string() }
+    }
+
+    /// The first `K` words as numbers: the error `expected` when one is not a number,
+    /// `too_few` when there are fewer than `K`.
+    fn numbers<'w, const K: usize>(
+        &self,
+        words: impl Iterator<Item = &'w str>,
+        line: usize,
+        expected: &str,
+        too_few: &str,
+    ) -> Result<[f64; K]> {
+        let xs: Vec<f64> = words
+            .take(K)
+            .map(str::parse)
+            .collect::<Result<_, _>>()
+            .map_err(|_| self.err(line, expected))?;
+        xs.try_into().map_err(|_| self.err(line, too_few))
+    }
+
+    /// A 1-based (or negative, counted back from the last) index into `count` items, `None`
+    /// when absent.
+    fn index(&self, s: Option<&str>, count: usize, line: usize) -> Result<Option<usize>> {
+        match s {
+            None | Some("") => Ok(None),
+            Some(s) => {
+                let i: i64 = s.parse().map_err(|_| self.err(line, "integer indices in 'f'"))?;
+                let idx = if i > 0 { i - 1 } else { count as i64 + i };
+                if i == 0 || idx < 0 || idx >= count as i64 {
+                    return Err(self.err(line, "indices that refer to earlier 'v'/'vt' lines"));
+                }
+                Ok(Some(idx as usize))
+            }
+        }
+    }
+
+    /// An `f` statement: its corners `v[/vt[/vn]]`, split into a triangle fan.
+    fn face<'w>(&mut self, words: impl Iterator<Item = &'w str>, line: usize) -> Result<()> {
+        let mut corners = Vec::new();
+        for word in words {
+            let mut parts = word.split('/');
+            let v = self
+                .index(parts.next(), self.positions.len(), line)?
+                .ok_or_else(|| self.err(line, "a vertex index"))?;
+            let vt = self.index(parts.next(), self.texcoords.len(), line)?;
+            corners.push((v, vt));
+        }
+        if corners.len() < 3 {
+            return Err(self.err(line, "at least three vertices per face"));
+        }
+        for k in 1..corners.len() - 1 {
+            let tri = [corners[0], corners[k], corners[k + 1]];
+            self.triangles.push(tri.map(|c| c.0));
+            let uv = &self.texcoords;
+            self.corner_uv.push(match (tri[0].1, tri[1].1, tri[2].1) {
+                (Some(a), Some(b), Some(c)) => Some([uv[a], uv[b], uv[c]]),
+                _ => None,
+            });
+        }
+        Ok(())
+    }
 }
 
 /// Write positions and triangles (and the per-corner uv as `vt`, one per corner) as OBJ text.

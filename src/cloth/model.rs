@@ -1,366 +1,247 @@
-//! Material models: the Baraff–Witkin (1998) triangle conditions (stretch, shear, bend) and a
-//! mass-spring model, each giving forces and the force Jacobians `∂f/∂x`, `∂f/∂v`.
-//!
-//! Every element is a condition `C(x)` with energy `E = k/2 C²`, force `f = -k (∂C/∂x) C`
-//! and damping `d = -k_d (∂C/∂x) Ċ` (Baraff & Witkin 1998, eqs. 7, 11). The Jacobians are
-//! `∂f/∂x = -k (∂C/∂x ∂C/∂xᵀ + ∂²C/∂x² C)` and `∂d/∂v = -k_d ∂C/∂x ∂C/∂xᵀ`; of `∂d/∂x` only the
-//! symmetric part `-k_d ∂²C/∂x² Ċ` is kept (eq. 12 and the remark after it).
-//!
-//! **Definiteness.** `∂f/∂x` must keep the implicit matrix `A = M - h ∂f/∂v - h² ∂f/∂x`
-//! symmetric positive definite. The Gauss–Newton part `-k ∂C/∂x ∂C/∂xᵀ` is always negative
-//! semidefinite; the curvature part `-s ∂²C/∂x²`, `s = k C + k_d Ċ`, is not in general:
-//! - stretch and springs: `∂²C/∂x²` is a positive semidefinite projector pattern
-//!   (`(I - ŵŵᵀ)/‖w‖`), so the term is safe while stretched (`s > 0`) and indefinite under
-//!   compression — the case Choi & Ko (2002, §4) identify as the cause of instability and
-//!   drop;
-//! - shear: `∂²C/∂x²` is indefinite for either sign of `s`;
-//! - bend: only the Gauss–Newton part is used (the dihedral angle's Hessian is not formed).
-//!
-//! kinema keeps an indefinite curvature term while its most negative eigenvalue (bounded per
-//! element) times `h²` stays below half of the mass share `mᵢ / (number of such conditions at
-//! vertex i)` of each of its vertices, so that `A ⪰ M/2` always holds, and drops it otherwise
-//! (Choi & Ko's fix). At the large steps of cloth animation the term is dropped; as `h → 0`
-//! it is kept, the Jacobian becomes exact and BDF2 keeps its second order (tested).
-//!
-//! The forces themselves are always exact.
-//!
-//! The element functions are `#[inline(always)]`: the cloth compiles its loop over the
-//! elements for AVX2 and AVX-512 as well as the baseline (`pulp` dispatch), and only code
-//! inlined into that loop gets those builds.
+//! The cloth's model: what is built once from the mesh and read by every step — topology,
+//! lumped masses, the elements with their rest shapes (Baraff & Witkin 1998, §4), the
+//! material, gravity, the collision thickness — and the checks a decoded model must pass.
+//! The block pattern of the implicit matrix is a function of the elements
+//! ([`Model::pattern`]); the slots of every element in it are stored with the element.
 
-use super::bsr::LOWER;
-use crate::math::outer;
-use glam::{DMat3, DVec3};
+use super::elements::{Hinge, Spring, Triangle};
+use super::{build, BlockMatrix, Elasticity, Material, Mesh, State, Topology};
+use crate::error::{Error, Result};
+use crate::snapshot::{check, fingerprint, finite};
+use glam::DVec3;
 
-/// A Baraff–Witkin triangle: stretch and shear conditions.
+/// A cloth's model (see the module documentation); [`Model::state`] gives its initial
+/// [`State`], [`super::Solver::new`] a solver for it.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
-pub struct Triangle {
-    /// Vertex indices.
-    pub verts: [usize; 3],
-    /// `∂w_u/∂x_m` for the three corners.
-    pub du: [f64; 3],
-    /// `∂w_v/∂x_m` for the three corners.
-    pub dv: [f64; 3],
-    /// Rest area `a` in (u, v) (m²).
-    pub area: f64,
-    /// Half the smallest mass share (kg) of its vertices, the bound for indefinite terms.
-    pub mass_share: f64,
-    /// Block slots `(m, n)` row-major.
-    pub slots: [usize; 9],
+pub struct Model {
+    /// The triangles (vertex indices), `(M, 3)`.
+    pub(super) triangles: Vec<[usize; 3]>,
+    pub(super) elasticity: Elasticity,
+    pub(super) material: Material,
+    /// Gravity (m/s²).
+    pub(super) gravity: DVec3,
+    /// Collision thickness (m).
+    pub(super) thickness: f64,
+    /// The mesh's positions (m), `(N, 3)`: the initial positions of [`Model::state`].
+    pub(super) initial: Vec<DVec3>,
+    /// Lumped vertex masses (kg), `(N,)`.
+    pub(super) mass: Vec<f64>,
+    pub(super) elements: Vec<Triangle>,
+    pub(super) hinges: Vec<Hinge>,
+    pub(super) springs: Vec<Spring>,
 }
 
-impl Triangle {
-    /// The triangle `verts` with rest corner coordinates `uv` (m).
-    pub fn new(verts: [usize; 3], uv: [[f64; 2]; 3]) -> Triangle {
-        let (du1, dv1) = (uv[1][0] - uv[0][0], uv[1][1] - uv[0][1]);
-        let (du2, dv2) = (uv[2][0] - uv[0][0], uv[2][1] - uv[0][1]);
-        let det = du1 * dv2 - du2 * dv1;
-        // [w_u w_v] = [Δx1 Δx2] [[Δu1 Δu2] [Δv1 Δv2]]⁻¹ (Baraff & Witkin 1998, eq. 9).
-        let (wu1, wu2) = (dv2 / det, -dv1 / det);
-        let (wv1, wv2) = (-du2 / det, du1 / det);
-        Triangle {
-            verts,
-            du: [-(wu1 + wu2), wu1, wu2],
-            dv: [-(wv1 + wv2), wv1, wv2],
-            area: 0.5 * det.abs(),
-            mass_share: 0.0,
-            slots: [0; 9],
-        }
-    }
-
-    /// `(w_u, w_v)` at positions `x`.
+impl Model {
+    /// The model of a cloth on `mesh` (rest state: the mesh's uv for stretch and shear, its
+    /// initial shape for bending), with vertex masses `density × area / 3` from the rest areas
+    /// of the triangles around each vertex, and a collision thickness of 1 mm.
     ///
-    /// Inlined: called out of line it returned its 3-vectors through memory in pieces the
-    /// caller read back across two stores, and each such read waits for the stores to
-    /// retire (a failed store-to-load forward).
-    #[inline(always)]
-    pub fn warp(&self, x: &[DVec3]) -> (DVec3, DVec3) {
-        let p = self.verts.map(|i| x[i]);
-        let wu = p[0] * self.du[0] + p[1] * self.du[1] + p[2] * self.du[2];
-        let wv = p[0] * self.dv[0] + p[1] * self.dv[1] + p[2] * self.dv[2];
-        (wu, wv)
-    }
-}
-
-/// A bending hinge: the dihedral angle across an interior edge.
-#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
-pub struct Hinge {
-    /// `[a, b, p, q]`: edge `(a, b)`, opposite vertices `p`, `q`.
-    pub verts: [usize; 4],
-    /// Rest angle (rad).
-    pub rest_angle: f64,
-    /// Stiffness `k` of `E = k/2 (θ - θ₀)²` (N m / rad²).
-    pub k: f64,
-    /// Block slots `(m, n)` row-major.
-    pub slots: [usize; 16],
-}
-
-/// A spring with a damper between two vertices.
-#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
-pub struct Spring {
-    /// Vertex indices.
-    pub verts: [usize; 2],
-    /// Rest length (m).
-    pub rest: f64,
-    /// Stiffness (N/m).
-    pub k: f64,
-    /// Half the smallest mass share (kg) of its vertices, the bound for indefinite terms.
-    pub mass_share: f64,
-    /// Block slots `(m, n)` row-major.
-    pub slots: [usize; 4],
-}
-
-/// The signed dihedral angle of hinge `(a, b, p, q)` and its gradient with respect to
-/// `[a, b, p, q]` (Bridson, Marino & Fedkiw 2003, "Simulation of clothing with folds and
-/// wrinkles", §4: the bending modes `u₁..u₄` are the angle's gradient). Zero when flat,
-/// positive when the triangles fold towards their common normal.
-///
-/// The angle is `atan2((m̂₁ × m̂₂)·ê, m̂₁·m̂₂)` of the unit normals; `atan2` does not change when
-/// both arguments are scaled by the same positive factor, here `|n₁| |n₂| |e|`, so it is
-/// taken of the unnormalised normals: one square root and three divisions a hinge instead
-/// of three and nineteen (the divisions and roots were most of its time). Inlined, so that
-/// its arguments and results stay in registers (see [`Triangle::warp`]).
-#[inline(always)]
-pub fn dihedral_angle(a: DVec3, b: DVec3, p: DVec3, q: DVec3) -> (f64, [DVec3; 4]) {
-    let e = b - a;
-    let e_len = e.length();
-    let inv_e = 1.0 / e_len;
-    let n1 = (p - a).cross(p - b);
-    let n2 = (q - b).cross(q - a);
-    let (u1, u2) = (n1 * (1.0 / n1.length_squared()), n2 * (1.0 / n2.length_squared()));
-    let gp = e_len * u1;
-    let gq = e_len * u2;
-    let ga = (p - b).dot(e) * inv_e * u1 + (q - b).dot(e) * inv_e * u2;
-    let gb = -(p - a).dot(e) * inv_e * u1 - (q - a).dot(e) * inv_e * u2;
-    let theta = n1.cross(n2).dot(e).atan2(n1.dot(n2) * e_len);
-    (-theta, [ga, gb, gp, gq])
-}
-
-/// Where an element's contributions go: forces, and when `matrix` is set the implicit matrix
-/// `A -= α ∂f/∂v + β ∂f/∂x` and the vector `K u` (`∂f/∂x` times the given displacement).
-pub struct Accumulator<'a> {
-    /// Velocities (m/s).
-    pub v: &'a [DVec3],
-    /// Force accumulator (N).
-    pub f: &'a mut [DVec3],
-    /// Matrix blocks and `(α, β)`, or `None` for forces only.
-    pub matrix: Option<(&'a mut [DMat3], f64, f64)>,
-    /// Displacement `u` and the accumulator for `(∂f/∂x) u`.
-    pub ku: Option<(&'a [DVec3], &'a mut [DVec3])>,
-    /// Elastic energy (J).
-    pub energy: f64,
-}
-
-impl Accumulator<'_> {
-    /// Add one condition `C` with gradient `g` over `verts`, stiffness `k`, damping `kd`,
-    /// and optionally its curvature (see [`Curvature`]).
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    pub fn condition<
-        const N: usize,
-        H: Fn(usize, usize) -> DMat3,
-        P: Fn(&[DVec3; N]) -> [DVec3; N],
-    >(
-        &mut self,
-        verts: &[usize; N],
-        slots: &[usize],
-        c: f64,
-        g: &[DVec3; N],
-        k: f64,
-        kd: f64,
-        curvature: Option<Curvature<H, P>>,
-    ) {
-        let c_dot: f64 = (0..N).map(|m| g[m].dot(self.v[verts[m]])).sum();
-        let scale = k * c + kd * c_dot;
-        for m in 0..N {
-            self.f[verts[m]] -= scale * g[m];
+    /// # Errors
+    /// An invalid mesh ([`Mesh::validate`]) or material (negative, non-finite, or zero density
+    /// or stretch), or non-finite gravity.
+    pub fn new(
+        mesh: Mesh,
+        elasticity: Elasticity,
+        material: Material,
+        gravity: DVec3,
+    ) -> Result<Model> {
+        mesh.validate()?;
+        material.check()?;
+        if !gravity.is_finite() {
+            return Err(Error::invalid("gravity", "must be finite"));
         }
-        self.energy += 0.5 * k * c * c;
-        let Some((blocks, alpha, beta)) = self.matrix.as_mut() else { return };
-        let (alpha, beta) = (*alpha, *beta);
-        let curvature = curvature.filter(|h| {
-            let definite = h.psd && scale >= 0.0;
-            definite || beta * scale.abs() * h.negative_bound <= h.mass_share
-        });
-        let weight = alpha * kd + beta * k;
-        for m in 0..N {
-            let gw = g[m] * weight;
-            for n in 0..N {
-                let slot = slots[N * m + n];
-                if slot == LOWER {
-                    continue; // the transpose of a stored block
-                }
-                // -(α ∂d/∂v + β ∂f/∂x) = (α k_d + β k) g_m g_nᵀ + β s H_mn.
-                let mut block = DMat3::from_cols(gw * g[n].x, gw * g[n].y, gw * g[n].z);
-                if let Some(h) = &curvature {
-                    block += (h.block)(m, n) * (scale * beta);
-                }
-                blocks[slot] += block;
-            }
+        let n = mesh.positions.len();
+        let x: Vec<DVec3> = mesh.positions.iter().map(|p| DVec3::from_array(*p)).collect();
+        let topology = Topology::new(&mesh.triangles);
+        let mut elements: Vec<Triangle> =
+            mesh.triangles.iter().zip(&mesh.uv).map(|(t, uv)| Triangle::new(*t, *uv)).collect();
+        let mass = build::lumped_masses(n, &elements, material.density);
+        let (mut hinges, mut springs) = match elasticity {
+            Elasticity::BaraffWitkin => (build::hinges(&topology, &x, material.bend), Vec::new()),
+            Elasticity::MassSpring => (Vec::new(), build::springs(&topology, &x, &material)),
+        };
+        let pattern = build::pattern(n, elasticity, &elements, &hinges, &springs);
+        build::mass_shares(elasticity, &mass, &mut elements, &mut springs);
+        build::slots(elasticity, &pattern, &mut elements, &mut hinges, &mut springs);
+        Ok(Model {
+            triangles: mesh.triangles,
+            elasticity,
+            material,
+            gravity,
+            thickness: 1e-3,
+            initial: x,
+            mass,
+            elements,
+            hinges,
+            springs,
+        })
+    }
+
+    /// The initial state: the mesh's positions, at rest, at time 0, free, without colliders.
+    pub fn state(&self) -> State {
+        State::new(self)
+    }
+
+    /// Number of vertices `N`.
+    pub fn len(&self) -> usize {
+        self.mass.len()
+    }
+
+    /// Whether the model has no vertices (never: a cloth has at least one triangle).
+    pub fn is_empty(&self) -> bool {
+        self.mass.is_empty()
+    }
+
+    /// The triangles, `(M, 3)` vertex indices.
+    pub fn triangles(&self) -> &[[usize; 3]] {
+        &self.triangles
+    }
+
+    /// The elastic model.
+    pub fn elasticity(&self) -> Elasticity {
+        self.elasticity
+    }
+
+    /// The material.
+    pub fn material(&self) -> Material {
+        self.material
+    }
+
+    /// Gravity (m/s²).
+    pub fn gravity(&self) -> DVec3 {
+        self.gravity
+    }
+
+    /// Vertex masses (kg), `(N,)`.
+    pub fn masses(&self) -> &[f64] {
+        &self.mass
+    }
+
+    /// Collision thickness (m): contacts keep vertices this far from collider surfaces.
+    pub fn thickness(&self) -> f64 {
+        self.thickness
+    }
+
+    /// Set the collision thickness (m, >= 0).
+    ///
+    /// # Errors
+    /// A negative or non-finite value; the model is then unchanged.
+    pub fn set_thickness(&mut self, thickness: f64) -> Result<()> {
+        if !thickness.is_finite() || thickness < 0.0 {
+            return Err(Error::invalid(
+                "thickness",
+                format!("must be finite and >= 0, got {thickness}"),
+            ));
         }
-        // (∂f/∂x) u = -k g (gᵀu) - s H u.
-        if let Some((u, ku)) = self.ku.as_mut() {
-            let ue = verts.map(|i| u[i]);
-            let gu: f64 = (0..N).map(|n| g[n].dot(ue[n])).sum();
-            let hu = curvature.as_ref().map(|h| (h.apply)(&ue));
-            for m in 0..N {
-                let mut v = g[m] * (-k * gu);
-                if let Some(hu) = &hu {
-                    v -= hu[m] * scale;
-                }
-                ku[verts[m]] += v;
-            }
-        }
+        self.thickness = thickness;
+        Ok(())
     }
-}
 
-/// The second derivative `∂²C/∂x_m∂x_n` of a condition, as the function `block(m, n)`.
-pub struct Curvature<H, P> {
-    /// `∂²C/∂x_m∂x_n`.
-    pub block: H,
-    /// The product `(∂²C/∂x²) u` for the element's displacements `u` (m), by the structure of
-    /// the blocks rather than block by block.
-    pub apply: P,
-    /// Whether `∂²C/∂x²` is positive semidefinite.
-    pub psd: bool,
-    /// A bound on `-λ_min(s ∂²C/∂x²) / |s|` (the most negative eigenvalue per unit `s`).
-    pub negative_bound: f64,
-    /// The mass share (kg) the term may not exceed after multiplication by `h²`.
-    pub mass_share: f64,
-}
+    /// The block pattern of the implicit matrix (zero blocks): every pair of vertices that
+    /// share an element of the model. Allocates.
+    pub fn pattern(&self) -> BlockMatrix {
+        build::pattern(self.len(), self.elasticity, &self.elements, &self.hinges, &self.springs)
+    }
 
-/// Stretch and shear of one triangle (Baraff & Witkin 1998, §4.2–4.3), with
-/// `k_stretch = stretch / a`, `k_shear = shear / a` so that the energy per unit area does not
-/// depend on the mesh resolution, and `k_d = damping · k`.
-///
-/// The three conditions share one structure: `w_u = Σₘ du_m x_m`, `w_v = Σₘ dv_m x_m`, so
-/// each gradient is `∂C/∂x_m = du_m ∂C/∂w_u + dv_m ∂C/∂w_v` and each block of the
-/// triangle's matrix (Gauss–Newton and curvature parts of all three conditions) is
-/// `du_m du_n W_uu + dv_m dv_n W_vv + du_m dv_n W_uv + dv_m du_n W_uvᵀ` with four 3x3
-/// matrices summed over the conditions: the blocks are formed once per triangle from them,
-/// as are the forces and `(∂f/∂x) u`. Each condition's curvature term is kept or dropped
-/// as [`Accumulator::condition`] does it.
-#[inline(always)]
-pub fn triangle(
-    t: &Triangle,
-    x: &[DVec3],
-    stretch: f64,
-    shear: f64,
-    damping: f64,
-    acc: &mut Accumulator,
-) {
-    let (wu, wv) = t.warp(x);
-    // By reference: a copy of the arrays to the stack is read back across two stores.
-    let (a, du, dv) = (t.area, &t.du, &t.dv);
-    let v = t.verts.map(|i| acc.v[i]);
-    // ẇ_u, ẇ_v.
-    let (vu, vv) =
-        (v[0] * du[0] + v[1] * du[1] + v[2] * du[2], v[0] * dv[0] + v[1] * dv[1] + v[2] * dv[2]);
-    let (lu, lv) = (wu.length(), wv.length());
-    // Reciprocals once: a division costs several multiplications.
-    let (inv_lu, inv_lv) = (1.0 / lu, 1.0 / lv);
-    let (hu, hv) = (wu * inv_lu, wv * inv_lv);
-    let (ks, kh) = (stretch / a, shear / a);
-    // Stretch in u, stretch in v, shear: C, Ċ and s = k C + k_d Ċ.
-    let c = [a * (lu - 1.0), a * (lv - 1.0), a * wu.dot(wv)];
-    let c_dot = [a * hu.dot(vu), a * hv.dot(vv), a * (wv.dot(vu) + wu.dot(vv))];
-    let k = [ks, ks, kh];
-    let s = [0, 1, 2].map(|i| k[i] * c[i] + damping * k[i] * c_dot[i]);
-    acc.energy += 0.5 * (k[0] * c[0] * c[0] + k[1] * c[1] * c[1] + k[2] * c[2] * c[2]);
-    // f_m = -Σ s ∂C/∂x_m = -(du_m F_u + dv_m F_v).
-    let fu = (hu * s[0] + wv * s[2]) * a;
-    let fv = (hv * s[1] + wu * s[2]) * a;
-    for m in 0..3 {
-        acc.f[t.verts[m]] -= fu * du[m] + fv * dv[m];
+    /// A deterministic 64-bit hash of the model ([`crate::snapshot::fingerprint`] of its
+    /// serialized bytes): state snapshots record it, and restoring one onto a model with
+    /// another fingerprint is refused.
+    pub fn fingerprint(&self) -> u64 {
+        fingerprint(self)
     }
-    let Some((blocks, alpha, beta)) = acc.matrix.as_mut() else { return };
-    let (alpha, beta) = (*alpha, *beta);
-    // Gauss–Newton part Σ k (∂C/∂w)(∂C/∂w)ᵀ, with ∂C/∂w_u = a ŵ_u for stretch in u and a w_v
-    // for shear, ∂C/∂w_v = a ŵ_v for stretch in v and a w_u for shear.
-    let a2 = a * a;
-    let g_uu = (outer(hu, hu) * ks + outer(wv, wv) * kh) * a2;
-    let g_vv = (outer(hv, hv) * ks + outer(wu, wu) * kh) * a2;
-    let g_uv = outer(wv, wu) * (kh * a2);
-    // Curvature part Σ s ∂²C/∂w∂w: a (I - ŵŵᵀ)/‖w‖ for stretch (positive semidefinite,
-    // eigenvalues up to a |d|²/‖w‖ per unit s), a I between w_u and w_v for shear
-    // (indefinite, eigenvalues a (du·dv ± |du||dv|)).
-    let dot3 = |p: &[f64; 3], q: &[f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
-    let keep =
-        |s: f64, psd: bool, bound: f64| (psd && s >= 0.0) || beta * s.abs() * bound <= t.mass_share;
-    let projector = |h: DVec3, inv_len: f64| (DMat3::IDENTITY - outer(h, h)) * (a * inv_len);
-    let mut h_uu = DMat3::ZERO;
-    let mut h_vv = DMat3::ZERO;
-    let mut h_uv = 0.0;
-    let (du2, dv2) = (dot3(du, du), dot3(dv, dv));
-    if keep(s[0], true, a * du2 * inv_lu) {
-        h_uu = projector(hu, inv_lu) * s[0];
-    }
-    if keep(s[1], true, a * dv2 * inv_lv) {
-        h_vv = projector(hv, inv_lv) * s[1];
-    }
-    let shear_bound = a * ((du2 * dv2).sqrt() + dot3(du, dv).abs());
-    if keep(s[2], false, shear_bound) {
-        h_uv = a * s[2];
-    }
-    // -(α ∂d/∂v + β ∂f/∂x) = (α k_d + β k) ∂C/∂x ∂C/∂xᵀ + β s ∂²C/∂x².
-    let weight = alpha * damping + beta;
-    let w_uu = g_uu * weight + h_uu * beta;
-    let w_vv = g_vv * weight + h_vv * beta;
-    let w_uv = g_uv * weight + DMat3::from_diagonal(DVec3::splat(h_uv * beta));
-    let w_vu = w_uv.transpose();
-    for n in 0..3 {
-        // Block (m, n) = du_m X_n + dv_m Y_n.
-        let xn = w_uu * du[n] + w_uv * dv[n];
-        let yn = w_vu * du[n] + w_vv * dv[n];
-        for m in 0..3 {
-            let slot = t.slots[3 * m + n];
-            if slot != LOWER {
-                blocks[slot] += xn * du[m] + yn * dv[m];
-            }
-        }
-    }
-    // (∂f/∂x) u = -(K u) with K of the same structure, K = G + H.
-    if let Some((u, ku)) = acc.ku.as_mut() {
-        let ue = t.verts.map(|i| u[i]);
-        let uu = ue[0] * du[0] + ue[1] * du[1] + ue[2] * du[2];
-        let uv = ue[0] * dv[0] + ue[1] * dv[1] + ue[2] * dv[2];
-        let ku_u = (g_uu + h_uu) * uu + g_uv * uv + uv * h_uv;
-        let ku_v = g_uv.transpose() * uu + uu * h_uv + (g_vv + h_vv) * uv;
-        for m in 0..3 {
-            ku[t.verts[m]] -= ku_u * du[m] + ku_v * dv[m];
-        }
-    }
-}
 
-/// No curvature term.
-type Flat = Curvature<fn(usize, usize) -> DMat3, fn(&[DVec3; 4]) -> [DVec3; 4]>;
+    /// Check a decoded model: lengths consistent, parameters finite and in range, every
+    /// element's vertices in range and its slots those of [`Model::pattern`].
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] naming the first inconsistent field.
+    pub(super) fn validate(&self) -> Result<()> {
+        let n = self.mass.len();
+        check(n > 0 && !self.triangles.is_empty(), "mass", || "a cloth needs vertices".into())?;
+        check(self.initial.len() == n, "initial", || format!("not of {n} vertices"))?;
+        check(finite(self.initial.iter().flat_map(|p| p.to_array())), "initial", || {
+            "non-finite positions".into()
+        })?;
+        check(self.mass.iter().all(|m| m.is_finite() && *m > 0.0), "mass", || {
+            "masses must be finite and positive".into()
+        })?;
+        let m = &self.material;
+        check(
+            finite([m.density, m.stretch, m.shear, m.bend, m.damping, m.air_damping])
+                && [m.density, m.stretch].iter().all(|&v| v > 0.0)
+                && [m.shear, m.bend, m.damping, m.air_damping].iter().all(|&v| v >= 0.0),
+            "material",
+            || "material parameters out of range".into(),
+        )?;
+        check(
+            self.gravity.is_finite() && self.thickness.is_finite() && self.thickness >= 0.0,
+            "gravity",
+            || "gravity and thickness must be finite".into(),
+        )?;
+        self.check_elements(n)?;
+        self.check_slots(n)
+    }
 
-/// Bending of one hinge on its dihedral angle (Baraff & Witkin 1998, §4.4), `k_d = damping · k`.
-#[inline(always)]
-pub fn hinge(h: &Hinge, x: &[DVec3], damping: f64, acc: &mut Accumulator) {
-    let [a, b, p, q] = h.verts.map(|i| x[i]);
-    let (theta, g) = dihedral_angle(a, b, p, q);
-    acc.condition(&h.verts, &h.slots, theta - h.rest_angle, &g, h.k, damping * h.k, None::<Flat>);
-}
+    /// Elements, hinges and springs index existing vertices and carry finite parameters.
+    fn check_elements(&self, n: usize) -> Result<()> {
+        let inside = |verts: &[usize]| verts.iter().all(|&v| v < n);
+        check(self.triangles.iter().all(|t| inside(t)), "triangles", || {
+            format!("vertex index out of range ({n} vertices)")
+        })?;
+        check(
+            self.elements.len() == self.triangles.len()
+                && self.elements.iter().zip(&self.triangles).all(|(e, t)| e.verts == *t),
+            "elements",
+            || "do not match the triangles".into(),
+        )?;
+        check(
+            self.elements.iter().all(|e| {
+                finite(e.du.iter().chain(&e.dv).copied())
+                    && e.area.is_finite()
+                    && e.area > 0.0
+                    && e.mass_share.is_finite()
+            }),
+            "elements",
+            || "non-finite rest shape or zero area".into(),
+        )?;
+        check(
+            self.hinges.iter().all(|h| inside(&h.verts) && finite([h.rest_angle, h.k])),
+            "hinges",
+            || "vertex out of range or non-finite parameters".into(),
+        )?;
+        check(
+            self.springs.iter().all(|s| inside(&s.verts) && finite([s.rest, s.k, s.mass_share])),
+            "springs",
+            || "vertex out of range or non-finite parameters".into(),
+        )?;
+        let bending = self.elasticity == Elasticity::BaraffWitkin;
+        check(
+            if bending { self.springs.is_empty() } else { self.hinges.is_empty() },
+            "springs",
+            || "elements of another model".into(),
+        )
+    }
 
-/// One spring: `C = l - L`, `k_d = damping · k`.
-#[inline(always)]
-pub fn spring(s: &Spring, x: &[DVec3], damping: f64, acc: &mut Accumulator) {
-    let d = x[s.verts[1]] - x[s.verts[0]];
-    let l = d.length();
-    let n = d / l;
-    let g = [-n, n];
-    // ∂²l/∂x² = [[P, -P], [-P, P]], P = (I - n̂n̂ᵀ)/l; eigenvalues 0 and 2/l.
-    let projector = (DMat3::IDENTITY - DMat3::from_cols(n * n.x, n * n.y, n * n.z)) / l;
-    let curvature = Curvature {
-        block: |m: usize, k: usize| if m == k { projector } else { -projector },
-        apply: |u: &[DVec3; 2]| {
-            let pu = projector * (u[0] - u[1]);
-            [pu, -pu]
-        },
-        psd: true,
-        negative_bound: 2.0 / l,
-        mass_share: s.mass_share,
-    };
-    acc.condition(&s.verts, &s.slots, l - s.rest, &g, s.k, damping * s.k, Some(curvature));
+    /// Every element's slots are those [`Model::new`] gives it in [`Model::pattern`] (so a
+    /// damaged slot cannot send the assembly out of bounds). Vertices checked in range first.
+    fn check_slots(&self, n: usize) -> Result<()> {
+        let pattern = self.pattern();
+        check(pattern.n() == n, "slots", || "pattern of another size".into())?;
+        let slots = |verts: &[usize], k: usize| {
+            let w = verts.len();
+            pattern.slot(verts[k / w], verts[k % w])
+        };
+        let bending = self.elasticity == Elasticity::BaraffWitkin;
+        let triangles_ok = self
+            .elements
+            .iter()
+            .all(|t| (0..9).all(|k| t.slots[k] == if bending { slots(&t.verts, k) } else { 0 }));
+        let hinges_ok =
+            self.hinges.iter().all(|h| (0..16).all(|k| h.slots[k] == slots(&h.verts, k)));
+        let springs_ok =
+            self.springs.iter().all(|s| (0..4).all(|k| s.slots[k] == slots(&s.verts, k)));
+        check(triangles_ok && hinges_ok && springs_ok, "slots", || {
+            "element slots do not match the matrix pattern".into()
+        })
+    }
 }

@@ -231,3 +231,28 @@ def test_box_collider_holds_the_cloth():
         cloth.add_collider(Box([0, 0, 0], [1, 1, 1], orientation=[1, 0, 0, 0]))
     with pytest.raises(ValueError, match="collider"):
         cloth.add_collider(Box([0, 0, 0], [1, -1, 1]))
+
+
+def test_undo_point_puts_the_whole_state_back_in_place():
+    # A scene's undo point (_mark / _rollback) copies the state only; put back, it resumes bit
+    # for bit like a pickle taken at the mark (BDF2 history, PCG warm start, contact states,
+    # pins and colliders included), and views taken before stay those of the cloth.
+    import pickle
+
+    c = Cloth.grid(6, 6, 1.0, 1.0)
+    c.pin([0, 5])
+    c.add_collider(Sphere((0.0, -0.35, 0.0), 0.3, velocity=(0.0, 0.1, 0.0), friction=0.4))
+    c.step(0.01, 3, integrator="bdf2")
+    copy, view = pickle.dumps(c), c.positions
+    c._core._mark()
+    c.step(0.01, 4, integrator="bdf2")
+    c.pin([35])
+    c.add_collider(Plane((0.0, -0.2, 0.0), (0.0, 1.0, 0.0)))
+    c._core._rollback()
+    other = pickle.loads(copy)
+    assert c.time == other.time
+    for cloth in (c, other):
+        cloth.step(0.01, 5, integrator="bdf2")
+    assert c.positions.tobytes() == other.positions.tobytes()
+    assert c.velocities.tobytes() == other.velocities.tobytes()
+    assert np.array_equal(view, c.positions) and view.base is not None

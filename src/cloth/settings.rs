@@ -1,0 +1,117 @@
+//! The cloth's parameter types: the elastic model, the material, vertex constraints, the
+//! options of a step and the numbers a step reports.
+
+use glam::DVec3;
+
+/// The elastic model of the cloth (the force law of its elements).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Elasticity {
+    /// Baraff–Witkin triangle conditions (stretch, shear) and dihedral-angle bending.
+    BaraffWitkin,
+    /// Stretch and shear springs on edges and across quads, bend springs across the other
+    /// interior edges, each with a damper.
+    MassSpring,
+}
+
+/// Material parameters (Baraff & Witkin 1998, §4; SI units as given per field).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// Areal density (kg/m²).
+    pub density: f64,
+    /// Stretch stiffness (N/m): membrane stiffness for the triangle model (energy
+    /// `stretch/2 · a (‖w‖ - 1)²` per triangle), spring constant for stretch springs.
+    pub stretch: f64,
+    /// Shear stiffness (N/m), same meaning for the shear condition and shear springs.
+    pub shear: f64,
+    /// Bending stiffness (N m): hinge stiffness `bend · 3|e|²/(A₁ + A₂)` (the discrete-shells
+    /// scaling, Grinspun et al. 2003) for the triangle model, `bend / L²` for bend springs.
+    pub bend: f64,
+    /// Stiffness-proportional damping (s): every condition gets `k_d = damping · k`.
+    pub damping: f64,
+    /// Mass-proportional (air) damping (1/s): a force `-air_damping · mᵢ vᵢ` on every vertex.
+    /// With `damping` it makes Rayleigh damping `α M + β K`.
+    pub air_damping: f64,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Material {
+            density: 0.1,
+            stretch: 1e3,
+            shear: 1e2,
+            bend: 1e-5,
+            damping: 1e-3,
+            air_damping: 0.0,
+        }
+    }
+}
+
+/// The linear solver of the implicit step.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LinearSolver {
+    /// Modified preconditioned conjugate gradient with the filter (Baraff & Witkin §5.3).
+    Pcg,
+    /// Sparse Cholesky (faer) of the filtered SPD system.
+    Cholesky,
+}
+
+/// A user constraint on one vertex.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub enum VertexConstraint {
+    /// Held at a position (m).
+    Pinned(DVec3),
+    /// Free to move in the plane through its position with this unit normal.
+    Plane(DVec3),
+    /// Free to move along the line through its position with this unit direction.
+    Line(DVec3),
+    /// Moving at a prescribed velocity (m/s).
+    Velocity(DVec3),
+}
+
+/// Numbers of the last step.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepStats {
+    /// Conjugate-gradient iterations (0 for Cholesky and explicit steps).
+    pub iterations: usize,
+    /// Relative residual of the linear solve: `sqrt(δ/δ₀)` for PCG, `‖S(A Δv - b)‖/‖S b‖` for
+    /// Cholesky.
+    pub residual: f64,
+    /// Whether the solve met its tolerance (PCG may stop at its iteration limit).
+    pub converged: bool,
+    /// Vertices in contact with a collider.
+    pub contacts: usize,
+    /// Implicit steps taken (more than one when the step was subdivided).
+    pub substeps: usize,
+    /// Seconds spent assembling forces and the matrix.
+    pub assemble_seconds: f64,
+    /// Seconds in the linear solve.
+    pub solve_seconds: f64,
+    /// Seconds in collision detection and response.
+    pub collide_seconds: f64,
+}
+
+/// Options of an implicit step.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct SolveOptions {
+    /// The linear solver.
+    pub solver: LinearSolver,
+    /// PCG tolerance `ε` (relative, preconditioned norm).
+    pub tol: f64,
+    /// PCG iteration limit.
+    pub max_iterations: usize,
+    /// The largest change of any stretch ratio (`‖w_u‖`, `‖w_v‖`, or `l/L` of a spring) one
+    /// step may make; a step that exceeds it is redone as two half steps (Baraff & Witkin §5:
+    /// the step size is cut when a step stretches the cloth too much), down to `h / 32`.
+    pub max_strain_change: f64,
+}
+
+impl Default for SolveOptions {
+    fn default() -> Self {
+        SolveOptions {
+            solver: LinearSolver::Pcg,
+            tol: 1e-6,
+            max_iterations: 1000,
+            max_strain_change: 0.01,
+        }
+    }
+}
