@@ -115,3 +115,26 @@ fn header(tag: &str) -> Vec<u8> {
     h.extend_from_slice(&VERSION.to_le_bytes());
     h
 }
+
+/// A deterministic 64-bit hash of `value`: FNV-1a (Fowler, Noll & Vo) over its postcard
+/// encoding, the bytes a snapshot stores, computed without allocating. Equal values hash
+/// equal on every platform and run; a value that cannot be encoded (a user function) hashes
+/// the bytes encoded before it.
+pub fn fingerprint<T: Serialize>(value: &T) -> u64 {
+    struct Fnv(u64);
+    impl std::io::Write for Fnv {
+        fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+            for &b in bytes {
+                self.0 = (self.0 ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+            }
+            Ok(bytes.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    let mut hash = Fnv(0xcbf2_9ce4_8422_2325);
+    // An encoding error only cuts the hashed bytes short (documented above).
+    let _ = postcard::to_io(value, &mut hash);
+    hash.0
+}

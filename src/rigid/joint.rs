@@ -210,14 +210,14 @@ struct Side {
 
 /// Body state the rows read: centres of mass, principal frames (→ world), velocities and
 /// world angular velocities (may be empty for position-only evaluations).
-pub(crate) struct State<'a> {
+pub(crate) struct Kinematics<'a> {
     pub x: &'a [DVec3],
     pub q: &'a [DQuat],
     pub v: &'a [DVec3],
     pub w: &'a [DVec3],
 }
 
-impl State<'_> {
+impl Kinematics<'_> {
     fn vel(&self, i: usize) -> (DVec3, DVec3) {
         if self.v.is_empty() {
             (DVec3::ZERO, DVec3::ZERO)
@@ -237,7 +237,7 @@ fn check_vec(arg: &str, v: DVec3) -> Result<()> {
 
 impl Joint {
     /// Check `desc` against a world of `n` bodies at state `s` and make the joint.
-    pub fn new(desc: &JointDesc, n: usize, s: &State<'_>) -> Result<Joint> {
+    pub fn new(desc: &JointDesc, n: usize, s: &Kinematics<'_>) -> Result<Joint> {
         if desc.a >= n {
             return Err(Error::invalid(
                 "a",
@@ -349,7 +349,7 @@ impl Joint {
         }
     }
 
-    fn side(&self, s: &State<'_>, body: Option<usize>, r: DVec3, f: DQuat) -> Side {
+    fn side(&self, s: &Kinematics<'_>, body: Option<usize>, r: DVec3, f: DQuat) -> Side {
         match body {
             Some(i) => {
                 let r = s.q[i] * r;
@@ -360,7 +360,7 @@ impl Joint {
         }
     }
 
-    fn sides(&self, s: &State<'_>) -> (Side, Side) {
+    fn sides(&self, s: &Kinematics<'_>) -> (Side, Side) {
         (self.side(s, Some(self.a), self.ra, self.fa), self.side(s, self.b, self.rb, self.fb))
     }
 
@@ -372,7 +372,7 @@ impl Joint {
     }
 
     /// Evaluate the rows at state `s` into `out` (all [`SLOTS`] written; unused ones inactive).
-    pub fn rows(&self, s: &State<'_>, out: &mut [Row]) {
+    pub fn rows(&self, s: &Kinematics<'_>, out: &mut [Row]) {
         let (a, b) = self.sides(s);
         out[..SLOTS].fill(Row::INACTIVE);
         let d = b.p - a.p;
@@ -460,7 +460,7 @@ impl Joint {
     /// slots (inactive when not needed): a positional row `C = |e|` along the anchors' offset
     /// `e`, an angular row `C = |θ|` about the aligning rotation vector `θ`, and the hinge's
     /// lower and upper limit rows while violated.
-    pub fn xpbd_rows(&self, s: &State<'_>, out: &mut [Row; 4]) {
+    pub fn xpbd_rows(&self, s: &Kinematics<'_>, out: &mut [Row; 4]) {
         let (a, b) = self.sides(s);
         out.fill(Row::INACTIVE);
         let mut e = b.p - a.p;
@@ -520,7 +520,7 @@ impl Joint {
     /// The world axis about which the joint leaves the bodies free to turn at state `s` (the
     /// hinge axis of `a`), or `None` when every relative rotation is constrained (slider,
     /// fixed) or none is (ball).
-    pub fn free_axis(&self, s: &State<'_>) -> Option<DVec3> {
+    pub fn free_axis(&self, s: &Kinematics<'_>) -> Option<DVec3> {
         match self.kind {
             JointKind::Hinge { .. } => Some(self.sides(s).0.f * DVec3::X),
             _ => None,
@@ -531,7 +531,7 @@ impl Joint {
     /// slider, from the anchor of `a` to the line through `b`'s anchor along the axis) and the
     /// angle of the relative rotation the joint forbids (rad; between the axes for a hinge,
     /// the whole relative rotation for a slider or a fixed joint, 0 for a ball).
-    pub fn violation(&self, s: &State<'_>) -> (f64, f64) {
+    pub fn violation(&self, s: &Kinematics<'_>) -> (f64, f64) {
         let (a, b) = self.sides(s);
         let mut e = b.p - a.p;
         let ua = a.f * DVec3::X;
@@ -553,7 +553,7 @@ impl Joint {
     /// The joint's coordinate and its rate: the hinge angle (rad) and angular velocity of `b`
     /// relative to `a` about the axis (rad/s), the slider's displacement of `b` relative to `a`
     /// along the axis from creation (m) and its rate (m/s); zeros for ball and fixed joints.
-    pub fn coordinate(&self, s: &State<'_>) -> (f64, f64) {
+    pub fn coordinate(&self, s: &Kinematics<'_>) -> (f64, f64) {
         let (a, b) = self.sides(s);
         match self.kind {
             JointKind::Hinge { .. } => {

@@ -3,7 +3,7 @@
 //! with a position pass, and the XPBD projection. The equations are in the module docs of
 //! [`joint`](super::joint) and in `docs/rigid.md`.
 
-use super::joint::{Joint, JointKind, JointMethod, Row, RowKind, State, SLOTS};
+use super::joint::{Joint, JointKind, JointMethod, Kinematics, Row, RowKind, SLOTS};
 use crate::error::{Error, Result};
 use crate::linalg::SparseCholesky;
 use glam::{DQuat, DVec3};
@@ -93,7 +93,7 @@ pub(crate) fn penalty(
     j: &Joint,
     rows: &[Row],
     m: &Mass<'_>,
-    s: &State<'_>,
+    s: &Kinematics<'_>,
     h: f64,
     force: &mut [DVec3],
     torque: &mut [DVec3],
@@ -136,7 +136,7 @@ enum Activity {
 /// The multiplier system `J M⁻¹ Jᵀ λ = b` of the joints using [`JointMethod::Lagrange`]: the
 /// rows that can take part (the used slots of those joints), the lower-triangle pattern of
 /// rows sharing a body, its symbolic factorisation, and every workspace of the solve.
-#[derive(serde::Serialize, serde::Deserialize, Debug, Default)]
+#[derive(Debug, Default)]
 pub(crate) struct Multipliers {
     /// The pattern (lower triangle, compressed columns), kept to rebuild the factorisation of
     /// a clone.
@@ -152,7 +152,7 @@ pub(crate) struct Multipliers {
     rhs: Vec<f64>,
     lambda: Vec<f64>,
     activity: Vec<Activity>,
-    #[serde(skip)] // rebuilt by `solve_rhs` (same pattern, same factor)
+    /// Not cloned: rebuilt by `solve_rhs` (same pattern, same factor).
     chol: Option<SparseCholesky>,
     acc: Vec<DVec3>,
     alpha: Vec<DVec3>,
@@ -258,7 +258,7 @@ impl Multipliers {
 
     /// Factorise the assembled `values` and solve for `lambda` with the right-hand side `rhs`;
     /// `false` when there is no system. The symbolic analysis is redone first if missing (in a
-    /// clone or a restored snapshot, which do not carry faer's structure; rebuilt identically).
+    /// clone, which does not carry faer's structure; rebuilt identically).
     fn solve_rhs(&mut self) -> Result<bool> {
         if self.chol.is_none() && !self.map.is_empty() {
             let m = self.map.len();
@@ -414,7 +414,7 @@ impl Multipliers {
         joints: &[Joint],
         rows: &[Row],
         m: &Mass<'_>,
-        s: &State<'_>,
+        s: &Kinematics<'_>,
         acc_free: &[DVec3],
         alpha_free: &[DVec3],
         h: f64,
@@ -625,13 +625,13 @@ pub(crate) fn project(
     let mut rows = [Row::INACTIVE; 4];
     for k in 0..4 {
         // Re-evaluate after each correction (Gauss–Seidel on the true pose).
-        j.xpbd_rows(&State { x, q, v: &[], w: &[] }, &mut rows);
+        j.xpbd_rows(&Kinematics { x, q, v: &[], w: &[] }, &mut rows);
         let r = rows[k];
         if r.kind == RowKind::Inactive {
             continue;
         }
         if k == 1 {
-            let free = j.free_axis(&State { x, q, v: &[], w: &[] });
+            let free = j.free_axis(&Kinematics { x, q, v: &[], w: &[] });
             project_alignment(j, m, free, r.ab * r.c, q, dtheta);
             continue;
         }
@@ -703,31 +703,5 @@ fn project_alignment(
     turn(j.a, -tau);
     if let Some(b) = j.b {
         turn(b, tau);
-    }
-}
-
-impl Multipliers {
-    /// Check multipliers decoded from a snapshot: their pattern and index maps are the ones
-    /// [`Multipliers::build`] makes for `joints` in a world of `n` bodies (or empty, when no
-    /// Lagrange joint was ever added), and every per-row and per-entry array has its length.
-    pub fn validate(&self, joints: &[Joint], n: usize) -> Result<()> {
-        let mut expected = Multipliers::default();
-        if joints.iter().any(|j| j.method == JointMethod::Lagrange) || !self.map.is_empty() {
-            expected.build(joints, n)?;
-        }
-        let m = expected.map.len();
-        let ok = self.col_ptr == expected.col_ptr
-            && self.row_idx == expected.row_idx
-            && self.map == expected.map
-            && self.contributions == expected.contributions
-            && self.diagonal == expected.diagonal
-            && self.values.len() == expected.values.len()
-            && [self.rhs.len(), self.lambda.len(), self.activity.len()] == [m; 3]
-            && self.values.iter().chain(&self.rhs).chain(&self.lambda).all(|v| v.is_finite());
-        if ok {
-            Ok(())
-        } else {
-            Err(Error::invalid("multipliers", "the pattern is not the one of the joints"))
-        }
     }
 }

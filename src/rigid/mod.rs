@@ -11,11 +11,26 @@
 //! friction ([`contact`]), between bodies as well. Joints (ball, hinge with limits and a motor,
 //! slider, fixed) are enforced by one of four formulations, [`JointMethod`]: penalty forces,
 //! Lagrange multipliers, sequential impulses or XPBD.
+//!
+//! The code has the shape of MuJoCo's `mjModel`/`mjData` and Newton's `Model`/`State`/solver:
+//! a [`Model`] built once (bodies, planes, joints, settings), any number of [`State`]s of it
+//! (poses, velocities, applied forces, warm starts), and a [`Solver`] that owns the workspaces
+//! and advances a state by [`Solver::step`]; [`World`] composes one of each.
 
 pub mod contact;
+mod integrate;
 mod joint;
 mod joint_solver;
+mod model;
+mod narrow;
+mod query;
+mod solver;
+mod state;
 mod world;
 
+pub use integrate::RotationIntegrator;
 pub use joint::{JointDesc, JointKind, JointMethod, Motor, PENALTY_DAMPING, PENALTY_STIFFNESS};
-pub use world::{BodyDesc, RotationIntegrator, World};
+pub use model::{BodyDesc, Model};
+pub use solver::Solver;
+pub use state::State;
+pub use world::World;
