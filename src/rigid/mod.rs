@@ -21,6 +21,7 @@ pub mod contact;
 mod integrate;
 mod joint;
 mod joint_solver;
+mod lagrange;
 mod model;
 mod narrow;
 mod query;

@@ -5,7 +5,7 @@
 
 use super::integrate::{kinetic_energy, RotationIntegrator};
 use super::joint::{Joint, JointDesc, JointMethod, Kinematics};
-use super::joint_solver::Multipliers;
+use super::lagrange::Multipliers;
 use super::State;
 use crate::error::{Error, Result};
 use crate::geometry::{MassProperties, Material, Plane, Shape, Solid};

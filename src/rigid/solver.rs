@@ -6,7 +6,7 @@
 use super::contact::{self, Contact};
 use super::integrate::{kinetic_energy, phi2, rotate};
 use super::joint::{JointMethod, Row, SLOTS};
-use super::joint_solver::Multipliers;
+use super::lagrange::Multipliers;
 use super::narrow::{Placed, Touch};
 use super::{Model, State};
 use crate::error::{Error, Result};
