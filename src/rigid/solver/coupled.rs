@@ -299,7 +299,7 @@ impl Solver {
         self.dx.resize(n, DVec3::ZERO);
         self.dtheta.clear();
         self.dtheta.resize(n, DVec3::ZERO);
-        if !(impulse || !self.contacts.is_empty()) {
+        if !impulse && self.contacts.is_empty() {
             return;
         }
         let sweeps = sweeps(&self.contacts, model, impulse);
