@@ -6,6 +6,7 @@
 use super::integrate::{kinetic_energy, RotationIntegrator};
 use super::joint::{Joint, JointDesc, JointMethod, Kinematics};
 use super::lagrange::Multipliers;
+use super::state::{finite_vectors, unit_quaternions};
 use super::State;
 use crate::error::{Error, Result};
 use crate::geometry::{MassProperties, Material, Plane, Shape, Solid};
@@ -419,8 +420,7 @@ impl Model {
         check(lengths.iter().all(|&l| l == n), "bodies", || {
             format!("per-body arrays of lengths {lengths:?} for {n} bodies")
         })?;
-        let vec3 = |v: &[DVec3]| finite(v.iter().flat_map(|p| p.to_array()));
-        let unit = |q: &[DQuat]| q.iter().all(|q| q.is_finite() && (q.length() - 1.0).abs() < 1e-6);
+        let (vec3, unit) = (finite_vectors, unit_quaternions);
         check(
             vec3(&self.com_body)
                 && vec3(&self.moments)

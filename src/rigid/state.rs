@@ -179,8 +179,7 @@ impl State {
         check(sizes.iter().all(|&l| l == n), "state", || {
             format!("per-body arrays of lengths {sizes:?} for {n} bodies")
         })?;
-        let vec3 = |v: &[DVec3]| finite(v.iter().flat_map(|p| p.to_array()));
-        let unit = |q: &[DQuat]| q.iter().all(|q| q.is_finite() && (q.length() - 1.0).abs() < 1e-6);
+        let (vec3, unit) = (finite_vectors, unit_quaternions);
         check(
             vec3(&self.x)
                 && vec3(&self.v)
@@ -203,4 +202,15 @@ impl State {
             || "warm-start contacts out of range or non-finite".into(),
         )
     }
+}
+
+/// Whether every vector is finite (for the snapshot checks).
+pub(super) fn finite_vectors(v: &[DVec3]) -> bool {
+    finite(v.iter().flat_map(|p| p.to_array()))
+}
+
+/// Whether every quaternion is finite and of unit length within 1e-6 (for the snapshot
+/// checks).
+pub(super) fn unit_quaternions(q: &[DQuat]) -> bool {
+    q.iter().all(|q| q.is_finite() && (q.length() - 1.0).abs() < 1e-6)
 }

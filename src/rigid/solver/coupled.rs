@@ -5,7 +5,7 @@
 
 use super::super::contact::{self, Bodies, Contact};
 use super::super::integrate::{exp_map, rotate};
-use super::super::joint::{JointKind, JointMethod, Kinematics, SLOTS};
+use super::super::joint::{JointKind, JointMethod, Kinematics, Row, SLOTS};
 use super::super::joint_solver::{self as js, Mass};
 use super::super::narrow::Placed;
 use super::super::{Model, State};
@@ -59,6 +59,18 @@ fn sweeps(contacts: &[Contact], model: &Model, impulse: bool) -> usize {
         sweeps.max(model.joint_iterations)
     } else {
         sweeps
+    }
+}
+
+/// The impulse joints' rows at `s` and their effective masses, into `rows` and `row_mass`.
+fn impulse_rows(model: &Model, s: &Kinematics<'_>, rows: &mut [Row], row_mass: &mut [f64]) {
+    let mass = mass_of(model);
+    for (ji, j) in model.joints.iter().enumerate() {
+        if j.method == JointMethod::Impulse {
+            let slots = ji * SLOTS..ji * SLOTS + j.slots();
+            j.rows(s, &mut rows[ji * SLOTS..(ji + 1) * SLOTS]);
+            js::effective_masses(j, &rows[slots.clone()], &mass, s.q, &mut row_mass[slots]);
+        }
     }
 }
 
@@ -190,20 +202,7 @@ impl Solver {
         let sweeps = sweeps(&self.contacts, model, m.impulse);
         if m.impulse {
             let s = Kinematics { x, q, v, w: &self.omega };
-            for (ji, j) in model.joints.iter().enumerate() {
-                if j.method != JointMethod::Impulse {
-                    continue;
-                }
-                let slots = ji * SLOTS..ji * SLOTS + j.slots();
-                j.rows(&s, &mut self.rows[ji * SLOTS..(ji + 1) * SLOTS]);
-                js::effective_masses(
-                    j,
-                    &self.rows[slots.clone()],
-                    &mass,
-                    q,
-                    &mut self.row_mass[slots],
-                );
-            }
+            impulse_rows(model, &s, &mut self.rows, &mut self.row_mass);
             for (ji, j) in model.joints.iter().enumerate() {
                 if j.method == JointMethod::Impulse {
                     for k in ji * SLOTS..ji * SLOTS + j.slots() {
@@ -306,19 +305,7 @@ impl Solver {
         let mass = mass_of(model);
         let bodies = Bodies { inv_mass: &model.inv_mass, inv_moments: &model.inv_moments, q };
         let s = Kinematics { x, q, v: &[], w: &[] };
-        for (ji, j) in model.joints.iter().enumerate() {
-            if j.method == JointMethod::Impulse {
-                let slots = ji * SLOTS..ji * SLOTS + j.slots();
-                j.rows(&s, &mut self.rows[ji * SLOTS..(ji + 1) * SLOTS]);
-                js::effective_masses(
-                    j,
-                    &self.rows[slots.clone()],
-                    &mass,
-                    q,
-                    &mut self.row_mass[slots],
-                );
-            }
-        }
+        impulse_rows(model, &s, &mut self.rows, &mut self.row_mass);
         for _ in 0..sweeps {
             for (ji, j) in model.joints.iter().enumerate() {
                 if j.method == JointMethod::Impulse {
