@@ -74,6 +74,14 @@ fn impulse_rows(model: &Model, s: &Kinematics<'_>, rows: &mut [Row], row_mass: &
     }
 }
 
+/// Zero position corrections `dx` (m) and `dtheta` (rad) for `n` bodies.
+fn clear_corrections(dx: &mut Vec<DVec3>, dtheta: &mut Vec<DVec3>, n: usize) {
+    dx.clear();
+    dx.resize(n, DVec3::ZERO);
+    dtheta.clear();
+    dtheta.resize(n, DVec3::ZERO);
+}
+
 impl Solver {
     /// One step (or substep) of `h` seconds with contacts (when `detect`) and joints, on the
     /// scratch state; `state` gives the applied forces.
@@ -269,10 +277,7 @@ impl Solver {
     fn post_stabilize(&mut self, model: &Model) -> Result<()> {
         let (x, _, q, _) = &mut *self.scratch;
         let n = model.len();
-        self.dx.clear();
-        self.dx.resize(n, DVec3::ZERO);
-        self.dtheta.clear();
-        self.dtheta.resize(n, DVec3::ZERO);
+        clear_corrections(&mut self.dx, &mut self.dtheta, n);
         let s = Kinematics { x, q, v: &[], w: &[] };
         for (ji, j) in model.joints.iter().enumerate() {
             if j.method == JointMethod::Lagrange {
@@ -294,10 +299,7 @@ impl Solver {
     fn position_pass(&mut self, model: &Model, impulse: bool) {
         let (x, _, q, _) = &mut *self.scratch;
         let n = model.len();
-        self.dx.clear();
-        self.dx.resize(n, DVec3::ZERO);
-        self.dtheta.clear();
-        self.dtheta.resize(n, DVec3::ZERO);
+        clear_corrections(&mut self.dx, &mut self.dtheta, n);
         if !impulse && self.contacts.is_empty() {
             return;
         }
@@ -346,10 +348,7 @@ impl Solver {
         let (x, v, q, pi) = &mut *self.scratch;
         let n = model.len();
         let mass = mass_of(model);
-        self.xpbd_dx.clear();
-        self.xpbd_dx.resize(n, DVec3::ZERO);
-        self.xpbd_dtheta.clear();
-        self.xpbd_dtheta.resize(n, DVec3::ZERO);
+        clear_corrections(&mut self.xpbd_dx, &mut self.xpbd_dtheta, n);
         for i in 0..n {
             self.omega[i] = q[i] * (pi[i] / model.moments[i]);
         }
