@@ -116,9 +116,10 @@ fn header(tag: &str) -> Vec<u8> {
     h
 }
 
-/// A deterministic 64-bit fingerprint of `value`: FNV-1a (Fowler–Noll–Vo, 64-bit offset basis
-/// and prime) over its postcard encoding, streamed (nothing allocated). Equal values give equal
-/// fingerprints on every build; models record it in their state snapshots.
+/// A deterministic 64-bit hash of `value`: FNV-1a (Fowler, Noll & Vo) over its postcard
+/// encoding, the bytes a snapshot stores, computed without allocating. Equal values hash
+/// equal on every platform and run; a value that cannot be encoded (a user function) hashes
+/// the bytes encoded before it.
 pub fn fingerprint<T: Serialize>(value: &T) -> u64 {
     struct Fnv(u64);
     impl std::io::Write for Fnv {
@@ -133,7 +134,7 @@ pub fn fingerprint<T: Serialize>(value: &T) -> u64 {
         }
     }
     let mut hash = Fnv(0xcbf2_9ce4_8422_2325);
-    // Writing to the hash cannot fail, and every type kinema stores can be encoded.
+    // An encoding error only cuts the hashed bytes short (documented above).
     let _ = postcard::to_io(value, &mut hash);
     hash.0
 }

@@ -291,7 +291,8 @@ fn a_slider_allows_only_translation_along_its_axis() {
         // b is the world: its displacement relative to the body is minus the body's.
         let (s, rate) = w.joint_coordinate(0).unwrap();
         // Semi-implicit Euler: s_n = ½ a t (t + h), h the (sub)step.
-        let h = if method == JointMethod::Xpbd { 1e-3 / w.xpbd_substeps as f64 } else { 1e-3 };
+        let h =
+            if method == JointMethod::Xpbd { 1e-3 / w.model().xpbd_substeps as f64 } else { 1e-3 };
         let expected = -0.5 * 9.81 / 2f64.sqrt() * (1.0 + h);
         println!("{method:?}: off axis {lin:.2e} m, turned {ang:.2e} rad, s {s:.6} vs {expected:.6}, rate {rate:.4}");
         let tol = if method == JointMethod::Penalty { 2e-2 } else { 1e-4 };

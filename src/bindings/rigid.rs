@@ -6,7 +6,9 @@ use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use crate::error::Error;
 use crate::geometry::Solid;
-use crate::rigid::{BodyDesc, JointDesc, JointKind, JointMethod, Motor, RotationIntegrator, World};
+use crate::rigid::{
+    BodyDesc, JointDesc, JointKind, JointMethod, Motor, RotationIntegrator, State, World,
+};
 use crate::snapshot::Snapshot;
 use glam::{DQuat, DVec3};
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
@@ -22,8 +24,9 @@ fn vec3(v: [f64; 3]) -> DVec3 {
 #[pyclass(module = "kinema._kinema")]
 pub struct RigidWorld {
     world: World,
-    /// The undo point of [`RigidWorld::_mark`].
-    saved: Option<World>,
+    /// The undo point of [`RigidWorld::_mark`]: the state only (the model does not change
+    /// during a frame).
+    saved: Option<State>,
 }
 
 #[pymethods]
@@ -39,16 +42,25 @@ impl RigidWorld {
         Ok(Self { world: World::from_snapshot(data)?, saved: None })
     }
 
-    /// Remember the world as it is now (a scene's undo point before a frame), as a copy.
+    /// Remember the world's state as it is now (a scene's undo point before a frame), copied
+    /// into a retained state (no allocation after the first mark of a world that has not
+    /// grown).
     fn _mark(&mut self) {
-        self.saved = Some(self.world.clone());
+        match &mut self.saved {
+            Some(saved) => saved.clone_from(self.world.state()),
+            None => self.saved = Some(self.world.state().clone()),
+        }
     }
 
-    /// Put the world back as it was at the last [`RigidWorld::_mark`].
-    fn _rollback(&mut self) {
+    /// Put the world's state back as it was at the last [`RigidWorld::_mark`].
+    ///
+    /// # Errors
+    /// A world that gained bodies or joints since the mark (argument `"state"`).
+    fn _rollback(&mut self) -> PyResult<()> {
         if let Some(saved) = &self.saved {
-            self.world.clone_from(saved);
+            self.world.set_state(saved)?;
         }
+        Ok(())
     }
 
     /// An empty world with gravity (m/s², world frame), a rotation integrator name and
@@ -59,7 +71,7 @@ impl RigidWorld {
             return Err(Error::invalid("gravity", "contains NaN or infinity").into());
         }
         let mut world = World::new(vec3(gravity), RotationIntegrator::parse(integrator)?);
-        world.collisions = collisions;
+        world.model_mut().collisions = collisions;
         Ok(RigidWorld { world, saved: None })
     }
 
@@ -222,43 +234,44 @@ impl RigidWorld {
     /// `MAX_ITERATIONS` (10^6).
     #[getter]
     fn get_contact_iterations(&self) -> usize {
-        self.world.contact_iterations
+        self.world.model().contact_iterations
     }
 
     #[setter]
     fn set_contact_iterations(&mut self, n: Int) -> PyResult<()> {
-        self.world.contact_iterations = n.range("contact_iterations", 0, MAX_ITERATIONS)?;
+        self.world.model_mut().contact_iterations =
+            n.range("contact_iterations", 0, MAX_ITERATIONS)?;
         Ok(())
     }
 
     /// Sequential-impulse sweeps per step for impulse joints, at most `MAX_ITERATIONS` (10^6).
     #[getter]
     fn get_joint_iterations(&self) -> usize {
-        self.world.joint_iterations
+        self.world.model().joint_iterations
     }
 
     #[setter]
     fn set_joint_iterations(&mut self, n: Int) -> PyResult<()> {
-        self.world.joint_iterations = n.range("joint_iterations", 0, MAX_ITERATIONS)?;
+        self.world.model_mut().joint_iterations = n.range("joint_iterations", 0, MAX_ITERATIONS)?;
         Ok(())
     }
 
     /// Substeps per step when a joint uses XPBD, 1 to `MAX_ITERATIONS` (10^6).
     #[getter]
     fn get_xpbd_substeps(&self) -> usize {
-        self.world.xpbd_substeps
+        self.world.model().xpbd_substeps
     }
 
     #[setter]
     fn set_xpbd_substeps(&mut self, n: Int) -> PyResult<()> {
-        self.world.xpbd_substeps = n.range("xpbd_substeps", 1, MAX_ITERATIONS)?;
+        self.world.model_mut().xpbd_substeps = n.range("xpbd_substeps", 1, MAX_ITERATIONS)?;
         Ok(())
     }
 
     /// Baumgarte factor of the Lagrange formulation.
     #[getter]
     fn get_baumgarte(&self) -> f64 {
-        self.world.baumgarte
+        self.world.model().baumgarte
     }
 
     #[setter]
@@ -268,7 +281,7 @@ impl RigidWorld {
                 Error::invalid("baumgarte", format!("must be in [0, 1], got {beta}")).into()
             );
         }
-        self.world.baumgarte = beta;
+        self.world.model_mut().baumgarte = beta;
         Ok(())
     }
 

@@ -7,6 +7,7 @@
 //! - [`shape`]: the world-placed shapes ([`Plane`], [`Sphere`], [`Capsule`], [`Cuboid`], and
 //!   [`Shape`], one of them) with their validation, one message per mistake;
 //! - [`query`]: signed distance with the outward normal, and the closest surface point;
+//! - [`segment`]: closest points of a segment to a point and of two segments;
 //! - [`material`]: the surface's [`Material`] (restitution, Coulomb friction), kept apart from
 //!   the shape so one shape can carry any material;
 //! - [`solid`]: the body-frame [`Solid`]s of rigid bodies (sphere, box, capsule, cylinder,
@@ -16,6 +17,7 @@
 
 pub mod material;
 pub mod query;
+pub mod segment;
 pub mod shape;
 pub mod solid;
 

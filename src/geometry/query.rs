@@ -4,6 +4,7 @@
 //! For a point exactly on a sphere's centre or a capsule's axis, where every direction is
 //! nearest, the normal is `+Y`. Inside a box the nearest face gives the normal.
 
+use super::segment::closest_point_on_segment;
 use super::shape::{Capsule, Cuboid, Plane, Shape, Sphere};
 use glam::DVec3;
 
@@ -27,10 +28,8 @@ impl Capsule {
     /// Signed distance from `p` (m) and the outward normal: those of the ball of the capsule's
     /// radius around the point of the axis nearest to `p`.
     pub fn distance(&self, p: DVec3) -> (f64, DVec3) {
-        let ab = self.b - self.a;
-        let len2 = ab.length_squared();
-        let t = if len2 > 0.0 { ((p - self.a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
-        Sphere { center: self.a + t * ab, radius: self.radius }.distance(p)
+        let center = closest_point_on_segment(self.a, self.b, p);
+        Sphere { center, radius: self.radius }.distance(p)
     }
 }
 

@@ -210,14 +210,14 @@ struct Side {
 
 /// Body state the rows read: centres of mass, principal frames (→ world), velocities and
 /// world angular velocities (may be empty for position-only evaluations).
-pub(crate) struct State<'a> {
+pub(crate) struct Kinematics<'a> {
     pub x: &'a [DVec3],
     pub q: &'a [DQuat],
     pub v: &'a [DVec3],
     pub w: &'a [DVec3],
 }
 
-impl State<'_> {
+impl Kinematics<'_> {
     fn vel(&self, i: usize) -> (DVec3, DVec3) {
         if self.v.is_empty() {
             (DVec3::ZERO, DVec3::ZERO)
@@ -235,36 +235,68 @@ fn check_vec(arg: &str, v: DVec3) -> Result<()> {
     }
 }
 
-impl Joint {
-    /// Check `desc` against a world of `n` bodies at state `s` and make the joint.
-    pub fn new(desc: &JointDesc, n: usize, s: &State<'_>) -> Result<Joint> {
-        if desc.a >= n {
+/// The row `C = n · (p_b − p_a)` of two sides, `n` fixed in the world or (`turning`) turning
+/// with side `b`.
+fn linear_row(a: &Side, b: &Side, n: DVec3, turning: bool) -> Row {
+    let d = b.p - a.p;
+    let dd = (b.v + b.w.cross(b.r)) - (a.v + a.w.cross(a.r));
+    let mut ab = b.r.cross(n);
+    let mut jdv = n.dot(b.w.cross(b.w.cross(b.r)) - a.w.cross(a.w.cross(a.r)));
+    if turning {
+        ab += n.cross(d);
+        let nd = b.w.cross(n);
+        jdv += b.w.cross(nd).dot(d) + 2.0 * nd.dot(dd);
+    }
+    Row { la: -n, aa: -a.r.cross(n), lb: n, ab, c: n.dot(d), jdv, kind: RowKind::Equality }
+}
+
+/// The row `C = u · w` of two sides, `u` turning with side `a`, `w` with side `b`.
+fn angular_row(a: &Side, b: &Side, u: DVec3, w: DVec3) -> Row {
+    let (du, dw) = (a.w.cross(u), b.w.cross(w));
+    let jdv = a.w.cross(du).dot(w) + 2.0 * du.dot(dw) + u.dot(b.w.cross(dw));
+    let uw = u.cross(w);
+    Row {
+        la: DVec3::ZERO,
+        aa: uw,
+        lb: DVec3::ZERO,
+        ab: -uw,
+        c: u.dot(w),
+        jdv,
+        kind: RowKind::Equality,
+    }
+}
+
+impl JointDesc {
+    /// `Ok` when the description fits a world of `n` bodies: indices, anchor and axis,
+    /// limits, motor and penalty parameters in their domains.
+    fn check(&self, n: usize) -> Result<()> {
+        if self.a >= n {
             return Err(Error::invalid(
                 "a",
-                format!("body index {} out of range ({n} bodies)", desc.a),
+                format!("body index {} out of range ({n} bodies)", self.a),
             ));
         }
-        if let Some(b) = desc.b {
+        if let Some(b) = self.b {
             if b >= n {
                 return Err(Error::invalid(
                     "b",
                     format!("body index {b} out of range ({n} bodies)"),
                 ));
             }
-            if b == desc.a {
+            if b == self.a {
                 return Err(Error::invalid(
                     "b",
                     format!("a joint needs two different bodies, got a = b = {b}"),
                 ));
             }
         }
-        check_vec("anchor", desc.anchor)?;
-        check_vec("axis", desc.axis)?;
-        let uses_axis = matches!(desc.kind, JointKind::Hinge { .. } | JointKind::Slider);
-        if uses_axis && desc.axis.length() <= 1e-12 {
+        check_vec("anchor", self.anchor)?;
+        check_vec("axis", self.axis)?;
+        let uses_axis = matches!(self.kind, JointKind::Hinge { .. } | JointKind::Slider);
+        if uses_axis && self.axis.length() <= 1e-12 {
             return Err(Error::invalid("axis", "must be a non-zero vector"));
         }
-        if let JointKind::Hinge { limits, motor } = desc.kind {
+        if let JointKind::Hinge { limits, motor } = self.kind {
             if let Some((lo, hi)) = limits {
                 if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
                     return Err(Error::invalid(
@@ -294,20 +326,29 @@ impl Joint {
                 }
             }
         }
-        if desc.method == JointMethod::Penalty {
-            if !(desc.stiffness.is_finite() && desc.stiffness > 0.0) {
+        if self.method == JointMethod::Penalty {
+            if !(self.stiffness.is_finite() && self.stiffness > 0.0) {
                 return Err(Error::invalid(
                     "stiffness",
-                    format!("must be positive and finite, got {}", desc.stiffness),
+                    format!("must be positive and finite, got {}", self.stiffness),
                 ));
             }
-            if !(desc.damping.is_finite() && desc.damping >= 0.0) {
+            if !(self.damping.is_finite() && self.damping >= 0.0) {
                 return Err(Error::invalid(
                     "damping",
-                    format!("must be non-negative and finite, got {}", desc.damping),
+                    format!("must be non-negative and finite, got {}", self.damping),
                 ));
             }
         }
+        Ok(())
+    }
+}
+
+impl Joint {
+    /// Check `desc` against a world of `n` bodies at state `s` and make the joint.
+    pub fn new(desc: &JointDesc, n: usize, s: &Kinematics<'_>) -> Result<Joint> {
+        desc.check(n)?;
+        let uses_axis = matches!(desc.kind, JointKind::Hinge { .. } | JointKind::Slider);
         let anchor = match desc.kind {
             JointKind::Ball | JointKind::Hinge { .. } => desc.anchor,
             JointKind::Slider | JointKind::Fixed => s.x[desc.a],
@@ -349,7 +390,7 @@ impl Joint {
         }
     }
 
-    fn side(&self, s: &State<'_>, body: Option<usize>, r: DVec3, f: DQuat) -> Side {
+    fn side(&self, s: &Kinematics<'_>, body: Option<usize>, r: DVec3, f: DQuat) -> Side {
         match body {
             Some(i) => {
                 let r = s.q[i] * r;
@@ -360,7 +401,7 @@ impl Joint {
         }
     }
 
-    fn sides(&self, s: &State<'_>) -> (Side, Side) {
+    fn sides(&self, s: &Kinematics<'_>) -> (Side, Side) {
         (self.side(s, Some(self.a), self.ra, self.fa), self.side(s, self.b, self.rb, self.fb))
     }
 
@@ -372,37 +413,11 @@ impl Joint {
     }
 
     /// Evaluate the rows at state `s` into `out` (all [`SLOTS`] written; unused ones inactive).
-    pub fn rows(&self, s: &State<'_>, out: &mut [Row]) {
+    pub fn rows(&self, s: &Kinematics<'_>, out: &mut [Row]) {
         let (a, b) = self.sides(s);
         out[..SLOTS].fill(Row::INACTIVE);
-        let d = b.p - a.p;
-        let dd = (b.v + b.w.cross(b.r)) - (a.v + a.w.cross(a.r));
-        // C = n · (pb − pa), n fixed in the world or turning with b.
-        let linear = |n: DVec3, turning: bool| {
-            let mut ab = b.r.cross(n);
-            let mut jdv = n.dot(b.w.cross(b.w.cross(b.r)) - a.w.cross(a.w.cross(a.r)));
-            if turning {
-                ab += n.cross(d);
-                let nd = b.w.cross(n);
-                jdv += b.w.cross(nd).dot(d) + 2.0 * nd.dot(dd);
-            }
-            Row { la: -n, aa: -a.r.cross(n), lb: n, ab, c: n.dot(d), jdv, kind: RowKind::Equality }
-        };
-        // C = u · w, u turning with a, w with b.
-        let angular = |u: DVec3, w: DVec3| {
-            let (du, dw) = (a.w.cross(u), b.w.cross(w));
-            let jdv = a.w.cross(du).dot(w) + 2.0 * du.dot(dw) + u.dot(b.w.cross(dw));
-            let uw = u.cross(w);
-            Row {
-                la: DVec3::ZERO,
-                aa: uw,
-                lb: DVec3::ZERO,
-                ab: -uw,
-                c: u.dot(w),
-                jdv,
-                kind: RowKind::Equality,
-            }
-        };
+        let linear = |n: DVec3, turning: bool| linear_row(&a, &b, n, turning);
+        let angular = |u: DVec3, w: DVec3| angular_row(&a, &b, u, w);
         let axes = |f: DQuat| (f * DVec3::X, f * DVec3::Y, f * DVec3::Z);
         let (xa, ya, za) = axes(a.f);
         let (xb, yb, zb) = axes(b.f);
@@ -460,7 +475,7 @@ impl Joint {
     /// slots (inactive when not needed): a positional row `C = |e|` along the anchors' offset
     /// `e`, an angular row `C = |θ|` about the aligning rotation vector `θ`, and the hinge's
     /// lower and upper limit rows while violated.
-    pub fn xpbd_rows(&self, s: &State<'_>, out: &mut [Row; 4]) {
+    pub fn xpbd_rows(&self, s: &Kinematics<'_>, out: &mut [Row; 4]) {
         let (a, b) = self.sides(s);
         out.fill(Row::INACTIVE);
         let mut e = b.p - a.p;
@@ -520,7 +535,7 @@ impl Joint {
     /// The world axis about which the joint leaves the bodies free to turn at state `s` (the
     /// hinge axis of `a`), or `None` when every relative rotation is constrained (slider,
     /// fixed) or none is (ball).
-    pub fn free_axis(&self, s: &State<'_>) -> Option<DVec3> {
+    pub fn free_axis(&self, s: &Kinematics<'_>) -> Option<DVec3> {
         match self.kind {
             JointKind::Hinge { .. } => Some(self.sides(s).0.f * DVec3::X),
             _ => None,
@@ -531,7 +546,7 @@ impl Joint {
     /// slider, from the anchor of `a` to the line through `b`'s anchor along the axis) and the
     /// angle of the relative rotation the joint forbids (rad; between the axes for a hinge,
     /// the whole relative rotation for a slider or a fixed joint, 0 for a ball).
-    pub fn violation(&self, s: &State<'_>) -> (f64, f64) {
+    pub fn violation(&self, s: &Kinematics<'_>) -> (f64, f64) {
         let (a, b) = self.sides(s);
         let mut e = b.p - a.p;
         let ua = a.f * DVec3::X;
@@ -553,7 +568,7 @@ impl Joint {
     /// The joint's coordinate and its rate: the hinge angle (rad) and angular velocity of `b`
     /// relative to `a` about the axis (rad/s), the slider's displacement of `b` relative to `a`
     /// along the axis from creation (m) and its rate (m/s); zeros for ball and fixed joints.
-    pub fn coordinate(&self, s: &State<'_>) -> (f64, f64) {
+    pub fn coordinate(&self, s: &Kinematics<'_>) -> (f64, f64) {
         let (a, b) = self.sides(s);
         match self.kind {
             JointKind::Hinge { .. } => {
