@@ -35,7 +35,7 @@ impl Cloth {
         Rollback::copy_history(&mut r.history, &self.history);
         r.time = self.time;
         r.stats = self.stats;
-        r.evaluations = self.stepper.as_ref().map(|s| (s.nfev, s.njev));
+        r.evaluations = self.stepper.as_ref().map(|s| (s.history.nfev, s.history.njev));
     }
 
     /// Put back what [`Cloth::save_rollback`] copied (the state buffers are copied into, so
@@ -51,7 +51,7 @@ impl Cloth {
         self.time = r.time;
         self.stats = r.stats;
         match (self.stepper.as_mut(), r.evaluations) {
-            (Some(s), Some((nfev, njev))) => (s.nfev, s.njev) = (nfev, njev),
+            (Some(s), Some((nfev, njev))) => (s.history.nfev, s.history.njev) = (nfev, njev),
             (Some(_), None) => self.stepper = None,
             _ => {}
         }

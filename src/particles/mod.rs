@@ -229,10 +229,7 @@ impl ParticleSystem {
         saved.colliders.clone_from(colliders);
         saved.emitters.clone_from(emitters);
         saved.external.clone_from(external);
-        match (&mut saved.stepper, stepper) {
-            (Some(to), Some(from)) => from.save_into(to),
-            (to, from) => to.clone_from(from),
-        }
+        saved.stepper.clone_from(stepper);
         saved.time = *time;
         saved.stats = *stats;
     }
