@@ -115,3 +115,27 @@ fn header(tag: &str) -> Vec<u8> {
     h.extend_from_slice(&VERSION.to_le_bytes());
     h
 }
+
+/// A deterministic 64-bit fingerprint of `value`: 64-bit FNV-1a (Fowler, Noll & Vo) over its
+/// postcard encoding, streamed into the hash (nothing is allocated). Equal values have equal
+/// fingerprints on every build and platform; a state snapshot records its model's, so that it
+/// is not restored onto another model.
+pub fn fingerprint<T: Serialize>(value: &T) -> u64 {
+    struct Fnv1a(u64);
+    impl std::io::Write for Fnv1a {
+        fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+            for &b in bytes {
+                self.0 = (self.0 ^ u64::from(b)).wrapping_mul(0x100_0000_01b3);
+            }
+            Ok(bytes.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    let mut hash = Fnv1a(0xcbf2_9ce4_8422_2325);
+    // The hash never refuses bytes; a value that cannot be encoded (a user function) hashes
+    // the bytes encoded before it.
+    let _ = postcard::to_io(value, &mut hash);
+    hash.0
+}
