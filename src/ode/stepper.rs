@@ -197,8 +197,29 @@ impl Workspace {
                         y[i] + h / 6.0 * (k[0][i] + 2.0 * k[1][i] + 2.0 * k[2][i] + k[3][i]);
                 }
             }
+            Method::SymplecticEuler | Method::VelocityVerlet => {
+                self.second_order_step(hist, sys, t, y, h)?
+            }
+            Method::ImplicitEuler | Method::Trapezoidal | Method::Bdf2 => {
+                unreachable!("implicit methods take split_implicit_step")
+            }
+        }
+        Ok(())
+    }
+
+    /// One step of a second-order method (symplectic Euler, velocity Verlet) over
+    /// `y = [x; v]` into `y_new`.
+    fn second_order_step<S: OdeSystem>(
+        &mut self,
+        hist: &mut History,
+        sys: &mut S,
+        t: f64,
+        y: &[f64],
+        h: f64,
+    ) -> Result<()> {
+        let m = self.n / 2;
+        match hist.method() {
             Method::SymplecticEuler => {
-                let m = n / 2;
                 self.eval(hist, sys, t, 0, Some(y))?;
                 for i in 0..m {
                     let v1 = y[m + i] + h * self.k[0][m + i];
@@ -210,7 +231,6 @@ impl Workspace {
                 // Kick–drift–kick; the closing kick evaluates a(x₁, v₀ + h a₀), which equals the
                 // textbook a(x₁) for conservative forces and keeps second order when the force
                 // depends on the velocity (damping, drag).
-                let m = n / 2;
                 self.eval(hist, sys, t, 0, Some(y))?;
                 for i in 0..m {
                     let a0 = self.k[0][m + i];
@@ -224,9 +244,7 @@ impl Workspace {
                     self.y_new[m + i] += 0.5 * h * self.k[1][m + i];
                 }
             }
-            Method::ImplicitEuler | Method::Trapezoidal | Method::Bdf2 => {
-                unreachable!("implicit methods take split_implicit_step")
-            }
+            _ => unreachable!("second-order methods only"),
         }
         Ok(())
     }
@@ -298,30 +316,7 @@ impl Workspace {
     ) -> Result<bool> {
         let n = self.n;
         let t1 = t + h;
-        // The explicit part `base` (in k[2]) and the weight `gamma` of f(t1, y1).
-        let bdf2 = match hist.method() {
-            Method::Bdf2 => super::bdf2_weights(h, hist.prev_h),
-            _ => None,
-        };
-        let gamma = match (hist.method(), bdf2) {
-            (Method::Trapezoidal, _) => {
-                self.eval(hist, sys, t, 0, Some(y))?;
-                for i in 0..n {
-                    self.k[2][i] = y[i] + 0.5 * h * self.k[0][i];
-                }
-                0.5
-            }
-            (_, Some((c, gamma))) => {
-                for i in 0..n {
-                    self.k[2][i] = y[i] + c * (y[i] - hist.prev[i]);
-                }
-                gamma
-            }
-            _ => {
-                self.k[2].copy_from_slice(y);
-                1.0
-            }
-        };
+        let gamma = self.implicit_base(hist, sys, t, y, h)?;
         // Jacobian at (t1, y) and the iteration matrix I - γ h J.
         let mut sparse = self.factorize(hist, sys, t1, y, gamma * h)?;
         self.y_new.copy_from_slice(y);
@@ -377,6 +372,45 @@ impl Workspace {
             (last, fraction) = (step, 1.0);
         }
         Ok(false)
+    }
+
+    /// The explicit part `base` of an implicit step (into `k[2]`) and the weight `γ` of
+    /// `f(t + h, y₁)` it returns: `y₁ = base + γ h f(t + h, y₁)` (implicit Euler: `base = y`,
+    /// `γ = 1`; trapezoidal: `base = y + h/2 f(t, y)`, `γ = 1/2`; BDF2 with a previous step:
+    /// the variable-step weights of [`super::bdf2_weights`]).
+    fn implicit_base<S: OdeSystem>(
+        &mut self,
+        hist: &mut History,
+        sys: &mut S,
+        t: f64,
+        y: &[f64],
+        h: f64,
+    ) -> Result<f64> {
+        let n = self.n;
+        let bdf2 = match hist.method() {
+            Method::Bdf2 => super::bdf2_weights(h, hist.prev_h),
+            _ => None,
+        };
+        let gamma = match (hist.method(), bdf2) {
+            (Method::Trapezoidal, _) => {
+                self.eval(hist, sys, t, 0, Some(y))?;
+                for i in 0..n {
+                    self.k[2][i] = y[i] + 0.5 * h * self.k[0][i];
+                }
+                0.5
+            }
+            (_, Some((c, gamma))) => {
+                for i in 0..n {
+                    self.k[2][i] = y[i] + c * (y[i] - hist.prev[i]);
+                }
+                gamma
+            }
+            _ => {
+                self.k[2].copy_from_slice(y);
+                1.0
+            }
+        };
+        Ok(gamma)
     }
 
     /// Evaluate ∂f/∂y at (t, y) and factorise `I - gh J`: sparse if the system offers it
