@@ -265,7 +265,6 @@ impl ConstrainedSystem {
     /// current positions.
     pub fn add(&mut self, particles: &ParticleSystem, constraint: Constraint) -> Result<()> {
         let n = particles.capacity();
-        let pos = |i: usize| DVec3::from_slice(&particles.positions()[3 * i..]);
         for p in constraint.particles() {
             if p >= n {
                 return Err(Error::invalid(
@@ -274,85 +273,7 @@ impl ConstrainedSystem {
                 ));
             }
         }
-        let mut curve_state = (0.0, DVec3::ZERO);
-        let constraint = match constraint {
-            Constraint::Distance { i, j, length } => {
-                if i == j {
-                    return Err(Error::invalid(
-                        "j",
-                        "a distance constraint needs two different particles",
-                    ));
-                }
-                if !(length.is_finite() && length > 0.0) {
-                    return Err(Error::invalid(
-                        "length",
-                        format!("must be positive and finite, got {length}"),
-                    ));
-                }
-                if pos(i) == pos(j) {
-                    return Err(Error::invalid(
-                        "j",
-                        format!("particles {i} and {j} coincide; the rod has no direction"),
-                    ));
-                }
-                constraint
-            }
-            Constraint::OnSphere { center, radius, .. } => {
-                if !(center.is_finite() && radius.is_finite() && radius > 0.0) {
-                    return Err(Error::invalid(
-                        "radius",
-                        format!("must be positive with a finite centre, got {radius}"),
-                    ));
-                }
-                constraint
-            }
-            Constraint::OnPlane { i, point, normal } => {
-                if !(point.is_finite() && normal.is_finite() && normal.length() > 0.0) {
-                    return Err(Error::invalid("normal", "must be a finite non-zero vector"));
-                }
-                Constraint::OnPlane { i, point, normal: normal.normalize() }
-            }
-            Constraint::Fixed { point, .. } => {
-                if !point.is_finite() {
-                    return Err(Error::invalid("point", "contains NaN or infinity"));
-                }
-                constraint
-            }
-            Constraint::OnCurve { i, curve } => {
-                let curve = curve.checked()?;
-                let x = pos(i);
-                let u = curve.closest(x, curve.initial_parameter(x)).map_err(|e| {
-                    Error::invalid("curve", format!("no closest point to particle {i}: {e}"))
-                })?;
-                curve_state = (u, curve.reference(u));
-                Constraint::OnCurve { i, curve }
-            }
-            Constraint::Custom { particles: ids, function } => {
-                let k = ids.len();
-                let m = function.rows();
-                if k == 0 || m == 0 {
-                    return Err(Error::invalid(
-                        "indices",
-                        format!("a custom constraint needs particles and rows, got {k} and {m}"),
-                    ));
-                }
-                if (1..k).any(|a| ids[..a].contains(&ids[a])) {
-                    return Err(Error::invalid("indices", "must be distinct"));
-                }
-                let x: Vec<f64> = ids.iter().flat_map(|&p| pos(p).to_array()).collect();
-                let mut value = vec![0.0; m];
-                let mut gradient = vec![0.0; 3 * k * m];
-                function.value(&x, &mut value)?;
-                function.gradient(&x, &mut gradient)?;
-                if value.iter().chain(&gradient).any(|v| !v.is_finite()) {
-                    return Err(Error::invalid(
-                        "value",
-                        "the constraint's value or gradient is not finite at the current positions",
-                    ));
-                }
-                Constraint::Custom { particles: ids, function }
-            }
-        };
+        let (constraint, curve_state) = constraint.checked(particles.positions())?;
         self.constraints.push(constraint);
         self.work.curves.push(curve_state);
         self.work.chol = None; // the pattern changed

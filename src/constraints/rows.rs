@@ -336,3 +336,107 @@ pub(super) fn custom_rows(
     }
     Ok(())
 }
+
+impl Constraint {
+    /// This constraint checked against the particles at `positions` (3 per particle, m), a
+    /// plane's normal made unit, and the tracked state of a curve constraint (the closest
+    /// point's parameter and the frame reference; zero for other kinds). Indices are checked
+    /// by the caller.
+    ///
+    /// # Errors
+    /// Those listed at [`super::ConstrainedSystem::add`].
+    pub(super) fn checked(self, positions: &[f64]) -> Result<(Constraint, (f64, DVec3))> {
+        let pos = |i: usize| DVec3::from_slice(&positions[3 * i..]);
+        let mut curve_state = (0.0, DVec3::ZERO);
+        let constraint = match self {
+            Constraint::Distance { i, j, length } => {
+                if i == j {
+                    return Err(Error::invalid(
+                        "j",
+                        "a distance constraint needs two different particles",
+                    ));
+                }
+                if !(length.is_finite() && length > 0.0) {
+                    return Err(Error::invalid(
+                        "length",
+                        format!("must be positive and finite, got {length}"),
+                    ));
+                }
+                if pos(i) == pos(j) {
+                    return Err(Error::invalid(
+                        "j",
+                        format!("particles {i} and {j} coincide; the rod has no direction"),
+                    ));
+                }
+                self
+            }
+            Constraint::OnSphere { center, radius, .. } => {
+                if !(center.is_finite() && radius.is_finite() && radius > 0.0) {
+                    return Err(Error::invalid(
+                        "radius",
+                        format!("must be positive with a finite centre, got {radius}"),
+                    ));
+                }
+                self
+            }
+            Constraint::OnPlane { i, point, normal } => {
+                if !(point.is_finite() && normal.is_finite() && normal.length() > 0.0) {
+                    return Err(Error::invalid("normal", "must be a finite non-zero vector"));
+                }
+                Constraint::OnPlane { i, point, normal: normal.normalize() }
+            }
+            Constraint::Fixed { point, .. } => {
+                if !point.is_finite() {
+                    return Err(Error::invalid("point", "contains NaN or infinity"));
+                }
+                self
+            }
+            Constraint::OnCurve { i, curve } => {
+                let curve = curve.checked()?;
+                let x = pos(i);
+                let u = curve.closest(x, curve.initial_parameter(x)).map_err(|e| {
+                    Error::invalid("curve", format!("no closest point to particle {i}: {e}"))
+                })?;
+                curve_state = (u, curve.reference(u));
+                Constraint::OnCurve { i, curve }
+            }
+            Constraint::Custom { particles: ids, function } => {
+                check_custom(&ids, function.as_ref(), pos)?;
+                Constraint::Custom { particles: ids, function }
+            }
+        };
+        Ok((constraint, curve_state))
+    }
+}
+
+/// Check a custom constraint on particles `ids`: particles and rows, distinct particles, and
+/// a finite value and gradient at `pos`.
+fn check_custom(
+    ids: &[usize],
+    function: &dyn ConstraintFunction,
+    pos: impl Fn(usize) -> DVec3,
+) -> Result<()> {
+    let k = ids.len();
+    let m = function.rows();
+    if k == 0 || m == 0 {
+        return Err(Error::invalid(
+            "indices",
+            format!("a custom constraint needs particles and rows, got {k} and {m}"),
+        ));
+    }
+    if (1..k).any(|a| ids[..a].contains(&ids[a])) {
+        return Err(Error::invalid("indices", "must be distinct"));
+    }
+    let x: Vec<f64> = ids.iter().flat_map(|&p| pos(p).to_array()).collect();
+    let mut value = vec![0.0; m];
+    let mut gradient = vec![0.0; 3 * k * m];
+    function.value(&x, &mut value)?;
+    function.gradient(&x, &mut gradient)?;
+    if value.iter().chain(&gradient).any(|v| !v.is_finite()) {
+        return Err(Error::invalid(
+            "value",
+            "the constraint's value or gradient is not finite at the current positions",
+        ));
+    }
+    Ok(())
+}
