@@ -3,7 +3,7 @@
 
 use kinema::ode::{
     bdf2_weights, max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function,
-    Method, OdeSystem, SparseJacobian, Stepper,
+    History, Method, OdeSystem, SparseJacobian, Stepper,
 };
 use kinema::Error;
 use nalgebra::{Complex, DMatrix};
@@ -246,11 +246,11 @@ fn failures_leave_the_state_unchanged() {
         }
     }
     let mut stepper = Stepper::new(Method::ImplicitEuler, 1).unwrap();
-    stepper.max_newton = 1;
+    stepper.history.max_newton = 1;
     let mut y = [1.0];
     assert!(matches!(stepper.step(&mut Cubic, 0.0, &mut y, 1.0), Err(Error::SolverFailed { .. })));
     assert_eq!(y, [1.0]);
-    stepper.max_newton = 50;
+    stepper.history.max_newton = 50;
     stepper.step(&mut Cubic, 0.0, &mut y, 1.0).unwrap();
     assert!((y[0] + y[0].powi(3) - 1.0).abs() < 1e-9); // y₁ = y₀ - h y₁³
     assert!(stepper.step(&mut Cubic, 0.0, &mut y, -1.0).is_err());
@@ -420,7 +420,7 @@ fn sparse_newton_matches_the_dense_solve_and_the_exact_linear_step() {
     let err = y.iter().zip(exact.iter()).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
     assert!(err <= 1e-10 * scale, "implicit Euler vs (I - hA)⁻¹ y₀: {err:e}");
     // A linear system: the exact Jacobian converges at once, no Jacobian update.
-    assert_eq!((sys.calls, stepper.njev), (1, 1));
+    assert_eq!((sys.calls, stepper.history.njev), (1, 1));
 
     for method in [Method::ImplicitEuler, Method::Trapezoidal, Method::Bdf2] {
         let dense = run(&mut SpringChain { n, k }, method, &y0, 1.0, 60).unwrap();
@@ -754,4 +754,37 @@ fn failed_bdf2_step_keeps_its_history() {
         y[0].to_bits()
     };
     assert_eq!(run(true), run(false));
+}
+
+/// One workspace advances two histories of one system interleaved, with different initial
+/// states and step lengths, each bitwise as a stepper of its own would, for every method (BDF2
+/// reads its previous step from the history, the Newton iteration its settings): the workspace
+/// carries nothing from one step to the next.
+#[test]
+fn one_workspace_steps_interleaved_histories_as_separate_steppers() {
+    let mut sys = SpringChain { n: 3, k: 50.0 };
+    let starts = [[0.1, -0.2, 0.3, 0.0, 0.5, -1.0], [-0.4, 0.0, 0.2, 1.0, 0.0, 0.3]];
+    let hs = [0.01, 0.013];
+    for method in Method::ALL {
+        let mut work = kinema::ode::Workspace::default();
+        let mut histories = [History::new(method, 6).unwrap(), History::new(method, 6).unwrap()];
+        let mut ys = starts;
+        let mut alone = [Stepper::new(method, 6).unwrap(), Stepper::new(method, 6).unwrap()];
+        let mut ys_alone = starts;
+        for s in 0..20 {
+            for k in [1, 0] {
+                let t = s as f64 * hs[k];
+                let other = ys[1 - k];
+                work.step(&mut histories[k], &mut sys, t, &mut ys[k], hs[k]).unwrap();
+                assert_eq!(ys[1 - k].map(f64::to_bits), other.map(f64::to_bits));
+                alone[k].step(&mut sys, t, &mut ys_alone[k], hs[k]).unwrap();
+                assert_eq!(
+                    ys[k].map(f64::to_bits),
+                    ys_alone[k].map(f64::to_bits),
+                    "{method:?} state {k} step {s}"
+                );
+                assert_eq!(histories[k], alone[k].history, "{method:?} history {k} step {s}");
+            }
+        }
+    }
 }

@@ -125,7 +125,7 @@ fn ode_solve_fixed<'py>(
         out[(s + 1) * n..(s + 2) * n].copy_from_slice(&y);
     }
     let states = numpy::PyArray1::from_vec(py, out).reshape([steps + 1, n])?.to_dyn().clone();
-    Ok((states, stepper.nfev, stepper.njev))
+    Ok((states, stepper.history.nfev, stepper.history.njev))
 }
 
 /// Dormand–Prince 5(4) solve; returns (times (M,), states (M, n), nfev, rejected).

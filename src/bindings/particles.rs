@@ -8,7 +8,7 @@ use super::view::view;
 use crate::error::Error;
 use crate::geometry::Material;
 use crate::ode::Method;
-use crate::particles::{Appearance, Collider, Emitter, Force, ParticleSystem};
+use crate::particles::{Appearance, Collider, Emitter, Force, ParticleSystem, State, StepStats};
 use crate::snapshot::Snapshot;
 use glam::DVec3;
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
@@ -39,8 +39,9 @@ fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
 #[pyclass(module = "kinema._kinema")]
 pub struct Particles {
     pub(crate) system: ParticleSystem,
-    /// The undo point of [`Particles::_mark`] (kept to reuse its buffers).
-    saved: Option<ParticleSystem>,
+    /// The undo point of [`Particles::_mark`] (kept to reuse its buffers): the state, the
+    /// colliders (a scene moves and adds them during a frame) and the counters.
+    saved: Option<(State, Vec<Collider>, StepStats)>,
 }
 
 #[pymethods]
@@ -56,21 +57,27 @@ impl Particles {
         Ok(Self { system: ParticleSystem::from_snapshot(data)?, saved: None })
     }
 
-    /// Remember the system as it is now (a scene's undo point before a frame; no
-    /// serialisation, and no allocation after the first time).
+    /// Remember the system's state, colliders and counters as they are now (a scene's undo
+    /// point before a frame; no serialisation, and no allocation after the first time).
     fn _mark(&mut self) {
-        match &mut self.saved {
-            Some(saved) => self.system.save_into(saved),
-            None => self.saved = Some(self.system.clone()),
-        }
+        let system = &self.system;
+        let saved =
+            self.saved.get_or_insert_with(|| (system.state().clone(), Vec::new(), system.stats));
+        saved.0.clone_from(system.state());
+        saved.1.clear();
+        saved.1.extend_from_slice(system.model().colliders());
+        saved.2 = system.stats;
     }
 
-    /// Put the system back as it was at the last [`Particles::_mark`], in place (views of
-    /// the state stay valid).
-    fn _rollback(&mut self) {
-        if let Some(saved) = &self.saved {
-            saved.save_into(&mut self.system);
+    /// Put the state, colliders and counters back as they were at the last
+    /// [`Particles::_mark`], in place (views of the state stay valid).
+    fn _rollback(&mut self) -> PyResult<()> {
+        if let Some((state, colliders, stats)) = &self.saved {
+            self.system.set_state(state)?;
+            self.system.restore_colliders(colliders);
+            self.system.stats = *stats;
         }
+        Ok(())
     }
 
     /// `positions` (N, 3) m, `velocities` (N, 3) m/s, `masses` (N, 1) kg (inf pins), and room

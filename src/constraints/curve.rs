@@ -5,6 +5,7 @@
 //! closest point to a position by Newton's method on `f(u) = x'(u) · (x(u) - p) = 0`, started
 //! from a guess (the parameter tracked from the previous step).
 
+use super::{at_particle, Constraint};
 use crate::error::{Error, Result};
 use crate::spline::Track;
 use glam::DVec3;
@@ -255,4 +256,23 @@ impl Curve {
             })
         }
     }
+}
+
+/// Move every curve's tracked parameter to the closest point at the state `y`, and pick a new
+/// frame reference where the tangent came near the old one.
+pub(super) fn track_curves(
+    constraints: &[Constraint],
+    y: &[f64],
+    curves: &mut [(f64, DVec3)],
+) -> Result<()> {
+    for (c, state) in constraints.iter().zip(curves) {
+        if let Constraint::OnCurve { i, curve } = c {
+            let x = DVec3::from_slice(&y[3 * i..]);
+            let u = curve.closest(x, state.0).map_err(|e| at_particle(e, *i))?;
+            let t = curve.eval(u)[1].normalize();
+            let reference = if state.1.dot(t).abs() > 0.9 { curve.reference(u) } else { state.1 };
+            *state = (u, reference);
+        }
+    }
+    Ok(())
 }

@@ -1,9 +1,11 @@
 //! Time integration of ordinary differential equations `y' = f(t, y)`.
 //!
 //! One contract for every system in kinema: an [`OdeSystem`] supplies `f` (and optionally its
-//! Jacobian `∂f/∂y`); a [`Stepper`] owns every workspace and advances the state by fixed steps
-//! with one of the [`Method`]s; [`solve_adaptive`] runs the Dormand–Prince 5(4) pair with error
-//! control. Second-order methods (symplectic Euler, velocity Verlet) read the state as
+//! Jacobian `∂f/∂y`); a [`Workspace`] advances the state by fixed steps with one of the
+//! [`Method`]s, reading and updating a [`History`] (what carries from step to step: the method,
+//! the previous BDF2 step, the Newton settings), so that a system keeps the history in its
+//! state and the workspace in its solver ([`Stepper`] holds the two together);
+//! [`solve_adaptive`] runs the Dormand–Prince 5(4) pair with error control. Second-order methods (symplectic Euler, velocity Verlet) read the state as
 //! `y = [x; v]` with `f = [v; a(t, x, v)]`.
 //!
 //! Every method states its order and its stability function `R(z)` (the growth factor per step
@@ -14,14 +16,16 @@
 //! (symplectic Euler, Störmer–Verlet).
 
 mod adaptive;
+mod history;
 mod sparse;
 mod stability;
 mod stepper;
 
 pub use adaptive::{solve_adaptive, AdaptiveSolution};
+pub use history::History;
 pub use sparse::SparseJacobian;
 pub use stability::{max_stable_dt, max_stable_dt_oscillator, stability_function};
-pub use stepper::Stepper;
+pub use stepper::{Stepper, Workspace};
 
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;

@@ -4,7 +4,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::sparse::SparseNewton;
-use super::{Method, OdeSystem};
+use super::{History, Method, OdeSystem};
 use crate::error::{filled, Error, Result};
 use nalgebra::DMatrix;
 
@@ -18,7 +18,10 @@ const MIN_FRACTION: f64 = 1.0 / 64.0;
 /// A step whose Newton iteration fails is retried as 2, 4, … up to `2^MAX_SPLITS` substeps.
 const MAX_SPLITS: u32 = 4;
 
-/// Advances an [`OdeSystem`] by fixed steps of one [`Method`], allocating nothing per step.
+/// The workspaces of fixed-step integration: advances an [`OdeSystem`] by one step of the
+/// method of a [`History`], allocating nothing per step once sized (at the first step of a
+/// dimension). It carries nothing that a later step reads: one workspace can advance any
+/// number of histories and states, in any interleaving, bitwise as if each had its own.
 ///
 /// A step either completes or returns an error and leaves `y` untouched. Implicit methods
 /// solve their equations by Newton iterations from the start of the step: the Jacobian is
@@ -35,180 +38,158 @@ const MAX_SPLITS: u32 = 4;
 ///
 /// When the system offers a sparse Jacobian ([`OdeSystem::sparse_jacobian`]) the iteration
 /// matrix `I - γ h J` is assembled in its pattern and factorised by faer's sparse LU (symbolic
-/// analysis once per pattern, numeric factorisation per Jacobian update); otherwise the
-/// Jacobian is dense (analytic, or by forward differences over every column) with a dense LU
-/// factorisation with partial pivoting, in place. The dense workspaces (`n²` values) are
-/// allocated at the first dense step, so systems with a sparse Jacobian never hold them.
-#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
-pub struct Stepper {
-    method: Method,
+/// analysis kept per pattern, which is bitwise-neutral; numeric factorisation per Jacobian
+/// update); otherwise the Jacobian is dense (analytic, or by forward differences over every
+/// column) with a dense LU factorisation with partial pivoting, in place. The dense workspaces
+/// (`n²` values) are allocated at the first dense step, so systems with a sparse Jacobian
+/// never hold them.
+#[derive(Clone, Debug)]
+pub struct Workspace {
     n: usize,
     k: [Vec<f64>; 4],
     stage: Vec<f64>,
     y_new: Vec<f64>,
-    prev: Vec<f64>,
-    prev_h: Option<f64>,
-    /// The state between the substeps of a split implicit step; sized at construction for
-    /// the implicit methods, and after a reload at the first split.
-    #[serde(skip)]
+    /// The state between the substeps of a split implicit step.
     sub: Vec<f64>,
     jac: DMatrix<f64>,
     lu: Vec<f64>,
     pivots: Vec<usize>,
-    /// Scratch of the sparse factorisation, rebuilt at the next step after a reload.
-    #[serde(skip)]
     sparse: SparseNewton,
-    /// Newton tolerance: stop when `max|Δy| ≤ newton_tol (1 + max|y|)`. Default 1e-10.
-    pub newton_tol: f64,
-    /// Newton iterations before the iteration gives up on a step, which is then retried as
-    /// substeps, and fails with [`Error::SolverFailed`] when they give up too. Default 100.
-    pub max_newton: usize,
-    /// Right-hand-side evaluations so far.
-    pub nfev: usize,
-    /// Jacobian evaluations (analytic or by differences) so far.
-    pub njev: usize,
 }
 
-impl Stepper {
-    /// Copy what carries from step to step (the method, the previous step of the multistep
-    /// methods, the settings and counters) into `saved`, reusing its buffers; the stage and
-    /// Newton workspaces are not copied. A stepper of another method or size is cloned whole.
-    pub fn save_into(&self, saved: &mut Stepper) {
-        if saved.method != self.method || saved.n != self.n {
-            *saved = self.clone();
-            return;
-        }
-        // Destructured so that a new field cannot be forgotten here.
-        let Stepper {
-            method: _,
-            n: _,
-            k: _,
-            stage: _,
-            y_new: _,
-            prev,
-            prev_h,
-            sub: _,
-            jac: _,
-            lu: _,
-            pivots: _,
-            sparse: _,
-            newton_tol,
-            max_newton,
-            nfev,
-            njev,
-        } = self;
-        saved.prev.clone_from(prev);
-        saved.prev_h = *prev_h;
-        saved.newton_tol = *newton_tol;
-        saved.max_newton = *max_newton;
-        saved.nfev = *nfev;
-        saved.njev = *njev;
-    }
-
-    /// A stepper for systems of dimension `n`.
-    ///
-    /// # Errors
-    /// A second-order method with odd `n` (the state must be `[x; v]`).
-    pub fn new(method: Method, n: usize) -> Result<Self> {
-        if method.is_second_order() && !n.is_multiple_of(2) {
-            return Err(Error::invalid(
-                "y0",
-                format!("{} needs a state [x; v] of even length, got {n}", method.name()),
-            ));
-        }
-        Ok(Stepper {
-            method,
-            n,
-            k: std::array::from_fn(|_| vec![0.0; n]),
-            stage: vec![0.0; n],
-            y_new: vec![0.0; n],
-            prev: vec![0.0; n],
-            sub: vec![0.0; if method.is_implicit() { n } else { 0 }],
-            prev_h: None,
+impl Default for Workspace {
+    fn default() -> Self {
+        Workspace {
+            n: 0,
+            k: Default::default(),
+            stage: Vec::new(),
+            y_new: Vec::new(),
+            sub: Vec::new(),
             jac: DMatrix::zeros(0, 0),
             lu: Vec::new(),
             pivots: Vec::new(),
             sparse: SparseNewton::default(),
-            newton_tol: 1e-10,
-            max_newton: 100,
-            nfev: 0,
-            njev: 0,
-        })
+        }
     }
+}
 
-    /// The method this stepper uses.
-    pub fn method(&self) -> Method {
-        self.method
-    }
-
-    /// Forget the history of multistep methods (call after changing the state from outside).
-    pub fn reset(&mut self) {
-        self.prev_h = None;
-    }
-
+impl Workspace {
     fn eval<S: OdeSystem>(
         &mut self,
+        hist: &mut History,
         sys: &mut S,
         t: f64,
         which: usize,
         y: Option<&[f64]>,
     ) -> Result<()> {
-        self.nfev += 1;
+        hist.nfev += 1;
         let input = y.unwrap_or(&self.stage);
         sys.rhs(t, input, &mut self.k[which])
     }
 
-    /// Advance `y` (length `n`) from `t` by one step of `h > 0`.
+    /// Advance `y` (length `n`, the history's dimension) from `t` by one step of `h > 0` with
+    /// the history's method, reading and updating `hist` (the previous BDF2 step, counters).
     ///
     /// # Errors
     /// A bad `h` or `y` length, a system error, a Newton failure ([`Error::SolverFailed`]) or a
-    /// non-finite result ([`Error::Diverged`] with step 0 and the first bad component); `y` is
-    /// unchanged in every case.
-    pub fn step<S: OdeSystem>(&mut self, sys: &mut S, t: f64, y: &mut [f64], h: f64) -> Result<()> {
+    /// non-finite result ([`Error::Diverged`] with step 0 and the first bad component); `y` and
+    /// `hist`'s previous step are unchanged in every case (the counters count the attempt).
+    pub fn step<S: OdeSystem>(
+        &mut self,
+        hist: &mut History,
+        sys: &mut S,
+        t: f64,
+        y: &mut [f64],
+        h: f64,
+    ) -> Result<()> {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::invalid("dt", format!("must be positive and finite, got {h}")));
         }
-        if y.len() != self.n || sys.dim() != self.n {
+        let n = hist.dimension();
+        if y.len() != n || sys.dim() != n {
             return Err(Error::invalid(
                 "y0",
                 format!("has length {}, the system has dimension {}", y.len(), sys.dim()),
             ));
         }
+        self.fit(n, hist.method().is_implicit());
+        if hist.method().is_implicit() {
+            self.split_implicit_step(hist, sys, t, y, h)?;
+        } else {
+            self.explicit_step(hist, sys, t, y, h)?;
+        }
+        if let Some(bad) = self.y_new.iter().position(|x| !x.is_finite()) {
+            return Err(Error::Diverged {
+                step: 0,
+                index: bad,
+                reason: format!("{} produced a non-finite state", hist.method().name()),
+            });
+        }
+        if hist.method() == Method::Bdf2 {
+            hist.prev.copy_from_slice(y);
+            hist.prev_h = Some(h);
+        }
+        y.copy_from_slice(&self.y_new);
+        Ok(())
+    }
+
+    /// Size the workspaces for states of length `n` (allocating only when the size changes).
+    fn fit(&mut self, n: usize, implicit: bool) {
+        if self.n != n {
+            for v in self.k.iter_mut().chain([&mut self.stage, &mut self.y_new]) {
+                v.resize(n, 0.0);
+            }
+            self.n = n;
+        }
+        if implicit && self.sub.len() != n {
+            self.sub.resize(n, 0.0);
+        }
+    }
+
+    /// One step of an explicit method into `y_new`.
+    fn explicit_step<S: OdeSystem>(
+        &mut self,
+        hist: &mut History,
+        sys: &mut S,
+        t: f64,
+        y: &[f64],
+        h: f64,
+    ) -> Result<()> {
         let n = self.n;
-        match self.method {
+        match hist.method() {
             Method::ExplicitEuler => {
-                self.eval(sys, t, 0, Some(y))?;
+                self.eval(hist, sys, t, 0, Some(y))?;
                 for i in 0..n {
                     self.y_new[i] = y[i] + h * self.k[0][i];
                 }
             }
             Method::Midpoint => {
-                self.eval(sys, t, 0, Some(y))?;
+                self.eval(hist, sys, t, 0, Some(y))?;
                 for i in 0..n {
                     self.stage[i] = y[i] + 0.5 * h * self.k[0][i];
                 }
-                self.eval(sys, t + 0.5 * h, 1, None)?;
+                self.eval(hist, sys, t + 0.5 * h, 1, None)?;
                 for i in 0..n {
                     self.y_new[i] = y[i] + h * self.k[1][i];
                 }
             }
             Method::Heun => {
-                self.eval(sys, t, 0, Some(y))?;
+                self.eval(hist, sys, t, 0, Some(y))?;
                 for i in 0..n {
                     self.stage[i] = y[i] + h * self.k[0][i];
                 }
-                self.eval(sys, t + h, 1, None)?;
+                self.eval(hist, sys, t + h, 1, None)?;
                 for i in 0..n {
                     self.y_new[i] = y[i] + 0.5 * h * (self.k[0][i] + self.k[1][i]);
                 }
             }
             Method::Rk4 => {
-                self.eval(sys, t, 0, Some(y))?;
+                self.eval(hist, sys, t, 0, Some(y))?;
                 for (s, c) in [(1, 0.5), (2, 0.5), (3, 1.0)] {
                     for i in 0..n {
                         self.stage[i] = y[i] + c * h * self.k[s - 1][i];
                     }
-                    self.eval(sys, t + c * h, s, None)?;
+                    self.eval(hist, sys, t + c * h, s, None)?;
                 }
                 for i in 0..n {
                     let k = &self.k;
@@ -216,9 +197,30 @@ impl Stepper {
                         y[i] + h / 6.0 * (k[0][i] + 2.0 * k[1][i] + 2.0 * k[2][i] + k[3][i]);
                 }
             }
+            Method::SymplecticEuler | Method::VelocityVerlet => {
+                self.second_order_step(hist, sys, t, y, h)?
+            }
+            Method::ImplicitEuler | Method::Trapezoidal | Method::Bdf2 => {
+                unreachable!("implicit methods take split_implicit_step")
+            }
+        }
+        Ok(())
+    }
+
+    /// One step of a second-order method (symplectic Euler, velocity Verlet) over
+    /// `y = [x; v]` into `y_new`.
+    fn second_order_step<S: OdeSystem>(
+        &mut self,
+        hist: &mut History,
+        sys: &mut S,
+        t: f64,
+        y: &[f64],
+        h: f64,
+    ) -> Result<()> {
+        let m = self.n / 2;
+        match hist.method() {
             Method::SymplecticEuler => {
-                let m = n / 2;
-                self.eval(sys, t, 0, Some(y))?;
+                self.eval(hist, sys, t, 0, Some(y))?;
                 for i in 0..m {
                     let v1 = y[m + i] + h * self.k[0][m + i];
                     self.y_new[m + i] = v1;
@@ -229,8 +231,7 @@ impl Stepper {
                 // Kick–drift–kick; the closing kick evaluates a(x₁, v₀ + h a₀), which equals the
                 // textbook a(x₁) for conservative forces and keeps second order when the force
                 // depends on the velocity (damping, drag).
-                let m = n / 2;
-                self.eval(sys, t, 0, Some(y))?;
+                self.eval(hist, sys, t, 0, Some(y))?;
                 for i in 0..m {
                     let a0 = self.k[0][m + i];
                     self.y_new[m + i] = y[m + i] + 0.5 * h * a0;
@@ -238,27 +239,13 @@ impl Stepper {
                     self.stage[i] = self.y_new[i];
                     self.stage[m + i] = y[m + i] + h * a0;
                 }
-                self.eval(sys, t + h, 1, None)?;
+                self.eval(hist, sys, t + h, 1, None)?;
                 for i in 0..m {
                     self.y_new[m + i] += 0.5 * h * self.k[1][m + i];
                 }
             }
-            Method::ImplicitEuler | Method::Trapezoidal | Method::Bdf2 => {
-                self.split_implicit_step(sys, t, y, h)?
-            }
+            _ => unreachable!("second-order methods only"),
         }
-        if let Some(bad) = self.y_new.iter().position(|x| !x.is_finite()) {
-            return Err(Error::Diverged {
-                step: 0,
-                index: bad,
-                reason: format!("{} produced a non-finite state", self.method.name()),
-            });
-        }
-        if self.method == Method::Bdf2 {
-            self.prev.copy_from_slice(y);
-            self.prev_h = Some(h);
-        }
-        y.copy_from_slice(&self.y_new);
         Ok(())
     }
 
@@ -267,6 +254,7 @@ impl Stepper {
     /// are implicit Euler steps), which brings `γ h` down until Newton converges.
     fn split_implicit_step<S: OdeSystem>(
         &mut self,
+        hist: &mut History,
         sys: &mut S,
         t: f64,
         y: &[f64],
@@ -277,20 +265,19 @@ impl Stepper {
             Err(Error::SolverFailed { .. }) => Ok(false),
             other => other,
         };
-        if converged(self.implicit_step(sys, t, y, h))? {
+        if converged(self.implicit_step(hist, sys, t, y, h))? {
             return Ok(());
         }
         let mut sub = std::mem::take(&mut self.sub);
-        sub.resize(self.n, 0.0);
         // No BDF2 history within the substeps (it would describe the state before `y`).
-        let history = self.prev_h.take();
+        let history = hist.prev_h.take();
         let mut result = Ok(false);
         for level in 1..=MAX_SPLITS {
             let parts = 1_u32 << level;
             let hs = h / f64::from(parts);
             sub.copy_from_slice(y);
             for p in 0..parts {
-                result = converged(self.implicit_step(sys, t + f64::from(p) * hs, &sub, hs));
+                result = converged(self.implicit_step(hist, sys, t + f64::from(p) * hs, &sub, hs));
                 if !matches!(result, Ok(true)) {
                     break;
                 }
@@ -301,14 +288,14 @@ impl Stepper {
             }
         }
         self.sub = sub;
-        self.prev_h = history;
+        hist.prev_h = history;
         match result {
             Ok(true) => Ok(()),
             Ok(false) => Err(Error::SolverFailed {
                 reason: format!(
                     "{}: Newton did not converge in {} iterations, nor in {} substeps; reduce dt",
-                    self.method.name(),
-                    self.max_newton,
+                    hist.method().name(),
+                    hist.max_newton,
                     1 << MAX_SPLITS
                 ),
             }),
@@ -321,6 +308,7 @@ impl Stepper {
     /// if the substeps fail too, so that a split step allocates nothing).
     fn implicit_step<S: OdeSystem>(
         &mut self,
+        hist: &mut History,
         sys: &mut S,
         t: f64,
         y: &[f64],
@@ -328,38 +316,15 @@ impl Stepper {
     ) -> Result<bool> {
         let n = self.n;
         let t1 = t + h;
-        // The explicit part `base` (in k[2]) and the weight `gamma` of f(t1, y1).
-        let bdf2 = match self.method {
-            Method::Bdf2 => super::bdf2_weights(h, self.prev_h),
-            _ => None,
-        };
-        let gamma = match (self.method, bdf2) {
-            (Method::Trapezoidal, _) => {
-                self.eval(sys, t, 0, Some(y))?;
-                for i in 0..n {
-                    self.k[2][i] = y[i] + 0.5 * h * self.k[0][i];
-                }
-                0.5
-            }
-            (_, Some((c, gamma))) => {
-                for i in 0..n {
-                    self.k[2][i] = y[i] + c * (y[i] - self.prev[i]);
-                }
-                gamma
-            }
-            _ => {
-                self.k[2].copy_from_slice(y);
-                1.0
-            }
-        };
+        let gamma = self.implicit_base(hist, sys, t, y, h)?;
         // Jacobian at (t1, y) and the iteration matrix I - γ h J.
-        let mut sparse = self.factorize(sys, t1, y, gamma * h)?;
+        let mut sparse = self.factorize(hist, sys, t1, y, gamma * h)?;
         self.y_new.copy_from_slice(y);
         // `k[0]` holds the last Newton update Δ of norm `last` (infinite before the first and
         // after a Jacobian update), of which `fraction` is applied to the accepted iterate.
         let (mut last, mut fraction) = (f64::INFINITY, 1.0);
-        for _ in 0..self.max_newton {
-            self.nfev += 1;
+        for _ in 0..hist.max_newton {
+            hist.nfev += 1;
             sys.rhs(t1, &self.y_new, &mut self.k[1])?;
             // Residual G = y - base - γ h f(y); solve (I - γhJ) Δ = -G.
             for i in 0..n {
@@ -372,7 +337,7 @@ impl Stepper {
             }
             let step = self.stage.iter().fold(0.0_f64, |m, d| m.max(d.abs()));
             let size = self.y_new.iter().fold(0.0_f64, |m, d| m.max(d.abs()));
-            if step <= self.newton_tol * (1.0 + size) {
+            if step <= hist.newton_tol * (1.0 + size) {
                 for i in 0..n {
                     self.y_new[i] += self.stage[i];
                 }
@@ -394,7 +359,7 @@ impl Stepper {
                 // Slow contraction: the matrix is too far off (a strongly nonlinear step);
                 // update it at this iterate and compute the Newton update there afresh.
                 let y_new = std::mem::take(&mut self.y_new);
-                let result = self.factorize(sys, t1, &y_new, gamma * h);
+                let result = self.factorize(hist, sys, t1, &y_new, gamma * h);
                 self.y_new = y_new;
                 sparse = result?;
                 (last, fraction) = (f64::INFINITY, 1.0);
@@ -409,10 +374,56 @@ impl Stepper {
         Ok(false)
     }
 
+    /// The explicit part `base` of an implicit step (into `k[2]`) and the weight `γ` of
+    /// `f(t + h, y₁)` it returns: `y₁ = base + γ h f(t + h, y₁)` (implicit Euler: `base = y`,
+    /// `γ = 1`; trapezoidal: `base = y + h/2 f(t, y)`, `γ = 1/2`; BDF2 with a previous step:
+    /// the variable-step weights of [`super::bdf2_weights`]).
+    fn implicit_base<S: OdeSystem>(
+        &mut self,
+        hist: &mut History,
+        sys: &mut S,
+        t: f64,
+        y: &[f64],
+        h: f64,
+    ) -> Result<f64> {
+        let n = self.n;
+        let bdf2 = match hist.method() {
+            Method::Bdf2 => super::bdf2_weights(h, hist.prev_h),
+            _ => None,
+        };
+        let gamma = match (hist.method(), bdf2) {
+            (Method::Trapezoidal, _) => {
+                self.eval(hist, sys, t, 0, Some(y))?;
+                for i in 0..n {
+                    self.k[2][i] = y[i] + 0.5 * h * self.k[0][i];
+                }
+                0.5
+            }
+            (_, Some((c, gamma))) => {
+                for i in 0..n {
+                    self.k[2][i] = y[i] + c * (y[i] - hist.prev[i]);
+                }
+                gamma
+            }
+            _ => {
+                self.k[2].copy_from_slice(y);
+                1.0
+            }
+        };
+        Ok(gamma)
+    }
+
     /// Evaluate ∂f/∂y at (t, y) and factorise `I - gh J`: sparse if the system offers it
     /// (returns `true`), else dense (returns `false`).
-    fn factorize<S: OdeSystem>(&mut self, sys: &mut S, t: f64, y: &[f64], gh: f64) -> Result<bool> {
-        self.njev += 1;
+    fn factorize<S: OdeSystem>(
+        &mut self,
+        hist: &mut History,
+        sys: &mut S,
+        t: f64,
+        y: &[f64],
+        gh: f64,
+    ) -> Result<bool> {
+        hist.njev += 1;
         if sys.sparse_jacobian(t, y, &mut self.sparse.jac)? {
             self.sparse.factorize(self.n, gh)?;
             return Ok(true);
@@ -438,7 +449,7 @@ impl Stepper {
             self.lu = filled("y0", nn, 0.0).map_err(|_| dense())?;
             self.pivots = vec![0; n];
         }
-        self.dense_jacobian(sys, t, y)?;
+        self.dense_jacobian(hist, sys, t, y)?;
         for c in 0..n {
             for r in 0..n {
                 self.lu[r * n + c] = f64::from(u8::from(r == c)) - gh * self.jac[(r, c)];
@@ -450,17 +461,23 @@ impl Stepper {
 
     /// Fill `self.jac` with ∂f/∂y at (t, y): analytic if the system has it, else forward
     /// differences with steps `sqrt(eps) max(|y_j|, 1)`.
-    fn dense_jacobian<S: OdeSystem>(&mut self, sys: &mut S, t: f64, y: &[f64]) -> Result<()> {
+    fn dense_jacobian<S: OdeSystem>(
+        &mut self,
+        hist: &mut History,
+        sys: &mut S,
+        t: f64,
+        y: &[f64],
+    ) -> Result<()> {
         if sys.jacobian(t, y, &mut self.jac)? {
             return Ok(());
         }
         let n = self.n;
-        self.eval(sys, t, 3, Some(y))?;
+        self.eval(hist, sys, t, 3, Some(y))?;
         self.stage.copy_from_slice(y);
         for j in 0..n {
             let d = f64::EPSILON.sqrt() * y[j].abs().max(1.0);
             self.stage[j] = y[j] + d;
-            self.nfev += 1;
+            hist.nfev += 1;
             sys.rhs(t, &self.stage, &mut self.k[1])?;
             for i in 0..n {
                 self.jac[(i, j)] = (self.k[1][i] - self.k[3][i]) / d;
@@ -468,6 +485,58 @@ impl Stepper {
             self.stage[j] = y[j];
         }
         Ok(())
+    }
+}
+
+/// A [`History`] with a [`Workspace`] of its own, for callers that keep the two together (a
+/// one-off solve, a system without a separate solver). A snapshot of it holds the history only
+/// (the workspace is sized again at the next step).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
+pub struct Stepper {
+    /// What carries from step to step: method, previous BDF2 step, Newton settings, counters.
+    pub history: History,
+    #[serde(skip)]
+    work: Workspace,
+}
+
+impl Stepper {
+    /// A stepper for systems of dimension `n` ([`History::new`]).
+    ///
+    /// # Errors
+    /// A second-order method with odd `n` (the state must be `[x; v]`).
+    pub fn new(method: Method, n: usize) -> Result<Self> {
+        Ok(Stepper { history: History::new(method, n)?, work: Workspace::default() })
+    }
+
+    /// The method this stepper uses.
+    pub fn method(&self) -> Method {
+        self.history.method()
+    }
+
+    /// Length of the states this stepper advances.
+    pub fn dimension(&self) -> usize {
+        self.history.dimension()
+    }
+
+    /// Forget the history of multistep methods ([`History::reset`]).
+    pub fn reset(&mut self) {
+        self.history.reset();
+    }
+
+    /// Check a stepper decoded from a snapshot ([`History::validate`]).
+    ///
+    /// # Errors
+    /// As [`History::validate`].
+    pub fn validate(&self) -> Result<()> {
+        self.history.validate()
+    }
+
+    /// Advance `y` by one step of `h` ([`Workspace::step`]).
+    ///
+    /// # Errors
+    /// As [`Workspace::step`].
+    pub fn step<S: OdeSystem>(&mut self, sys: &mut S, t: f64, y: &mut [f64], h: f64) -> Result<()> {
+        self.work.step(&mut self.history, sys, t, y, h)
     }
 }
 
@@ -514,49 +583,3 @@ fn lu_solve(a: &[f64], pivots: &[usize], n: usize, b: &mut [f64]) {
         b[r] = (b[r] - s) / a[r * n + r];
     }
 }
-
-impl Stepper {
-    /// Length of the states this stepper advances.
-    pub fn dimension(&self) -> usize {
-        self.n
-    }
-
-    /// Check a stepper decoded from a snapshot: workspaces of its dimension, a Jacobian and LU
-    /// factor that agree (square, pivots in range), finite history and Newton settings. The
-    /// Newton iteration count is capped at 10 000 so a damaged one cannot hang a step.
-    ///
-    /// # Errors
-    /// [`Error::InvalidInput`] naming the first inconsistent field.
-    pub fn validate(&self) -> Result<()> {
-        let n = self.n;
-        let bad = |field: &str, what: &str| Err(Error::invalid(field, what.to_string()));
-        if self.method.is_second_order() && !n.is_multiple_of(2) {
-            return bad("stepper", "a second-order method needs a state of even length");
-        }
-        if self.k.iter().chain([&self.stage, &self.y_new, &self.prev]).any(|v| v.len() != n) {
-            return bad("stepper", "workspaces are not of the stepper's dimension");
-        }
-        let m = self.jac.nrows();
-        if self.jac.ncols() != m
-            || (m != 0 && m != n)
-            || self.lu.len() != m * m
-            || self.pivots.len() != m
-            || self.pivots.iter().any(|&p| p >= m)
-        {
-            return bad("stepper", "inconsistent Jacobian or LU factor");
-        }
-        if !self.prev.iter().all(|v| v.is_finite())
-            || self.prev_h.is_some_and(|h| !(h.is_finite() && h > 0.0))
-        {
-            return bad("stepper", "non-finite history");
-        }
-        if !(self.newton_tol.is_finite() && self.newton_tol >= 0.0) || self.max_newton > MAX_NEWTON
-        {
-            return bad("stepper", "Newton tolerance or iteration count out of range");
-        }
-        Ok(())
-    }
-}
-
-/// Largest Newton iteration count a stepper read from a snapshot may carry.
-const MAX_NEWTON: usize = 10_000;

@@ -7,7 +7,8 @@
 //! gravity adds in one step are resting (no bounce), so resting particles stay exactly on the
 //! surface without jitter.
 
-use super::{ParticleSystem, CHUNK};
+use super::solver::Step;
+use super::CHUNK;
 use crate::error::{Error, Result};
 use crate::geometry::{Material, Shape};
 use glam::DVec3;
@@ -43,43 +44,18 @@ impl Collider {
     }
 }
 
-impl ParticleSystem {
-    /// Add a collider.
-    ///
-    /// # Errors
-    /// Those of [`Collider::checked`].
-    pub fn add_collider(&mut self, collider: Collider) -> Result<()> {
-        self.colliders.push(collider.checked()?);
-        Ok(())
-    }
-
-    /// Replace collider `index` (move a collider between steps, e.g. one that follows an
-    /// animated or rigid body).
-    ///
-    /// # Errors
-    /// `index` out of range, or those of [`Collider::checked`].
-    pub fn set_collider(&mut self, index: usize, collider: Collider) -> Result<()> {
-        if index >= self.colliders.len() {
-            return Err(Error::invalid(
-                "index",
-                format!("no collider {index}: there are {}", self.colliders.len()),
-            ));
-        }
-        self.colliders[index] = collider.checked()?;
-        Ok(())
-    }
-
+impl Step<'_> {
     /// Resolve the contacts of every live, movable particle with the colliders, in parallel
     /// chunks (each particle independently, so the result does not depend on the threads).
     pub(super) fn collide(&mut self, dt: f64, gravity: DVec3) {
-        if self.colliders.is_empty() {
+        if self.model.colliders.is_empty() {
             return;
         }
-        let n = self.n;
+        let n = self.model.n;
         let (colliders, alive, inv_mass, backup) =
-            (&self.colliders, &self.alive, &self.inv_mass, &self.backup);
-        let (xs, vs) = self.y.split_at_mut(3 * n);
-        self.stats.contacts += xs
+            (&self.model.colliders, &self.state.alive, &self.state.inv_mass, &self.solver.backup);
+        let (xs, vs) = self.state.y.split_at_mut(3 * n);
+        self.solver.stats.contacts += xs
             .par_chunks_mut(3 * CHUNK)
             .zip(vs.par_chunks_mut(3 * CHUNK))
             .enumerate()

@@ -4,6 +4,7 @@
 //! repulsion, all-pairs gravity) sequentially in a fixed order.
 
 use super::*;
+use rayon::prelude::*;
 
 /// The externally set force on slot `i` (zero when none is set).
 pub(super) fn external_force(external: &[f64], i: usize) -> DVec3 {
@@ -40,24 +41,39 @@ impl OdeSystem for Dynamics<'_> {
         let n = self.n;
         let (x, v) = y.split_at(3 * n);
         let (dx, f) = dydt.split_at_mut(3 * n);
-        let p = |i: usize| DVec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
-        let vel = |i: usize| DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
-        let add = |f: &mut [f64], i: usize, a: DVec3| {
-            f[3 * i] += a.x;
-            f[3 * i + 1] += a.y;
-            f[3 * i + 2] += a.z;
-        };
+        self.single_forces(x, v, dx, f);
+        self.pair_forces(x, v, f);
+        self.accelerations(dx, f);
+        Ok(())
+    }
+}
+
+/// The vector of slot `i` in a buffer of 3 values per slot.
+fn at(x: &[f64], i: usize) -> DVec3 {
+    DVec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2])
+}
+
+/// Add `a` to slot `i` of a buffer of 3 values per slot.
+fn add(f: &mut [f64], i: usize, a: DVec3) {
+    f[3 * i] += a.x;
+    f[3 * i + 1] += a.y;
+    f[3 * i + 2] += a.z;
+}
+
+impl Dynamics<'_> {
+    /// Pass 1, parallel over particles: `x' = v` into `dx` and every force acting on one
+    /// particle alone into `f` (each particle's sum in the order the forces were added,
+    /// whatever the threads).
+    fn single_forces(&self, x: &[f64], v: &[f64], dx: &mut [f64], f: &mut [f64]) {
         let (all_forces, mass, alive, external) =
             (self.forces, self.mass, self.alive, self.external);
-        // Pass 1, parallel over particles: x' = v and every force acting on one particle alone
-        // (each particle's sum in the order the forces were added, whatever the threads).
         dx.par_chunks_mut(3 * CHUNK).zip(f.par_chunks_mut(3 * CHUNK)).enumerate().for_each(
             |(c, (dxc, fc))| {
                 for k in 0..dxc.len() / 3 {
                     let i = c * CHUNK + k;
                     dxc[3 * k..3 * k + 3].copy_from_slice(&v[3 * i..3 * i + 3]);
                     let acc = if alive[i] {
-                        particle_force(all_forces, p(i), vel(i), mass[i])
+                        particle_force(all_forces, at(x, i), at(v, i), mass[i])
                             + external_force(external, i)
                     } else {
                         DVec3::ZERO
@@ -66,20 +82,25 @@ impl OdeSystem for Dynamics<'_> {
                 }
             },
         );
-        // Pass 2, sequential in a fixed order: forces between particles.
+    }
+
+    /// Pass 2, sequential in a fixed order: forces between particles (springs, the hash-grid
+    /// repulsion, all-pairs gravity) added into `f`.
+    fn pair_forces(&mut self, x: &[f64], v: &[f64], f: &mut [f64]) {
+        let (n, alive, mass, inv_mass) = (self.n, self.alive, self.mass, self.inv_mass);
         for force in self.forces {
             match force {
                 Force::Springs { pairs, rest, stiffness, damping } => {
                     for (pair, l) in pairs.iter().zip(rest) {
                         let (a, b) = (pair[0], pair[1]);
-                        let d = p(a) - p(b);
+                        let d = at(x, a) - at(x, b);
                         let len = d.length();
                         if len == 0.0 {
                             continue;
                         }
                         let dir = d / len;
-                        let fa =
-                            -(stiffness * (len - l) + damping * (vel(a) - vel(b)).dot(dir)) * dir;
+                        let relative = (at(v, a) - at(v, b)).dot(dir);
+                        let fa = -(stiffness * (len - l) + damping * relative) * dir;
                         add(f, a, fa);
                         add(f, b, -fa);
                     }
@@ -92,12 +113,12 @@ impl OdeSystem for Dynamics<'_> {
                     });
                 }
                 Force::NBodyGravity { constant, softening } => {
-                    let free = |i: usize| self.alive[i] && self.inv_mass[i] > 0.0;
+                    let free = |i: usize| alive[i] && inv_mass[i] > 0.0;
                     for i in (0..n).filter(|&i| free(i)) {
                         for j in (i + 1..n).filter(|&j| free(j)) {
-                            let d = p(j) - p(i);
+                            let d = at(x, j) - at(x, i);
                             let s = (d.length_squared() + softening * softening).powf(1.5);
-                            let fi = constant * self.mass[i] * self.mass[j] / s * d;
+                            let fi = constant * mass[i] * mass[j] / s * d;
                             add(f, i, fi);
                             add(f, j, -fi);
                         }
@@ -106,8 +127,12 @@ impl OdeSystem for Dynamics<'_> {
                 _ => {}
             }
         }
-        // Pass 3, parallel: accelerations; pinned (where m g is infinite) and dead slots stay put.
-        let inv_mass = self.inv_mass;
+    }
+
+    /// Pass 3, parallel: forces into accelerations; pinned (where `m g` is infinite) and dead
+    /// slots stay put (`x' = v' = 0`).
+    fn accelerations(&self, dx: &mut [f64], f: &mut [f64]) {
+        let (alive, inv_mass) = (self.alive, self.inv_mass);
         dx.par_chunks_mut(3 * CHUNK).zip(f.par_chunks_mut(3 * CHUNK)).enumerate().for_each(
             |(c, (dxc, fc))| {
                 for k in 0..dxc.len() / 3 {
@@ -121,6 +146,5 @@ impl OdeSystem for Dynamics<'_> {
                 }
             },
         );
-        Ok(())
     }
 }

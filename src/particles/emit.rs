@@ -3,35 +3,25 @@
 //! and retirement at the end of a lifespan. Random numbers are the emitter's own SplitMix64
 //! stream (Steele, Lea & Flood 2014), so emission does not depend on the threads.
 
-use super::{certify, ParticleSystem, Result, CHUNK};
+use super::solver::Step;
+use super::{certify, Result, CHUNK};
 use crate::error::Error;
 use glam::DVec3;
 use rayon::prelude::*;
 
-impl ParticleSystem {
-    /// Add an emitter.
-    ///
-    /// # Errors
-    /// Negative or non-finite rate, spreads, lifespan or mass, non-finite position or
-    /// velocity (each named).
-    pub fn add_emitter(&mut self, emitter: Emitter) -> Result<()> {
-        emitter.validate()?;
-        let seed = emitter.seed;
-        self.emitters.push((emitter, 0.0, seed));
-        self.summary.masses = None;
-        Ok(())
-    }
-
+impl Step<'_> {
     /// Age the particles and retire those past their lifespan ([`age_slots`]).
     pub(super) fn age(&mut self, dt: f64) {
-        let n = self.n;
-        self.stats.expired += self.y[3 * n..]
+        let n = self.model.n;
+        self.solver.stats.expired += self.state.y[3 * n..]
             .par_chunks_mut(3 * CHUNK)
-            .zip(self.alive.par_chunks_mut(CHUNK))
-            .zip(self.age.par_chunks_mut(CHUNK).zip(self.lifespan.par_chunks(CHUNK)))
+            .zip(self.state.alive.par_chunks_mut(CHUNK))
+            .zip(self.state.age.par_chunks_mut(CHUNK).zip(self.state.lifespan.par_chunks(CHUNK)))
             .map(|((vs, alive), (age, lifespan))| age_slots(dt, alive, age, lifespan, vs))
             .sum::<usize>();
-        if let Some(masses) = self.summary.masses.as_mut().filter(|_| self.stats.expired > 0) {
+        if let Some(masses) =
+            self.state.summary.masses.as_mut().filter(|_| self.solver.stats.expired > 0)
+        {
             masses.uniform = None;
         }
     }
@@ -41,42 +31,44 @@ impl ParticleSystem {
     /// first, emitters in the order added) and the rest are counted as dropped at once, so a
     /// step costs O(capacity) whatever the rate (a rate of 1e300 /s fills the free slots).
     pub(super) fn emit(&mut self, dt: f64) {
-        let n = self.n;
+        let n = self.model.n;
         let mut cursor = 0;
-        for (emitter, accum, rng) in &mut self.emitters {
+        let (model, state) = (self.model, &mut *self.state);
+        for (emitter, (accum, rng)) in model.emitters.iter().zip(&mut state.emitters) {
             *accum += emitter.rate * dt;
             // Subtracting the whole part is exact, as subtracting 1 that many times was.
             let owed = accum.floor();
             *accum = if owed.is_finite() { *accum - owed } else { 0.0 };
             // `as` saturates: more than usize::MAX owed counts as usize::MAX.
             for k in 0..owed as usize {
-                while cursor < n && self.alive[cursor] {
+                while cursor < n && state.alive[cursor] {
                     cursor += 1;
                 }
                 if cursor == n {
-                    self.stats.dropped = self.stats.dropped.saturating_add(owed as usize - k);
+                    self.solver.stats.dropped =
+                        self.solver.stats.dropped.saturating_add(owed as usize - k);
                     break;
                 }
                 let i = cursor;
                 let x = emitter.position + emitter.position_spread * uniform_in_ball(rng);
                 let v = emitter.velocity + emitter.velocity_spread * uniform_in_ball(rng);
-                self.y[3 * i..3 * i + 3].copy_from_slice(&x.to_array());
-                self.y[3 * n + 3 * i..3 * n + 3 * i + 3].copy_from_slice(&v.to_array());
-                self.alive[i] = true;
-                self.age[i] = 0.0;
-                self.lifespan[i] = emitter.lifespan;
-                self.mass[i] = emitter.mass;
-                self.inv_mass[i] = 1.0 / emitter.mass;
-                (self.color[i], self.size[i]) = emitter.appearance.draw(rng);
-                self.stats.emitted += 1;
+                state.y[3 * i..3 * i + 3].copy_from_slice(&x.to_array());
+                state.y[3 * n + 3 * i..3 * n + 3 * i + 3].copy_from_slice(&v.to_array());
+                state.alive[i] = true;
+                state.age[i] = 0.0;
+                state.lifespan[i] = emitter.lifespan;
+                state.mass[i] = emitter.mass;
+                state.inv_mass[i] = 1.0 / emitter.mass;
+                (state.color[i], state.size[i]) = emitter.appearance.draw(rng);
+                self.solver.stats.emitted += 1;
             }
         }
-        if self.stats.emitted > 0 || self.stats.expired > 0 {
-            self.state_changed();
+        if self.solver.stats.emitted > 0 || self.solver.stats.expired > 0 {
+            self.state.state_changed();
         }
-        if self.stats.emitted > 0 {
-            let emitted = emitted_bound(&self.emitters);
-            self.summary.state = self.summary.state.map(|b| b.max(emitted));
+        if self.solver.stats.emitted > 0 {
+            let emitted = emitted_bound(&self.model.emitters);
+            self.state.summary.state = self.state.summary.state.map(|b| b.max(emitted));
         }
     }
 }
@@ -257,9 +249,9 @@ pub(super) fn age_slots(
 
 /// A bound on |component| of the position and velocity of any particle the emitters make
 /// (m, m/s).
-pub(super) fn emitted_bound(emitters: &[(Emitter, f64, u64)]) -> f64 {
+pub(super) fn emitted_bound(emitters: &[Emitter]) -> f64 {
     let mag = certify::mag;
-    emitters.iter().fold(0.0, |b, (e, ..)| {
+    emitters.iter().fold(0.0, |b, e| {
         b.max(mag(e.position) + e.position_spread).max(mag(e.velocity) + e.velocity_spread)
     })
 }

@@ -5,9 +5,16 @@
 //! good steps again. What the kernel would otherwise read per slot in every call is kept
 //! between calls ([`Summary`]).
 
+use super::emit::emitted_bound;
+use super::solver::Step;
 use super::*;
+use rayon::prelude::*;
 
-impl ParticleSystem {
+/// The most steps of a call that [`Step::certified`] tries to certify (a copy of the state
+/// costs less than one step, a small part of the time of a longer call).
+const MOST_CERTIFIED: usize = 64;
+
+impl Step<'_> {
     /// `steps` steps of symplectic Euler with the collision response by the explicit kernel
     /// (module `explicit`), for systems without forces between particles. Each step is
     /// computed once and written in place. Unless the steps are certified not to go
@@ -19,28 +26,27 @@ impl ParticleSystem {
     /// the model, and the kernel's results depend neither on the threads nor on how many steps
     /// it takes at once).
     pub(super) fn explicit_steps(&mut self, dt: f64, steps: usize, gravity: DVec3) -> Result<()> {
-        let n = self.n;
+        let n = self.model.n;
         // Without emitters no slot is born, and none dies (lifespans are infinite: only
         // emitted particles have finite ones), so the ages can be advanced after the call.
-        let age_each_step = !self.emitters.is_empty();
+        let age_each_step = !self.model.emitters.is_empty();
         if age_each_step {
-            self.settle_ages();
+            self.state.settle_ages();
         }
-        let (time, bound) = (self.time, self.summary.state);
+        let (time, bound) = (self.state.time, self.state.summary.state);
         let keep = !self.certified(dt, steps, gravity);
         // Aging and emission follow each good step: a call's first step changes nothing but
         // positions and velocities before it is known good.
         let keep_slots = keep && age_each_step && steps > 1;
-        self.rollback.y.resize(6 * n, 0.0);
+        self.solver.rollback.y.resize(6 * n, 0.0);
         if keep_slots {
-            let r = &mut self.rollback;
-            r.alive.clone_from(&self.alive);
-            r.age.clone_from(&self.age);
-            r.lifespan.clone_from(&self.lifespan);
-            r.mass.clone_from(&self.mass);
-            r.inv_mass.clone_from(&self.inv_mass);
-            r.emitters.clear();
-            r.emitters.extend(self.emitters.iter().map(|(_, accum, rng)| (*accum, *rng)));
+            let r = &mut self.solver.rollback;
+            r.alive.clone_from(&self.state.alive);
+            r.age.clone_from(&self.state.age);
+            r.lifespan.clone_from(&self.state.lifespan);
+            r.mass.clone_from(&self.state.mass);
+            r.inv_mass.clone_from(&self.state.inv_mass);
+            r.emitters.clone_from(&self.state.emitters);
         }
         let Err((step, index)) = self.explicit_run(dt, steps, gravity, age_each_step, keep) else {
             return Ok(());
@@ -49,28 +55,26 @@ impl ParticleSystem {
         debug_assert!(keep, "a certified step came out non-finite");
         if !keep {
             // Unreachable if `step_bound` is right: there is no copy to restore.
-            self.summary.state = None;
+            self.state.summary.state = None;
             return Err(diverged);
         }
-        let r = &self.rollback;
-        self.y.par_chunks_mut(6 * CHUNK).zip(r.y.par_chunks(6 * CHUNK)).for_each(|(y, r)| {
+        let r = &self.solver.rollback;
+        self.state.y.par_chunks_mut(6 * CHUNK).zip(r.y.par_chunks(6 * CHUNK)).for_each(|(y, r)| {
             y.copy_from_slice(r);
         });
         if keep_slots {
-            self.alive.copy_from_slice(&r.alive);
-            self.age.copy_from_slice(&r.age);
-            self.lifespan.copy_from_slice(&r.lifespan);
-            self.mass.copy_from_slice(&r.mass);
-            self.inv_mass.copy_from_slice(&r.inv_mass);
-            for ((_, accum, rng), kept) in self.emitters.iter_mut().zip(&r.emitters) {
-                (*accum, *rng) = *kept;
-            }
-            if let Some(masses) = &mut self.summary.masses {
+            self.state.alive.copy_from_slice(&r.alive);
+            self.state.age.copy_from_slice(&r.age);
+            self.state.lifespan.copy_from_slice(&r.lifespan);
+            self.state.mass.copy_from_slice(&r.mass);
+            self.state.inv_mass.copy_from_slice(&r.inv_mass);
+            self.state.emitters.copy_from_slice(&r.emitters);
+            if let Some(masses) = &mut self.state.summary.masses {
                 masses.uniform = None;
             }
         }
-        (self.time, self.summary.state) = (time, bound);
-        self.stats = StepStats::default();
+        (self.state.time, self.state.summary.state) = (time, bound);
+        self.solver.stats = StepStats::default();
         let replayed = self.explicit_run(dt, step, gravity, age_each_step, false);
         debug_assert!(replayed.is_ok(), "steps that were good are good again");
         Err(diverged)
@@ -81,18 +85,18 @@ impl ParticleSystem {
     /// carried through each step by [`certify::step_bound`], with the particles the emitters
     /// may make after each step.
     pub(super) fn certified(&mut self, dt: f64, steps: usize, gravity: DVec3) -> bool {
-        let Some(mut bound) = self.summary.state.filter(|_| steps <= Self::MOST_CERTIFIED) else {
+        let Some(mut bound) = self.state.summary.state.filter(|_| steps <= MOST_CERTIFIED) else {
             return false;
         };
         let masses = self.mass_summary();
-        let external = *self.summary.external.get_or_insert_with(|| {
-            self.external.par_iter().map(|f| f.abs()).reduce(|| 0.0, f64::max)
+        let external = *self.state.summary.external.get_or_insert_with(|| {
+            self.state.external.par_iter().map(|f| f.abs()).reduce(|| 0.0, f64::max)
         });
         let extremes =
             certify::Extremes { mass: masses.largest.0, inv_mass: masses.largest.1, external };
-        let emitted = emitted_bound(&self.emitters);
+        let emitted = emitted_bound(&self.model.emitters);
         for _ in 0..steps {
-            let (forces, colliders) = (&self.forces, &self.colliders);
+            let (forces, colliders) = (&self.model.forces, &self.model.colliders);
             bound = certify::step_bound(forces, colliders, dt, gravity, extremes, bound);
             bound = bound.max(emitted);
             if bound == f64::INFINITY {
@@ -104,8 +108,13 @@ impl ParticleSystem {
 
     /// The slots' masses ([`Masses`]), from the summary or computed into it.
     pub(super) fn mass_summary(&mut self) -> Masses {
-        *self.summary.masses.get_or_insert_with(|| {
-            Masses::of(&self.mass, &self.inv_mass, &self.alive, &self.emitters)
+        *self.state.summary.masses.get_or_insert_with(|| {
+            Masses::of(
+                &self.state.mass,
+                &self.state.inv_mass,
+                &self.state.alive,
+                &self.model.emitters,
+            )
         })
     }
 
@@ -127,35 +136,35 @@ impl ParticleSystem {
         if steps == 0 {
             return Ok(());
         }
-        let n = self.n;
+        let n = self.model.n;
         let uniform = if age_each_step { None } else { self.mass_summary().uniform };
         let (runs, each) = if age_each_step { (steps, 1) } else { (1, steps) };
         for run in 0..runs {
             let model = kernel::Model {
-                forces: &self.forces,
-                colliders: &self.colliders,
-                mass: &self.mass,
-                inv_mass: &self.inv_mass,
-                external: &self.external,
+                forces: &self.model.forces,
+                colliders: &self.model.colliders,
+                mass: &self.state.mass,
+                inv_mass: &self.state.inv_mass,
+                external: &self.state.external,
                 dt,
                 gravity,
                 uniform,
             };
-            let (xs, vs) = self.y.split_at_mut(3 * n);
-            let kept = &mut self.rollback.y;
+            let (xs, vs) = self.state.y.split_at_mut(3 * n);
+            let kept = &mut self.solver.rollback.y;
             let guard = match (keep, run) {
                 (false, _) => kernel::Guard::Certified,
                 (true, 0) => kernel::Guard::Copy,
                 (true, _) => kernel::Guard::Check,
             };
-            let done = kernel::commit(&model, xs, vs, &self.alive, kept, guard, each);
+            let done = kernel::commit(&model, xs, vs, &self.state.alive, kept, guard, each);
             if let Some((s, index)) = done.bad {
                 return Err((run + s, index));
             }
-            self.summary.state = Some(done.bound);
-            self.stats.contacts += done.contacts;
+            self.state.summary.state = Some(done.bound);
+            self.solver.stats.contacts += done.contacts;
             for _ in 0..each {
-                self.time += dt;
+                self.state.time += dt;
             }
             if age_each_step {
                 self.age(dt);
@@ -164,10 +173,10 @@ impl ParticleSystem {
         }
         if !age_each_step {
             // Added by `settle_ages`, with the pending steps of another `dt` first.
-            if self.age_pending.1 > 0 && self.age_pending.0.to_bits() != dt.to_bits() {
-                self.settle_ages();
+            if self.state.age_pending.1 > 0 && self.state.age_pending.0.to_bits() != dt.to_bits() {
+                self.state.settle_ages();
             }
-            self.age_pending = (dt, self.age_pending.1 + steps);
+            self.state.age_pending = (dt, self.state.age_pending.1 + steps);
         }
         Ok(())
     }
@@ -193,7 +202,7 @@ pub(super) struct Rollback {
 
 /// What the explicit kernel would otherwise read every slot for in every call, kept between
 /// calls; not part of a snapshot (each part is rebuilt when unknown).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Summary {
     /// A bound on |component| of the position and velocity of every live, movable particle
     /// (m, m/s), known after a call of the explicit kernel and forgotten when the state is
@@ -216,12 +225,7 @@ pub(super) struct Masses {
 }
 
 impl Masses {
-    fn of(
-        mass: &[f64],
-        inv_mass: &[f64],
-        alive: &[bool],
-        emitters: &[(Emitter, f64, u64)],
-    ) -> Self {
+    fn of(mass: &[f64], inv_mass: &[f64], alive: &[bool], emitters: &[Emitter]) -> Self {
         let movable =
             |(&m, &inv_m): (&f64, &f64)| if inv_m != 0.0 { (m, inv_m) } else { (0.0, 0.0) };
         let largest = mass
@@ -235,7 +239,7 @@ impl Masses {
             })
             .reduce(|| (0.0, 0.0), |(a, b), (c, d)| (a.max(c), b.max(d)));
         let largest =
-            emitters.iter().fold(largest, |(a, b), (e, ..)| (a.max(e.mass), b.max(1.0 / e.mass)));
+            emitters.iter().fold(largest, |(a, b), e| (a.max(e.mass), b.max(1.0 / e.mass)));
         Masses { uniform: uniform_mass(mass, inv_mass, alive), largest }
     }
 }

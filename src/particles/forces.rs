@@ -97,6 +97,46 @@ fn check(arg: &str, ok: bool, why: &str) -> Result<()> {
     }
 }
 
+/// `value` must be finite and `>= 0`.
+fn non_negative(arg: &str, value: f64) -> Result<()> {
+    check(arg, value.is_finite() && value >= 0.0, "must be finite and >= 0")
+}
+
+/// `value` must be finite and `> 0`.
+fn positive(arg: &str, value: f64) -> Result<()> {
+    check(arg, value.is_finite() && value > 0.0, "must be positive")
+}
+
+/// Springs: one rest length per pair, coefficients finite and `>= 0`, each pair two different
+/// particles below `n`, each rest length finite and `>= 0` (the offending pair named).
+fn check_springs(
+    pairs: &[[usize; 2]],
+    rest: &[f64],
+    coefficients: [f64; 2],
+    n: usize,
+) -> Result<()> {
+    check("rest", rest.len() == pairs.len(), "needs one rest length per pair")?;
+    non_negative("stiffness", coefficients[0])?;
+    non_negative("damping", coefficients[1])?;
+    for (k, (p, l)) in pairs.iter().zip(rest).enumerate() {
+        if p[0] >= n || p[1] >= n || p[0] == p[1] {
+            return Err(Error::InvalidInput {
+                arg: "pairs".into(),
+                index: Some(k),
+                reason: format!("{p:?} must be two different particles below {n}"),
+            });
+        }
+        if !(l.is_finite() && *l >= 0.0) {
+            return Err(Error::InvalidInput {
+                arg: "rest".into(),
+                index: Some(k),
+                reason: "must be finite and >= 0".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
 impl Force {
     /// Check the parameters against a system of `n` particles.
     ///
@@ -104,88 +144,41 @@ impl Force {
     /// Non-finite parameters, non-positive lengths where positive ones are required, spring
     /// indices out of range or equal, rest lengths of the wrong count or negative.
     pub fn validate(&self, n: usize) -> Result<()> {
+        let finite = |arg: &str, v: f64| check(arg, v.is_finite(), "must be finite");
         match self {
             Force::Gravity { g } => check("g", g.is_finite(), "must be finite"),
             Force::Drag { linear, quadratic, wind } => {
-                check("linear", linear.is_finite() && *linear >= 0.0, "must be finite and >= 0")?;
-                check(
-                    "quadratic",
-                    quadratic.is_finite() && *quadratic >= 0.0,
-                    "must be finite and >= 0",
-                )?;
+                non_negative("linear", *linear)?;
+                non_negative("quadratic", *quadratic)?;
                 check("wind", wind.is_finite(), "must be finite")
             }
-            Force::Damping { rate } => {
-                check("rate", rate.is_finite() && *rate >= 0.0, "must be finite and >= 0")
-            }
+            Force::Damping { rate } => non_negative("rate", *rate),
             Force::Springs { pairs, rest, stiffness, damping } => {
-                check("rest", rest.len() == pairs.len(), "needs one rest length per pair")?;
-                check(
-                    "stiffness",
-                    stiffness.is_finite() && *stiffness >= 0.0,
-                    "must be finite and >= 0",
-                )?;
-                check(
-                    "damping",
-                    damping.is_finite() && *damping >= 0.0,
-                    "must be finite and >= 0",
-                )?;
-                for (k, (p, l)) in pairs.iter().zip(rest).enumerate() {
-                    if p[0] >= n || p[1] >= n || p[0] == p[1] {
-                        return Err(Error::InvalidInput {
-                            arg: "pairs".into(),
-                            index: Some(k),
-                            reason: format!("{p:?} must be two different particles below {n}"),
-                        });
-                    }
-                    if !(l.is_finite() && *l >= 0.0) {
-                        return Err(Error::InvalidInput {
-                            arg: "rest".into(),
-                            index: Some(k),
-                            reason: "must be finite and >= 0".into(),
-                        });
-                    }
-                }
-                Ok(())
+                check_springs(pairs, rest, [*stiffness, *damping], n)
             }
             Force::Attractor { center, strength, softening } => {
                 check("center", center.is_finite(), "must be finite")?;
-                check("strength", strength.is_finite(), "must be finite")?;
-                check("softening", softening.is_finite() && *softening > 0.0, "must be positive")
+                finite("strength", *strength)?;
+                positive("softening", *softening)
             }
             Force::Vortex { center, axis, strength, core } => {
                 check("center", center.is_finite(), "must be finite")?;
-                check(
-                    "axis",
-                    axis.is_finite() && axis.length() > 0.0,
-                    "must be a finite non-zero vector",
-                )?;
-                check("strength", strength.is_finite(), "must be finite")?;
-                check("core", core.is_finite() && *core > 0.0, "must be positive")
+                let unit = axis.is_finite() && axis.length() > 0.0;
+                check("axis", unit, "must be a finite non-zero vector")?;
+                finite("strength", *strength)?;
+                positive("core", *core)
             }
             Force::Turbulence { strength, scale, .. } => {
-                check("strength", strength.is_finite(), "must be finite")?;
-                check("scale", scale.is_finite() && *scale > 0.0, "must be positive")
+                finite("strength", *strength)?;
+                positive("scale", *scale)
             }
             Force::NeighborRepulsion { radius, stiffness } => {
-                check("radius", radius.is_finite() && *radius > 0.0, "must be positive")?;
-                check(
-                    "stiffness",
-                    stiffness.is_finite() && *stiffness >= 0.0,
-                    "must be finite and >= 0",
-                )
+                positive("radius", *radius)?;
+                non_negative("stiffness", *stiffness)
             }
             Force::NBodyGravity { constant, softening } => {
-                check(
-                    "constant",
-                    constant.is_finite() && *constant >= 0.0,
-                    "must be finite and >= 0",
-                )?;
-                check(
-                    "softening",
-                    softening.is_finite() && *softening >= 0.0,
-                    "must be finite and >= 0",
-                )
+                non_negative("constant", *constant)?;
+                non_negative("softening", *softening)
             }
         }
     }

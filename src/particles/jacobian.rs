@@ -404,7 +404,7 @@ mod tests {
         }
         let (an, fd) = analytic_and_differenced(&mut s);
         assert!((&an - &fd).amax() <= 1e-5 * an.amax());
-        assert!(!s.jacobian.close.is_empty());
+        assert!(!s.solver.jacobian.close.is_empty());
     }
 
     /// The particle equations offering only the dense Jacobian: the sparse one converted

@@ -1,14 +1,32 @@
-//! Particle snapshots: what a decoded [`ParticleSystem`] must satisfy before it is stepped.
+//! Particle snapshots: what a decoded [`Model`] and [`State`] must satisfy before they are
+//! stepped; the system's snapshot (model and state), and a state's alone, which records the
+//! fingerprint of its model ([`Model::fingerprint`]) so that it is restored only onto it.
 
-use super::ParticleSystem;
-use crate::error::Result;
+use super::{Model, ParticleSystem, State};
+use crate::error::{Error, Result};
 use crate::snapshot::{check, finite, Snapshot};
 
-impl Snapshot for ParticleSystem {
-    const TAG: &'static str = "ParticleSystem";
-
+impl Model {
+    /// Check a decoded model: every force, collider and emitter valid for the capacity.
     fn validate(&self) -> Result<()> {
-        let n = self.n;
+        for f in &self.forces {
+            f.validate(self.n)?;
+        }
+        for c in &self.colliders {
+            check(c.clone().checked().is_ok(), "colliders", || "invalid collider".into())?;
+        }
+        for e in &self.emitters {
+            e.validate()?;
+        }
+        Ok(())
+    }
+}
+
+impl State {
+    /// Check a decoded state against its model: lengths of the capacity, finite values, masses
+    /// with their inverses, an emission count per emitter, a history of the state's size.
+    fn validate(&self, model: &Model) -> Result<()> {
+        let n = model.n;
         check(self.y.len() == 6 * n, "y", || format!("{} values for {n} slots", self.y.len()))?;
         for (field, len) in [
             ("mass", self.mass.len()),
@@ -44,31 +62,73 @@ impl Snapshot for ParticleSystem {
             || "colour channels must be in [0, 1], sizes finite and > 0".into(),
         )?;
         check(self.time.is_finite(), "time", || "non-finite".into())?;
-        for f in &self.forces {
-            f.validate(n)?;
-        }
-        for c in &self.colliders {
-            check(c.clone().checked().is_ok(), "colliders", || "invalid collider".into())?;
-        }
-        for (e, accumulated, _) in &self.emitters {
-            e.validate()?;
-            check(accumulated.is_finite() && *accumulated >= 0.0, "emitters", || {
-                "non-finite emission count".into()
-            })?;
-        }
-        check(self.cells.iter().all(|&(_, i)| (i as usize) < n), "cells", || {
-            "particle index out of range".into()
-        })?;
         check(
-            [0, 3 * n].contains(&self.external.len()) && [0, 6 * n].contains(&self.backup.len()),
-            "external",
-            || "external forces or backup not of the slots' size".into(),
+            self.emitters.len() == model.emitters.len()
+                && self.emitters.iter().all(|(owed, _)| owed.is_finite() && *owed >= 0.0),
+            "emitters",
+            || "one finite, non-negative emission count per emitter".into(),
         )?;
+        check([0, 3 * n].contains(&self.external.len()), "external", || {
+            "external forces not of the slots' size".into()
+        })?;
         check(finite(self.external.iter().copied()), "external", || "non-finite".into())?;
-        if let Some(s) = &self.stepper {
-            s.validate()?;
-            check(s.dimension() == 6 * n, "stepper", || "dimension is not 6 x slots".into())?;
+        if let Some(h) = &self.history {
+            h.validate()?;
+            check(h.dimension() == 6 * n, "stepper", || "dimension is not 6 x slots".into())?;
         }
         Ok(())
+    }
+
+    /// The state as bytes, with the fingerprint of `model` (see [`crate::snapshot`]).
+    ///
+    /// # Errors
+    /// None in practice (every part of a state can be encoded).
+    pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
+        Stored { fingerprint: model.fingerprint(), state: self.clone() }.to_snapshot()
+    }
+
+    /// The state stored by [`State::to_snapshot`], for `model`.
+    ///
+    /// # Errors
+    /// Bytes that are not a particle state snapshot of this version or are damaged (argument
+    /// `data`); a state of a model of another fingerprint (argument `model`); a state that
+    /// does not fit `model` (argument `data`).
+    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
+        let stored = Stored::from_snapshot(data)?;
+        if stored.fingerprint != model.fingerprint() {
+            return Err(Error::invalid(
+                "model",
+                "the state snapshot was taken of a model with another fingerprint",
+            ));
+        }
+        stored.state.validate(model).map_err(|e| {
+            Error::invalid("data", format!("inconsistent {} snapshot: {e}", Stored::TAG))
+        })?;
+        Ok(stored.state)
+    }
+}
+
+/// A state snapshot: the state and the fingerprint of its model.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Stored {
+    fingerprint: u64,
+    state: State,
+}
+
+impl Snapshot for Stored {
+    const TAG: &'static str = "ParticleState";
+
+    /// The state is checked against the model by [`State::from_snapshot`], which has it.
+    fn validate(&self) -> Result<()> {
+        Ok(())
+    }
+}
+
+impl Snapshot for ParticleSystem {
+    const TAG: &'static str = "ParticleSystem";
+
+    fn validate(&self) -> Result<()> {
+        self.model.validate()?;
+        self.state.validate(&self.model)
     }
 }

@@ -1,0 +1,200 @@
+//! The particle solver: every workspace of a step (the copy of the state a step may have to
+//! restore, the explicit kernel's rollback copy, the hash-grid cells, the ODE workspace and
+//! the sparse Jacobian's buffers) and the counters of its last call. It carries nothing that a
+//! later step reads, so one solver advances any number of states of one [`Model`].
+
+use super::explicit::Rollback;
+use super::jacobian::JacobianWork;
+use super::{Dynamics, Model, State, StepStats, CHUNK};
+use crate::error::{reserve, Error, Result};
+use crate::ode::{History, Method, Workspace};
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// Steps states of a particle [`Model`] (see the module docs).
+#[derive(Clone, Debug, Default)]
+pub struct Solver {
+    /// The state at the start of the current step of the general path (`6 capacity` values):
+    /// restored when the step fails, and read by pinned and dead slots and by the contacts.
+    pub(super) backup: Vec<f64>,
+    /// What a call of the explicit kernel restores when one of its steps fails.
+    pub(super) rollback: Rollback,
+    /// The hash grid's (cell key, slot) pairs, rebuilt by every evaluation that needs them.
+    pub(super) cells: Vec<(u64, u32)>,
+    /// Stage and Newton buffers of the general path.
+    pub(super) work: Workspace,
+    /// Buffers of the sparse Jacobian for the implicit methods, rebuilt at every evaluation.
+    pub(super) jacobian: JacobianWork,
+    /// Counters of the last call (also of the good steps of a call that failed).
+    pub(super) stats: StepStats,
+}
+
+/// One call of the solver on one state: the three parts a step reads and writes.
+pub(super) struct Step<'a> {
+    pub(super) model: &'a Model,
+    pub(super) state: &'a mut State,
+    pub(super) solver: &'a mut Solver,
+}
+
+impl Solver {
+    /// A solver for states of `model`, with room for the hash grid of every slot.
+    ///
+    /// # Errors
+    /// A capacity too large to allocate (argument `capacity`).
+    pub fn new(model: &Model) -> Result<Self> {
+        let mut solver = Solver::default();
+        reserve("capacity", &mut solver.cells, model.n)?;
+        Ok(solver)
+    }
+
+    /// Counters of the last call of [`Solver::step`] (of its good steps when it failed).
+    pub fn stats(&self) -> StepStats {
+        self.stats
+    }
+
+    /// Advance `state` by `steps` steps of `dt` seconds with `method`; the implicit methods
+    /// factorise the sparse Newton matrix (see [`Solver::step_with_jacobian`]).
+    ///
+    /// # Errors
+    /// A bad `dt`, a state of another model (argument `state`), an integrator failure, or a
+    /// non-finite state ([`Error::Diverged`] naming the step and the particle); the state is
+    /// left at the last good step.
+    pub fn step(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        dt: f64,
+        steps: usize,
+        method: Method,
+    ) -> Result<StepStats> {
+        self.step_with_jacobian(model, state, dt, steps, method, true)
+    }
+
+    /// [`Solver::step`] with the choice of the implicit methods' Newton matrix `I - γ h J`:
+    /// with `sparse`, the analytic sparse Jacobian of the forces and a sparse LU (cost growing
+    /// about linearly with the particles for springs and local forces); without, a dense
+    /// Jacobian by forward differences over all `6 capacity` columns and a dense LU
+    /// (`O(capacity³)` per step, for comparison and for small systems). All-pairs gravity
+    /// ([`super::Force::NBodyGravity`]) couples every particle, so with it the matrix is dense
+    /// either way. Explicit methods ignore the choice.
+    ///
+    /// # Errors
+    /// As [`Solver::step`].
+    pub fn step_with_jacobian(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        dt: f64,
+        steps: usize,
+        method: Method,
+        sparse: bool,
+    ) -> Result<StepStats> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Error::invalid("dt", format!("must be positive and finite, got {dt}")));
+        }
+        state.check_fits(model)?;
+        if state.history.as_ref().is_none_or(|h| h.method() != method) {
+            state.history = Some(History::new(method, 6 * model.n)?);
+        }
+        self.stats = StepStats::default();
+        let gravity = model.gravity();
+        let mut step = Step { model, state, solver: self };
+        let result = if method == Method::SymplecticEuler && !model.pairwise() {
+            step.explicit_steps(dt, steps, gravity)
+        } else {
+            step.general_steps(dt, steps, gravity, sparse)
+        };
+        result.map(|()| self.stats)
+    }
+}
+
+/// The free equations of motion of `state` under `model`, its buffer `[x; v]`, its inverse
+/// masses and its time, for systems that step the particles themselves (constraints).
+pub(crate) fn parts<'a>(
+    model: &'a Model,
+    state: &'a mut State,
+    solver: &'a mut Solver,
+) -> (Dynamics<'a>, &'a mut [f64], &'a [f64], &'a mut f64) {
+    state.summary.state = None;
+    let dynamics = Dynamics {
+        n: model.n,
+        forces: &model.forces,
+        mass: &state.mass,
+        inv_mass: &state.inv_mass,
+        alive: &state.alive,
+        external: &state.external,
+        cells: &mut solver.cells,
+        jacobian: Some(&mut solver.jacobian),
+    };
+    (dynamics, &mut state.y, &state.inv_mass, &mut state.time)
+}
+
+impl Step<'_> {
+    /// `steps` steps of the general path (any method through [`Workspace::step`]), each
+    /// followed by the collisions, the ageing and the emission; a failed step restores the
+    /// state it started from and forgets the multistep history.
+    fn general_steps(&mut self, dt: f64, steps: usize, gravity: DVec3, sparse: bool) -> Result<()> {
+        self.state.summary.state = None;
+        self.state.settle_ages();
+        for s in 0..steps {
+            // Keep a copy of the state to restore.
+            let (backup, y) = (&mut self.solver.backup, &self.state.y);
+            backup.resize(y.len(), 0.0);
+            backup
+                .par_chunks_mut(6 * CHUNK)
+                .zip(y.par_chunks(6 * CHUNK))
+                .for_each(|(b, y)| b.copy_from_slice(y));
+            if let Err(e) = self.one_step(dt, gravity, sparse) {
+                self.state.y.copy_from_slice(&self.solver.backup);
+                self.state.state_changed();
+                return Err(match e {
+                    Error::Diverged { index, reason, .. } => {
+                        Error::Diverged { step: s, index: index % self.model.n, reason }
+                    }
+                    other => other,
+                });
+            }
+            self.age(dt);
+            self.state.time += dt;
+            self.emit(dt);
+        }
+        Ok(())
+    }
+
+    fn one_step(&mut self, dt: f64, gravity: DVec3, sparse: bool) -> Result<()> {
+        let n = self.model.n;
+        let (state, solver) = (&mut *self.state, &mut *self.solver);
+        let history = state.history.as_mut().expect("history created in step");
+        let mut dynamics = Dynamics {
+            n,
+            forces: &self.model.forces,
+            mass: &state.mass,
+            inv_mass: &state.inv_mass,
+            alive: &state.alive,
+            external: &state.external,
+            cells: &mut solver.cells,
+            jacobian: sparse.then_some(&mut solver.jacobian),
+        };
+        let result = solver.work.step(history, &mut dynamics, state.time, &mut state.y, dt);
+        result.map_err(|e| match e {
+            Error::Diverged { index, .. } => Error::Diverged {
+                step: 0,
+                index: (index % (3 * n)) / 3,
+                reason: "non-finite particle state".into(),
+            },
+            other => other,
+        })?;
+        // Pinned and dead particles keep their state exactly: their equations are
+        // x' = v' = 0, which the Newton solve of the implicit methods meets only to rounding
+        // and which the drifts of the second-order methods (x += h v) do not read.
+        let (xs, vs) = state.y.split_at_mut(3 * n);
+        let (xb, vb) = solver.backup.split_at(3 * n);
+        for i in (0..n).filter(|&i| !state.alive[i] || state.inv_mass[i] == 0.0) {
+            xs[3 * i..3 * i + 3].copy_from_slice(&xb[3 * i..3 * i + 3]);
+            vs[3 * i..3 * i + 3].copy_from_slice(&vb[3 * i..3 * i + 3]);
+        }
+        // The integrator checked the state; projection and impulses keep finite values finite.
+        self.collide(dt, gravity);
+        Ok(())
+    }
+}
