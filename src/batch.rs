@@ -56,24 +56,15 @@ pub fn fill<const O: usize>(
     first_error.map_or(Ok(()), Err)
 }
 
-/// `Σᵢ f(i)` for `i` in `0..n`, each term `S` numbers: fixed chunks of [`CHUNK`] terms are
-/// summed in order (in parallel for more than one chunk) and the chunk sums added in chunk
-/// order, so the result is bitwise the same for any thread count. The error of the lowest
-/// failing term is returned.
+/// `Σ` over `0..n` in fixed chunks: `f(range)` sums the terms of one chunk of [`CHUNK`]
+/// indices in order (in parallel for more than one chunk) and the chunk sums are added in
+/// chunk order, so the result is bitwise the same for any thread count. `f` reports the
+/// lowest bad index of its chunk (with [`Error::at`]); the lowest chunk's error is returned.
 pub fn sum<const S: usize>(
     n: usize,
-    f: impl Fn(usize) -> Result<[f64; S]> + Sync,
+    f: impl Fn(std::ops::Range<usize>) -> Result<[f64; S]> + Sync,
 ) -> Result<[f64; S]> {
-    let chunk = |c: usize| -> Result<[f64; S]> {
-        let mut acc = [0.0; S];
-        for i in c * CHUNK..((c + 1) * CHUNK).min(n) {
-            let term = f(i).map_err(|e| e.at(i))?;
-            for (a, t) in acc.iter_mut().zip(term) {
-                *a += t;
-            }
-        }
-        Ok(acc)
-    };
+    let chunk = |c: usize| f(c * CHUNK..((c + 1) * CHUNK).min(n));
     let chunks = n.div_ceil(CHUNK);
     let sums: Vec<Result<[f64; S]>> =
         if chunks <= 1 { vec![chunk(0)] } else { (0..chunks).into_par_iter().map(chunk).collect() };
@@ -265,21 +256,34 @@ mod tests {
     #[test]
     fn sums_are_bitwise_the_same_for_any_thread_count_and_report_the_lowest_bad_term() {
         let n = 5 * CHUNK + 123;
-        let term = |i: usize| -> Result<[f64; 2]> {
+        let term = |i: usize| {
             let x = (i as f64 * 0.618_033_988_7).sin() * 1e3;
-            Ok([x, x * x])
+            [x, x * x]
+        };
+        let terms = |r: std::ops::Range<usize>| -> Result<[f64; 2]> {
+            let mut acc = [0.0; 2];
+            for i in r {
+                let t = term(i);
+                acc[0] += t[0];
+                acc[1] += t[1];
+            }
+            Ok(acc)
         };
         let on = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| sum(n, term).unwrap())
+            pool.install(|| sum(n, terms).unwrap())
         };
         let one = on(1);
         assert_eq!(one.map(f64::to_bits), on(4).map(f64::to_bits));
-        let exact: f64 = (0..n).map(|i| term(i).unwrap()[0]).sum();
+        let exact: f64 = (0..n).map(|i| term(i)[0]).sum();
         assert!((one[0] - exact).abs() < 1e-9 * n as f64);
-        let err =
-            sum(n, |i| if i % 7000 == 6999 { Err(Error::invalid("x", "bad")) } else { term(i) })
-                .unwrap_err();
+        let failing = |r: std::ops::Range<usize>| -> Result<[f64; 1]> {
+            match r.clone().find(|i| i % 7000 == 6999) {
+                Some(i) => Err(Error::invalid("x", "bad").at(i)),
+                None => Ok([r.len() as f64]),
+            }
+        };
+        let err = sum(n, failing).unwrap_err();
         assert_eq!(
             err,
             Error::InvalidInput { arg: "x".into(), index: Some(6999), reason: "bad".into() }

@@ -300,6 +300,39 @@ fn batched_matrices_equal_the_row_by_row_ones_bitwise() {
 }
 
 #[test]
+fn batched_normalisation_equals_the_row_by_row_one_bitwise() {
+    let mut rnd = xorshift(11);
+    // Unit rows, scaled rows, rows beyond the fast range (huge, subnormal) and a ragged end.
+    let quats: Vec<[f64; 4]> = (0..10_007)
+        .map(|r| {
+            let q = [rnd(), rnd(), rnd(), rnd()];
+            let s = match r % 19 {
+                0 => 1e-160,
+                1 => 1e155,
+                _ if r % 3 == 0 => {
+                    1.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt()
+                }
+                _ => 2.5,
+            };
+            q.map(|c| s * c)
+        })
+        .collect();
+    let mut out = vec![[0.0; 4]; quats.len()];
+    for canon in [false, true] {
+        normalize_quats(&quats, canon, &mut out).unwrap();
+        for (q, o) in quats.iter().zip(&out) {
+            let want = quat_from_wxyz(q).unwrap();
+            let want = if canon { canonical(want) } else { want };
+            assert_eq!(quat_to_wxyz(want).map(f64::to_bits), o.map(f64::to_bits), "{q:?}");
+        }
+    }
+    let mut bad = quats.clone();
+    bad[2_222] = [0.0; 4];
+    let err = normalize_quats(&bad, false, &mut out).unwrap_err().to_string();
+    assert!(err.contains("2222"), "{err}");
+}
+
+#[test]
 fn batched_products_equal_the_row_by_row_ones_bitwise() {
     let mut rnd = xorshift(9);
     let mut unit = || quat_to_wxyz(DQuat::from_xyzw(rnd(), rnd(), rnd(), rnd()).normalize());

@@ -27,12 +27,7 @@ fn quat_normalize<'py>(
     canonical: bool,
 ) -> PyResult<Array<'py>> {
     let input = rows::<4>(&quat, "quat", &[4])?;
-    compute(py, input.len(), &[4], |out| {
-        map(input, out, |r| {
-            let q = q(r)?;
-            Ok(wxyz(if canonical { rot::canonical(q) } else { q }))
-        })
-    })
+    compute(py, input.len(), &[4], |out| rot::normalize_quats(input, canonical, out))
 }
 
 /// Hamilton products a * b (N, 4) of quaternion batches broadcast one against N (the product

@@ -44,28 +44,30 @@ pub fn align_vectors(a: &[[f64; 3]], b: &[[f64; 3]], weights: &[f64]) -> Result<
     }
     // Σ w a bᵀ (row-major), Σ w (|a|² + |b|²), Σ w over the finite weights, and the number
     // of infinite ones, in one pass that checks every input.
-    let s = sum(a.len(), |k| {
-        let (x, y, w) = (a[k], b[k], weights[k]);
-        ensure_finite("a", &x)?;
-        ensure_finite("b", &y)?;
-        if w.is_nan() || w < 0.0 {
-            return Err(Error::invalid("weights", "must be non-negative"));
+    let s = sum(a.len(), |range| {
+        let (mut acc, mut fine) = ([0.0; 12], true);
+        for k in range.clone() {
+            let (x, y, w) = (a[k], b[k], weights[k]);
+            fine &= x.iter().chain(&y).all(|c| c.is_finite()) && w >= 0.0 && w.is_finite();
+            add_pair(&mut acc, x, y, w);
         }
-        let mut t = [0.0; 12];
-        if w == f64::INFINITY {
-            t[11] = 1.0;
-            return Ok(t);
-        }
-        for (i, &xi) in x.iter().enumerate() {
-            for (j, &yj) in y.iter().enumerate() {
-                t[3 * i + j] = w * xi * yj;
+        if !fine {
+            acc = [0.0; 12];
+            for k in range {
+                let (x, y, w) = (a[k], b[k], weights[k]);
+                ensure_finite("a", &x).map_err(|e| e.at(k))?;
+                ensure_finite("b", &y).map_err(|e| e.at(k))?;
+                if w.is_nan() || w < 0.0 {
+                    return Err(Error::invalid("weights", "must be non-negative").at(k));
+                }
+                if w == f64::INFINITY {
+                    acc[11] += 1.0;
+                } else {
+                    add_pair(&mut acc, x, y, w);
+                }
             }
         }
-        let norms =
-            x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + y[0] * y[0] + y[1] * y[1] + y[2] * y[2];
-        t[9] = w * norms;
-        t[10] = w;
-        Ok(t)
+        Ok(acc)
     })?;
     let infinite = weights.iter().position(|w| *w == f64::INFINITY);
     match (s[11], a.len()) {
@@ -74,6 +76,19 @@ pub fn align_vectors(a: &[[f64; 3]], b: &[[f64; 3]], weights: &[f64]) -> Result<
         (1.0, _) => primary(a, b, weights, infinite.unwrap_or(0)),
         _ => Err(Error::invalid("weights", "may hold at most one infinite weight")),
     }
+}
+
+/// Add `w x yᵀ` (row-major), `w (|x|² + |y|²)` and `w` to `acc[..11]`.
+#[inline(always)]
+fn add_pair(acc: &mut [f64; 12], x: [f64; 3], y: [f64; 3], w: f64) {
+    for (i, &xi) in x.iter().enumerate() {
+        for (j, &yj) in y.iter().enumerate() {
+            acc[3 * i + j] += w * xi * yj;
+        }
+    }
+    let norms = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + y[0] * y[0] + y[1] * y[1] + y[2] * y[2];
+    acc[9] += w * norms;
+    acc[10] += w;
 }
 
 /// The least-squares rotation from the sums of [`align_vectors`]'s pass over `n` pairs:

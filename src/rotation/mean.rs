@@ -21,28 +21,30 @@ pub fn mean(quats: &[[f64; 4]], weights: &[f64]) -> Result<[f64; 4]> {
     if weights.len() != quats.len() {
         return Err(Error::invalid("weights", "must hold one weight per rotation"));
     }
-    // The 10 entries of the upper triangle of Σ wᵢ qᵢ qᵢᵀ, row by row, and Σ wᵢ.
-    let s = sum(quats.len(), |k| {
-        let w = weights[k];
-        if !(w >= 0.0 && w.is_finite()) {
-            return Err(Error::invalid("weights", "must be finite and non-negative"));
+    // The 10 entries of the upper triangle of Σ wᵢ qᵢ qᵢᵀ, row by row, and Σ wᵢ. A chunk of
+    // unit quaternions and valid weights (the common case) is summed in one branch-free
+    // loop; any other chunk again row by row through `quat_from_wxyz`, which normalises and
+    // reports a bad row (and takes unit rows unchanged, so both loops give the same bits).
+    let s = sum(quats.len(), |range| {
+        let (mut acc, mut fine) = ([0.0; 11], true);
+        for k in range.clone() {
+            let (v, w) = (quats[k], weights[k]);
+            let n2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3];
+            fine &= (n2 - 1.0).abs() <= 4.0 * f64::EPSILON && w >= 0.0 && w.is_finite();
+            add_outer(&mut acc, v, w);
         }
-        let q = quat_from_wxyz(&quats[k])?;
-        let v = [q.w, q.x, q.y, q.z];
-        let wv = v.map(|c| w * c);
-        Ok([
-            wv[0] * v[0],
-            wv[0] * v[1],
-            wv[0] * v[2],
-            wv[0] * v[3],
-            wv[1] * v[1],
-            wv[1] * v[2],
-            wv[1] * v[3],
-            wv[2] * v[2],
-            wv[2] * v[3],
-            wv[3] * v[3],
-            w,
-        ])
+        if !fine {
+            acc = [0.0; 11];
+            for k in range {
+                let w = weights[k];
+                if !(w >= 0.0 && w.is_finite()) {
+                    return Err(Error::invalid("weights", "must be finite and non-negative").at(k));
+                }
+                let q = quat_from_wxyz(&quats[k]).map_err(|e| e.at(k))?;
+                add_outer(&mut acc, [q.w, q.x, q.y, q.z], w);
+            }
+        }
+        Ok(acc)
     })?;
     let total = s[10];
     if !(total > 0.0 && total.is_finite()) {
@@ -59,6 +61,28 @@ pub fn mean(quats: &[[f64; 4]], weights: &[f64]) -> Result<[f64; 4]> {
     let v = eig.eigenvectors.column(eig.eigenvalues.imax()).normalize();
     let s = if v[0] < 0.0 { -1.0 } else { 1.0 };
     Ok([s * v[0], s * v[1], s * v[2], s * v[3]])
+}
+
+/// Add `w v vᵀ` (upper triangle, row by row) and `w` to `acc`.
+#[inline(always)]
+fn add_outer(acc: &mut [f64; 11], v: [f64; 4], w: f64) {
+    let wv = v.map(|c| w * c);
+    let terms = [
+        wv[0] * v[0],
+        wv[0] * v[1],
+        wv[0] * v[2],
+        wv[0] * v[3],
+        wv[1] * v[1],
+        wv[1] * v[2],
+        wv[1] * v[3],
+        wv[2] * v[2],
+        wv[2] * v[3],
+        wv[3] * v[3],
+        w,
+    ];
+    for (a, t) in acc.iter_mut().zip(terms) {
+        *a += t;
+    }
 }
 
 #[cfg(test)]

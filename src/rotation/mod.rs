@@ -38,7 +38,9 @@ pub use matrix::{
 };
 pub use mean::mean;
 pub use mrp::{quat_from_mrp, quat_to_mrp};
-pub use quat::{canonical, multiply_quats, quat_from_wxyz, quat_to_wxyz, rotation_angle};
+pub use quat::{
+    canonical, multiply_quats, normalize_quats, quat_from_wxyz, quat_to_wxyz, rotation_angle,
+};
 pub use rotvec::{
     quat_from_axis_angle, quat_from_rotvec, quat_to_axis_angle, quat_to_rotvec, quats_from_rotvecs,
 };
