@@ -349,6 +349,26 @@ fn batched_products_equal_the_row_by_row_ones_bitwise() {
     for ((x, y), o) in a.iter().zip(&b).zip(&out) {
         assert_eq!(row(x, y), o.map(f64::to_bits), "{x:?} {y:?}");
     }
+    // Pairs scaled by 2 and 1/2 have a unit product, kept as it is: the product of the
+    // normalised pair to rounding, and the same in a block as alone.
+    let halves: Vec<[f64; 4]> = b
+        .iter()
+        .enumerate()
+        .map(|(r, y)| if r % 19 == 0 { y.map(|c| 0.5 * c) } else { *y })
+        .collect();
+    let doubles: Vec<[f64; 4]> = a
+        .iter()
+        .enumerate()
+        .map(|(r, x)| if r % 19 == 0 { x.map(|c| 2.0 * c) } else { *x })
+        .collect();
+    multiply_quats(&doubles, &halves, &mut out).unwrap();
+    let mut alone = [[0.0; 4]];
+    for ((x, y), o) in doubles.iter().zip(&halves).zip(&out) {
+        multiply_quats(&[*x], &[*y], &mut alone).unwrap();
+        assert_eq!(alone[0].map(f64::to_bits), o.map(f64::to_bits), "{x:?} {y:?}");
+        let normalised = row(x, y).map(f64::from_bits);
+        assert!(normalised.iter().zip(o).all(|(n, o)| (n - o).abs() <= 2e-15), "{x:?} {y:?}");
+    }
     // One against N, both ways.
     multiply_quats(&a[..1], &b, &mut out).unwrap();
     assert_eq!(out[5000].map(f64::to_bits), row(&a[0], &b[5000]));

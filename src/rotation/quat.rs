@@ -86,10 +86,14 @@ impl LaneKernel<4, 4> for Normalize {
     }
 }
 
-/// The products `a[i] b[i]` (Hamilton) of quaternions `(w, x, y, z)` (normalised as
-/// [`quat_from_wxyz`] does), a batch of one broadcast against N, into `out`, in parallel.
-/// Blocks of 8 unit pairs run lane by lane (SIMD through `pulp`), bitwise the row-by-row
-/// product.
+/// The products `a[i] b[i]` (Hamilton) of quaternions `(w, x, y, z)`, a batch of one
+/// broadcast against N, into `out`, in parallel.
+///
+/// Each product is the product of the normalised inputs ([`quat_from_wxyz`]): a pair whose
+/// plain product is unit to 32 ulp in its squared norm (every pair of unit quaternions, whose
+/// product is then bitwise glam's `DQuat * DQuat`) keeps that product; any other pair is
+/// normalised first. Blocks of 8 rows multiply row by row and check the 8 norms lane by lane
+/// (SIMD through `pulp`); the result does not depend on how rows fall into blocks.
 ///
 /// # Errors
 /// The lowest row that is zero or not finite; lengths that do not broadcast.
@@ -98,7 +102,35 @@ pub fn multiply_quats(a: &[[f64; 4]], b: &[[f64; 4]], out: &mut [[f64; 4]]) -> R
         lanes2(a, b, out, &Multiply)?;
         return Ok(());
     }
-    map2(a, b, out, |x, y| Ok(quat_to_wxyz(quat_from_wxyz(x)? * quat_from_wxyz(y)?)))
+    map2(a, b, out, multiply)
+}
+
+/// The plain Hamilton product `a b`: glam's `DQuat * DQuat` term by term in its order
+/// (bitwise the same), on scalar-first rows.
+#[inline(always)]
+fn product(a: &[f64; 4], b: &[f64; 4]) -> [f64; 4] {
+    let ([w0, x0, y0, z0], [w1, x1, y1, z1]) = (*a, *b);
+    [
+        w0 * w1 - x0 * x1 - y0 * y1 - z0 * z1,
+        w0 * x1 + x0 * w1 + y0 * z1 - z0 * y1,
+        w0 * y1 - x0 * z1 + y0 * w1 + z0 * x1,
+        w0 * z1 + x0 * y1 - y0 * x1 + z0 * w1,
+    ]
+}
+
+/// How far a plain product's squared norm may be from 1 (in units of `f64::EPSILON`) for
+/// [`multiply_quats`] to keep it: two unit quaternions (to 4 ulp, as [`quat_from_wxyz`]
+/// takes them) give at most about 20.
+const PRODUCT_UNIT_ULP: f64 = 32.0;
+
+/// One row of [`multiply_quats`].
+fn multiply(a: &[f64; 4], b: &[f64; 4]) -> Result<[f64; 4]> {
+    let p = product(a, b);
+    let n2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3];
+    if (n2 - 1.0).abs() <= PRODUCT_UNIT_ULP * f64::EPSILON {
+        return Ok(p);
+    }
+    Ok(quat_to_wxyz(quat_from_wxyz(a)? * quat_from_wxyz(b)?))
 }
 
 /// The lane kernel of [`multiply_quats`].
@@ -114,38 +146,22 @@ impl PairKernel<4, 4, 4> for Multiply {
         os: &mut [[f64; 4]],
     ) -> Result<usize> {
         if a.len() == LANES {
-            let (ca, cb) = (by_component(a), by_component(b));
-            let mut off = [0.0; LANES];
-            for k in 0..LANES {
-                let na = ca[0][k] * ca[0][k]
-                    + ca[1][k] * ca[1][k]
-                    + ca[2][k] * ca[2][k]
-                    + ca[3][k] * ca[3][k];
-                let nb = cb[0][k] * cb[0][k]
-                    + cb[1][k] * cb[1][k]
-                    + cb[2][k] * cb[2][k]
-                    + cb[3][k] * cb[3][k];
-                off[k] = (na - 1.0).abs().max((nb - 1.0).abs());
+            // Products row by row (this compiles well on interleaved rows), norms lane by lane.
+            for ((x, y), o) in a.iter().zip(b).zip(os.iter_mut()) {
+                *o = product(x, y);
             }
-            // Unit to rounding: quat_from_wxyz would take them unchanged.
-            if off.iter().all(|&d| d <= 4.0 * f64::EPSILON) {
-                let mut p = [[0.0; LANES]; 4];
-                for k in 0..LANES {
-                    let qa = DQuat::from_xyzw(ca[1][k], ca[2][k], ca[3][k], ca[0][k]);
-                    let qb = DQuat::from_xyzw(cb[1][k], cb[2][k], cb[3][k], cb[0][k]);
-                    for (lane, v) in p.iter_mut().zip(quat_to_wxyz(qa * qb)) {
-                        lane[k] = v;
-                    }
-                }
-                for (k, o) in os.iter_mut().enumerate() {
-                    *o = std::array::from_fn(|e| p[e][k]);
-                }
+            let c = by_component(os);
+            let off: [f64; LANES] = std::array::from_fn(|k| {
+                let n2 =
+                    c[0][k] * c[0][k] + c[1][k] * c[1][k] + c[2][k] * c[2][k] + c[3][k] * c[3][k];
+                (n2 - 1.0).abs()
+            });
+            if off.iter().all(|&d| d <= PRODUCT_UNIT_ULP * f64::EPSILON) {
                 return Ok(0);
             }
         }
         for (k, ((x, y), o)) in a.iter().zip(b).zip(os.iter_mut()).enumerate() {
-            let product = quat_from_wxyz(x).and_then(|x| Ok(x * quat_from_wxyz(y)?));
-            *o = quat_to_wxyz(product.map_err(|e| e.at(first + k))?);
+            *o = multiply(x, y).map_err(|e| e.at(first + k))?;
         }
         Ok(0)
     }
