@@ -78,76 +78,9 @@ pub(crate) fn spline_segments(phi: &[DVec3], h: &[f64]) -> Result<Vec<[DVec3; 3]
     let jr_inv: Vec<DMat3> = jr.iter().map(|j| j.inverse()).collect();
     let mut w: Vec<DVec3> = (0..n).map(|k| phi[k.min(m - 1)] / h[k.min(m - 1)]).collect();
     if n > 2 {
-        // Block Thomas elimination of the linear part for the interior keys 1..n-1:
-        // row j: L_j ω_{j-1} + D_j ω_j + U_j ω_{j+1} = r_j.
-        let rows = n - 2;
-        let lower = |j: usize| jr[j - 1] * (2.0 / h[j - 1]);
-        let upper = |j: usize| jr_inv[j] * (2.0 / h[j]);
-        let diag = |j: usize| 4.0 * (1.0 / h[j - 1] + 1.0 / h[j]);
-        // Modified diagonals' inverses and the multipliers L_j D'_{j-1}⁻¹.
-        let mut dinv = Vec::with_capacity(rows);
-        for r in 0..rows {
-            let j = r + 1;
-            let mut d = DMat3::from_diagonal(DVec3::splat(diag(j)));
-            if r > 0 {
-                d -= lower(j) * dinv[r - 1] * upper(j - 1);
-            }
-            let det = d.determinant();
-            if !(det.is_finite() && det.abs() > 0.0) {
-                return Err(Error::invalid(
-                    "rotations",
-                    "the rotation spline's system is singular (keys turn too far within one segment)",
-                ));
-            }
-            dinv.push(d.inverse());
-        }
-        let base: Vec<DVec3> = (0..rows)
-            .map(|r| {
-                let j = r + 1;
-                6.0 * phi[j - 1] / (h[j - 1] * h[j - 1]) + 6.0 * phi[j] / (h[j] * h[j])
-            })
-            .collect();
-        let mut y = vec![DVec3::ZERO; rows];
-        let mut converged = false;
-        for _ in 0..MAX_ITER {
-            for r in 0..rows {
-                let j = r + 1;
-                let mut rhs = base[r] - nonlinear_term(phi[j - 1], jr_inv[j - 1] * w[j]);
-                if r == 0 {
-                    rhs -= lower(j) * w[0];
-                } else {
-                    rhs -= lower(j) * dinv[r - 1] * y[r - 1];
-                }
-                if r == rows - 1 {
-                    rhs -= upper(j) * w[n - 1];
-                }
-                y[r] = rhs;
-            }
-            let mut change: f64 = 0.0;
-            let mut next = DVec3::ZERO;
-            for r in (0..rows).rev() {
-                let j = r + 1;
-                let rhs = if r == rows - 1 { y[r] } else { y[r] - upper(j) * next };
-                let wj = dinv[r] * rhs;
-                change = change.max(((wj - w[j]).abs() / (DVec3::ONE + wj.abs())).max_element());
-                w[j] = wj;
-                next = wj;
-            }
-            if !change.is_finite() {
-                break;
-            }
-            if change <= TOL {
-                converged = true;
-                break;
-            }
-        }
-        if !converged {
-            return Err(Error::invalid(
-                "rotations",
-                "the rotation spline's angular rates did not converge (keys turn too far within \
-                 one segment; use squad or add keys)",
-            ));
-        }
+        let blocks = Blocks { jr: &jr, jr_inv: &jr_inv, h };
+        let dinv = blocks.pivot_inverses()?;
+        blocks.interior_rates(phi, &dinv, &mut w)?;
     }
     Ok((0..m)
         .map(|k| {
@@ -158,4 +91,98 @@ pub(crate) fn spline_segments(phi: &[DVec3], h: &[f64]) -> Result<Vec<[DVec3; 3]
             [w[k], b, a]
         })
         .collect())
+}
+
+/// The block tridiagonal system of the interior keys' angular rates, row `j` (keys 1..n-1):
+/// `L_j ω_{j-1} + D_j ω_j + U_j ω_{j+1} = r_j`, solved by block Thomas elimination.
+struct Blocks<'a> {
+    jr: &'a [DMat3],
+    jr_inv: &'a [DMat3],
+    h: &'a [f64],
+}
+
+impl Blocks<'_> {
+    fn lower(&self, j: usize) -> DMat3 {
+        self.jr[j - 1] * (2.0 / self.h[j - 1])
+    }
+
+    fn upper(&self, j: usize) -> DMat3 {
+        self.jr_inv[j] * (2.0 / self.h[j])
+    }
+
+    fn diag(&self, j: usize) -> f64 {
+        4.0 * (1.0 / self.h[j - 1] + 1.0 / self.h[j])
+    }
+
+    /// The inverses of the modified diagonals `D'_j = D_j - L_j D'_{j-1}⁻¹ U_{j-1}`.
+    fn pivot_inverses(&self) -> Result<Vec<DMat3>> {
+        let rows = self.h.len() - 1;
+        let mut dinv: Vec<DMat3> = Vec::with_capacity(rows);
+        for r in 0..rows {
+            let j = r + 1;
+            let mut d = DMat3::from_diagonal(DVec3::splat(self.diag(j)));
+            if r > 0 {
+                d -= self.lower(j) * dinv[r - 1] * self.upper(j - 1);
+            }
+            let det = d.determinant();
+            if !(det.is_finite() && det.abs() > 0.0) {
+                return Err(Error::invalid(
+                    "rotations",
+                    "the rotation spline's system is singular (keys turn too far within one segment)",
+                ));
+            }
+            dinv.push(d.inverse());
+        }
+        Ok(dinv)
+    }
+
+    /// The interior rates `w[1..n-1]` (the end rates `w[0]`, `w[n-1]` given), by fixed-point
+    /// iteration on the nonlinear term with one Thomas sweep per iteration, until the largest
+    /// relative change is under `TOL`.
+    fn interior_rates(&self, phi: &[DVec3], dinv: &[DMat3], w: &mut [DVec3]) -> Result<()> {
+        let (h, rows, n) = (self.h, dinv.len(), w.len());
+        let base: Vec<DVec3> = (0..rows)
+            .map(|r| {
+                let j = r + 1;
+                6.0 * phi[j - 1] / (h[j - 1] * h[j - 1]) + 6.0 * phi[j] / (h[j] * h[j])
+            })
+            .collect();
+        let mut y = vec![DVec3::ZERO; rows];
+        for _ in 0..MAX_ITER {
+            for r in 0..rows {
+                let j = r + 1;
+                let mut rhs = base[r] - nonlinear_term(phi[j - 1], self.jr_inv[j - 1] * w[j]);
+                if r == 0 {
+                    rhs -= self.lower(j) * w[0];
+                } else {
+                    rhs -= self.lower(j) * dinv[r - 1] * y[r - 1];
+                }
+                if r == rows - 1 {
+                    rhs -= self.upper(j) * w[n - 1];
+                }
+                y[r] = rhs;
+            }
+            let mut change: f64 = 0.0;
+            let mut next = DVec3::ZERO;
+            for r in (0..rows).rev() {
+                let j = r + 1;
+                let rhs = if r == rows - 1 { y[r] } else { y[r] - self.upper(j) * next };
+                let wj = dinv[r] * rhs;
+                change = change.max(((wj - w[j]).abs() / (DVec3::ONE + wj.abs())).max_element());
+                w[j] = wj;
+                next = wj;
+            }
+            if !change.is_finite() {
+                break;
+            }
+            if change <= TOL {
+                return Ok(());
+            }
+        }
+        Err(Error::invalid(
+            "rotations",
+            "the rotation spline's angular rates did not converge (keys turn too far within \
+             one segment; use squad or add keys)",
+        ))
+    }
 }

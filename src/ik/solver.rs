@@ -98,6 +98,63 @@ pub struct Solver<'a> {
     eff_r: Vec<DQuat>,
 }
 
+/// The targets of [`Solver::new`], checked: at least one, on distinct existing joints, with
+/// finite values.
+fn check_targets(sk: &Skeleton, targets: &[Target]) -> Result<()> {
+    if targets.is_empty() {
+        return Err(Error::invalid("targets", "needs at least one target"));
+    }
+    for (i, t) in targets.iter().enumerate() {
+        check_joint(sk, t.joint)?;
+        if targets[..i].iter().any(|u| u.joint == t.joint) {
+            return Err(Error::invalid("targets", format!("joint {} appears twice", t.joint)));
+        }
+    }
+    check_target_values(targets)
+}
+
+/// The options of [`Solver::new`], checked: a positive tolerance, non-negative null-space
+/// weights, and those only with a method that has a null space.
+fn check_options(o: &Options) -> Result<()> {
+    if !(o.tol.is_finite() && o.tol > 0.0) {
+        return Err(Error::invalid("tol", format!("must be positive, got {}", o.tol)));
+    }
+    for (name, w) in [("rest_weight", o.rest_weight), ("limit_weight", o.limit_weight)] {
+        if !(w.is_finite() && w >= 0.0) {
+            return Err(Error::invalid(name, format!("must be >= 0, got {w}")));
+        }
+        if w > 0.0 && !matches!(o.method, Method::Dls | Method::PseudoInverse) {
+            return Err(Error::invalid(
+                name,
+                "the null-space objective needs method \"dls\" or \"pseudo_inverse\"",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Which variables move which effector (`affects[e * n + v]`, `n = vars.len()`), and each
+/// effector's reach: the summed lengths (m) of the bones from the root to it, 1 at the root.
+fn influence(sk: &Skeleton, effectors: &[(usize, bool)], vars: &[Var]) -> (Vec<bool>, Vec<f64>) {
+    let n = vars.len();
+    let mut affects = vec![false; effectors.len() * n];
+    let mut reach = vec![0.0; effectors.len()];
+    for (e, &(j, _)) in effectors.iter().enumerate() {
+        for (c, v) in vars.iter().enumerate() {
+            affects[e * n + c] = model::is_ancestor_or_self(sk, v.joint, j);
+        }
+        let mut k = j;
+        while k > 0 {
+            reach[e] += sk.bones[k - 1].length;
+            k = model::parent_joint(sk, k);
+        }
+        if reach[e] == 0.0 {
+            reach[e] = 1.0;
+        }
+    }
+    (affects, reach)
+}
+
 impl<'a> Solver<'a> {
     /// A solver for the effectors of `targets` (their joints and which have orientations;
     /// the target values may change between solves).
@@ -109,31 +166,9 @@ impl<'a> Solver<'a> {
     /// weights need pseudo-inverse or DLS).
     pub fn new(skeleton: &'a Skeleton, targets: &[Target], options: &Options) -> Result<Self> {
         let sk = skeleton;
-        if targets.is_empty() {
-            return Err(Error::invalid("targets", "needs at least one target"));
-        }
-        for (i, t) in targets.iter().enumerate() {
-            check_joint(sk, t.joint)?;
-            if targets[..i].iter().any(|u| u.joint == t.joint) {
-                return Err(Error::invalid("targets", format!("joint {} appears twice", t.joint)));
-            }
-        }
-        check_target_values(targets)?;
+        check_targets(sk, targets)?;
         let o = options;
-        if !(o.tol.is_finite() && o.tol > 0.0) {
-            return Err(Error::invalid("tol", format!("must be positive, got {}", o.tol)));
-        }
-        for (name, w) in [("rest_weight", o.rest_weight), ("limit_weight", o.limit_weight)] {
-            if !(w.is_finite() && w >= 0.0) {
-                return Err(Error::invalid(name, format!("must be >= 0, got {w}")));
-            }
-            if w > 0.0 && !matches!(o.method, Method::Dls | Method::PseudoInverse) {
-                return Err(Error::invalid(
-                    name,
-                    "the null-space objective needs method \"dls\" or \"pseudo_inverse\"",
-                ));
-            }
-        }
+        check_options(o)?;
         let rest = match &o.rest {
             Some(r) => {
                 check_pose(sk, r, "rest")?;
@@ -146,21 +181,7 @@ impl<'a> Solver<'a> {
         let mut vars = model::all_vars(sk, o.free_root, o.joint_limits);
         vars.retain(|v| effectors.iter().any(|&(j, _)| model::is_ancestor_or_self(sk, v.joint, j)));
         let n = vars.len();
-        let mut affects = vec![false; effectors.len() * n];
-        let mut reach = vec![0.0; effectors.len()];
-        for (e, &(j, _)) in effectors.iter().enumerate() {
-            for (c, v) in vars.iter().enumerate() {
-                affects[e * n + c] = model::is_ancestor_or_self(sk, v.joint, j);
-            }
-            let mut k = j;
-            while k > 0 {
-                reach[e] += sk.bones[k - 1].length;
-                k = model::parent_joint(sk, k);
-            }
-            if reach[e] == 0.0 {
-                reach[e] = 1.0;
-            }
-        }
+        let (affects, reach) = influence(sk, &effectors, &vars);
         let scale = reach.iter().fold(0.0_f64, |m, r| m.max(*r));
         let two_bone = if o.method == Method::TwoBone {
             Some(two_bone_plan(sk, targets, o.joint_limits)?)
@@ -532,70 +553,9 @@ impl<'a> Solver<'a> {
                 self.eff_r[e] = self.rot[t.joint];
             }
             for c in 0..n {
-                let v = self.vars[c];
-                let w = self.axis[v.index];
-                match v.kind {
-                    Kind::Rotation => {
-                        let centre = self.pivot[v.index];
-                        let (mut k1, mut k2, mut k3) = (0.0, 0.0, 0.0);
-                        for (e, t) in targets.iter().enumerate() {
-                            if !self.affects[e * n + c] {
-                                continue;
-                            }
-                            let (r, s) = (self.eff_p[e] - centre, t.position - centre);
-                            k1 += s.dot(w) * r.dot(w);
-                            k2 += s.dot(r);
-                            k3 += w.dot(r.cross(s));
-                            if let Some(qt) = t.orientation {
-                                let wt = self.reach[e] * self.reach[e];
-                                for axis in DVec3::AXES {
-                                    let (u, d) = (self.eff_r[e] * axis, qt * axis);
-                                    k1 += wt * u.dot(w) * d.dot(w);
-                                    k2 += wt * u.dot(d);
-                                    k3 += wt * w.dot(u.cross(d));
-                                }
-                            }
-                        }
-                        // Maximise (k2 - k1) cos θ + k3 sin θ over θ within the limits.
-                        let gain = |th: f64| (k2 - k1) * th.cos() + k3 * th.sin();
-                        let (lo, hi) = (v.lo - q[v.index], v.hi - q[v.index]);
-                        let best = k3.atan2(k2 - k1);
-                        let theta =
-                            [best, best - std::f64::consts::TAU, best + std::f64::consts::TAU]
-                                .into_iter()
-                                .find(|th| *th >= lo && *th <= hi)
-                                .unwrap_or_else(|| if gain(lo) >= gain(hi) { lo } else { hi });
-                        // Clamp again: q + (hi - q) can round past hi.
-                        let next = (q[v.index] + theta).clamp(v.lo, v.hi);
-                        let theta = next - q[v.index];
-                        if theta == 0.0 || !theta.is_finite() {
-                            continue;
-                        }
-                        q[v.index] = next;
-                        let turn = DQuat::from_axis_angle(w, theta);
-                        for e in 0..targets.len() {
-                            if self.affects[e * n + c] {
-                                self.eff_p[e] = centre + turn * (self.eff_p[e] - centre);
-                                self.eff_r[e] = (turn * self.eff_r[e]).normalize();
-                            }
-                        }
-                    }
-                    Kind::Translation => {
-                        let (mut sum, mut count) = (0.0, 0.0);
-                        for (e, t) in targets.iter().enumerate() {
-                            if self.affects[e * n + c] {
-                                sum += w.dot(t.position - self.eff_p[e]);
-                                count += 1.0;
-                            }
-                        }
-                        let shift = sum / count;
-                        q[v.index] += shift;
-                        for e in 0..targets.len() {
-                            if self.affects[e * n + c] {
-                                self.eff_p[e] += w * shift;
-                            }
-                        }
-                    }
+                match self.vars[c].kind {
+                    Kind::Rotation => self.ccd_turn(c, q, targets),
+                    Kind::Translation => self.ccd_shift(c, q, targets),
                 }
             }
             iterations += 1;
@@ -611,9 +571,94 @@ impl<'a> Solver<'a> {
         self.report(ep, eo, iterations)
     }
 
+    /// One CCD update of rotational variable `c`: the angle about its axis that best turns
+    /// the effectors it moves towards their targets (positions, and orientations weighted by
+    /// the squared reach), within its limits; the effectors are turned with it.
+    fn ccd_turn(&mut self, c: usize, q: &mut [f64], targets: &[Target]) {
+        let n = self.vars.len();
+        let v = self.vars[c];
+        let w = self.axis[v.index];
+        let centre = self.pivot[v.index];
+        let (mut k1, mut k2, mut k3) = (0.0, 0.0, 0.0);
+        for (e, t) in targets.iter().enumerate() {
+            if !self.affects[e * n + c] {
+                continue;
+            }
+            let (r, s) = (self.eff_p[e] - centre, t.position - centre);
+            k1 += s.dot(w) * r.dot(w);
+            k2 += s.dot(r);
+            k3 += w.dot(r.cross(s));
+            if let Some(qt) = t.orientation {
+                let wt = self.reach[e] * self.reach[e];
+                for axis in DVec3::AXES {
+                    let (u, d) = (self.eff_r[e] * axis, qt * axis);
+                    k1 += wt * u.dot(w) * d.dot(w);
+                    k2 += wt * u.dot(d);
+                    k3 += wt * w.dot(u.cross(d));
+                }
+            }
+        }
+        // Maximise (k2 - k1) cos θ + k3 sin θ over θ within the limits.
+        let gain = |th: f64| (k2 - k1) * th.cos() + k3 * th.sin();
+        let (lo, hi) = (v.lo - q[v.index], v.hi - q[v.index]);
+        let best = k3.atan2(k2 - k1);
+        let theta = [best, best - std::f64::consts::TAU, best + std::f64::consts::TAU]
+            .into_iter()
+            .find(|th| *th >= lo && *th <= hi)
+            .unwrap_or_else(|| if gain(lo) >= gain(hi) { lo } else { hi });
+        // Clamp again: q + (hi - q) can round past hi.
+        let next = (q[v.index] + theta).clamp(v.lo, v.hi);
+        let theta = next - q[v.index];
+        if theta == 0.0 || !theta.is_finite() {
+            return;
+        }
+        q[v.index] = next;
+        let turn = DQuat::from_axis_angle(w, theta);
+        for e in 0..targets.len() {
+            if self.affects[e * n + c] {
+                self.eff_p[e] = centre + turn * (self.eff_p[e] - centre);
+                self.eff_r[e] = (turn * self.eff_r[e]).normalize();
+            }
+        }
+    }
+
+    /// One CCD update of translational variable `c`: the mean shift along its axis towards
+    /// the targets of the effectors it moves; the effectors are shifted with it.
+    fn ccd_shift(&mut self, c: usize, q: &mut [f64], targets: &[Target]) {
+        let n = self.vars.len();
+        let v = self.vars[c];
+        let w = self.axis[v.index];
+        let (mut sum, mut count) = (0.0, 0.0);
+        for (e, t) in targets.iter().enumerate() {
+            if self.affects[e * n + c] {
+                sum += w.dot(t.position - self.eff_p[e]);
+                count += 1.0;
+            }
+        }
+        let shift = sum / count;
+        q[v.index] += shift;
+        for e in 0..targets.len() {
+            if self.affects[e * n + c] {
+                self.eff_p[e] += w * shift;
+            }
+        }
+    }
+
     fn two_bone(&mut self, q: &mut [f64], targets: &[Target]) -> Report {
         let tb = self.two_bone.expect("planned in new");
         let target = targets[0].position;
+        self.bend_hinge(&tb, q, target);
+        self.aim_upper(&tb, q, target);
+        let mut err = std::mem::take(&mut self.err);
+        let (_, ep, eo) = self.errors(targets, &mut err);
+        self.err = err;
+        self.report(ep, eo, 1)
+    }
+
+    /// Two-bone IK, first stage: the hinge angle that puts the effector at the target's
+    /// distance from the upper bone's joint (law of cosines about the hinge axis), within the
+    /// hinge's limits (the nearest limit when none reaches).
+    fn bend_hinge(&mut self, tb: &TwoBone, q: &mut [f64], target: DVec3) {
         self.forward(q);
         let hip = self.pos[model::parent_joint(self.sk, tb.upper)];
         let knee = self.pos[tb.upper];
@@ -653,6 +698,13 @@ impl<'a> Solver<'a> {
             });
             self.forward(q);
         }
+    }
+
+    /// Two-bone IK, second stage: the upper bone's three angles that swing the effector onto
+    /// the target (the shortest arc), of the two Tait–Bryan solutions the one that fits the
+    /// limits better.
+    fn aim_upper(&mut self, tb: &TwoBone, q: &mut [f64], target: DVec3) {
+        let hip = self.pos[model::parent_joint(self.sk, tb.upper)];
         let reach = self.pos[tb.effector] - hip;
         let goal = target - hip;
         if reach.length() > 0.0 && goal.length() > 0.0 {
@@ -687,10 +739,6 @@ impl<'a> Solver<'a> {
             q[k..k + 3].copy_from_slice(&chosen);
             self.forward(q);
         }
-        let mut err = std::mem::take(&mut self.err);
-        let (_, ep, eo) = self.errors(targets, &mut err);
-        self.err = err;
-        self.report(ep, eo, 1)
     }
 }
 
