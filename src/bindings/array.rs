@@ -11,6 +11,7 @@ use numpy::ndarray::IxDyn;
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 
 fn shape_text(row_shape: &[usize]) -> String {
     let dims: Vec<String> =
@@ -42,26 +43,35 @@ pub fn rows<'a, const N: usize>(
 /// Values in a huge page (2 MB).
 const HUGE_PAGE: usize = 1 << 18;
 
-/// Touch every 4 KB page of the fresh, zeroed `values`, in parallel runs of one huge page.
+/// A new C-contiguous numpy array of `shape`, every value 0.
 ///
-/// Measured on the rotations bench (72 MB from `as_matrix` of 10^6 rotations, idle machine,
-/// two threads): faulting the pages in as the kernel's chunks reach them took 4–14 ms from
-/// call to call, touching them first in whole huge pages 5–6.5 ms every call.
-fn touch_pages(values: &mut [f64]) {
-    values.par_chunks_mut(HUGE_PAGE).for_each(|run| {
-        for v in run.iter_mut().step_by(512) {
-            *v = 0.0;
-        }
-    });
+/// Like `PyArray::zeros`, but the zeros are written here, in parallel runs of one huge page
+/// on the pool of the kernels for large arrays, into a buffer from numpy's allocator (which
+/// backs large arrays with huge pages), instead of by `calloc` on one thread.
+#[allow(unsafe_code)]
+fn zeros<'py>(py: Python<'py>, shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    // SAFETY: `f64` is `Copy` (the array may be dropped uninitialised); its values are only
+    // written, through `MaybeUninit`, until every one is initialised below.
+    let array = unsafe { PyArrayDyn::<f64>::new(py, IxDyn(shape), false) };
+    let len = array.len();
+    // SAFETY: a new C-contiguous array owns `len` values from `data()`, aligned for `f64`
+    // and referenced by nothing else while this slice lives.
+    let values =
+        unsafe { std::slice::from_raw_parts_mut(array.data().cast::<MaybeUninit<f64>>(), len) };
+    let zero = MaybeUninit::new(0.0);
+    if len > HUGE_PAGE {
+        detached(py, || {
+            values.par_chunks_mut(HUGE_PAGE).for_each(|run| run.fill(zero));
+            Ok(())
+        })?;
+    } else {
+        values.fill(zero);
+    }
+    Ok(array)
 }
 
 /// A new numpy array of shape `(n, *row_shape)` whose rows `fill` computes with the GIL
 /// released; errors map to Python exceptions (see [`detached`]).
-///
-/// The buffer comes from numpy's allocator, which backs large arrays with huge pages: for
-/// batches of millions of rows the page faults of a fresh buffer otherwise cost more than the
-/// kernel itself. Buffers larger than a huge page have their pages touched first
-/// ([`touch_pages`]).
 pub fn compute<'py, const N: usize>(
     py: Python<'py>,
     n: usize,
@@ -70,18 +80,13 @@ pub fn compute<'py, const N: usize>(
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let mut shape = vec![n];
     shape.extend_from_slice(row_shape);
-    let array = PyArrayDyn::<f64>::zeros(py, IxDyn(&shape), false);
+    let array = zeros(py, &shape)?;
     {
         let mut guard = array.readwrite();
         let flat = guard.as_slice_mut().expect("a new numpy array is contiguous");
         let (rows, rest) = flat.as_chunks_mut::<N>();
         assert!(rest.is_empty(), "row length equals the product of row_shape");
-        detached(py, || {
-            if rows.len() * N > HUGE_PAGE {
-                touch_pages(rows.as_flattened_mut());
-            }
-            fill(rows)
-        })?;
+        detached(py, || fill(rows))?;
     }
     Ok(array)
 }
