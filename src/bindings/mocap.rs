@@ -58,7 +58,6 @@ impl PySkeleton {
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
         let skeleton = Skeleton::from_snapshot(data)?;
-        skeleton.validate()?;
         Ok(Self { skeleton })
     }
 
@@ -205,7 +204,6 @@ impl PyMotion {
     #[staticmethod]
     fn _from_snapshot(data: &[u8], skeleton: Py<PyAny>) -> PyResult<Self> {
         let motion = Motion::from_snapshot(data)?;
-        motion.validate()?;
         Ok(Self { motion, skeleton })
     }
 
@@ -383,7 +381,6 @@ impl PyBvhSkeleton {
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
         let skeleton = BvhSkeleton::from_snapshot(data)?;
-        skeleton.validate()?;
         Ok(Self { skeleton })
     }
 

@@ -38,7 +38,6 @@ use super::parse::{err, number};
 use super::{Dof, Motion};
 use crate::error::{Error, Result};
 use glam::{DQuat, DVec3};
-use rayon::prelude::*;
 use std::fmt::Write;
 
 /// One joint of a BVH hierarchy, as read.
@@ -568,22 +567,9 @@ impl BvhSkeleton {
     ) -> Result<()> {
         self.validate_motion(motion)?;
         let joints = self.joints.len();
-        if positions.len() != motion.frames * joints || orientations.len() != motion.frames * joints
-        {
-            return Err(Error::invalid("out", "needs frames x joints rows"));
-        }
-        if motion.frames == 0 {
-            return Ok(());
-        }
-        positions
-            .par_chunks_mut(joints)
-            .zip(orientations.par_chunks_mut(joints))
-            .enumerate()
-            .for_each(|(f, (pos, ori))| {
-                let frame = &motion.values[f * motion.stride..(f + 1) * motion.stride];
-                self.pose(frame, pos, ori);
-            });
-        Ok(())
+        super::pose_frames(motion, joints, positions, orientations, |frame, pos, ori| {
+            self.pose(frame, pos, ori);
+        })
     }
 
     /// FK of one frame of values into `pos`/`ori` (one row per joint).

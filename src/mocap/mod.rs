@@ -312,19 +312,9 @@ impl Skeleton {
                 ),
             ));
         }
-        if positions.len() != motion.frames * joints || orientations.len() != motion.frames * joints
-        {
-            return Err(Error::invalid("out", "needs frames x joints rows"));
-        }
-        positions
-            .par_chunks_mut(joints)
-            .zip(orientations.par_chunks_mut(joints))
-            .enumerate()
-            .for_each(|(f, (pos, ori))| {
-                let frame = &motion.values[f * motion.stride..(f + 1) * motion.stride];
-                self.pose(frame, pos, ori);
-            });
-        Ok(())
+        pose_frames(motion, joints, positions, orientations, |frame, pos, ori| {
+            self.pose(frame, pos, ori);
+        })
     }
 
     /// FK of one frame of values into `pos`/`ori` (`1 + bones` rows each).
@@ -369,4 +359,31 @@ impl Skeleton {
             pos[b + 1] = (base + (bone.length + stretch) * (r * bone.direction)).to_array();
         }
     }
+}
+
+/// Forward kinematics of every frame of `motion` into `joints` rows of `positions` and
+/// `orientations` per frame, in parallel over frames; `pose` fills one frame's rows from its
+/// values.
+///
+/// # Errors
+/// Output slices that do not hold `frames x joints` rows.
+fn pose_frames(
+    motion: &Motion,
+    joints: usize,
+    positions: &mut [[f64; 3]],
+    orientations: &mut [[f64; 4]],
+    pose: impl Fn(&[f64], &mut [[f64; 3]], &mut [[f64; 4]]) + Sync,
+) -> Result<()> {
+    if positions.len() != motion.frames * joints || orientations.len() != motion.frames * joints {
+        return Err(Error::invalid("out", "needs frames x joints rows"));
+    }
+    if joints == 0 {
+        return Ok(());
+    }
+    positions.par_chunks_mut(joints).zip(orientations.par_chunks_mut(joints)).enumerate().for_each(
+        |(f, (pos, ori))| {
+            pose(&motion.values[f * motion.stride..(f + 1) * motion.stride], pos, ori)
+        },
+    );
+    Ok(())
 }
