@@ -35,6 +35,41 @@
 //! that one model and one solver can advance several states. A step advances a particle
 //! state and a constraint state together ([`Particles`] names the particle side).
 //! [`ConstrainedSystem`] is the three together, on a [`ParticleSystem`].
+//!
+//! ```
+//! use glam::DVec3;
+//! use kinema::constraints::{self, Constraint, ConstraintSolver, Particles};
+//! use kinema::ode::Method;
+//! use kinema::particles::{self, Force};
+//!
+//! // One particle model and one constraint model: two rods hanging from a pinned particle.
+//! let mut bodies = particles::Model::new(3);
+//! bodies.add_force(Force::Gravity { g: DVec3::new(0.0, -9.81, 0.0) })?;
+//! let mut rods = constraints::Model::new(0.0, 0.0, ConstraintSolver::Cholesky)?;
+//! rods.add(&bodies, Constraint::Distance { i: 0, j: 1, length: 1.0 })?;
+//! rods.add(&bodies, Constraint::Distance { i: 1, j: 2, length: 1.0 })?;
+//! // Two initial conditions, each a particle state and the constraint state on it.
+//! let x = [DVec3::ZERO, DVec3::X, DVec3::new(2.0, 0.0, 0.0)];
+//! let masses = [f64::INFINITY, 1.0, 1.0];
+//! let pushed = [DVec3::ZERO, DVec3::ZERO, DVec3::new(0.0, 3.0, 0.0)];
+//! let mut a = particles::State::new(&bodies, &x, &[DVec3::ZERO; 3], &masses)?;
+//! let mut b = particles::State::new(&bodies, &x, &pushed, &masses)?;
+//! let mut ca = constraints::State::new(&rods, &a)?;
+//! let mut cb = constraints::State::new(&rods, &b)?;
+//! // One solver pair advances both, in any order, each as if it had solvers of its own.
+//! let mut solvers = (particles::Solver::new(&bodies)?, constraints::Solver::new(&rods));
+//! for _ in 0..100 {
+//!     for (p, c) in [(&mut a, &mut ca), (&mut b, &mut cb)] {
+//!         let particles = Particles { model: &bodies, state: p, solver: &mut solvers.0 };
+//!         solvers.1.step(&rods, c, particles, 1e-3, 1, Method::Rk4)?;
+//!     }
+//! }
+//! assert!(b.positions()[7] > a.positions()[7] + 0.2); // the pushed end is higher
+//! // A constraint state's snapshot names its model by fingerprint and is refused on another.
+//! let bytes = cb.to_snapshot(&rods)?;
+//! assert_eq!(constraints::State::from_snapshot(&rods, &bytes)?, cb);
+//! # Ok::<(), kinema::Error>(())
+//! ```
 
 mod curve;
 mod implicit;

@@ -72,9 +72,7 @@ impl Solver {
             ));
         }
         let n = particles.model.capacity();
-        let free = particles.solver.free(particles.model, particles.state)?;
-        state.check_fits(model, n)?;
-        self.prepare(model, n)?;
+        let free = self.start(model, state, particles)?;
         let mut next = std::mem::take(&mut self.work.next);
         next.resize(6 * n, 0.0);
         let (mut system, y, time) = assemble(model, state, &mut self.work, free);

@@ -13,6 +13,7 @@ use super::{Constraint, ConstraintSolver, Formulation, Model, State};
 use crate::error::{Error, Result};
 use crate::linalg::SparseCholesky;
 use crate::ode::{History, Method, OdeSystem, Workspace};
+use crate::particles::Free;
 use glam::DVec3;
 
 /// The particles a constrained step advances: a particle model, one of its states and a
@@ -81,7 +82,7 @@ impl Solver {
     ///
     /// # Errors
     /// Indices beyond the particles (argument `particles`), a failed symbolic factorisation.
-    pub(super) fn prepare(&mut self, model: &Model, n: usize) -> Result<()> {
+    fn prepare(&mut self, model: &Model, n: usize) -> Result<()> {
         model.check_particles(n)?;
         let key = (n, model.constraints.len());
         if self.fitted != Some(key) {
@@ -106,6 +107,25 @@ impl Solver {
             w.backup.resize(6 * n, 0.0);
         }
         Ok(())
+    }
+
+    /// The particles' free equations and state for a call on `state` of `model`, after
+    /// checking that the parts belong together and sizing the workspaces ([`Self::prepare`]).
+    ///
+    /// # Errors
+    /// A particle state of another particle model or a constraint state of another model
+    /// (argument `state`), those of [`Self::prepare`].
+    pub(super) fn start<'a>(
+        &mut self,
+        model: &Model,
+        state: &State,
+        particles: Particles<'a>,
+    ) -> Result<Free<'a>> {
+        let n = particles.model.capacity();
+        let free = particles.solver.free(particles.model, particles.state)?;
+        state.check_fits(model, n)?;
+        self.prepare(model, n)?;
+        Ok(free)
     }
 
     /// The pattern of `J W Jᵀ` (rows sharing a particle), its symbolic factorisation, and the
@@ -174,12 +194,10 @@ impl Solver {
         method: Method,
     ) -> Result<()> {
         let n = particles.model.capacity();
-        let free = particles.solver.free(particles.model, particles.state)?;
-        state.check_fits(model, n)?;
+        let free = self.start(model, state, particles)?;
         if state.history.as_ref().is_none_or(|h| h.method() != method) {
             state.history = Some(History::new(method, 6 * n)?);
         }
-        self.prepare(model, n)?;
         let mut history = state.history.take().expect("created above");
         let backup = !self.work.backup.is_empty();
         let ode = &mut self.ode;
@@ -251,9 +269,7 @@ impl Solver {
         particles: Particles<'_>,
     ) -> Result<Vec<DVec3>> {
         let n = particles.model.capacity();
-        let free = particles.solver.free(particles.model, particles.state)?;
-        state.check_fits(model, n)?;
-        self.prepare(model, n)?;
+        let free = self.start(model, state, particles)?;
         let (mut system, y, time) = assemble(model, state, &mut self.work, free);
         let mut dydt = vec![0.0; 6 * n];
         // With penalty forces the rhs fills the rows; with multipliers it also solves for λ.
