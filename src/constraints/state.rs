@@ -152,12 +152,4 @@ impl State {
     pub fn multipliers(&self) -> &[f64] {
         &self.lambda
     }
-
-    /// Forget the integration history after the particles were changed from outside: the
-    /// next BDF2 step restarts with implicit Euler.
-    pub fn state_changed(&mut self) {
-        if let Some(h) = &mut self.history {
-            h.reset();
-        }
-    }
 }
