@@ -138,3 +138,59 @@ pub fn fingerprint<T: Serialize>(value: &T) -> u64 {
     let _ = postcard::to_io(value, &mut hash);
     hash.0
 }
+
+/// A system's state whose snapshot alone is stamped with the fingerprint of its model
+/// ([`fingerprint`]), so that it is restored only onto that model ([`to_stamped`],
+/// [`from_stamped`]).
+pub trait Stamped: Serialize + DeserializeOwned + Clone {
+    /// The tag of the state's snapshots, e.g. `"ConstraintState"`.
+    const TAG: &'static str;
+}
+
+/// A stamped state as stored: the fingerprint of its model and the state.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Stored<S> {
+    fingerprint: u64,
+    state: S,
+}
+
+impl<S: Stamped> Snapshot for Stored<S> {
+    const TAG: &'static str = S::TAG;
+
+    /// The state is checked against its model by [`from_stamped`], which has it.
+    fn validate(&self) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// `state` as bytes (see the module documentation), stamped with `fingerprint`, its model's.
+///
+/// # Errors
+/// As [`Snapshot::to_snapshot`].
+pub fn to_stamped<S: Stamped>(state: &S, fingerprint: u64) -> Result<Vec<u8>> {
+    Stored { fingerprint, state: state.clone() }.to_snapshot()
+}
+
+/// The state stored by [`to_stamped`] if it was taken of a model of `fingerprint`, after
+/// `validate` (its check against that model) accepts it.
+///
+/// # Errors
+/// Bytes that are not a snapshot of this tag and version or are damaged (argument `data`); a
+/// state of a model of another fingerprint (argument `model`); a state that `validate`
+/// refuses (argument `data`).
+pub fn from_stamped<S: Stamped>(
+    data: &[u8],
+    fingerprint: u64,
+    validate: impl FnOnce(&S) -> Result<()>,
+) -> Result<S> {
+    let stored = Stored::<S>::from_snapshot(data)?;
+    if stored.fingerprint != fingerprint {
+        return Err(Error::invalid(
+            "model",
+            "the state snapshot was taken of a model with another fingerprint",
+        ));
+    }
+    validate(&stored.state)
+        .map_err(|e| Error::invalid("data", format!("inconsistent {} snapshot: {e}", S::TAG)))?;
+    Ok(stored.state)
+}

@@ -567,10 +567,8 @@ class Scene:
 def _checkpoint(entry: _Entry) -> Callable[[], None]:
     """A function that puts ``entry``'s system (and the scene's record of its colliders) back
     as it is now: each compiled object keeps an undo point (``_mark``) and goes back to it in
-    place (``_rollback``), so views of its state stay valid. A constrained system holding a
-    Python function refuses its mark: its particles are restored, while its multiplier warm
-    start and step counters keep the failed step's values (they change no result beyond the
-    solver tolerance)."""
+    place (``_rollback``), so views of its state stay valid; a constrained system marks its
+    particles' state and its constraint state (tracked curves, warm starts, history)."""
     obj, colliders = entry.obj, list(entry.colliders)
     cores: list[Any]
     if isinstance(obj, ConstrainedSystem):
@@ -581,15 +579,12 @@ def _checkpoint(entry: _Entry) -> Callable[[], None]:
         cores = [obj._sys]
     else:
         cores = [obj._world]
-    marked: list[Any] = []
     for core in cores:
-        with contextlib.suppress(ValueError):  # refused when a constraint is a Python function
-            core._mark()
-            marked.append(core)
+        core._mark()
     count = getattr(obj, "_colliders", None)
 
     def restore() -> None:
-        for core in marked:
+        for core in cores:
             core._rollback()
         entry.colliders[:] = colliders
         if count is not None:

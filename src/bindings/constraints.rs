@@ -8,7 +8,7 @@ use super::particles::Particles;
 use super::pickle::{recipe, Reduced};
 use crate::constraints::{
     ConstrainedSystem, Constraint, ConstraintFunction, ConstraintSolver, Curve, ReducedBead,
-    ReducedPendulum,
+    ReducedPendulum, State,
 };
 use crate::error::Error;
 use crate::ode::Method;
@@ -120,8 +120,9 @@ pub struct Constrained {
     system: ConstrainedSystem,
     /// The exception raised by a custom constraint's callable during the current call.
     error: Arc<Mutex<Option<PyErr>>>,
-    /// The undo point of [`Constrained::_mark`], a snapshot (empty before the first).
-    saved: Vec<u8>,
+    /// The undo point of [`Constrained::_mark`], a copy of the constraint state (none before
+    /// the first).
+    saved: Option<State>,
 }
 
 impl Constrained {
@@ -151,22 +152,23 @@ impl Constrained {
     fn _from_snapshot(py: Python<'_>, data: &[u8], particles: Py<Particles>) -> PyResult<Self> {
         let system = ConstrainedSystem::from_snapshot(data)?;
         system.check_particles(particles.borrow(py).system.capacity())?;
-        Ok(Constrained { particles, system, error: Arc::default(), saved: Vec::new() })
+        Ok(Constrained { particles, system, error: Arc::default(), saved: None })
     }
 
-    /// Remember the constraint system as it is now (a scene's undo point before a frame; the
-    /// particles are marked on their own), as a snapshot: refused with a `ValueError` when a
-    /// constraint is a Python function.
-    fn _mark(&mut self) -> PyResult<()> {
-        self.saved.clear(); // no stale undo point if the snapshot is refused
-        self.saved = self.system.to_snapshot()?;
-        Ok(())
+    /// Remember the constraint state as it is now (a scene's undo point before a frame; the
+    /// particles are marked on their own, the model does not change in a frame), reusing the
+    /// last undo point's buffers.
+    fn _mark(&mut self) {
+        match &mut self.saved {
+            Some(saved) => saved.clone_from(self.system.state()),
+            None => self.saved = Some(self.system.state().clone()),
+        }
     }
 
-    /// Put the constraint system back as it was at the last [`Constrained::_mark`].
+    /// Put the constraint state back as it was at the last [`Constrained::_mark`].
     fn _rollback(&mut self) -> PyResult<()> {
-        if !self.saved.is_empty() {
-            self.system = ConstrainedSystem::from_snapshot(&self.saved)?;
+        if let Some(saved) = &self.saved {
+            self.system.set_state(saved)?;
         }
         Ok(())
     }
@@ -210,7 +212,7 @@ impl Constrained {
             }
         };
         system.set_stabilization(stabilize)?;
-        Ok(Constrained { particles, system, error: Arc::default(), saved: Vec::new() })
+        Ok(Constrained { particles, system, error: Arc::default(), saved: None })
     }
 
     /// Add a constraint: `distance` (i, j, [length]), `on_sphere` (i, -, [center 3, radius]),

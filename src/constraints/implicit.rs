@@ -25,7 +25,9 @@
 //! other rows are linear (`OnPlane`, `Fixed`) or enter by their gradients only (`OnCurve`,
 //! `Custom`: Gauss–Newton for those rows).
 
-use super::{evaluate, Constrained, Constraint, Rows, PROJECTION_ITERATIONS, PROJECTION_TOL};
+use super::multipliers::Constrained;
+use super::rows::{evaluate, Rows};
+use super::{Constraint, PROJECTION_ITERATIONS, PROJECTION_TOL};
 use crate::error::{Error, Result};
 use crate::linalg::SparseCholesky;
 use crate::math::outer;
@@ -187,7 +189,7 @@ fn entries(
 impl Constrained<'_> {
     /// Replace the positions of `y = [x; v]` (a free step `x̃`) by their projection onto
     /// `C(x) = 0` (the module's Newton iteration), starting from the multipliers `h² λ` of the
-    /// last step, and leave its multipliers (N) in the workspace's `implicit_lambda`; iterate
+    /// last step, and leave its multipliers (N) in the state's `implicit_lambda`; iterate
     /// until `max |C|` is at most [`PROJECTION_TOL`] and the last Newton step at most
     /// [`NEWTON_STEP_TOL`] (or 64 ulps of the largest coordinate).
     ///
@@ -198,10 +200,10 @@ impl Constrained<'_> {
     pub(super) fn implicit_projection(&mut self, y: &mut [f64], h: f64) -> Result<()> {
         let n = y.len() / 6;
         let inv_mass = self.inv_mass;
-        evaluate(self.constraints, &self.work.curves, y, n, &mut self.work.rows)?;
+        evaluate(&self.model.constraints, &self.state.curves, y, n, &mut self.work.rows)?;
         let w = &mut *self.work;
         if !w.kkt.as_ref().is_some_and(|k| k.fits(&w.rows, inv_mass)) {
-            w.kkt = Some(Kkt::new(self.constraints, &w.rows, inv_mass)?);
+            w.kkt = Some(Kkt::new(&self.model.constraints, &w.rows, inv_mass)?);
         }
         let mut kkt = w.kkt.take().expect("built above");
         kkt.target.copy_from_slice(&y[..3 * n]);
@@ -213,54 +215,14 @@ impl Constrained<'_> {
     /// The iterations of [`Self::implicit_projection`]; `implicit_lambda` holds `h² λ` meanwhile.
     fn newton(&mut self, kkt: &mut Kkt, y: &mut [f64], h2: f64) -> Result<()> {
         let n = y.len() / 6;
-        let inv_mass = self.inv_mass;
         let largest = y[..3 * n].iter().fold(0.0_f64, |a, &b| a.max(b.abs()));
         let tol = PROJECTION_TOL.max(64.0 * f64::EPSILON * largest);
         let step_tol = NEWTON_STEP_TOL.max(64.0 * f64::EPSILON * largest);
         let mut last_step = f64::MAX;
-        // Start where the last step's multipliers would put the particles, x̃ + W Jᵀ h² λ,
-        // so that the first iterate is near both C = 0 and stationarity.
-        let w = &mut *self.work;
-        for l in &mut w.implicit_lambda {
-            *l *= h2;
-        }
-        for r in 0..w.rows.rows.len() {
-            for &(p, g) in w.rows.blocks(r) {
-                let d = inv_mass[p] * w.implicit_lambda[r] * g;
-                for a in 0..3 {
-                    y[3 * p + a] += d[a];
-                }
-            }
-        }
+        self.warm_start(y, h2);
         for iteration in 0.. {
-            evaluate(self.constraints, &self.work.curves, y, n, &mut self.work.rows)?;
-            let w = &mut *self.work;
-            let (rows, lambda, nx) = (&w.rows, &w.implicit_lambda, kkt.nx);
-            // rhs = [-g; -C], g = M (x - x̃) - Jᵀ λ, over the free constrained particles.
-            kkt.rhs.fill(0.0);
-            for (r, &l) in lambda.iter().enumerate() {
-                let mut moves = false;
-                for &(p, g) in rows.blocks(r) {
-                    if kkt.dof[p] != NONE {
-                        moves = true;
-                        for a in 0..3 {
-                            kkt.rhs[kkt.dof[p] + a] += l * g[a];
-                        }
-                    }
-                }
-                if moves {
-                    kkt.rhs[nx + r] = -rows.rows[r].c;
-                }
-            }
-            let worst = kkt.rhs[nx..].iter().fold(0.0_f64, |a, c| a.max(c.abs()));
-            for (p, &d) in kkt.dof.iter().enumerate() {
-                if d != NONE {
-                    for a in 0..3 {
-                        let k = 3 * p + a;
-                        kkt.rhs[d + a] -= (y[k] - kkt.target[k]) / inv_mass[p];
-                    }
-                }
-            }
+            evaluate(&self.model.constraints, &self.state.curves, y, n, &mut self.work.rows)?;
+            let worst = self.residual(kkt, y);
             if !(worst.is_finite() && last_step.is_finite()) {
                 return Err(Error::Diverged {
                     step: 0,
@@ -280,37 +242,99 @@ impl Constrained<'_> {
                     ),
                 });
             }
-            let eps = 1e-14
-                * (0..rows.rows.len()).fold(1.0_f64, |a, r| {
-                    a.max(
-                        rows.blocks(r).iter().map(|&(p, g)| inv_mass[p] * g.length_squared()).sum(),
-                    )
-                });
-            kkt.values.fill(0.0);
-            let mut k = 0;
-            let (slots, values) = (&kkt.slots, &mut kkt.values);
-            entries(self.constraints, rows, lambda, inv_mass, &kkt.dof, nx, eps, &mut |_, _, v| {
-                values[slots[k]] += v;
-                k += 1;
-            });
-            kkt.factor.factorize(&kkt.values)?;
-            kkt.factor.solve_in_place(&mut kkt.rhs);
-            last_step = 0.0;
-            for (p, &d) in kkt.dof.iter().enumerate() {
-                if d != NONE {
-                    for a in 0..3 {
-                        y[3 * p + a] += kkt.rhs[d + a];
-                        last_step = last_step.max(kkt.rhs[d + a].abs());
-                    }
-                }
-            }
-            for (l, mu) in w.implicit_lambda.iter_mut().zip(&kkt.rhs[nx..]) {
-                *l -= mu;
-            }
+            last_step = self.newton_step(kkt, y)?;
         }
-        for l in &mut self.work.implicit_lambda {
+        for l in &mut self.state.implicit_lambda {
             *l /= h2;
         }
         Ok(())
+    }
+
+    /// Scale the last step's multipliers to `h² λ` and start where they would put the
+    /// particles, `x̃ + W Jᵀ h² λ`, so that the first iterate is near both `C = 0` and
+    /// stationarity.
+    fn warm_start(&mut self, y: &mut [f64], h2: f64) {
+        let (rows, inv_mass, lambda) =
+            (&self.work.rows, self.inv_mass, &mut self.state.implicit_lambda);
+        for l in lambda.iter_mut() {
+            *l *= h2;
+        }
+        for (r, &l) in lambda.iter().enumerate() {
+            for &(p, g) in rows.blocks(r) {
+                let d = inv_mass[p] * l * g;
+                for a in 0..3 {
+                    y[3 * p + a] += d[a];
+                }
+            }
+        }
+    }
+
+    /// Fill the KKT right-hand side `[-g; -C]`, `g = M (x - x̃) - Jᵀ λ`, over the free
+    /// constrained particles at the rows evaluated at `y`, and return `max |C|` over the rows
+    /// that move a particle.
+    fn residual(&self, kkt: &mut Kkt, y: &[f64]) -> f64 {
+        let (rows, lambda, nx) = (&self.work.rows, &self.state.implicit_lambda, kkt.nx);
+        kkt.rhs.fill(0.0);
+        for (r, &l) in lambda.iter().enumerate() {
+            let mut moves = false;
+            for &(p, g) in rows.blocks(r) {
+                if kkt.dof[p] != NONE {
+                    moves = true;
+                    for a in 0..3 {
+                        kkt.rhs[kkt.dof[p] + a] += l * g[a];
+                    }
+                }
+            }
+            if moves {
+                kkt.rhs[nx + r] = -rows.rows[r].c;
+            }
+        }
+        let worst = kkt.rhs[nx..].iter().fold(0.0_f64, |a, c| a.max(c.abs()));
+        for (p, &d) in kkt.dof.iter().enumerate() {
+            if d != NONE {
+                for a in 0..3 {
+                    let k = 3 * p + a;
+                    kkt.rhs[d + a] -= (y[k] - kkt.target[k]) / self.inv_mass[p];
+                }
+            }
+        }
+        worst
+    }
+
+    /// One Newton step: assemble and factorise the KKT matrix at the evaluated rows, solve
+    /// for `[δx; μ]`, apply `x += δx`, `λ -= μ`, and return `max |δx|` (m).
+    ///
+    /// # Errors
+    /// A failed factorisation.
+    fn newton_step(&mut self, kkt: &mut Kkt, y: &mut [f64]) -> Result<f64> {
+        let inv_mass = self.inv_mass;
+        let (rows, lambda, nx) = (&self.work.rows, &mut self.state.implicit_lambda, kkt.nx);
+        let eps = 1e-14
+            * (0..rows.rows.len()).fold(1.0_f64, |a, r| {
+                a.max(rows.blocks(r).iter().map(|&(p, g)| inv_mass[p] * g.length_squared()).sum())
+            });
+        kkt.values.fill(0.0);
+        let mut k = 0;
+        let (slots, values) = (&kkt.slots, &mut kkt.values);
+        let constraints = &self.model.constraints;
+        entries(constraints, rows, lambda, inv_mass, &kkt.dof, nx, eps, &mut |_, _, v| {
+            values[slots[k]] += v;
+            k += 1;
+        });
+        kkt.factor.factorize(&kkt.values)?;
+        kkt.factor.solve_in_place(&mut kkt.rhs);
+        let mut last_step = 0.0_f64;
+        for (p, &d) in kkt.dof.iter().enumerate() {
+            if d != NONE {
+                for a in 0..3 {
+                    y[3 * p + a] += kkt.rhs[d + a];
+                    last_step = last_step.max(kkt.rhs[d + a].abs());
+                }
+            }
+        }
+        for (l, mu) in lambda.iter_mut().zip(&kkt.rhs[nx..]) {
+            *l -= mu;
+        }
+        Ok(last_step)
     }
 }

@@ -2,38 +2,45 @@
 //! "Constrained dynamics"; Baumgarte stabilisation) by sparse Cholesky or Jacobi-preconditioned
 //! CG, and the constrained equations of motion as an [`OdeSystem`].
 
-use super::*;
+use super::solver::Work;
+use super::{evaluate, ConstraintSolver, Formulation, Model, State};
+use crate::error::Result;
+use crate::linalg::conjugate_gradient;
+use crate::ode::OdeSystem;
+use crate::particles::{Dynamics, Free};
+use glam::DVec3;
 
-/// The constrained equations of motion over `particles`, with the particle state and clock.
+/// The constrained equations of motion of `model` with `state` over the particles `free`,
+/// with the workspaces `work`; and the particles' `[x; v]` and clock.
 pub(super) fn assemble<'a>(
-    system: &'a mut ConstrainedSystem,
-    particles: &'a mut ParticleSystem,
+    model: &'a Model,
+    state: &'a mut State,
+    work: &'a mut Work,
+    free: Free<'a>,
 ) -> (Constrained<'a>, &'a mut [f64], &'a mut f64) {
-    let (free, y, inv_mass, time) = particles.parts();
     let equations = Constrained {
-        free,
-        constraints: &system.constraints,
-        inv_mass,
-        ks: system.ks,
-        kd: system.kd,
-        formulation: system.formulation,
-        solver: system.solver,
-        stabilize: system.stabilize,
-        work: &mut system.work,
+        free: free.dynamics,
+        inv_mass: free.inv_mass,
+        model,
+        ks: model.ks,
+        kd: model.kd,
+        state,
+        work,
     };
-    (equations, y, time)
+    (equations, free.y, free.time)
 }
 
 /// The constrained equations of motion as an [`OdeSystem`].
 pub(super) struct Constrained<'a> {
-    pub(super) free: crate::particles::Dynamics<'a>,
-    pub(super) constraints: &'a [Constraint],
+    pub(super) free: Dynamics<'a>,
+    /// Inverse masses of the particles (1/kg, 0 pinned).
     pub(super) inv_mass: &'a [f64],
+    pub(super) model: &'a Model,
+    /// The drift feedback gains of this solve: the model's, or zero for a projection step.
     pub(super) ks: f64,
     pub(super) kd: f64,
-    pub(super) formulation: Formulation,
-    pub(super) solver: ConstraintSolver,
-    pub(super) stabilize: bool,
+    /// The curves' tracked parameters and the warm starts, updated by the solves.
+    pub(super) state: &'a mut State,
     pub(super) work: &'a mut Work,
 }
 
@@ -46,9 +53,9 @@ impl OdeSystem for Constrained<'_> {
         self.free.rhs(t, y, dydt)?;
         let n = y.len() / 6;
         let w = &mut *self.work;
-        evaluate(self.constraints, &w.curves, y, n, &mut w.rows)?;
+        evaluate(&self.model.constraints, &self.state.curves, y, n, &mut w.rows)?;
         let (acc, inv_mass) = (&mut dydt[3 * n..], self.inv_mass);
-        if let Formulation::Penalty { stiffness, damping } = self.formulation {
+        if let Formulation::Penalty { stiffness, damping } = self.model.formulation {
             // a += W (-k C - c Ċ) ∇C per row.
             for (r, row) in w.rows.rows.iter().enumerate() {
                 let f = -(stiffness * row.c + damping * row.cdot);
@@ -72,11 +79,11 @@ impl OdeSystem for Constrained<'_> {
             w.b[r] = -row.jdot_qdot - ja - self.ks * row.c - self.kd * row.cdot;
         }
         self.solve_multipliers()?;
-        let w = &mut *self.work;
+        let (w, lambda) = (&*self.work, &self.state.lambda);
         // a += W Jᵀ λ.
-        for r in 0..w.rows.rows.len() {
+        for (r, &l) in lambda.iter().enumerate() {
             for &(p, g) in w.rows.blocks(r) {
-                let f = inv_mass[p] * w.lambda[r] * g;
+                let f = inv_mass[p] * l * g;
                 for k in 0..3 {
                     acc[3 * p + k] += f[k];
                 }
@@ -89,14 +96,14 @@ impl OdeSystem for Constrained<'_> {
 impl Constrained<'_> {
     /// Solve `(J W Jᵀ + εI) λ = b` for the rows and right-hand side in the workspace.
     pub(super) fn solve_multipliers(&mut self) -> Result<()> {
-        let inv_mass = self.inv_mass;
+        let (inv_mass, state) = (self.inv_mass, &mut *self.state);
         let w = &mut *self.work;
         for r in 0..w.rows.rows.len() {
             w.diag[r] =
                 w.rows.blocks(r).iter().map(|&(p, g)| inv_mass[p] * g.length_squared()).sum();
         }
         let eps = 1e-10 * w.diag.iter().fold(1.0_f64, |a, &b| a.max(b));
-        match self.solver {
+        match self.model.solver {
             ConstraintSolver::Cholesky => {
                 w.values.fill(0.0);
                 let block = |r: usize, p: usize| {
@@ -110,9 +117,9 @@ impl Constrained<'_> {
                 }
                 let chol = w.chol.as_mut().expect("pattern built before stepping");
                 chol.factorize(&w.values)?;
-                w.lambda.copy_from_slice(&w.b);
-                chol.solve_in_place(&mut w.lambda);
-                w.iterations = 0;
+                state.lambda.copy_from_slice(&w.b);
+                chol.solve_in_place(&mut state.lambda);
+                state.iterations = 0;
             }
             ConstraintSolver::ConjugateGradient => {
                 let (rows, scratch) = (&w.rows, &mut w.scratch);
@@ -137,20 +144,16 @@ impl Constrained<'_> {
                                 .sum::<f64>();
                     }
                 };
-                let mut pre = std::mem::take(&mut w.cg);
-                let mut lambda = std::mem::take(&mut w.lambda);
                 let result = conjugate_gradient(
                     &mut apply,
                     &w.b,
                     &w.diag,
-                    &mut lambda,
+                    &mut state.lambda,
                     1e-12,
                     10 * w.b.len() + 100,
-                    &mut pre,
+                    &mut w.cg,
                 );
-                w.cg = pre;
-                w.lambda = lambda;
-                w.iterations = result?;
+                state.iterations = result?;
             }
         }
         Ok(())

@@ -2,9 +2,14 @@
 //! projections of the positions onto `C = 0` in the mass metric, then of the velocities onto
 //! `J v = 0`.
 
-use super::*;
+use super::multipliers::{assemble, Constrained};
+use super::solver::{Particles, Solver};
+use super::{curve::track_curves, evaluate, Formulation, Model, State};
+use super::{PROJECTION_ITERATIONS, PROJECTION_TOL};
+use crate::error::{Error, Result};
+use crate::ode::OdeSystem;
 
-/// One step of [`ConstrainedSystem::step_projection`] from `y = [x; v]` at `time` into `next`:
+/// One step of [`Solver::step_projection`] from `y = [x; v]` at `time` into `next`:
 /// the free step `x̃ = x + h (v + h a_free)`, its implicit projection, `v₁ = (x₁ - x₀) / h`,
 /// and with post-stabilisation the velocity projection onto `J v = 0`.
 pub(super) fn projection_step(
@@ -24,93 +29,96 @@ pub(super) fn projection_step(
     for k in 0..3 * n {
         next[3 * n + k] = (next[k] - y[k]) / dt;
     }
-    if system.stabilize {
+    if system.model.stabilize {
         system.project_velocities(next)?;
     }
     Ok(())
 }
 
-impl ConstrainedSystem {
-    /// Advance the particles `steps` steps of `dt` by step and project (Goldenthal et al. 2007,
-    /// "Efficient simulation of inextensible cloth", section 4): the free step
-    /// `x̃ = x + h (v + h a_free)` is replaced by its closest point on `C(x) = 0` in the mass
-    /// metric, and the velocity is `v₁ = (x₁ - x₀) / h`. The constraint impulse acts along the constraints'
-    /// directions at the end of the step (an implicit step in the limit of infinite
-    /// stiffness), so a rope of any tension is stable at any step; first order and
-    /// dissipative. The projection is solved by Newton's method with the constraints'
-    /// geometric stiffness (see `implicit.rs`) to [`PROJECTION_TOL`]; with post-stabilisation
-    /// on ([`Self::set_stabilization`]) the velocities are then projected onto `J v = 0` at the
+impl Solver {
+    /// Advance `particles` and `state` (a state of `model` on them) `steps` steps of `dt` by
+    /// step and project (Goldenthal et al. 2007, "Efficient simulation of inextensible
+    /// cloth", section 4): the free step `x̃ = x + h (v + h a_free)` is replaced by its
+    /// closest point on `C(x) = 0` in the mass metric, and the velocity is
+    /// `v₁ = (x₁ - x₀) / h`. The constraint impulse acts along the constraints' directions at
+    /// the end of the step (an implicit step in the limit of infinite stiffness), so a rope
+    /// of any tension is stable at any step; first order and dissipative. The projection is
+    /// solved by Newton's method with the constraints' geometric stiffness (see
+    /// `implicit.rs`) to [`PROJECTION_TOL`]; with post-stabilisation on
+    /// ([`Model::set_stabilization`]) the velocities are then projected onto `J v = 0` at the
     /// new positions. Multiplier formulation only.
     ///
     /// # Errors
     /// A bad `dt`, the penalty formulation, a projection that does not converge (a step so
     /// large that the free motion leaves the constraints beyond the linearisation, or
-    /// conflicting constraints), a solver failure, a custom constraint's failure or a
-    /// non-finite state; the particles are left at the last good step.
+    /// conflicting constraints), a solver failure, a custom constraint's failure, particles or
+    /// a state of another model, or a non-finite state; the particles and `state` are left at
+    /// the last good step.
     pub fn step_projection(
         &mut self,
-        particles: &mut ParticleSystem,
+        model: &Model,
+        state: &mut State,
+        particles: Particles<'_>,
         dt: f64,
         steps: usize,
     ) -> Result<()> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(Error::invalid("dt", format!("must be positive and finite, got {dt}")));
         }
-        if self.formulation != Formulation::Multipliers {
+        if model.formulation != Formulation::Multipliers {
             return Err(Error::invalid(
                 "method",
                 "projection needs the multiplier formulation, not penalty",
             ));
         }
-        let n = particles.capacity();
-        self.prepare(n)?;
+        let n = particles.model.capacity();
+        let free = self.start(model, state, particles)?;
         let mut next = std::mem::take(&mut self.work.next);
         next.resize(6 * n, 0.0);
-        let result = self.projection_steps(particles, dt, steps, &mut next);
+        let (mut system, y, time) = assemble(model, state, &mut self.work, free);
+        system.ks = 0.0;
+        system.kd = 0.0;
+        let result = projection_steps(&mut system, y, time, dt, steps, &mut next);
         self.work.next = next;
         result
     }
+}
 
-    /// The steps of [`Self::step_projection`], with `next` (`6 n` values) for the state being
-    /// built.
-    fn projection_steps(
-        &mut self,
-        particles: &mut ParticleSystem,
-        dt: f64,
-        steps: usize,
-        next: &mut [f64],
-    ) -> Result<()> {
-        let n = particles.capacity();
-        let (mut system, y, time) = assemble(self, particles);
-        system.ks = 0.0;
-        system.kd = 0.0;
-        for s in 0..steps {
-            let w = &mut *system.work;
-            w.saved.0.clone_from(&w.implicit_lambda);
-            let result = projection_step(&mut system, *time, y, dt, next).and_then(|()| match next
-                .iter()
-                .position(|v| !v.is_finite())
-            {
+/// The steps of [`Solver::step_projection`] of `y` at `time`, with `next` (`6 n` values) for
+/// the state being built.
+fn projection_steps(
+    system: &mut Constrained<'_>,
+    y: &mut [f64],
+    time: &mut f64,
+    dt: f64,
+    steps: usize,
+    next: &mut [f64],
+) -> Result<()> {
+    let n = y.len() / 6;
+    for s in 0..steps {
+        let (w, st) = (&mut *system.work, &*system.state);
+        w.saved.0.clone_from(&st.implicit_lambda);
+        let result = projection_step(system, *time, y, dt, next).and_then(|()| {
+            match next.iter().position(|v| !v.is_finite()) {
                 Some(bad) => Err(Error::Diverged {
                     step: s,
                     index: (bad % (3 * n)) / 3,
                     reason: "non-finite state in the constraint projection".into(),
                 }),
                 None => Ok(()),
-            });
-            if let Err(e) = result {
-                let w = &mut *system.work;
-                w.implicit_lambda.clone_from(&w.saved.0);
-                return Err(e);
             }
-            // On failure the tracked parameters may have moved on: they are only the starting
-            // guesses of the closest-point search, so the particles' state is what is kept.
-            track_curves(system.constraints, next, &mut system.work.curves)?;
-            y.copy_from_slice(next);
-            *time += dt;
+        });
+        if let Err(e) = result {
+            system.state.implicit_lambda.clone_from(&system.work.saved.0);
+            return Err(e);
         }
-        Ok(())
+        // On failure the tracked parameters may have moved on: they are only the starting
+        // guesses of the closest-point search, so the particles' state is what is kept.
+        track_curves(&system.model.constraints, next, &mut system.state.curves)?;
+        y.copy_from_slice(next);
+        *time += dt;
     }
+    Ok(())
 }
 
 impl Constrained<'_> {
@@ -131,7 +139,7 @@ impl Constrained<'_> {
         let tol = PROJECTION_TOL.max(64.0 * f64::EPSILON * largest);
         let inv_mass = self.inv_mass;
         for iteration in 0.. {
-            evaluate(self.constraints, &self.work.curves, y, n, &mut self.work.rows)?;
+            evaluate(&self.model.constraints, &self.state.curves, y, n, &mut self.work.rows)?;
             let w = &mut *self.work;
             // Rows on pinned particles only cannot be moved, so they are not waited for.
             let worst = (0..w.rows.rows.len())
@@ -164,7 +172,7 @@ impl Constrained<'_> {
     /// A solver failure or a constraint's failure.
     pub(super) fn project_velocities(&mut self, y: &mut [f64]) -> Result<()> {
         let n = y.len() / 6;
-        evaluate(self.constraints, &self.work.curves, y, n, &mut self.work.rows)?;
+        evaluate(&self.model.constraints, &self.state.curves, y, n, &mut self.work.rows)?;
         let w = &mut *self.work;
         for (b, row) in w.b.iter_mut().zip(&w.rows.rows) {
             *b = -row.cdot;
@@ -176,10 +184,10 @@ impl Constrained<'_> {
     /// the block of `y` at `offset` (0: positions, `3 n`: velocities).
     pub(super) fn apply_correction(&mut self, y: &mut [f64], offset: usize) -> Result<()> {
         self.solve_multipliers()?;
-        let (w, inv_mass) = (&*self.work, self.inv_mass);
-        for r in 0..w.rows.rows.len() {
+        let (w, inv_mass, lambda) = (&*self.work, self.inv_mass, &self.state.lambda);
+        for (r, &l) in lambda.iter().enumerate() {
             for &(p, g) in w.rows.blocks(r) {
-                let d = inv_mass[p] * w.lambda[r] * g;
+                let d = inv_mass[p] * l * g;
                 for k in 0..3 {
                     y[offset + 3 * p + k] += d[k];
                 }

@@ -2,7 +2,10 @@
 //! particle and `J̇ q̇` (Witkin, "Constrained dynamics"), evaluated into [`Rows`]; user
 //! constraints through [`ConstraintFunction`] (`J̇ q̇` by central differences).
 
-use super::*;
+use super::Curve;
+use crate::error::{Error, Result};
+use glam::DVec3;
+use std::sync::Arc;
 
 /// A user constraint `C(x) = 0` of `m` scalar rows on `k` particles, given by its value and
 /// gradient (for teaching; e.g. Python callables). `J̇ q̇` is obtained by central differences
@@ -180,26 +183,15 @@ pub(super) fn evaluate(
     rows.clear();
     let x = |i: usize| DVec3::from_slice(&y[3 * i..]);
     let v = |i: usize| DVec3::from_slice(&y[3 * n + 3 * i..]);
-    for (c, &(guess, reference)) in constraints.iter().zip(curves) {
+    for (c, &tracked) in constraints.iter().zip(curves) {
         match c {
             &Constraint::Distance { i, j, length } => {
-                let d = x(i) - x(j);
-                let len = d.length();
-                let dir = if len > 0.0 { d / len } else { DVec3::X };
-                let vij = v(i) - v(j);
-                let along = dir.dot(vij);
-                let jdot =
-                    if len > 0.0 { (vij.length_squared() - along * along) / len } else { 0.0 };
-                rows.push([(i, dir), (j, -dir)], len - length, jdot, v);
+                let (c, dir, jdot) = radial(x(i) - x(j), v(i) - v(j), length);
+                rows.push([(i, dir), (j, -dir)], c, jdot, v);
             }
             &Constraint::OnSphere { i, center, radius } => {
-                let d = x(i) - center;
-                let len = d.length();
-                let dir = if len > 0.0 { d / len } else { DVec3::X };
-                let along = dir.dot(v(i));
-                let jdot =
-                    if len > 0.0 { (v(i).length_squared() - along * along) / len } else { 0.0 };
-                rows.push([(i, dir)], len - radius, jdot, v);
+                let (c, dir, jdot) = radial(x(i) - center, v(i), radius);
+                rows.push([(i, dir)], c, jdot, v);
             }
             &Constraint::OnPlane { i, point, normal } => {
                 rows.push([(i, normal)], normal.dot(x(i) - point), 0.0, v);
@@ -209,92 +201,113 @@ pub(super) fn evaluate(
                     rows.push([(i, DVec3::AXES[k])], x(i)[k] - point[k], 0.0, v);
                 }
             }
-            Constraint::OnCurve { i, curve } => {
-                let i = *i;
-                let u = curve.closest(x(i), guess).map_err(|e| at_particle(e, i))?;
-                let [p, dp, ddp] = curve.eval(u);
-                let d = x(i) - p;
-                let speed2 = dp.length_squared();
-                let denom = speed2 - ddp.dot(d);
-                if !(denom.is_finite() && denom > 0.0) {
-                    return Err(Error::SolverFailed {
-                        reason: format!(
-                            "particle {i} is farther from its curve than the radius of \
-                             curvature; the closest point is not unique"
-                        ),
-                    });
-                }
-                let speed = speed2.sqrt();
-                let t = dp / speed;
-                let t_u = (ddp - t.dot(ddp) * t) / speed; // dt̂/du
-                let m = reference.cross(t);
-                let m_len = m.length();
-                let n1 = m / m_len;
-                let w = reference.cross(t_u) / m_len;
-                let n1_u = w - n1.dot(w) * n1;
-                let n2 = t.cross(n1);
-                let n2_u = t_u.cross(n1) + t.cross(n1_u);
-                let grad_u = dp / denom;
-                let u_dot = grad_u.dot(v(i));
-                let d_dot = v(i) - u_dot * dp;
-                for (nk, nk_u) in [(n1, n1_u), (n2, n2_u)] {
-                    let g = nk + d.dot(nk_u) * grad_u;
-                    rows.push([(i, g)], nk.dot(d), u_dot * nk_u.dot(v(i) + d_dot), v);
-                }
-            }
+            Constraint::OnCurve { i, curve } => curve_rows(*i, curve, tracked, &x, &v, rows)?,
             Constraint::Custom { particles, function } => {
-                let (k, m) = (particles.len(), function.rows());
-                let mut scratch = std::mem::take(&mut rows.scratch);
-                scratch.resize(3 * k * (1 + 3 * m) + m, 0.0);
-                let (xs, rest) = scratch.split_at_mut(3 * k);
-                let (value, rest) = rest.split_at_mut(m);
-                let (grad, rest) = rest.split_at_mut(3 * k * m);
-                let (grad_plus, grad_minus) = rest.split_at_mut(3 * k * m);
-                let mut scale = 1.0_f64;
-                let mut speed = 0.0_f64;
-                for (a, &p) in particles.iter().enumerate() {
-                    xs[3 * a..3 * a + 3].copy_from_slice(&x(p).to_array());
-                    scale = scale.max(x(p).abs().max_element());
-                    speed = speed.max(v(p).abs().max_element());
-                }
-                let result = custom_rows(
-                    function.as_ref(),
-                    particles,
-                    [xs, value, grad, grad_plus, grad_minus],
-                    scale,
-                    speed,
-                    &v,
-                );
-                match result {
-                    Ok(()) => {
-                        for r in 0..m {
-                            let blocks = particles
-                                .iter()
-                                .enumerate()
-                                .map(|(a, &p)| (p, DVec3::from_slice(&grad[3 * k * r + 3 * a..])));
-                            let jdot: f64 = particles
-                                .iter()
-                                .enumerate()
-                                .map(|(a, &p)| {
-                                    let o = 3 * k * r + 3 * a;
-                                    (DVec3::from_slice(&grad_plus[o..])
-                                        - DVec3::from_slice(&grad_minus[o..]))
-                                    .dot(v(p))
-                                })
-                                .sum();
-                            rows.push(blocks, value[r], jdot, v);
-                        }
-                        rows.scratch = scratch;
-                    }
-                    Err(e) => {
-                        rows.scratch = scratch;
-                        return Err(e);
-                    }
-                }
+                custom(particles, function.as_ref(), &x, &v, rows)?;
             }
         }
     }
     Ok(())
+}
+
+/// The row `|d| - length` of a rod or sphere with separation `d` and relative velocity `w`:
+/// its value, unit direction (`+X` when `d = 0`) and `J̇ q̇ = (|w|² - (d̂·w)²) / |d|`.
+fn radial(d: DVec3, w: DVec3, length: f64) -> (f64, DVec3, f64) {
+    let len = d.length();
+    let dir = if len > 0.0 { d / len } else { DVec3::X };
+    let along = dir.dot(w);
+    let jdot = if len > 0.0 { (w.length_squared() - along * along) / len } else { 0.0 };
+    (len - length, dir, jdot)
+}
+
+/// The two rows of particle `i` on `curve` (see [`Constraint::OnCurve`]), from the tracked
+/// `(parameter, reference axis)`.
+fn curve_rows(
+    i: usize,
+    curve: &Curve,
+    (guess, reference): (f64, DVec3),
+    x: &impl Fn(usize) -> DVec3,
+    v: &impl Fn(usize) -> DVec3,
+    rows: &mut Rows,
+) -> Result<()> {
+    let u = curve.closest(x(i), guess).map_err(|e| at_particle(e, i))?;
+    let [p, dp, ddp] = curve.eval(u);
+    let d = x(i) - p;
+    let speed2 = dp.length_squared();
+    let denom = speed2 - ddp.dot(d);
+    if !(denom.is_finite() && denom > 0.0) {
+        return Err(Error::SolverFailed {
+            reason: format!(
+                "particle {i} is farther from its curve than the radius of \
+                 curvature; the closest point is not unique"
+            ),
+        });
+    }
+    let speed = speed2.sqrt();
+    let t = dp / speed;
+    let t_u = (ddp - t.dot(ddp) * t) / speed; // dt̂/du
+    let m = reference.cross(t);
+    let m_len = m.length();
+    let n1 = m / m_len;
+    let w = reference.cross(t_u) / m_len;
+    let n1_u = w - n1.dot(w) * n1;
+    let n2 = t.cross(n1);
+    let n2_u = t_u.cross(n1) + t.cross(n1_u);
+    let grad_u = dp / denom;
+    let u_dot = grad_u.dot(v(i));
+    let d_dot = v(i) - u_dot * dp;
+    for (nk, nk_u) in [(n1, n1_u), (n2, n2_u)] {
+        let g = nk + d.dot(nk_u) * grad_u;
+        rows.push([(i, g)], nk.dot(d), u_dot * nk_u.dot(v(i) + d_dot), v);
+    }
+    Ok(())
+}
+
+/// The rows of a custom constraint on `particles` (see [`Constraint::Custom`]), through the
+/// scratch buffer of `rows`.
+fn custom(
+    particles: &[usize],
+    function: &dyn ConstraintFunction,
+    x: &impl Fn(usize) -> DVec3,
+    v: &impl Fn(usize) -> DVec3,
+    rows: &mut Rows,
+) -> Result<()> {
+    let (k, m) = (particles.len(), function.rows());
+    let mut scratch = std::mem::take(&mut rows.scratch);
+    scratch.resize(3 * k * (1 + 3 * m) + m, 0.0);
+    let (xs, rest) = scratch.split_at_mut(3 * k);
+    let (value, rest) = rest.split_at_mut(m);
+    let (grad, rest) = rest.split_at_mut(3 * k * m);
+    let (grad_plus, grad_minus) = rest.split_at_mut(3 * k * m);
+    let mut scale = 1.0_f64;
+    let mut speed = 0.0_f64;
+    for (a, &p) in particles.iter().enumerate() {
+        xs[3 * a..3 * a + 3].copy_from_slice(&x(p).to_array());
+        scale = scale.max(x(p).abs().max_element());
+        speed = speed.max(v(p).abs().max_element());
+    }
+    let result =
+        custom_rows(function, particles, [xs, value, grad, grad_plus, grad_minus], scale, speed, v);
+    if result.is_ok() {
+        for r in 0..m {
+            let blocks = particles
+                .iter()
+                .enumerate()
+                .map(|(a, &p)| (p, DVec3::from_slice(&grad[3 * k * r + 3 * a..])));
+            let jdot: f64 = particles
+                .iter()
+                .enumerate()
+                .map(|(a, &p)| {
+                    let o = 3 * k * r + 3 * a;
+                    (DVec3::from_slice(&grad_plus[o..]) - DVec3::from_slice(&grad_minus[o..]))
+                        .dot(v(p))
+                })
+                .sum();
+            rows.push(blocks, value[r], jdot, v);
+        }
+    }
+    rows.scratch = scratch;
+    result
 }
 
 /// Value and gradient of a custom constraint at `xs`, and `grad_plus`, `grad_minus` =
@@ -338,17 +351,14 @@ pub(super) fn custom_rows(
 }
 
 impl Constraint {
-    /// This constraint checked against the particles at `positions` (3 per particle, m), a
-    /// plane's normal made unit, and the tracked state of a curve constraint (the closest
-    /// point's parameter and the frame reference; zero for other kinds). Indices are checked
-    /// by the caller.
+    /// This constraint with its parameters checked and a plane's normal made unit. Indices are
+    /// checked by the caller; what depends on the particles' positions by
+    /// [`Constraint::initial`].
     ///
     /// # Errors
-    /// Those listed at [`super::ConstrainedSystem::add`].
-    pub(super) fn checked(self, positions: &[f64]) -> Result<(Constraint, (f64, DVec3))> {
-        let pos = |i: usize| DVec3::from_slice(&positions[3 * i..]);
-        let mut curve_state = (0.0, DVec3::ZERO);
-        let constraint = match self {
+    /// Those listed at [`super::Model::add`].
+    pub(super) fn checked(self) -> Result<Constraint> {
+        Ok(match self {
             Constraint::Distance { i, j, length } => {
                 if i == j {
                     return Err(Error::invalid(
@@ -360,12 +370,6 @@ impl Constraint {
                     return Err(Error::invalid(
                         "length",
                         format!("must be positive and finite, got {length}"),
-                    ));
-                }
-                if pos(i) == pos(j) {
-                    return Err(Error::invalid(
-                        "j",
-                        format!("particles {i} and {j} coincide; the rod has no direction"),
                     ));
                 }
                 self
@@ -391,42 +395,61 @@ impl Constraint {
                 }
                 self
             }
+            Constraint::OnCurve { i, curve } => Constraint::OnCurve { i, curve: curve.checked()? },
+            Constraint::Custom { particles, function } => {
+                let (k, m) = (particles.len(), function.rows());
+                if k == 0 || m == 0 {
+                    return Err(Error::invalid(
+                        "indices",
+                        format!("a custom constraint needs particles and rows, got {k} and {m}"),
+                    ));
+                }
+                if (1..k).any(|a| particles[..a].contains(&particles[a])) {
+                    return Err(Error::invalid("indices", "must be distinct"));
+                }
+                Constraint::Custom { particles, function }
+            }
+        })
+    }
+
+    /// This (checked) constraint against the particles at `positions` (3 per particle, m;
+    /// indices in range): the tracked state of a curve constraint (the closest point's
+    /// parameter and the frame reference; zero for the other kinds).
+    ///
+    /// # Errors
+    /// A rod between coincident particles (no direction; argument `j`), a curve whose closest
+    /// point to its particle cannot be found (argument `curve`), a custom function that fails
+    /// or is not finite at the positions.
+    pub(super) fn initial(&self, positions: &[f64]) -> Result<(f64, DVec3)> {
+        let pos = |i: usize| DVec3::from_slice(&positions[3 * i..]);
+        match self {
+            &Constraint::Distance { i, j, .. } if pos(i) == pos(j) => Err(Error::invalid(
+                "j",
+                format!("particles {i} and {j} coincide; the rod has no direction"),
+            )),
             Constraint::OnCurve { i, curve } => {
-                let curve = curve.checked()?;
-                let x = pos(i);
+                let x = pos(*i);
                 let u = curve.closest(x, curve.initial_parameter(x)).map_err(|e| {
                     Error::invalid("curve", format!("no closest point to particle {i}: {e}"))
                 })?;
-                curve_state = (u, curve.reference(u));
-                Constraint::OnCurve { i, curve }
+                Ok((u, curve.reference(u)))
             }
-            Constraint::Custom { particles: ids, function } => {
-                check_custom(&ids, function.as_ref(), pos)?;
-                Constraint::Custom { particles: ids, function }
+            Constraint::Custom { particles, function } => {
+                check_custom(particles, function.as_ref(), pos)?;
+                Ok((0.0, DVec3::ZERO))
             }
-        };
-        Ok((constraint, curve_state))
+            _ => Ok((0.0, DVec3::ZERO)),
+        }
     }
 }
 
-/// Check a custom constraint on particles `ids`: particles and rows, distinct particles, and
-/// a finite value and gradient at `pos`.
+/// Check that a custom constraint on particles `ids` has a finite value and gradient at `pos`.
 fn check_custom(
     ids: &[usize],
     function: &dyn ConstraintFunction,
     pos: impl Fn(usize) -> DVec3,
 ) -> Result<()> {
-    let k = ids.len();
-    let m = function.rows();
-    if k == 0 || m == 0 {
-        return Err(Error::invalid(
-            "indices",
-            format!("a custom constraint needs particles and rows, got {k} and {m}"),
-        ));
-    }
-    if (1..k).any(|a| ids[..a].contains(&ids[a])) {
-        return Err(Error::invalid("indices", "must be distinct"));
-    }
+    let (k, m) = (ids.len(), function.rows());
     let x: Vec<f64> = ids.iter().flat_map(|&p| pos(p).to_array()).collect();
     let mut value = vec![0.0; m];
     let mut gradient = vec![0.0; 3 * k * m];

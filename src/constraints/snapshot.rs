@@ -1,14 +1,16 @@
-//! Constrained-system snapshots: what a decoded [`ConstrainedSystem`] must satisfy before it
-//! is stepped. The particles are not part of it, so the particle indices are checked against
-//! the particle system each call takes ([`ConstrainedSystem::check_particles`]).
+//! Constraint snapshots: what a decoded [`Model`] and [`State`] must satisfy before they are
+//! stepped; the system's snapshot (model and state), and a state's alone, which records the
+//! fingerprint of its model ([`Model::fingerprint`]) so that it is restored only onto it. The
+//! particles are not part of either, so the particle indices are checked against the particle
+//! system each call takes ([`Model::check_particles`]).
 
-use super::{ConstrainedSystem, Constraint, Formulation};
-use crate::error::{Error, Result};
-use crate::snapshot::{check, finite, Snapshot};
+use super::{ConstrainedSystem, Constraint, Formulation, Model, State};
+use crate::error::Result;
+use crate::snapshot::{check, finite, from_stamped, to_stamped, Snapshot, Stamped};
 
-impl Snapshot for ConstrainedSystem {
-    const TAG: &'static str = "ConstrainedSystem";
-
+impl Model {
+    /// Check a decoded model: gains and penalty constants in range, every constraint's
+    /// parameters valid, post-stabilisation only with multipliers.
     fn validate(&self) -> Result<()> {
         check(finite([self.ks, self.kd]) && self.ks >= 0.0 && self.kd >= 0.0, "ks", || {
             "feedback gains must be finite and >= 0".into()
@@ -20,6 +22,11 @@ impl Snapshot for ConstrainedSystem {
                 || "penalty stiffness and damping out of range".into(),
             )?;
         }
+        check(
+            !self.stabilize || self.formulation == Formulation::Multipliers,
+            "stabilize",
+            || "post-stabilisation needs the multiplier formulation".into(),
+        )?;
         for (k, c) in self.constraints.iter().enumerate() {
             let ok = match c {
                 Constraint::Distance { i, j, length } => {
@@ -37,57 +44,58 @@ impl Snapshot for ConstrainedSystem {
             };
             check(ok, "constraints", || format!("constraint {k} has invalid parameters"))?;
         }
-        let w = &self.work;
-        check(w.curves.len() == self.constraints.len(), "curves", || {
-            "not one entry per constraint".into()
-        })?;
-        check(finite(w.curves.iter().flat_map(|(u, r)| [*u, r.x, r.y, r.z])), "curves", || {
-            "non-finite curve parameters".into()
-        })?;
-        check(finite(w.implicit_lambda.iter().copied()), "implicit_lambda", || {
-            "non-finite multipliers".into()
-        })?;
-        check(
-            w.rows
-                .rows
-                .iter()
-                .all(|r| r.start.checked_add(r.count).is_some_and(|e| e <= w.rows.blocks.len())),
-            "rows",
-            || "row blocks out of range".into(),
-        )?;
-        if let Some(s) = &self.stepper {
-            s.validate()?;
-        }
         Ok(())
     }
 }
 
-impl ConstrainedSystem {
-    /// Check that every constraint's particles are among the `n` slots of the particle system
-    /// it is used with, and that the per-particle workspace is of that size (a snapshot does
-    /// not hold the particles). Allocates nothing: every step calls it.
+impl State {
+    /// Check a decoded state against its model: an entry per constraint and a multiplier per
+    /// row, finite values, a valid history.
+    fn validate(&self, model: &Model) -> Result<()> {
+        self.check_model(model)?;
+        check(finite(self.curves.iter().flat_map(|(u, r)| [*u, r.x, r.y, r.z])), "curves", || {
+            "non-finite curve parameters".into()
+        })?;
+        check(finite(self.lambda.iter().chain(&self.implicit_lambda).copied()), "lambda", || {
+            "non-finite multipliers".into()
+        })?;
+        if let Some(h) = &self.history {
+            h.validate()?;
+            check(h.dimension().is_multiple_of(6), "stepper", || {
+                "dimension is not 6 x particles".into()
+            })?;
+        }
+        Ok(())
+    }
+
+    /// The state as bytes, with the fingerprint of `model` ([`crate::snapshot::to_stamped`]).
     ///
     /// # Errors
-    /// [`Error::InvalidInput`] (argument `"particles"`) naming the first constraint that
-    /// refers to a particle `>= n`, or a workspace of another size.
-    pub fn check_particles(&self, n: usize) -> Result<()> {
-        let highest = |c: &Constraint| match c {
-            Constraint::Distance { i, j, .. } => *i.max(j),
-            Constraint::OnSphere { i, .. }
-            | Constraint::OnPlane { i, .. }
-            | Constraint::Fixed { i, .. }
-            | Constraint::OnCurve { i, .. } => *i,
-            Constraint::Custom { particles, .. } => particles.iter().copied().max().unwrap_or(0),
-        };
-        if ![0, 6 * n].contains(&self.work.backup.len()) {
-            return Err(Error::invalid("particles", format!("workspace not of {n} particles")));
-        }
-        match self.constraints.iter().position(|c| highest(c) >= n) {
-            None => Ok(()),
-            Some(k) => Err(Error::invalid(
-                "particles",
-                format!("constraint {k} refers to a particle beyond the {n} slots"),
-            )),
-        }
+    /// None in practice (every part of a state can be encoded).
+    pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
+        to_stamped(self, model.fingerprint())
+    }
+
+    /// The state stored by [`State::to_snapshot`], for `model`.
+    ///
+    /// # Errors
+    /// Bytes that are not a constraint state snapshot of this version or are damaged
+    /// (argument `data`); a state of a model of another fingerprint (argument `model`); a
+    /// state that does not fit `model` (argument `data`).
+    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
+        from_stamped(data, model.fingerprint(), |state: &State| state.validate(model))
+    }
+}
+
+impl Stamped for State {
+    const TAG: &'static str = "ConstraintState";
+}
+
+impl Snapshot for ConstrainedSystem {
+    const TAG: &'static str = "ConstrainedSystem";
+
+    fn validate(&self) -> Result<()> {
+        self.model.validate()?;
+        self.state.validate(&self.model)
     }
 }

@@ -320,8 +320,9 @@ mod tests {
     /// The analytic Jacobian and central differences of the right-hand side over every
     /// column, with steps `1e-6 max(|y_j|, 1)`.
     fn analytic_and_differenced(s: &mut ParticleSystem) -> (DMatrix<f64>, DMatrix<f64>) {
-        let (mut dyn_, y, _, _) = s.parts();
-        let y = y.to_vec();
+        let (model, state, solver) = s.parts();
+        let free = solver.free(model, state).unwrap();
+        let (mut dyn_, y) = (free.dynamics, free.y.to_vec());
         let n = y.len();
         let mut jac = SparseJacobian::default();
         assert!(dyn_.sparse_jacobian(0.0, &y, &mut jac).unwrap());
@@ -443,7 +444,9 @@ mod tests {
             let run = |mode: u8| {
                 let mut s = base.clone();
                 let mut stepper = Stepper::new(method, 48).unwrap();
-                let (mut d, y, _, _) = s.parts();
+                let (model, state, solver) = s.parts();
+                let free = solver.free(model, state).unwrap();
+                let (mut d, y) = (free.dynamics, free.y);
                 for k in 0..5 {
                     let t = 0.01 * k as f64;
                     match mode {

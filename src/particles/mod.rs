@@ -42,6 +42,7 @@ pub(crate) use dynamics::Dynamics;
 pub use emit::{Appearance, Emitter};
 pub use forces::{curl_noise, noise_with_gradient, Force};
 pub use model::Model;
+pub(crate) use solver::Free;
 pub use solver::Solver;
 pub use state::State;
 
@@ -154,10 +155,10 @@ impl ParticleSystem {
         self.state.y_mut()
     }
 
-    /// The free (unconstrained) equations of motion, the state and the inverse masses, for
-    /// systems that step the particles themselves (constraints).
-    pub(crate) fn parts(&mut self) -> (Dynamics<'_>, &mut [f64], &[f64], &mut f64) {
-        solver::parts(&self.model, &mut self.state, &mut self.solver)
+    /// The model, the state and the solver, for systems that step the particles themselves
+    /// (constraints, through [`Solver::free`]).
+    pub(crate) fn parts(&mut self) -> (&Model, &mut State, &mut Solver) {
+        (&self.model, &mut self.state, &mut self.solver)
     }
 
     /// Set forces (N, world frame; `3 capacity` values) that act in the following steps

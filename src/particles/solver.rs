@@ -108,25 +108,46 @@ impl Solver {
     }
 }
 
-/// The free equations of motion of `state` under `model`, its buffer `[x; v]`, its inverse
-/// masses and its time, for systems that step the particles themselves (constraints).
-pub(crate) fn parts<'a>(
-    model: &'a Model,
-    state: &'a mut State,
-    solver: &'a mut Solver,
-) -> (Dynamics<'a>, &'a mut [f64], &'a [f64], &'a mut f64) {
-    state.summary.state = None;
-    let dynamics = Dynamics {
-        n: model.n,
-        forces: &model.forces,
-        mass: &state.mass,
-        inv_mass: &state.inv_mass,
-        alive: &state.alive,
-        external: &state.external,
-        cells: &mut solver.cells,
-        jacobian: Some(&mut solver.jacobian),
-    };
-    (dynamics, &mut state.y, &state.inv_mass, &mut state.time)
+/// The particles as a constrained step advances them ([`Solver::free`]): their free
+/// equations of motion and the parts of their state that the constrained equations read and
+/// write.
+pub(crate) struct Free<'a> {
+    /// The free (unconstrained) equations of motion over `[x; v]`.
+    pub(crate) dynamics: Dynamics<'a>,
+    /// The state's buffer `[x; v]` (`6 capacity` values, m and m/s).
+    pub(crate) y: &'a mut [f64],
+    /// Inverse masses (1/kg, 0 for pinned particles), one per slot.
+    pub(crate) inv_mass: &'a [f64],
+    /// The state's time (s).
+    pub(crate) time: &'a mut f64,
+}
+
+impl Solver {
+    /// The particles of `state` under `model` for a system that steps them itself
+    /// (constraints): this solver lends the free equations its hash grid and Jacobian
+    /// buffers. The state's cached bound is forgotten, since it will be written.
+    ///
+    /// # Errors
+    /// A state of another model (argument `state`).
+    pub(crate) fn free<'a>(
+        &'a mut self,
+        model: &'a Model,
+        state: &'a mut State,
+    ) -> Result<Free<'a>> {
+        state.check_fits(model)?;
+        state.summary.state = None;
+        let dynamics = Dynamics {
+            n: model.n,
+            forces: &model.forces,
+            mass: &state.mass,
+            inv_mass: &state.inv_mass,
+            alive: &state.alive,
+            external: &state.external,
+            cells: &mut self.cells,
+            jacobian: Some(&mut self.jacobian),
+        };
+        Ok(Free { dynamics, y: &mut state.y, inv_mass: &state.inv_mass, time: &mut state.time })
+    }
 }
 
 impl Step<'_> {

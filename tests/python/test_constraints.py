@@ -294,3 +294,53 @@ def test_reduced_pendulum_matches_the_multipliers():
         ReducedBead("circle")
     with pytest.raises(ValueError, match="radius"):
         ReducedBead(Circle([0, 0, 0], -1.0))
+
+
+def _helix_and_plane(fail_at: list[int]):
+    """A bead on a helix and a particle held on the plane ``y = 1`` by a Python constraint
+    whose gradient raises at its ``fail_at[0]``-th call, constrained with CG, in a scene of 4
+    substeps per frame; and the gradient's call count."""
+    calls = [0]
+
+    def gradient(x):
+        calls[0] += 1
+        if calls[0] == fail_at[0]:
+            raise RuntimeError("on purpose")
+        return [0.0, 1.0, 0.0]
+
+    ps = ParticleSystem([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0.0, 0.0, 1.5], [0.5, 0.0, 0.2]])
+    ps.add(Gravity())
+    cs = ConstrainedSystem(ps, solver="cg")
+    cs.add(OnCurve(0, Helix(center=[0, 0, 0], radius=1.0, pitch=0.7)))
+    cs.add(Custom([1], lambda x: x[0, 1] - 1.0, gradient))
+    scene = kinema.Scene(dt=1 / 60, substeps=4)
+    scene.add(cs)
+    return scene, cs, ps, calls
+
+
+def _seen(cs, ps):
+    return [ps.positions.copy(), ps.velocities.copy(), cs.curve_parameter(0), cs.iterations]
+
+
+def test_a_failed_scene_frame_puts_the_constraint_state_back_even_with_a_custom_constraint():
+    """A frame whose Python constraint raises in its middle substep puts back the particles
+    and the constraint state (the helix's tracked parameter, the CG warm start), so the run
+    goes on bit for bit as one that never failed."""
+    never = [0]
+    scene, cs, ps, calls = _helix_and_plane(never)
+    scene.step()
+    first, after_one = calls[0], _seen(cs, ps)
+    scene.step(3)
+    second, want = calls[0] - first, _seen(cs, ps)
+
+    fail_at = [first + second // 6 + 1]  # mid-frame 2, after a substep or two committed
+    scene, cs, ps, calls = _helix_and_plane(fail_at)
+    scene.step()
+    with pytest.raises(RuntimeError, match="on purpose"):
+        scene.step()
+    got = _seen(cs, ps)
+    assert all(np.array_equal(a, b) for a, b in zip(got, after_one, strict=True))
+    fail_at[0] = 0
+    scene.step(3)
+    got = _seen(cs, ps)
+    assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
