@@ -8,8 +8,8 @@ emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`k
 (rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
 editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.scene` (scenes coupling them,
-checkpoints), :mod:`kinema.scenefile` (scenes from TOML), :mod:`kinema.plot` (pictures and
-animations), :mod:`kinema.demos` and the ``kinema`` command line (:mod:`kinema.cli`).
+checkpoints), :mod:`kinema.scenefile` (scenes from TOML), :mod:`kinema.sweep` (parameter sweeps on
+Dask), :mod:`kinema.plot` (pictures and animations), :mod:`kinema.demos` and the ``kinema`` command line (:mod:`kinema.cli`).
 
 The most used names are re-exported here: :class:`Rotation`, :class:`Transform`,
 :func:`slerp`, :class:`Scene`, the exceptions :class:`KinemaError` (the root
@@ -86,6 +86,7 @@ _SUBMODULES = frozenset(
         "rotation",
         "scene",
         "scenefile",
+        "sweep",
         "transform",
     }
 )
