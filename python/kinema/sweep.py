@@ -396,7 +396,7 @@ def _on_dask(
             n_workers=os.cpu_count() or 1,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            dashboard_address=":0",
             env={"KINEMA_NUM_THREADS": "1"},
         )
         own = client = Client(cluster)

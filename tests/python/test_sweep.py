@@ -20,7 +20,7 @@ def client():
     from dask.distributed import Client, LocalCluster
 
     cluster = LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
     )
     with Client(cluster) as c:
         yield c
@@ -213,6 +213,12 @@ def test_a_diverging_task_is_recorded_with_its_parameters_and_error(client):
     assert bad["error"].startswith("SimulationError:")
     assert np.isnan(bad["tip_y"]) and bad["positions"] is None
     assert table["error"][0] is None and table["error"][2] is None
+    # Recorded by the worker that ran it (with its time), not by a retry of a lost batch; and
+    # the same in a plain loop.
+    assert bad["seconds"] > 0
+    serial = ks.sweep(build, design, run, client="serial", progress=False)
+    assert list(serial["status"]) == ["ok", "failed", "ok"]
+    assert serial["error"][1] == bad["error"]
 
 
 def test_an_interrupted_sweep_resumes_on_the_cluster_without_recomputing(client, tmp_path):
