@@ -38,8 +38,9 @@ __all__ = ["grid", "latin_hypercube", "sweep"]
 # A batch of tasks aims at this many seconds of work, so Dask's cost per submitted task (a few
 # milliseconds of scheduling, messages and, here, writing its Parquet file) stays a few per cent.
 _BATCH_SECONDS = 0.5
-# Batches kept in flight per worker: enough to hide the round trip, few enough that the last
-# batches (the tail, when workers run out of work at different times) stay short.
+# Batches kept in flight per worker: enough to hide the round trip. A batch is at most
+# _BATCH_SECONDS of work and at most an equal share of what is left among the batches in
+# flight, so the last batches (the tail, when workers run out of work) stay short.
 _IN_FLIGHT = 2
 _SHAPE = "_shape:"  # prefix of the hidden Parquet columns holding array outputs' shapes
 _META = ("status", "error", "seconds")
@@ -274,8 +275,8 @@ def sweep(
     ``LocalCluster``, dask-jobqueue on Slurm/PBS, Kubernetes...); ``"serial"`` runs every task in
     this process, in order, with no Dask. On Dask workers kinema's own thread pool is set to one
     thread (the workers are the parallelism). Tiny tasks are sent in batches sized from the
-    measured time per task (about half a second of work per batch, at most a quarter of what
-    each worker has left); the numbers never depend on batching or order.
+    measured time per task (about half a second of work per batch, at most an equal share of
+    what is left among the batches in flight); the numbers never depend on batching or order.
 
     ``results``: a directory (made if missing) where each finished batch is written as a
     Parquet file at once; tasks whose result is already there (``ok`` or ``failed``) are not run
@@ -414,7 +415,8 @@ def _on_dask(
 
         def next_batch() -> list[tuple[str, dict[str, Any]]]:
             per_task = max(timing[0] / timing[1], 1e-6) if timing[1] else _BATCH_SECONDS
-            size = max(1, min(int(_BATCH_SECONDS / per_task), len(queue) // (4 * workers)))
+            share = -(-len(queue) // (_IN_FLIGHT * workers))  # ceil: every slot gets some
+            size = max(1, min(int(_BATCH_SECONDS / per_task), share))
             return [queue.pop() for _ in range(min(size, len(queue)))]
 
         for _ in range(_IN_FLIGHT * workers):

@@ -1,0 +1,146 @@
+"""kinema.sweep on Dask: overhead per task and the 2-worker speed-up, against plain processes.
+
+All in one process, one after the other, on a machine that may be busy (ratios matter):
+
+1. overhead: ``--tiny`` tasks that do nothing, on a 2-worker LocalCluster (one thread each):
+   wall time per task, batching included; and tasks of about 1 ms (a spring chain), whose
+   2-worker time is compared with half the serial time;
+2. speed-up: ``--tasks`` cloth tasks (a 16x16 Baraff-Witkin cloth, 40 implicit steps, a
+   stiffness x dt grid) run (a) in a plain loop in this process, (b) split between two plain
+   ``multiprocessing`` processes started beforehand, (c) by ``sweep`` on the 2-worker cluster.
+   Every run uses one kinema thread per process. Reported: (a)/(b), (a)/(c) and their ratio.
+
+Run: python bench/bench_sweep.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import time
+
+import numpy as np
+
+
+def cloth_build(stretch: float, dt: float):
+    from kinema.cloth import Cloth
+
+    cloth = Cloth.grid(16, 16, 1.0, 1.0, stretch=stretch, shear=stretch / 10, damping=5e-3)
+    cloth.pin([0, 15])
+    return cloth, dt
+
+
+def cloth_run(system) -> dict[str, float]:
+    cloth, dt = system
+    cloth.step(dt, 40)
+    return {"lowest": float(cloth.positions[:, 1].min())}
+
+
+def chain_build(stiffness: float, seed: int = 0):
+    from kinema.particles import Gravity, ParticleSystem, Springs
+
+    n = 8
+    x = np.zeros((n, 3))
+    x[:, 0] = np.arange(n) * 0.1
+    masses = np.full(n, 1.0)
+    masses[0] = np.inf
+    ps = ParticleSystem(x, masses=masses)
+    ps.add(Springs([[i, i + 1] for i in range(n - 1)], stiffness, damping=0.1))
+    ps.add(Gravity())
+    return ps
+
+
+def chain_run(ps) -> dict[str, float]:
+    ps.step(1e-3, steps=1000)
+    return {"tip_y": float(ps.positions[-1, 1])}
+
+
+def nothing_build(i: int) -> int:
+    return i
+
+
+def nothing_run(i: int) -> dict[str, int]:
+    return {"i": i}
+
+
+def _plain(tasks, start, done) -> None:
+    import kinema
+
+    kinema.set_num_threads(1)
+    start.wait()
+    for p in tasks:
+        cloth_run(cloth_build(**p))
+    done.put(time.perf_counter())
+
+
+def two_processes(design: list[dict]) -> float:
+    ctx = mp.get_context("spawn")
+    start, done = ctx.Event(), ctx.Queue()
+    procs = [ctx.Process(target=_plain, args=(design[i::2], start, done)) for i in range(2)]
+    for p in procs:
+        p.start()
+    time.sleep(3.0)  # both imported kinema and wait at the start line
+    t0 = time.perf_counter()
+    start.set()
+    end = max(done.get() for _ in procs)
+    for p in procs:
+        p.join()
+    return end - t0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args()
+    from dask.distributed import Client, LocalCluster
+
+    import kinema
+    from kinema.sweep import grid, sweep
+
+    kinema.set_num_threads(1)
+    n_cloth = 8 if args.quick else 64
+    tiny = 200 if args.quick else 2000
+    design = grid(
+        stretch=np.geomspace(1e3, 1e4, n_cloth // 4), dt=[1 / 240, 1 / 120, 1 / 90, 1 / 60]
+    )
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0")
+    client = Client(cluster)
+    sweep(nothing_build, grid(i=range(4)), nothing_run, client=client, progress=False)  # warm
+
+    t0 = time.perf_counter()
+    sweep(nothing_build, grid(i=range(tiny)), nothing_run, client=client, progress=False)
+    empty = time.perf_counter() - t0
+    print(f"{tiny} empty tasks on 2 workers: {empty / tiny * 1e6:.0f} µs per task (wall)")
+
+    chains = grid(stiffness=np.linspace(100.0, 1000.0, tiny // 4))
+    t0 = time.perf_counter()
+    sweep(chain_build, chains, chain_run, client="serial", progress=False)
+    serial = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    sweep(chain_build, chains, chain_run, client=client, progress=False)
+    dask = time.perf_counter() - t0
+    print(
+        f"{len(chains)} tasks of {serial / len(chains) * 1e3:.2f} ms: serial {serial:.2f} s, "
+        f"2 workers {dask:.2f} s, speed-up {serial / dask:.2f}"
+    )
+
+    t0 = time.perf_counter()
+    table = sweep(cloth_build, design, cloth_run, client="serial", progress=False)
+    serial = time.perf_counter() - t0
+    plain = two_processes(design)
+    t0 = time.perf_counter()
+    on_dask = sweep(cloth_build, design, cloth_run, client=client, progress=False)
+    dask = time.perf_counter() - t0
+    assert np.array_equal(table["lowest"], on_dask["lowest"], equal_nan=True)
+    print(
+        f"{len(design)} cloth tasks of {serial / len(design):.2f} s: serial {serial:.1f} s, "
+        f"two plain processes {plain:.1f} s (x{serial / plain:.2f}), "
+        f"sweep on 2 workers {dask:.1f} s (x{serial / dask:.2f}): "
+        f"{plain / dask * 100:.0f} % of the plain processes' speed-up"
+    )
+    client.close()
+    cluster.close()
+
+
+if __name__ == "__main__":
+    main()
