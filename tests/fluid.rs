@@ -138,6 +138,18 @@ fn dam_break_front_follows_martin_and_moyce() {
     }
 }
 
+/// The same at `L/20` (8 layers): too slow for the default run (`cargo test --release
+/// --test fluid -- --ignored`); prints the comparison.
+#[test]
+#[ignore]
+fn dam_break_finer() {
+    let history = dam_break(20.0, 8.0);
+    for (t, z) in MARTIN_MOYCE {
+        let got = front_at(&history, t);
+        eprintln!("T = {t}: Z/L = {got:.3}, experiment {z} ({:+.1} %)", 100.0 * (got / z - 1.0));
+    }
+}
+
 /// A small tank with a block of fluid, for the tests below.
 fn small(settings: Settings) -> Fluid {
     let mut fluid = Fluid::new(settings).unwrap();

@@ -129,9 +129,9 @@ impl Grid {
     ) {
         if hi - lo <= CHUNK {
             let base = offsets[lo];
-            for i in lo..hi {
-                let mut at = offsets[i] - base;
-                self.visit(points, i, h, mask, |j| {
+            for (k, &start) in offsets[lo..hi].iter().enumerate() {
+                let mut at = start - base;
+                self.visit(points, lo + k, h, mask, |j| {
                     out[at] = j;
                     at += 1;
                 });
