@@ -10,6 +10,7 @@ pub mod batch;
 pub mod cloth;
 pub mod constraints;
 pub mod error;
+pub mod fluid;
 pub mod geometry;
 pub mod ik;
 pub mod linalg;

@@ -5,7 +5,8 @@ PEP 562): :mod:`kinema.rotation` (rotations, Euler angles, slerp), :mod:`kinema.
 transforms), :mod:`kinema.ode` (integrators and stability), :mod:`kinema.geometry` (collision
 shapes), :mod:`kinema.particles` (forces, colliders,
 emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`kinema.rigid`
-(rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.anim`
+(rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.fluid`
+(SPH fluids), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
 editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.scene` (scenes coupling them,
 checkpoints), :mod:`kinema.scenefile` (scenes from TOML), :mod:`kinema.sweep` (parameter sweeps on
@@ -76,6 +77,7 @@ _SUBMODULES = frozenset(
         "cloth",
         "constraints",
         "demos",
+        "fluid",
         "geometry",
         "ik",
         "mocap",

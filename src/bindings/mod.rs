@@ -11,6 +11,7 @@ mod array;
 mod cloth;
 mod constraints;
 mod error;
+mod fluid;
 mod geometry;
 mod ik;
 mod mocap;
@@ -73,6 +74,7 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     particles::register(m)?;
     constraints::register(m)?;
     cloth::register(m)?;
+    fluid::register(m)?;
     anim::register(m)?;
     mocap::register(m)?;
     ik::register(m)?;

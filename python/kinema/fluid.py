@@ -1,0 +1,146 @@
+"""Particle fluids by SPH: DFSPH (Bender & Koschier 2015, 2017) or WCSPH (Becker & Teschner
+2007), walls sampled as boundary particles (Akinci et al. 2012), XSPH viscosity, CFL
+substeps.
+
+Build a :class:`Fluid`, add tanks (:meth:`Fluid.add_boundary_box`) or floors
+(:meth:`Fluid.add_boundary_plane`) and fluid (:meth:`Fluid.add_block`), then ``step`` it by
+frames: each frame is split into substeps of the CFL condition. ``positions`` and
+``velocities`` are read-only numpy views of the Rust state, updated in place (no copy); once
+one was taken no more blocks can be added (the views must stay valid). See docs/fluid.md.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from kinema import _kinema
+from kinema._array import as_vector3, real
+
+__all__ = ["Fluid"]
+
+
+class Fluid:
+    """A fluid of particles ``spacing`` apart at rest (m; the kernel's support is twice it).
+
+    ``rest_density`` in kg/m³; ``viscosity`` the XSPH coefficient in [0, 1] (the fraction by
+    which a substep moves a velocity towards its neighbours' mean); ``solver`` ``"dfsph"``
+    (stops when the mean density error is below ``density_tolerance`` percent and the
+    divergence error below ``divergence_tolerance`` percent, at most ``max_iterations``
+    iterations per solve) or ``"wcsph"`` (Tait equation with speed of sound
+    ``sound_speed`` m/s); ``kernel`` ``"cubic"`` or ``"wendland"``. Substeps move no particle
+    more than ``cfl`` spacings and last at most ``max_dt`` s; a frame needing more than
+    ``max_substeps`` fails with :class:`kinema.SimulationError` (the fluid unchanged).
+    """
+
+    def __init__(
+        self,
+        spacing: float,
+        rest_density: float = 1000.0,
+        viscosity: float = 0.01,
+        solver: str = "dfsph",
+        *,
+        kernel: str = "cubic",
+        density_tolerance: float = 0.05,
+        divergence_tolerance: float = 0.1,
+        max_iterations: int = 100,
+        sound_speed: float = 30.0,
+        cfl: float = 0.4,
+        max_dt: float = 0.005,
+        max_substeps: int = 10_000,
+        gravity: Any = (0.0, -9.81, 0.0),
+    ) -> None:
+        if not isinstance(solver, str):
+            raise TypeError("solver: expected 'dfsph' or 'wcsph'")
+        if not isinstance(kernel, str):
+            raise TypeError("kernel: expected 'cubic' or 'wendland'")
+        self._f = _kinema.Fluid(
+            real(spacing, "spacing"),
+            real(rest_density, "rest_density"),
+            kernel,
+            real(viscosity, "viscosity"),
+            solver,
+            real(density_tolerance, "density_tolerance"),
+            real(divergence_tolerance, "divergence_tolerance"),
+            max_iterations,
+            real(sound_speed, "sound_speed"),
+            real(cfl, "cfl"),
+            real(max_dt, "max_dt"),
+            max_substeps,
+            as_vector3(gravity, "gravity"),
+        )
+
+    def add_block(self, lower: Any, upper: Any, velocity: Any = (0.0, 0.0, 0.0)) -> int:
+        """Fill the box ``[lower, upper]`` (m) with particles on a cubic lattice of the
+        spacing (the first half a spacing inside ``lower``), moving at ``velocity`` (m/s).
+        Returns the number added. The block must lie inside a tank if there is one and not
+        overlap fluid already added."""
+        lo, hi = as_vector3(lower, "lower"), as_vector3(upper, "upper")
+        return self._f.add_block(lo, hi, as_vector3(velocity, "velocity"))
+
+    def add_boundary_box(self, lower: Any, upper: Any) -> None:
+        """Add a closed tank: the inside of the box ``[lower, upper]`` (m)."""
+        self._f.add_boundary_box(as_vector3(lower, "lower"), as_vector3(upper, "upper"))
+
+    def add_boundary_plane(self, point: Any, normal: Any, half_extent: float) -> None:
+        """Add a floor: the square of half side ``half_extent`` (m) about ``point`` in the
+        plane of ``normal`` (made unit), the fluid on the side it points to."""
+        n = np.asarray(as_vector3(normal, "normal"))
+        length = float(np.linalg.norm(n))
+        if not length > 0.0:
+            raise ValueError("normal: must be a non-zero vector")
+        self._f.add_boundary_plane(
+            as_vector3(point, "point"), (n / length).tolist(), real(half_extent, "half_extent")
+        )
+
+    def step(self, dt: float, steps: int = 1) -> None:
+        """Advance ``steps`` frames of ``dt`` seconds, each in CFL substeps (a frame ten
+        times the CFL limit takes ten substeps or more)."""
+        self._f.step(real(dt, "dt"), steps)
+
+    def __len__(self) -> int:
+        return len(self._f)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Read-only view ``(N, 3)`` of the positions (m)."""
+        return self._f.positions
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """Read-only view ``(N, 3)`` of the velocities (m/s)."""
+        return self._f.velocities
+
+    @property
+    def densities(self) -> np.ndarray:
+        """Densities ``(N,)`` (kg/m³) of the particles as they are now (a new array)."""
+        return self._f.densities()
+
+    @property
+    def pressures(self) -> np.ndarray:
+        """Pressures ``(N,)`` (Pa) of the last substep (a new array)."""
+        return self._f.pressures()
+
+    @property
+    def boundary_particles(self) -> np.ndarray:
+        """The walls' boundary particles ``(B, 3)`` (m, a new array)."""
+        return self._f.boundary_particles()
+
+    @property
+    def particle_mass(self) -> float:
+        """The mass of one particle (kg)."""
+        return self._f.particle_mass
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._f.time
+
+    @property
+    def stats(self) -> dict[str, float]:
+        """What the last ``step`` did: ``substeps``, ``density_iterations`` and
+        ``divergence_iterations`` (summed over substeps), ``density_error`` (the largest
+        mean compression over the substeps, percent), ``max_density_error`` (of any
+        particle, percent), ``divergence_error`` (percent per substep)."""
+        return self._f.stats()

@@ -1,0 +1,153 @@
+//! Particle fluids by smoothed particle hydrodynamics (SPH): a liquid as particles of one
+//! mass on a lattice of the spacing at rest, kernels of support twice the spacing, solid walls
+//! sampled as boundary particles (Akinci et al. 2012), and two pressure solvers:
+//!
+//! - **DFSPH** (Bender & Koschier 2015, "Divergence-free smoothed particle hydrodynamics";
+//!   2017, "Divergence-free SPH for incompressible and viscous fluids"), the default: per
+//!   substep a divergence-free solve (the velocity field keeps the density constant), gravity
+//!   and viscosity, then a constant-density solve (the predicted density is the rest density
+//!   within a tolerance in percent, default 0.05 %);
+//! - **WCSPH** (Becker & Teschner 2007, "Weakly compressible SPH for free surface flows"):
+//!   pressure from the Tait equation, the simple reference.
+//!
+//! Viscosity is XSPH (Schechter & Bridson 2012). Substeps follow the CFL condition
+//! ([`Solver::step`]); neighbours come from a uniform grid rebuilt every substep
+//! (`grid.rs`), in parallel and deterministically (the same bits for any thread count).
+//!
+//! The fluid is split as every system of kinema is: a [`Model`] (settings, particle volume,
+//! walls and boundary particles), a [`State`] (positions, velocities, time, DFSPH's warm
+//! starts) and a [`Solver`] (neighbour grid, densities, factors, scratch), so one model and
+//! one solver can advance several states. [`Fluid`] is the three together.
+
+mod boundary;
+mod grid;
+mod kernel;
+mod model;
+mod snapshot;
+mod solver;
+mod state;
+
+pub use boundary::Wall;
+pub use kernel::Kernel;
+pub use model::{Model, Pressure, Settings};
+pub use solver::Solver;
+pub use state::State;
+
+use crate::error::Result;
+use glam::DVec3;
+
+/// What the last call to [`Solver::step`] did.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stats {
+    /// Substeps taken.
+    pub substeps: usize,
+    /// Iterations of the constant-density solve, summed over the substeps (DFSPH).
+    pub density_iterations: usize,
+    /// Iterations of the divergence-free solve, summed over the substeps (DFSPH).
+    pub divergence_iterations: usize,
+    /// The largest over the substeps of the mean compression `max(ρ/ρ₀ - 1, 0)` (percent):
+    /// the predicted density after the constant-density solve (DFSPH), the density before
+    /// the pressure force (WCSPH).
+    pub density_error: f64,
+    /// The largest compression of any particle in any substep (percent), measured as
+    /// `density_error`.
+    pub max_density_error: f64,
+    /// The largest over the substeps of the mean density change per substep due to the
+    /// velocity divergence after the divergence-free solve (percent, DFSPH).
+    pub divergence_error: f64,
+}
+
+/// A fluid: a [`Model`] with one [`State`] and a [`Solver`], its methods delegating to them.
+/// A snapshot holds the model and the state.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
+pub struct Fluid {
+    model: Model,
+    state: State,
+    #[serde(skip)]
+    solver: Solver,
+    /// What the last step call did.
+    pub stats: Stats,
+}
+
+impl Fluid {
+    /// An empty fluid of `settings`, without walls.
+    ///
+    /// # Errors
+    /// Those of [`Model::new`].
+    pub fn new(settings: Settings) -> Result<Self> {
+        let model = Model::new(settings)?;
+        let state = State::new(&model);
+        let solver = Solver::new(&model);
+        Ok(Fluid { model, state, solver, stats: Stats::default() })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The state.
+    pub fn state(&self) -> &State {
+        &self.state
+    }
+
+    /// The state, to change it (e.g. [`State::set_velocities`]).
+    pub fn state_mut(&mut self) -> &mut State {
+        &mut self.state
+    }
+
+    /// Add a wall ([`Model::add_wall`]).
+    ///
+    /// # Errors
+    /// Those of [`Model::add_wall`]; and, for a box, fluid outside every box wall (`lower`).
+    /// The fluid is then unchanged.
+    pub fn add_wall(&mut self, wall: Wall) -> Result<()> {
+        let mut model = self.model.clone();
+        model.add_wall(wall)?;
+        let margin = 0.25 * model.settings.spacing;
+        let tanks: Vec<&Wall> =
+            model.walls.iter().filter(|w| matches!(w, Wall::Box { .. })).collect();
+        if !tanks.is_empty()
+            && !self.state.positions.iter().all(|p| tanks.iter().any(|w| w.contains(*p, margin)))
+        {
+            return Err(crate::Error::invalid(
+                "lower",
+                "fluid particles would be outside the tank",
+            ));
+        }
+        self.model = model;
+        Ok(())
+    }
+
+    /// Fill `[lower, upper]` (m) with fluid moving at `velocity` (m/s) ([`State::add_block`]);
+    /// returns the number of particles added.
+    ///
+    /// # Errors
+    /// Those of [`State::add_block`].
+    pub fn add_block(&mut self, lower: DVec3, upper: DVec3, velocity: DVec3) -> Result<usize> {
+        self.state.add_block(&self.model, lower, upper, velocity)
+    }
+
+    /// Advance `steps` frames of `dt` seconds ([`Solver::step`]); `stats` then describes
+    /// the call.
+    ///
+    /// # Errors
+    /// Those of [`Solver::step`]; the fluid is then as it was.
+    pub fn step(&mut self, dt: f64, steps: usize) -> Result<()> {
+        self.stats = self.solver.step(&self.model, &mut self.state, dt, steps)?;
+        Ok(())
+    }
+
+    /// Densities (kg/m³) of the particles as they are now, `N`.
+    pub fn densities(&mut self) -> Vec<f64> {
+        let mut out = Vec::new();
+        self.solver.densities_of(&self.model, &self.state, &mut out);
+        out
+    }
+
+    /// Pressures (Pa) of the last substep, `N` ([`State::pressures`] times `ρ₀`).
+    pub fn pressures(&self) -> Vec<f64> {
+        let rho = self.model.settings.rest_density;
+        self.state.pressure.iter().map(|p| p * rho).collect()
+    }
+}

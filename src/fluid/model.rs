@@ -1,0 +1,224 @@
+//! The fluid model: what every step reads and no step changes — the settings (spacing, rest
+//! density, kernel, viscosity, pressure solver and its tolerances, time-step limits, gravity),
+//! the particle mass and volume derived from them, and the walls with their boundary
+//! particles and Akinci volumes.
+
+use super::boundary::{offset, volumes, Wall};
+use super::Kernel;
+use crate::error::{Error, Result};
+use glam::DVec3;
+
+/// The pressure solver and its parameters.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub enum Pressure {
+    /// Divergence-free SPH (Bender & Koschier 2015, 2017): a divergence-free solve then a
+    /// constant-density solve per substep, each a Jacobi iteration on the pressures.
+    Dfsph {
+        /// The mean density error (compression, in percent of the rest density) at which the
+        /// constant-density solve stops (default 0.05).
+        density_tolerance: f64,
+        /// The mean density change per substep due to the velocity divergence (percent) at
+        /// which the divergence-free solve stops (default 0.1).
+        divergence_tolerance: f64,
+        /// The most iterations of each solve per substep (default 100).
+        max_iterations: usize,
+    },
+    /// Weakly compressible SPH (Becker & Teschner 2007): pressure from the Tait equation
+    /// `p = ρ₀ c² / γ ((ρ/ρ₀)^γ - 1)` (clamped at 0), `γ = 7`.
+    Wcsph {
+        /// The numerical speed of sound `c` (m/s, default 30): density errors are about
+        /// `(v/c)²`, and the substep shrinks as `1/c`.
+        sound_speed: f64,
+    },
+}
+
+impl Pressure {
+    /// DFSPH with its defaults (0.05 % density error, 0.1 % divergence error, 100 iterations).
+    pub const DFSPH: Pressure =
+        Pressure::Dfsph { density_tolerance: 0.05, divergence_tolerance: 0.1, max_iterations: 100 };
+    /// WCSPH with a speed of sound of 30 m/s.
+    pub const WCSPH: Pressure = Pressure::Wcsph { sound_speed: 30.0 };
+}
+
+/// What a fluid is made of and how it is stepped; [`Settings::new`] gives the defaults.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Distance between neighbouring particles at rest (m); the kernel's support radius is
+    /// twice it (as in SPlisHSPlasH: four particle radii).
+    pub spacing: f64,
+    /// Rest density `ρ₀` (kg/m³, default 1000).
+    pub rest_density: f64,
+    /// The smoothing kernel (default cubic spline).
+    pub kernel: Kernel,
+    /// XSPH viscosity `ν` (dimensionless, default 0.01): each substep moves a particle's
+    /// velocity the fraction `ν` towards the kernel-weighted mean of its neighbours'
+    /// (Schechter & Bridson 2012, eq. 11; SPlisHSPlasH's `Viscosity_XSPH`).
+    pub viscosity: f64,
+    /// The pressure solver (default DFSPH).
+    pub pressure: Pressure,
+    /// Courant number: a substep moves no particle more than `cfl` spacings (default 0.4).
+    pub cfl: f64,
+    /// The longest substep (s, default 0.005).
+    pub max_dt: f64,
+    /// The most substeps one frame may take before the step fails (default 10000).
+    pub max_substeps: usize,
+    /// Gravity (m/s², default `(0, -9.81, 0)`).
+    pub gravity: DVec3,
+}
+
+impl Settings {
+    /// The defaults for particles `spacing` apart (m).
+    pub fn new(spacing: f64) -> Self {
+        Settings {
+            spacing,
+            rest_density: 1000.0,
+            kernel: Kernel::CubicSpline,
+            viscosity: 0.01,
+            pressure: Pressure::DFSPH,
+            cfl: 0.4,
+            max_dt: 0.005,
+            max_substeps: 10_000,
+            gravity: DVec3::new(0.0, -9.81, 0.0),
+        }
+    }
+
+    fn validate(&self) -> Result<()> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        let checks: [(&str, bool, &str); 6] = [
+            ("spacing", positive(self.spacing), "must be finite and > 0"),
+            ("rest_density", positive(self.rest_density), "must be finite and > 0"),
+            ("viscosity", (0.0..=1.0).contains(&self.viscosity), "must be in [0, 1]"),
+            ("cfl", self.cfl > 0.0 && self.cfl <= 1.0, "must be in (0, 1]"),
+            ("max_dt", positive(self.max_dt), "must be finite and > 0"),
+            ("gravity", self.gravity.is_finite(), "must be finite"),
+        ];
+        for (arg, ok, why) in checks {
+            if !ok {
+                return Err(Error::invalid(arg, why));
+            }
+        }
+        if self.max_substeps == 0 {
+            return Err(Error::invalid("max_substeps", "must be at least 1"));
+        }
+        match self.pressure {
+            Pressure::Dfsph { density_tolerance, divergence_tolerance, max_iterations } => {
+                if !positive(density_tolerance) {
+                    return Err(Error::invalid("density_tolerance", "must be finite and > 0"));
+                }
+                if !positive(divergence_tolerance) {
+                    return Err(Error::invalid("divergence_tolerance", "must be finite and > 0"));
+                }
+                if max_iterations == 0 {
+                    return Err(Error::invalid("max_iterations", "must be at least 1"));
+                }
+            }
+            Pressure::Wcsph { sound_speed } => {
+                if !positive(sound_speed) {
+                    return Err(Error::invalid("sound_speed", "must be finite and > 0"));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A fluid model (see the module docs): read-only during a step (`&Model`); several
+/// [`super::State`]s may share it.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
+pub struct Model {
+    pub(super) settings: Settings,
+    /// The kernel's support radius `h = 2 spacing` (m).
+    pub(super) support: f64,
+    /// Volume of a fluid particle `V = m / ρ₀` (m³), such that a cubic lattice of the spacing
+    /// has exactly the rest density: `V = 1 / Σ_k W(x_k)` over the lattice points `x_k`.
+    pub(super) volume: f64,
+    /// How far behind a wall's surface its boundary particles lie (m; see
+    /// `boundary::offset`).
+    pub(super) offset: f64,
+    /// The walls, in the order added.
+    pub(super) walls: Vec<Wall>,
+    /// The boundary particles of every wall (m).
+    pub(super) boundary: Vec<DVec3>,
+    /// Their Akinci volumes `V_b` (m³), one per boundary particle.
+    pub(super) boundary_volume: Vec<f64>,
+}
+
+impl Model {
+    /// A model without walls.
+    ///
+    /// # Errors
+    /// A setting out of its range (named).
+    pub fn new(settings: Settings) -> Result<Self> {
+        settings.validate()?;
+        let (s, h) = (settings.spacing, 2.0 * settings.spacing);
+        let mut sum = 0.0;
+        for k in -2i32..=2 {
+            for j in -2i32..=2 {
+                for i in -2i32..=2 {
+                    let r = s * f64::from(i * i + j * j + k * k).sqrt();
+                    sum += settings.kernel.value(r, h);
+                }
+            }
+        }
+        Ok(Model {
+            settings,
+            support: h,
+            volume: 1.0 / sum,
+            offset: offset(settings.kernel, s, h, 1.0 / sum),
+            walls: Vec::new(),
+            boundary: Vec::new(),
+            boundary_volume: Vec::new(),
+        })
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// The kernel's support radius (m), twice the spacing.
+    pub fn support(&self) -> f64 {
+        self.support
+    }
+
+    /// The mass of a fluid particle (kg): `ρ₀ V` (see [`Model`]'s `volume`).
+    pub fn particle_mass(&self) -> f64 {
+        self.settings.rest_density * self.volume
+    }
+
+    /// The walls, in the order added.
+    pub fn walls(&self) -> &[Wall] {
+        &self.walls
+    }
+
+    /// The boundary particles (m), `(B, 3)`.
+    pub fn boundary_particles(&self) -> &[DVec3] {
+        &self.boundary
+    }
+
+    /// Add a wall, sample it with boundary particles one spacing apart (behind its surface,
+    /// see the `boundary` module) and recompute every
+    /// boundary particle's volume (walls that meet share their neighbours).
+    ///
+    /// # Errors
+    /// A wall with non-finite values, a box narrower than two spacings, a plane's normal not
+    /// unit or a square smaller than the spacing (each named).
+    pub fn add_wall(&mut self, wall: Wall) -> Result<()> {
+        wall.validate(self.settings.spacing)?;
+        let mut boundary = self.boundary.clone();
+        wall.sample(self.settings.spacing, self.offset, &mut boundary);
+        if boundary.len() >= u32::MAX as usize / 2 {
+            return Err(Error::invalid("upper", "the wall needs too many boundary particles"));
+        }
+        volumes(&boundary, self.settings.kernel, self.support, &mut self.boundary_volume);
+        self.boundary = boundary;
+        self.walls.push(wall);
+        Ok(())
+    }
+
+    /// A deterministic 64-bit hash of the model ([`crate::snapshot::fingerprint`]), recorded
+    /// by state snapshots so that a state is not restored onto another model.
+    pub fn fingerprint(&self) -> u64 {
+        crate::snapshot::fingerprint(self)
+    }
+}

@@ -1,0 +1,85 @@
+//! Fluid snapshots: what a decoded [`Model`] must satisfy before it is stepped; the fluid's
+//! snapshot (model and state), and a state's alone, which records the fingerprint of its
+//! model ([`Model::fingerprint`]) so that it is restored only onto it.
+
+use super::{Fluid, Model, State};
+use crate::error::{Error, Result};
+use crate::snapshot::{check, finite, Snapshot};
+
+impl Model {
+    /// Check a decoded model: settings in range, the derived sizes those of the settings, a
+    /// volume per boundary particle.
+    fn validate(&self) -> Result<()> {
+        let fresh = Model::new(self.settings)?;
+        check(
+            fresh.support.to_bits() == self.support.to_bits()
+                && fresh.volume.to_bits() == self.volume.to_bits()
+                && fresh.offset.to_bits() == self.offset.to_bits(),
+            "settings",
+            || "derived sizes do not match the settings".into(),
+        )?;
+        for w in &self.walls {
+            w.validate(self.settings.spacing)?;
+        }
+        check(self.boundary.len() == self.boundary_volume.len(), "boundary", || {
+            "one volume per boundary particle".into()
+        })?;
+        check(
+            finite(self.boundary.iter().flat_map(|p| p.to_array()))
+                && self.boundary_volume.iter().all(|v| v.is_finite() && *v > 0.0),
+            "boundary",
+            || "non-finite boundary particle or volume".into(),
+        )?;
+        check(self.boundary.len() < u32::MAX as usize / 2, "boundary", || "too large".into())
+    }
+}
+
+impl State {
+    /// The state as bytes, with the fingerprint of `model` (see [`crate::snapshot`]).
+    ///
+    /// # Errors
+    /// None in practice (every part of a state can be encoded).
+    pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
+        Stored { fingerprint: model.fingerprint(), state: self.clone() }.to_snapshot()
+    }
+
+    /// The state stored by [`State::to_snapshot`], for `model`.
+    ///
+    /// # Errors
+    /// Bytes that are not a fluid state snapshot of this version or are damaged (argument
+    /// `data`); a state of a model of another fingerprint (argument `model`).
+    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
+        let stored = Stored::from_snapshot(data)?;
+        if stored.fingerprint != model.fingerprint() {
+            return Err(Error::invalid(
+                "model",
+                "the state snapshot was taken of a model with another fingerprint",
+            ));
+        }
+        Ok(stored.state)
+    }
+}
+
+/// A state snapshot: the state and the fingerprint of its model.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Stored {
+    fingerprint: u64,
+    state: State,
+}
+
+impl Snapshot for Stored {
+    const TAG: &'static str = "FluidState";
+
+    fn validate(&self) -> Result<()> {
+        self.state.validate()
+    }
+}
+
+impl Snapshot for Fluid {
+    const TAG: &'static str = "Fluid";
+
+    fn validate(&self) -> Result<()> {
+        self.model.validate()?;
+        self.state.validate()
+    }
+}

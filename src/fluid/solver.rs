@@ -1,0 +1,387 @@
+//! The fluid solver: neighbour grid, densities, DFSPH factors and every scratch buffer. It
+//! carries nothing a later step reads: [`Solver::step`] copies the state in, steps the copy
+//! and writes it back only when every substep succeeded.
+//!
+//! All quantities are per unit rest density (SPlisHSPlasH's formulation): `ρ̂ = ρ/ρ₀`,
+//! fluid particle volume `V = m/ρ₀`, boundary volume `V_b = ψ_b/ρ₀`, and `κ = p/ρ₀`.
+//!
+//! - Density (Akinci et al. 2012, eq. 6): `ρ̂_i = V W(0) + Σ_j V W_ij + Σ_b V_b W_ib`.
+//! - Pressure acceleration (symmetric, with Akinci's boundary term, eq. 10):
+//!   `a_i = -Σ_j V (κ_i/ρ̂_i² ... )` — written for DFSPH, whose `κ` already carries the
+//!   division, as `Δv_i = -dt [Σ_j V (κ_i + κ_j) ∇W_ij + Σ_b V_b κ_i ∇W_ib]`
+//!   (Bender & Koschier 2017, eq. 9 and 11); WCSPH uses `κ = p/(ρ₀ ρ̂²)`.
+//! - DFSPH factor (Bender & Koschier 2017, eq. 8): `α_i = 1 / (|Σ_j V ∇W_ij + Σ_b V_b ∇W_ib|²
+//!   + Σ_j |V ∇W_ij|²)` (0 where the sum vanishes).
+//! - Each solve is a Jacobi iteration on `κ ≥ 0` (projected, so it also relaxes the warm
+//!   start): the constant-density solve drives the predicted density
+//!   `ρ̂*_i = ρ̂_i + dt (Σ_j V (v_i - v_j)·∇W_ij + Σ_b V_b v_i·∇W_ib)` to 1 with increments
+//!   `(ρ̂*_i - 1) α_i / dt²`; the divergence-free solve drives the rate `Dρ̂_i/Dt` to 0 with
+//!   increments `(Dρ̂_i/Dt) α_i / dt`, ignoring particles with fewer than 20 neighbours
+//!   (a free surface, as SPlisHSPlasH does).
+
+use super::grid::Grid;
+use super::model::{Model, Pressure};
+use super::{State, Stats};
+use crate::error::{Error, Result};
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// Neighbours below which a particle is left out of the divergence-free solve.
+const SPARSE: usize = 20;
+
+/// Relaxation `ω` of the Jacobi iterations: with `ω = 1` (the diagonal alone) the iteration
+/// diverged on a column at rest; IISPH (Ihmsen et al. 2014) uses 0.5 too.
+const RELAXATION: f64 = 0.5;
+
+/// The workspaces of a fluid step (see the module docs).
+#[derive(Clone, Debug, Default)]
+pub struct Solver {
+    grid: Grid,
+    /// Fluid then boundary positions (m), the points of the grid.
+    points: Vec<DVec3>,
+    /// The stepped copy of the state's velocities (m/s).
+    v: Vec<DVec3>,
+    /// The stepped copy of the state's pressures `κ` (m²/s²).
+    pressure: Vec<f64>,
+    /// The stepped copy of the state's divergence impulses (m²/s).
+    divergence: Vec<f64>,
+    /// Density ratio `ρ̂` per particle.
+    density: Vec<f64>,
+    /// DFSPH factor `α` (m²) per particle.
+    alpha: Vec<f64>,
+    /// Residual per particle (density error, or density rate in 1/s).
+    residual: Vec<f64>,
+    /// The pressure increment of the current iteration (m²/s²).
+    k: Vec<f64>,
+    /// The pressure accumulated by the current solve (m²/s²).
+    total: Vec<f64>,
+    /// Velocity change scratch (m/s).
+    dv: Vec<DVec3>,
+}
+
+/// Which DFSPH solve.
+#[derive(Clone, Copy, PartialEq)]
+enum Solve {
+    Divergence,
+    Density,
+}
+
+impl Solver {
+    /// A solver for `model` (its buffers grow on the first step).
+    pub fn new(_model: &Model) -> Self {
+        Solver::default()
+    }
+
+    /// Advance `state` by `steps` frames of `dt` seconds, each in substeps of the CFL
+    /// condition (at most `max_dt`, at most `cfl` spacings per substep, and
+    /// `dt ≤ sqrt(cfl spacing / |g|)`), frames split evenly into substeps.
+    ///
+    /// # Errors
+    /// `dt` not finite and positive; a frame needing more than `max_substeps`
+    /// ([`Error::SolverFailed`]); a non-finite position or velocity ([`Error::Diverged`]).
+    /// The state is then left as it was.
+    pub fn step(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        dt: f64,
+        steps: usize,
+    ) -> Result<Stats> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Error::invalid("dt", "must be finite and > 0"));
+        }
+        let mut stats = Stats::default();
+        self.points.clone_from(&state.positions);
+        self.v.clone_from(&state.velocities);
+        self.pressure.clone_from(&state.pressure);
+        self.divergence.clone_from(&state.divergence);
+        let n = state.len();
+        for buffer in
+            [&mut self.density, &mut self.alpha, &mut self.residual, &mut self.k, &mut self.total]
+        {
+            buffer.resize(n, 0.0);
+        }
+        self.dv.resize(n, DVec3::ZERO);
+        for _ in 0..steps {
+            if n > 0 {
+                self.frame(model, dt, &mut stats)?;
+            }
+        }
+        state.positions.copy_from_slice(&self.points[..n]);
+        state.velocities.clone_from(&self.v);
+        state.pressure.clone_from(&self.pressure);
+        state.divergence.clone_from(&self.divergence);
+        state.time += dt * steps as f64;
+        Ok(stats)
+    }
+
+    /// One frame of `dt` in CFL substeps.
+    fn frame(&mut self, model: &Model, dt: f64, stats: &mut Stats) -> Result<()> {
+        let mut left = dt;
+        let mut taken = 0;
+        while left > 0.0 {
+            if taken == model.settings.max_substeps {
+                return Err(Error::SolverFailed {
+                    reason: format!(
+                        "a frame needs more than max_substeps = {} substeps",
+                        model.settings.max_substeps
+                    ),
+                });
+            }
+            let limit = self.substep_limit(model);
+            let h = left / (left / limit).ceil().max(1.0);
+            self.substep(model, h, stats)?;
+            left = if h >= left { 0.0 } else { left - h };
+            taken += 1;
+        }
+        Ok(())
+    }
+
+    /// The longest substep the CFL condition allows now (s).
+    fn substep_limit(&self, model: &Model) -> f64 {
+        let s = &model.settings;
+        let mut speed = self.v.iter().map(|v| v.length()).fold(0.0, f64::max);
+        if let Pressure::Wcsph { sound_speed } = s.pressure {
+            speed += sound_speed;
+        }
+        let g = s.gravity.length();
+        let mut limit = s.max_dt;
+        if speed > 0.0 {
+            limit = limit.min(s.cfl * s.spacing / speed);
+        }
+        if g > 0.0 {
+            limit = limit.min((s.cfl * s.spacing / g).sqrt());
+        }
+        limit
+    }
+
+    /// One substep of length `h` (s).
+    fn substep(&mut self, model: &Model, h: f64, stats: &mut Stats) -> Result<()> {
+        let n = self.v.len();
+        self.search(model);
+        match model.settings.pressure {
+            Pressure::Dfsph { max_iterations, divergence_tolerance, density_tolerance } => {
+                self.densities(model, true);
+                let (it, err, _) =
+                    self.solve(model, h, Solve::Divergence, max_iterations, divergence_tolerance);
+                stats.divergence_iterations += it;
+                stats.divergence_error = stats.divergence_error.max(err);
+                self.non_pressure(model, h);
+                let (it, err, max) =
+                    self.solve(model, h, Solve::Density, max_iterations, density_tolerance);
+                stats.density_iterations += it;
+                stats.density_error = stats.density_error.max(err);
+                stats.max_density_error = stats.max_density_error.max(max);
+            }
+            Pressure::Wcsph { sound_speed } => {
+                self.densities(model, false);
+                self.residual.iter_mut().zip(&self.density).for_each(|(e, r)| *e = r - 1.0);
+                let (mean, max) = compression(&self.residual);
+                stats.density_error = stats.density_error.max(mean);
+                stats.max_density_error = stats.max_density_error.max(max);
+                self.non_pressure(model, h);
+                let c2 = sound_speed * sound_speed / 7.0;
+                for ((p, k), &r) in self.pressure.iter_mut().zip(&mut self.k).zip(&self.density) {
+                    *p = (c2 * (r.powi(7) - 1.0)).max(0.0);
+                    *k = *p / (r * r);
+                }
+                self.apply(model, h);
+            }
+        }
+        self.advect(model, h);
+        stats.substeps += 1;
+        let bad = (0..n).find(|&i| !(self.points[i].is_finite() && self.v[i].is_finite()));
+        match bad {
+            Some(index) => Err(Error::Diverged {
+                step: stats.substeps - 1,
+                index,
+                reason: "non-finite position or velocity".into(),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Put the boundary particles after the fluid's and rebuild the neighbour lists.
+    fn search(&mut self, model: &Model) {
+        let n = self.v.len();
+        self.points.truncate(n);
+        self.points.extend_from_slice(&model.boundary);
+        self.grid.build(&self.points, n, model.support);
+    }
+
+    /// Densities `ρ̂` and, if `factors`, DFSPH's `α`.
+    fn densities(&mut self, model: &Model, factors: bool) {
+        let Solver { grid, points, density, alpha, .. } = self;
+        let (h, kernel, vol, n) =
+            (model.support, model.settings.kernel, model.volume, density.len());
+        let vb = &model.boundary_volume;
+        density.par_iter_mut().zip(alpha.par_iter_mut()).enumerate().for_each(|(i, (rho, a))| {
+            let (mut r, mut g, mut s) = (vol * kernel.value(0.0, h), DVec3::ZERO, 0.0);
+            for &j in grid.neighbours(i) {
+                let j = j as usize;
+                let d = points[i] - points[j];
+                let w = if j < n { vol } else { vb[j - n] };
+                r += w * kernel.value(d.length(), h);
+                if factors {
+                    let gw = kernel.gradient(d, h) * w;
+                    g += gw;
+                    if j < n {
+                        s += gw.length_squared();
+                    }
+                }
+            }
+            *rho = r;
+            s += g.length_squared();
+            *a = if s > 1e-9 / (h * h) { 1.0 / s } else { 0.0 };
+        });
+    }
+
+    /// Gravity and XSPH viscosity: `v_i += dt g + ν Σ_j (V / ρ̂_j) (v_j - v_i) W_ij`.
+    fn non_pressure(&mut self, model: &Model, h: f64) {
+        let Solver { grid, points, v, density, dv, .. } = self;
+        let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, v.len());
+        let (g, nu) = (model.settings.gravity * h, model.settings.viscosity);
+        dv.par_iter_mut().enumerate().for_each(|(i, out)| {
+            let mut sum = DVec3::ZERO;
+            for &j in grid.neighbours(i) {
+                let j = j as usize;
+                if j < n {
+                    let w = kernel.value((points[i] - points[j]).length(), sup);
+                    sum += (v[j] - v[i]) * (vol / density[j] * w);
+                }
+            }
+            *out = g + sum * nu;
+        });
+        v.par_iter_mut().zip(&*dv).for_each(|(v, dv)| *v += *dv);
+    }
+
+    /// `Δv_i = -dt [Σ_j V (k_i + k_j) ∇W_ij + Σ_b V_b k_i ∇W_ib]` with this iteration's `k`.
+    fn apply(&mut self, model: &Model, h: f64) {
+        let Solver { grid, points, v, k, dv, .. } = self;
+        let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, v.len());
+        let vb = &model.boundary_volume;
+        dv.par_iter_mut().enumerate().for_each(|(i, out)| {
+            let mut sum = DVec3::ZERO;
+            for &j in grid.neighbours(i) {
+                let j = j as usize;
+                let g = kernel.gradient(points[i] - points[j], sup);
+                sum += if j < n { g * (vol * (k[i] + k[j])) } else { g * (vb[j - n] * k[i]) };
+            }
+            *out = sum * -h;
+        });
+        v.par_iter_mut().zip(&*dv).for_each(|(v, dv)| *v += *dv);
+    }
+
+    /// The residual of `which` solve per particle for the velocities now: the predicted
+    /// density error `ρ̂* - 1`, or the density rate `Dρ̂/Dt` (1/s, 0 for sparse particles).
+    fn residuals(&mut self, model: &Model, h: f64, which: Solve) {
+        let Solver { grid, points, v, density, residual, .. } = self;
+        let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, v.len());
+        let vb = &model.boundary_volume;
+        residual.par_iter_mut().enumerate().for_each(|(i, out)| {
+            let near = grid.neighbours(i);
+            let mut rate = 0.0;
+            for &j in near {
+                let j = j as usize;
+                let g = kernel.gradient(points[i] - points[j], sup);
+                rate += if j < n { vol * (v[i] - v[j]).dot(g) } else { vb[j - n] * v[i].dot(g) };
+            }
+            *out = match which {
+                Solve::Density => density[i] + h * rate - 1.0,
+                Solve::Divergence if near.len() < SPARSE => 0.0,
+                Solve::Divergence => rate,
+            };
+        });
+    }
+
+    /// One DFSPH solve: warm start from the state's pressures, then Jacobi iterations on
+    /// `κ ≥ 0` until the mean error (percent; the divergence's per substep) is at most `tol`.
+    /// Returns the iterations, the mean and the largest error reached (percent).
+    fn solve(
+        &mut self,
+        model: &Model,
+        h: f64,
+        which: Solve,
+        max: usize,
+        tol: f64,
+    ) -> (usize, f64, f64) {
+        let density = which == Solve::Density;
+        // Errors in percent per substep, increments `r α / dt²` or `r α / dt`.
+        let (scale, step) = if density { (1.0, 1.0 / (h * h)) } else { (h, 1.0 / h) };
+        // Warm start: the last substep's pressures (the divergence impulse over this `h`).
+        let stored = if density { &self.pressure } else { &self.divergence };
+        for ((k, t), &p) in self.k.iter_mut().zip(&mut self.total).zip(stored) {
+            *t = if density { p } else { p / h };
+            *k = *t;
+        }
+        self.apply(model, h);
+        let mut iterations = 0;
+        let (mean, largest) = loop {
+            self.residuals(model, h, which);
+            // The complementarity residual: compression where κ = 0, any error where κ > 0
+            // (an over-pressure from the warm start is iterated away too).
+            let active = self.total.iter().zip(&self.residual);
+            let lcp =
+                active.map(|(&t, &r)| if t > 0.0 { r.abs() } else { r.max(0.0) }).sum::<f64>();
+            let (mean, largest) = compression(&self.residual);
+            let lcp = 100.0 * lcp / self.residual.len() as f64;
+            if lcp * scale <= tol || iterations == max {
+                break (mean * scale, largest * scale);
+            }
+            // Projected, relaxed Jacobi: κ ← max(κ + ω r α / dt^m, 0); apply the change.
+            let Solver { k, total, residual, alpha, .. } = self;
+            for (((k, t), &r), &a) in
+                k.iter_mut().zip(total.iter_mut()).zip(&*residual).zip(&*alpha)
+            {
+                let new = (*t + RELAXATION * r * a * step).max(0.0);
+                *k = new - *t;
+                *t = new;
+            }
+            self.apply(model, h);
+            iterations += 1;
+        };
+        let stored = if density { &mut self.pressure } else { &mut self.divergence };
+        for (s, &t) in stored.iter_mut().zip(&self.total) {
+            *s = if density { t } else { t * h };
+        }
+        (iterations, mean, largest)
+    }
+
+    /// `x += dt v`, then every wall puts back fluid that crossed it (a quarter spacing
+    /// inside).
+    fn advect(&mut self, model: &Model, h: f64) {
+        let margin = 0.25 * model.settings.spacing;
+        let n = self.v.len();
+        self.points[..n].par_iter_mut().zip(&mut self.v).for_each(|(x, v)| {
+            *x += *v * h;
+            for wall in &model.walls {
+                wall.confine(x, v, margin);
+            }
+        });
+    }
+
+    /// Densities `ρ₀ ρ̂` (kg/m³) of `state`'s particles, into `out`.
+    pub fn densities_of(&mut self, model: &Model, state: &State, out: &mut Vec<f64>) {
+        let n = state.len();
+        self.points.clone_from(&state.positions);
+        self.v.clone_from(&state.velocities);
+        self.density.resize(n, 0.0);
+        self.alpha.resize(n, 0.0);
+        self.search(model);
+        self.densities(model, false);
+        out.clear();
+        out.extend(self.density.iter().map(|r| r * model.settings.rest_density));
+    }
+}
+
+/// Mean and largest compression `max(e, 0)` of the errors `e` (percent of 1).
+fn compression(errors: &[f64]) -> (f64, f64) {
+    if errors.is_empty() {
+        return (0.0, 0.0);
+    }
+    let (sum, max) = errors.iter().fold((0.0, 0.0f64), |(s, m), &e| {
+        let e = e.max(0.0);
+        (s + e, m.max(e))
+    });
+    (100.0 * sum / errors.len() as f64, 100.0 * max)
+}

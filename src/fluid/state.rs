@@ -1,0 +1,167 @@
+//! The fluid state: what changes in time and what a later step reads — positions,
+//! velocities, the time, and DFSPH's warm starts (the pressures of the constant-density
+//! solve and the impulses of the divergence-free solve of the last substep, from which the
+//! next substep's solves start).
+
+use super::Model;
+use crate::error::{reserve, Error, Result};
+use glam::DVec3;
+
+/// The state of a fluid of a [`Model`]: `N` particles. `clone_from` reuses every buffer.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, Default, PartialEq)]
+pub struct State {
+    /// Positions (m), `N`.
+    pub(super) positions: Vec<DVec3>,
+    /// Velocities (m/s), `N`.
+    pub(super) velocities: Vec<DVec3>,
+    /// Pressure over rest density `p / ρ₀` (m²/s²), `N`: DFSPH's warm start (the last
+    /// substep's constant-density solve); WCSPH's last substep (not read again).
+    pub(super) pressure: Vec<f64>,
+    /// DFSPH's divergence-free impulse over rest density (m²/s) of the last substep, `N`: the
+    /// warm start of the next divergence-free solve.
+    pub(super) divergence: Vec<f64>,
+    /// Simulated time (s).
+    pub(super) time: f64,
+}
+
+impl State {
+    /// An empty state of `model` at time 0 (add fluid with [`State::add_block`]).
+    pub fn new(_model: &Model) -> Self {
+        State::default()
+    }
+
+    /// Fill the box `[lower, upper]` (m) with particles on a cubic lattice of the model's
+    /// spacing, the first half a spacing inside `lower`, all moving at `velocity` (m/s).
+    /// Returns how many were added.
+    ///
+    /// # Errors
+    /// Non-finite corners or velocity, a box too small for one particle (`upper`), fluid
+    /// outside every box wall of the model or overlapping fluid already added, within half a
+    /// spacing (`lower`), more particles than memory allows.
+    pub fn add_block(
+        &mut self,
+        model: &Model,
+        lower: DVec3,
+        upper: DVec3,
+        velocity: DVec3,
+    ) -> Result<usize> {
+        if !lower.is_finite() || !upper.is_finite() {
+            return Err(Error::invalid("lower", "the block corners must be finite"));
+        }
+        if !velocity.is_finite() {
+            return Err(Error::invalid("velocity", "must be finite"));
+        }
+        let s = model.settings.spacing;
+        let counts = ((upper - lower) / s + 1e-9).floor();
+        if counts.min_element() < 1.0 {
+            return Err(Error::invalid("upper", "the block must be at least one spacing wide"));
+        }
+        let total = counts.x * counts.y * counts.z;
+        if total + self.len() as f64 > f64::from(u32::MAX / 4) {
+            return Err(Error::invalid("upper", "the block holds too many particles"));
+        }
+        let inside = |p: DVec3| {
+            model.walls.iter().all(|w| !matches!(w, super::Wall::Box { .. }))
+                || model
+                    .walls
+                    .iter()
+                    .any(|w| matches!(w, super::Wall::Box { .. }) && w.contains(p, 0.25 * s))
+        };
+        let last = lower + (counts - 0.5) * s;
+        if !inside(lower + 0.5 * s) || !inside(last) {
+            return Err(Error::invalid("lower", "the block is not inside a tank of the fluid"));
+        }
+        let (lo, hi) = (lower - 0.5 * s, lower + counts * s + 0.5 * s);
+        if self.positions.iter().any(|p| p.cmpgt(lo).all() && p.cmplt(hi).all()) {
+            return Err(Error::invalid(
+                "lower",
+                "the block overlaps fluid already added (particles would sit on top of each other)",
+            ));
+        }
+        let n = total as usize;
+        reserve("upper", &mut self.positions, n)?;
+        reserve("upper", &mut self.velocities, n)?;
+        reserve("upper", &mut self.pressure, n)?;
+        reserve("upper", &mut self.divergence, n)?;
+        let [cx, cy, cz] = counts.to_array().map(|c| c as usize);
+        for k in 0..cz {
+            for j in 0..cy {
+                for i in 0..cx {
+                    let p = DVec3::new(i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5) * s;
+                    self.positions.push(lower + p);
+                }
+            }
+        }
+        self.velocities.resize(self.positions.len(), velocity);
+        self.pressure.resize(self.positions.len(), 0.0);
+        self.divergence.resize(self.positions.len(), 0.0);
+        Ok(n)
+    }
+
+    /// Number of fluid particles.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Whether there is no fluid.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Positions (m), `(N, 3)`.
+    pub fn positions(&self) -> &[DVec3] {
+        &self.positions
+    }
+
+    /// Velocities (m/s), `(N, 3)`.
+    pub fn velocities(&self) -> &[DVec3] {
+        &self.velocities
+    }
+
+    /// Pressure over rest density `p / ρ₀` (m²/s²) of the last substep's constant-density
+    /// solve (DFSPH) or equation of state (WCSPH), `N`; multiply by `ρ₀` for pascals.
+    pub fn pressures(&self) -> &[f64] {
+        &self.pressure
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Overwrite the velocities (m/s), e.g. to start a state in motion.
+    ///
+    /// # Errors
+    /// A length other than [`State::len`] or a non-finite value (`velocities`, with index).
+    pub fn set_velocities(&mut self, velocities: &[DVec3]) -> Result<()> {
+        if velocities.len() != self.len() {
+            return Err(Error::invalid("velocities", "expected one per fluid particle"));
+        }
+        if let Some(i) = velocities.iter().position(|v| !v.is_finite()) {
+            return Err(Error::invalid("velocities", "contains NaN or infinity").at(i));
+        }
+        self.velocities.copy_from_slice(velocities);
+        Ok(())
+    }
+
+    /// Check a decoded state: lengths equal, finite values, not too many particles.
+    pub(super) fn validate(&self) -> Result<()> {
+        use crate::snapshot::{check, finite};
+        let n = self.positions.len();
+        for (field, len) in [
+            ("velocities", self.velocities.len()),
+            ("pressure", self.pressure.len()),
+            ("divergence", self.divergence.len()),
+        ] {
+            check(len == n, field, || format!("{len} entries for {n} particles"))?;
+        }
+        let values = self.positions.iter().chain(&self.velocities).flat_map(|v| v.to_array());
+        check(finite(values), "positions", || "non-finite".into())?;
+        check(finite(self.pressure.iter().chain(&self.divergence).copied()), "pressure", || {
+            "non-finite".into()
+        })?;
+        check(self.time.is_finite(), "time", || "non-finite".into())?;
+        check(n < u32::MAX as usize / 4, "positions", || "too many particles".into())?;
+        Ok(())
+    }
+}

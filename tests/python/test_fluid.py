@@ -1,0 +1,126 @@
+"""kinema.fluid: the Python API of the SPH fluid (the physics is tested in tests/fluid.rs)."""
+
+import pickle
+
+import numpy as np
+import pytest
+
+import kinema
+from kinema.fluid import Fluid
+
+
+def small(**kw):
+    f = Fluid(spacing=0.02, **kw)
+    f.add_boundary_box([0, 0, 0], [0.3, 0.3, 0.1])
+    n = f.add_block([0, 0, 0], [0.1, 0.2, 0.1])
+    assert n == 5 * 10 * 5 == len(f)
+    return f
+
+
+def test_block_falls_spreads_and_stays_in_the_tank():
+    f = small()
+    x = f.positions
+    assert x.shape == (250, 3) and not x.flags.writeable
+    x0 = x.copy()
+    f.step(1 / 60, steps=20)
+    # The view is updated in place.
+    assert not np.array_equal(x, x0)
+    assert np.all(x >= 0) and np.all(x <= [0.3, 0.3, 0.1])
+    assert x[:, 0].max() > 0.15
+    s = f.stats
+    assert s["substeps"] >= 1 and s["density_error"] <= 0.05
+    rho = f.densities
+    assert rho.shape == (250,) and np.all(np.isfinite(rho))
+    assert 900 < np.median(rho) < 1100
+    assert f.pressures.shape == (250,)
+    assert f.time == pytest.approx(20 / 60)
+    assert f.particle_mass == pytest.approx(1000 * 0.02**3, rel=0.02)
+    assert f.boundary_particles.shape[1] == 3
+
+
+def test_views_survive_their_parent_and_freeze_blocks():
+    f = small()
+    v = f.velocities
+    with pytest.raises(ValueError, match="lower"):
+        f.add_block([0.2, 0, 0], [0.3, 0.1, 0.1])
+    f.step(1 / 60)
+    del f
+    assert np.all(np.isfinite(v))
+
+
+def test_wcsph_runs():
+    f = small(solver="wcsph")
+    f.step(1 / 60, 5)
+    assert np.all(np.isfinite(f.positions))
+    assert f.stats["density_iterations"] == 0
+
+
+def test_pickle_round_trip_continues_bit_for_bit():
+    f = small()
+    f.step(1 / 60, 2)
+    g = pickle.loads(pickle.dumps(f))
+    f.step(1 / 60, 2)
+    g.step(1 / 60, 2)
+    assert np.array_equal(f.positions, g.positions)
+    assert np.array_equal(f.velocities, g.velocities)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"spacing": 0.0}, "spacing"),
+        ({"spacing": -1.0}, "spacing"),
+        ({"spacing": float("nan")}, "spacing"),
+        ({"spacing": 0.1, "rest_density": 0.0}, "rest_density"),
+        ({"spacing": 0.1, "viscosity": 2.0}, "viscosity"),
+        ({"spacing": 0.1, "solver": "sph?"}, "solver"),
+        ({"spacing": 0.1, "kernel": "gauss"}, "kernel"),
+        ({"spacing": 0.1, "max_iterations": 0}, "max_iterations"),
+        ({"spacing": 0.1, "gravity": [0, float("nan"), 0]}, "gravity"),
+    ],
+)
+def test_bad_settings_name_the_argument(kwargs, name):
+    with pytest.raises(ValueError, match=name) as e:
+        Fluid(**kwargs)
+    assert "sph?" not in str(e.value) and "gauss" not in str(e.value)
+
+
+def test_bad_blocks_and_steps_leave_the_fluid_unchanged():
+    f = small()
+    with pytest.raises(ValueError, match="lower"):
+        f.add_block([0.25, 0.25, 0], [0.5, 0.5, 0.1])  # outside the tank
+    with pytest.raises(ValueError, match="lower"):
+        f.add_block([0, 0, 0], [0.1, 0.1, 0.1])  # on top of the fluid
+    with pytest.raises(ValueError, match="upper"):
+        f.add_block([0.2, 0, 0], [0.21, 0.1, 0.1])  # thinner than the spacing
+    with pytest.raises(ValueError, match="lower"):
+        f.add_block([np.nan, 0, 0], [0.3, 0.1, 0.1])
+    assert len(f) == 250
+    with pytest.raises(ValueError, match="dt"):
+        f.step(float("nan"))
+    with pytest.raises(ValueError, match="steps"):
+        f.step(0.01, -1)
+    strict = small(max_substeps=2)
+    before = strict.positions.copy()
+    with pytest.raises(kinema.SimulationError):
+        strict.step(1.0)
+    assert np.array_equal(strict.positions, before)
+    assert strict.time == 0.0
+
+
+def test_empty_fluid_and_floor_without_fluid():
+    f = Fluid(spacing=0.05)
+    f.add_boundary_plane([0, 0, 0], [0, 2, 0], 0.5)
+    f.step(0.1, 2)
+    assert len(f) == 0 and f.positions.shape == (0, 3) and f.densities.shape == (0,)
+    assert f.time == pytest.approx(0.2)
+    with pytest.raises(ValueError, match="normal"):
+        f.add_boundary_plane([0, 0, 0], [0, 0, 0], 0.5)
+
+
+def test_fluid_on_a_floor_plane_stays_above_it():
+    f = Fluid(spacing=0.02)
+    f.add_boundary_plane([0, 0, 0], [0, 1, 0], 0.3)
+    f.add_block([-0.05, 0.0, -0.05], [0.05, 0.1, 0.05])
+    f.step(1 / 60, 15)
+    assert f.positions[:, 1].min() > 0.0
