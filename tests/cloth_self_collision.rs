@@ -169,3 +169,121 @@ fn without_self_collision_the_twisted_sheet_intersects() {
     let seen = twist(false);
     assert!(seen.steps_intersecting >= 10, "{seen:?}");
 }
+
+/// Two separate triangles (no shared vertex), the upper one `gap` (m) above the lower, moving
+/// towards each other at `speed` (m/s) each, without gravity; self-collision on.
+fn two_layers(gap: f64, speed: f64) -> (Model, State) {
+    let positions = vec![
+        [0.0, 0.0, 0.0],
+        [0.1, 0.0, 0.0],
+        [0.0, 0.0, 0.1],
+        [0.02, gap, 0.01],
+        [0.12, gap, 0.01],
+        [0.02, gap, 0.11],
+    ];
+    let mesh = Mesh::new(positions, vec![[0, 2, 1], [3, 5, 4]], None).unwrap();
+    let mut model = Model::new(mesh, Elasticity::BaraffWitkin, material(), DVec3::ZERO).unwrap();
+    model.set_thickness(0.01).unwrap();
+    model.set_self_collision(Some(SelfCollision::default())).unwrap();
+    let mut state = model.state();
+    let x = state.positions().to_vec();
+    let v: Vec<DVec3> =
+        (0..6).map(|i| DVec3::new(0.3, if i < 3 { speed } else { -speed }, 0.1)).collect();
+    state.set_motion(&x, &v).unwrap();
+    (model, state)
+}
+
+fn momentum(model: &Model, state: &State) -> DVec3 {
+    model.masses().iter().zip(state.velocities()).map(|(m, v)| *v * *m).sum()
+}
+
+#[test]
+fn repulsion_and_collision_impulses_conserve_linear_momentum() {
+    // Close (inside the thickness: proximity) and far but fast (crossing within the step:
+    // CCD); the elastic forces are internal, the Cholesky solve exact to rounding.
+    for (gap, speed, proximity) in [(0.005, 0.2, true), (0.05, 4.0, false)] {
+        let (model, mut state) = two_layers(gap, speed);
+        let before = momentum(&model, &state);
+        let mut solver = Solver::new(&model);
+        let options = SolveOptions { solver: LinearSolver::Cholesky, ..SolveOptions::default() };
+        let stats =
+            solver.step(&model, &mut state, 0.01, 1, Method::ImplicitEuler, options).unwrap();
+        let after = momentum(&model, &state);
+        assert!((after - before).length() < 1e-15, "{before} {after} {stats:?}");
+        if proximity {
+            assert!(stats.proximities >= 3, "{stats:?}");
+        } else {
+            assert!(stats.proximities == 0 && stats.ccd_iterations >= 1, "{stats:?}");
+        }
+        // The layers end the step apart: no intersection, no vertex within the kept distance.
+        let x = state.positions();
+        assert!(intersecting_triangles(x, model.triangles()).is_empty());
+        let closest = min_distance(x, model.triangles(), 1.0);
+        assert!(closest >= MIN_DISTANCE * model.thickness() * 0.99, "{closest}");
+    }
+}
+
+#[test]
+fn one_solver_steps_two_states_with_self_collision_bit_for_bit() {
+    let model = model(10, 10, (0.5, 0.5), |x, z| DVec3::new(x, 0.3 + 0.3 * (x + z), 0.0), true);
+    let mut a = model.state();
+    a.pin(&[0], None).unwrap();
+    let mut b = model.state();
+    let x: Vec<DVec3> = b.positions().iter().map(|p| *p + DVec3::new(0.0, 0.1, 0.02)).collect();
+    b.set_motion(&x, &vec![DVec3::new(0.0, -1.0, 0.3); x.len()]).unwrap();
+    let options = SolveOptions::default();
+    let go = |solver: &mut Solver, s: &mut State| {
+        solver.step(&model, s, 0.01, 1, Method::Bdf2, options).unwrap();
+    };
+    let (mut alone_a, mut alone_b) = (a.clone(), b.clone());
+    let (mut sa, mut sb) = (Solver::new(&model), Solver::new(&model));
+    let mut shared = Solver::new(&model);
+    for _ in 0..20 {
+        go(&mut sa, &mut alone_a);
+        go(&mut sb, &mut alone_b);
+        let before_b = b.clone();
+        go(&mut shared, &mut a);
+        assert_eq!(b, before_b, "stepping one state changed the other");
+        go(&mut shared, &mut b);
+        assert_eq!(a, alone_a);
+        assert_eq!(b, alone_b);
+    }
+}
+
+#[test]
+fn settings_are_checked_kept_in_snapshots_and_refused_with_explicit_integrators() {
+    let mut model = model(5, 5, (1.0, 1.0), |x, z| DVec3::new(x, 0.0, z), true);
+    let bad = SelfCollision { friction: -1.0, ..SelfCollision::default() };
+    let err = model.set_self_collision(Some(bad)).unwrap_err().to_string();
+    assert!(err.contains("friction"), "{err}");
+    assert_eq!(model.self_collision(), Some(SelfCollision::default()));
+    let mut cloth = Cloth::from_model(model.clone());
+    cloth.step(0.01, 2, Method::ImplicitEuler, SolveOptions::default()).unwrap();
+    let restored = Cloth::from_snapshot(&cloth.to_snapshot().unwrap()).unwrap();
+    assert_eq!(restored.model().self_collision(), Some(SelfCollision::default()));
+    assert_eq!(restored.model().fingerprint(), cloth.model().fingerprint());
+    let before = cloth.state().clone();
+    let err = cloth.step(1e-4, 1, Method::Rk4, SolveOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("integrator"), "{err}");
+    assert_eq!(cloth.state(), &before);
+    // Off: no tree is built and the step is that of a model that never had it.
+    let mut off = model.clone();
+    off.set_self_collision(None).unwrap();
+    let (mut s1, mut s2) = (off.state(), off.state());
+    let plain = Model::new(
+        Mesh::grid(5, 5, 1.0, 1.0, Triangulation::Alternating).unwrap(),
+        Elasticity::BaraffWitkin,
+        material(),
+        DVec3::new(0.0, -9.81, 0.0),
+    )
+    .unwrap();
+    let mut plain = plain;
+    plain.set_thickness(off.thickness()).unwrap();
+    Solver::new(&off)
+        .step(&off, &mut s1, 0.01, 3, Method::ImplicitEuler, SolveOptions::default())
+        .unwrap();
+    Solver::new(&plain)
+        .step(&plain, &mut s2, 0.01, 3, Method::ImplicitEuler, SolveOptions::default())
+        .unwrap();
+    assert_eq!(s1.positions(), s2.positions());
+}

@@ -7,8 +7,7 @@
 
 use glam::DVec3;
 
-/// A node: its box and either two children (`left`, `left + 1`... see [`Node::children`]) or
-/// one triangle.
+/// A node: its box (m) and either one triangle (a leaf) or two children.
 #[derive(Clone, Copy, Debug)]
 struct Node {
     lo: DVec3,
