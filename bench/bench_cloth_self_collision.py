@@ -54,7 +54,11 @@ def main() -> None:
     print(f"{args.n}² sheet, thickness {cloth.thickness * 1e3:.2f} mm, dt 0.01 s")
     print("steps        solve ms  self ms  ratio  proximities  ccd passes  zones")
     third = max(1, args.steps // 3)
-    for name, part in (("falling", a[:third]), ("landing", a[third : 2 * third]), ("folded", a[2 * third :])):
+    for name, part in (
+        ("falling", a[:third]),
+        ("landing", a[third : 2 * third]),
+        ("folded", a[2 * third :]),
+    ):
         solve, self_ = part[:, 0].mean() * 1e3, part[:, 1].mean() * 1e3
         print(
             f"{name:<12} {solve:8.2f} {self_:8.2f} {self_ / solve:6.2f} "
