@@ -204,9 +204,9 @@ impl Filter<'_> {
         bvh.self_pairs(|i, j| {
             for (a, b) in [(i, j), (j, i)] {
                 let (ta, tb) = (tris[a], tris[b]);
-                for c in 0..3 {
-                    if owns[a] & (1 << c) != 0 && !tb.contains(&ta[c]) && close(&[ta[c]], &tb) {
-                        pairs.push(Pair { verts: [ta[c], tb[0], tb[1], tb[2]], edges: false });
+                for (c, &p) in ta.iter().enumerate() {
+                    if owns[a] & (1 << c) != 0 && !tb.contains(&p) && close(&[p], &tb) {
+                        pairs.push(Pair { verts: [p, tb[0], tb[1], tb[2]], edges: false });
                     }
                 }
             }
@@ -247,7 +247,7 @@ impl Filter<'_> {
     /// The proximity impulse of one pair (see the module documentation) on the displacements.
     fn repulse(&self, work: &mut Work, verts: [usize; 4], alpha: [f64; 4], n: DVec3, overlap: f64) {
         let w: f64 = (0..4).map(|k| alpha[k] * alpha[k] * work.w[verts[k]]).sum();
-        if !(w > 0.0) {
+        if w <= 0.0 || w.is_nan() {
             return;
         }
         let rel = (0..4).fold(DVec3::ZERO, |s, k| s + work.d[verts[k]] * alpha[k]);

@@ -50,7 +50,7 @@ pub fn closest_point_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVe
         return (b + (c - b) * w, [0.0, 1.0 - w, w]);
     }
     let denom = va + vb + vc;
-    if !(denom.abs() > 0.0) {
+    if denom == 0.0 || denom.is_nan() {
         return (a, [1.0, 0.0, 0.0]);
     }
     let (v, w) = (vb / denom, vc / denom);
