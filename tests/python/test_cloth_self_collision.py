@@ -54,10 +54,6 @@ def test_folded_sheet_keeps_its_layers_apart() -> None:
     # The upper layer came down on the lower one and rests on it, apart.
     assert cloth.stats["proximities"] > 0
     assert layer_gap(cloth) >= 0.25
-    # Without self-collision it falls through to the floor: both layers at one height.
-    off = folded(False)
-    off.step(0.01, 30)
-    assert abs(layer_gap(off)) < 0.1
 
 
 def test_pickle_keeps_the_settings_and_the_trajectory() -> None:
