@@ -112,9 +112,12 @@ fn cloth_scenes() -> Vec<(String, usize)> {
         (Elasticity::BaraffWitkin, Method::Bdf2, LinearSolver::Pcg),
         (Elasticity::MassSpring, Method::ImplicitEuler, LinearSolver::Pcg),
     ];
-    for (model, method, solver) in runs {
+    for (k, (model, method, solver)) in runs.into_iter().enumerate() {
         let mesh = Mesh::grid(16, 16, 1.0, 1.0, Triangulation::Alternating).unwrap();
         let mut c = Cloth::new(mesh, model, Material::default(), G).unwrap();
+        if k == 0 {
+            c.set_self_collision(Some(cloth::SelfCollision::default())).unwrap();
+        }
         c.pin(&[0, 15], None).unwrap();
         c.add_collider(cloth::Collider {
             shape: geometry::Shape::Sphere(geometry::Sphere {

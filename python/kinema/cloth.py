@@ -18,7 +18,8 @@ Units: metres, kilograms, seconds; ``density`` kg/m², ``stretch`` and ``shear``
 stiffness, independent of the mesh resolution), ``bend`` N·m, ``damping`` s (stiffness
 proportional: ``k_d = damping · k``), ``air_damping`` 1/s (``f = -air_damping · m v``).
 ``positions`` and ``velocities`` are read-only ``(N, 3)`` numpy views of the Rust state,
-updated in place by every step. Self-collision is not handled.
+updated in place by every step. Self-collision (``self_collision=True``) follows Bridson,
+Fedkiw & Anderson (2002); see :class:`Cloth`.
 """
 
 from __future__ import annotations
@@ -74,6 +75,16 @@ class Cloth:
     zero-area triangles, repeated indices, edges in more than two triangles, unused vertices or
     non-finite coordinates are rejected with a ``ValueError`` naming the culprit; duplicate
     vertices at one position are a seam (allowed).
+
+    ``thickness`` (m) is the distance contacts keep: from colliders, and between layers of the
+    cloth with ``self_collision=True``; default 1 mm, or a tenth of the mean edge length of
+    the initial shape with self-collision. ``self_collision`` turns on robust self-collision
+    (Bridson, Fedkiw & Anderson 2002: proximity repulsions with Coulomb friction
+    ``self_friction`` between layers, continuous collision detection with up to
+    ``self_iterations`` passes of impulses, then rigid impact zones) for the implicit
+    integrators; no vertex ends a step closer than a quarter of the thickness to a triangle
+    it is not a corner of, and no two triangles that share no vertex intersect (when the
+    cloth starts without). Off, it costs nothing.
     """
 
     def __init__(
@@ -90,7 +101,10 @@ class Cloth:
         damping: float = 1e-3,
         air_damping: float = 0.0,
         gravity: Any = (0.0, -9.81, 0.0),
-        thickness: float = 1e-3,
+        thickness: float | None = None,
+        self_collision: bool = False,
+        self_friction: float = 0.1,
+        self_iterations: int = 8,
         _core: Any = None,
     ) -> None:
         if _core is None:
@@ -108,6 +122,12 @@ class Cloth:
             mat = _material(model, density, stretch, shear, bend, damping, air_damping)
             _core = _kinema.ClothCore(x, tri, corner_uv, model, mat, as_vector3(gravity, "gravity"))
         self._core = _core
+        mu = real(self_friction, "self_friction")
+        if not mu >= 0.0:
+            raise ValueError("self_friction: must be finite and >= 0")
+        self._core.set_self_collision(bool(self_collision), mu, self_iterations)
+        if thickness is None:
+            thickness = 0.1 * self._core.mean_edge_length if self_collision else 1e-3
         self._core.set_thickness(real(thickness, "thickness"))
         self.model = model
 
@@ -128,7 +148,10 @@ class Cloth:
         damping: float = 1e-3,
         air_damping: float = 0.0,
         gravity: Any = (0.0, -9.81, 0.0),
-        thickness: float = 1e-3,
+        thickness: float | None = None,
+        self_collision: bool = False,
+        self_friction: float = 0.1,
+        self_iterations: int = 8,
     ) -> Cloth:
         """An ``nx`` by ``ny`` grid of vertices in the x–z plane at height 0, centred on the origin.
 
@@ -142,7 +165,16 @@ class Cloth:
         core = _kinema.ClothCore.grid(
             nx, ny, real(width, "width"), real(height, "height"), triangulation, model, mat, g
         )
-        return cls(None, None, model=model, thickness=thickness, _core=core)
+        return cls(
+            None,
+            None,
+            model=model,
+            thickness=thickness,
+            self_collision=self_collision,
+            self_friction=self_friction,
+            self_iterations=self_iterations,
+            _core=core,
+        )
 
     @classmethod
     def from_obj(cls, path: str | os.PathLike[str], **kwargs: Any) -> Cloth:
@@ -153,7 +185,11 @@ class Cloth:
         :class:`Cloth`.
         """
         model = kwargs.pop("model", "baraff_witkin")
-        thickness = kwargs.pop("thickness", 1e-3)
+        contact = {
+            k: kwargs.pop(k)
+            for k in ("thickness", "self_collision", "self_friction", "self_iterations")
+            if k in kwargs
+        }
         gravity = as_vector3(kwargs.pop("gravity", (0.0, -9.81, 0.0)), "gravity")
         defaults = {
             "density": 0.1,
@@ -175,7 +211,7 @@ class Cloth:
             line = data[: e.start].count(b"\n") + 1
             raise _kinema.ParseError(f"{path}:{line}: not UTF-8 text") from None
         core = _kinema.ClothCore.from_obj(text, str(path), model, mat, gravity)
-        return cls(None, None, model=model, thickness=thickness, _core=core)
+        return cls(None, None, model=model, _core=core, **contact)
 
     def to_obj(self, path: str | os.PathLike[str]) -> None:
         """Write the current shape as a Wavefront OBJ."""
@@ -296,9 +332,21 @@ class Cloth:
     @property
     def stats(self) -> dict[str, Any]:
         """Numbers of the last step: ``iterations`` (PCG), ``residual`` (relative),
-        ``converged``, ``contacts``, ``substeps``, and seconds spent in ``assemble_seconds``,
-        ``solve_seconds``, ``collide_seconds``."""
+        ``converged``, ``contacts``, ``substeps``, self-collision's ``proximities`` (pairs
+        closer than the thickness), ``ccd_iterations`` (passes that found collisions) and
+        ``impact_zones``, and seconds spent in ``assemble_seconds``, ``solve_seconds``,
+        ``collide_seconds``, ``self_collision_seconds``."""
         return dict(self._core.stats())
+
+    @property
+    def thickness(self) -> float:
+        """Contact thickness (m), see :class:`Cloth`."""
+        return float(self._core.thickness)
+
+    @property
+    def self_collision(self) -> bool:
+        """Whether self-collision is on."""
+        return self._core.self_collision is not None
 
     def forces(self) -> np.ndarray:
         """Net force ``(N, 3)`` N on each vertex (gravity, elastic, damping; not constraints)."""

@@ -7,8 +7,8 @@ use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::cloth::{
-    parse_obj, write_obj, Cloth, Collider, Elasticity, LinearSolver, Material, Mesh, SolveOptions,
-    State, Triangulation, VertexConstraint,
+    parse_obj, write_obj, Cloth, Collider, Elasticity, LinearSolver, Material, Mesh, SelfCollision,
+    SolveOptions, State, Triangulation, VertexConstraint,
 };
 use crate::error::Error;
 use crate::ode::Method;
@@ -262,6 +262,26 @@ impl ClothCore {
         Ok(self.cloth.set_thickness(thickness)?)
     }
 
+    /// Turn self-collision on (with Coulomb `friction` between layers and `iterations` passes
+    /// of collision impulses before impact zones) or off.
+    fn set_self_collision(&mut self, on: bool, friction: f64, iterations: Int) -> PyResult<()> {
+        let iterations = iterations.range("self_iterations", 0, MAX_ITERATIONS)?;
+        let settings = on.then_some(SelfCollision { friction, iterations });
+        Ok(self.cloth.set_self_collision(settings)?)
+    }
+
+    /// Self-collision settings `(friction, iterations)`, or `None` when off.
+    #[getter]
+    fn self_collision(&self) -> Option<(f64, usize)> {
+        self.cloth.model().self_collision().map(|s| (s.friction, s.iterations))
+    }
+
+    /// Mean edge length (m) of the initial shape.
+    #[getter]
+    fn mean_edge_length(&self) -> f64 {
+        self.cloth.model().mean_edge_length()
+    }
+
     /// Read-only view (N, 3) of the positions (m), updated in place by `step`.
     #[getter]
     fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
@@ -353,6 +373,10 @@ impl ClothCore {
         d.set_item("assemble_seconds", s.assemble_seconds)?;
         d.set_item("solve_seconds", s.solve_seconds)?;
         d.set_item("collide_seconds", s.collide_seconds)?;
+        d.set_item("proximities", s.proximities)?;
+        d.set_item("ccd_iterations", s.ccd_iterations)?;
+        d.set_item("impact_zones", s.impact_zones)?;
+        d.set_item("self_collision_seconds", s.self_collision_seconds)?;
         Ok(d)
     }
 }

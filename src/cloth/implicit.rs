@@ -62,6 +62,7 @@ impl Solver {
             && options.max_strain_change.is_finite()
             && strain_change(model, &state.x, &self.scratch.x_new) > options.max_strain_change;
         if !strained {
+            self.self_collide(model, state, h, stats);
             let s = &self.scratch;
             let n = state.len();
             if let Some(i) = (0..n).find(|&i| !(s.x_new[i].is_finite() && s.v_new[i].is_finite())) {

@@ -33,7 +33,12 @@
 //! read from the residual `A Δv - b` (§5.3) — static friction when the limit is not reached,
 //! sliding otherwise. A pulling normal
 //! impulse releases the contact. Vertices dragged into a collider by their neighbours are
-//! projected out after the step. Self-collision is not handled (yet).
+//! projected out after the step.
+//!
+//! Self-collision (off by default) filters the motion of every implicit step after the solve
+//! (Bridson, Fedkiw & Anderson 2002): proximity repulsions with friction, continuous collision
+//! detection with iterated impulses, and rigid impact zones, on a bounding volume hierarchy
+//! refit each step ([`Model::set_self_collision`], [`SelfCollision`]).
 
 //!
 //! The cloth takes the shape of every kinema system: a [`Model`] built once from the mesh
@@ -44,6 +49,7 @@
 
 mod bsr;
 mod build;
+mod bvh;
 mod collide;
 mod elements;
 mod explicit;
@@ -53,6 +59,7 @@ mod linear;
 mod mesh;
 mod model;
 mod pcg;
+mod self_collide;
 mod settings;
 mod snapshot;
 mod solver;
@@ -63,7 +70,10 @@ pub use collide::Collider;
 pub use elements::dihedral_angle;
 pub use mesh::{parse_obj, uv_from_shape, write_obj, Mesh, Topology, Triangulation};
 pub use model::Model;
-pub use settings::{Elasticity, LinearSolver, Material, SolveOptions, StepStats, VertexConstraint};
+pub use self_collide::MIN_DISTANCE;
+pub use settings::{
+    Elasticity, LinearSolver, Material, SelfCollision, SolveOptions, StepStats, VertexConstraint,
+};
 pub use solver::Solver;
 pub use state::State;
 
@@ -195,6 +205,14 @@ impl Cloth {
     /// A negative or non-finite value.
     pub fn set_thickness(&mut self, thickness: f64) -> Result<()> {
         self.model.set_thickness(thickness)
+    }
+
+    /// Turn self-collision on with `settings` or off ([`Model::set_self_collision`]).
+    ///
+    /// # Errors
+    /// A negative or non-finite friction.
+    pub fn set_self_collision(&mut self, settings: Option<SelfCollision>) -> Result<()> {
+        self.model.set_self_collision(settings)
     }
 
     /// Overwrite positions and velocities, `(N, 3)` each ([`State::set_motion`]; clears the

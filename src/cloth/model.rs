@@ -5,7 +5,7 @@
 //! ([`Model::pattern`]); the slots of every element in it are stored with the element.
 
 use super::elements::{Hinge, Spring, Triangle};
-use super::{build, BlockMatrix, Elasticity, Material, Mesh, State, Topology};
+use super::{build, BlockMatrix, Elasticity, Material, Mesh, SelfCollision, State, Topology};
 use crate::error::{Error, Result};
 use crate::snapshot::{check, fingerprint, finite};
 use glam::DVec3;
@@ -22,6 +22,8 @@ pub struct Model {
     pub(super) gravity: DVec3,
     /// Collision thickness (m).
     pub(super) thickness: f64,
+    /// Self-collision, when on.
+    pub(super) self_collision: Option<SelfCollision>,
     /// The mesh's positions (m), `(N, 3)`: the initial positions of [`Model::state`].
     pub(super) initial: Vec<DVec3>,
     /// Lumped vertex masses (kg), `(N,)`.
@@ -69,6 +71,7 @@ impl Model {
             material,
             gravity,
             thickness: 1e-3,
+            self_collision: None,
             initial: x,
             mass,
             elements,
@@ -137,6 +140,37 @@ impl Model {
         Ok(())
     }
 
+    /// Self-collision settings, `None` when off (the default).
+    pub fn self_collision(&self) -> Option<SelfCollision> {
+        self.self_collision
+    }
+
+    /// Turn self-collision on (Bridson, Fedkiw & Anderson 2002; see the `self_collide`
+    /// module docs of the cloth) with `settings`, or off with `None`. It uses the model's
+    /// thickness ([`Model::set_thickness`]).
+    ///
+    /// # Errors
+    /// A negative or non-finite friction; the model is then unchanged.
+    pub fn set_self_collision(&mut self, settings: Option<SelfCollision>) -> Result<()> {
+        if let Some(s) = settings {
+            crate::geometry::material::friction(s.friction)?;
+        }
+        self.self_collision = settings;
+        Ok(())
+    }
+
+    /// Mean length (m) of the triangles' edges in the initial shape (each interior edge
+    /// counted twice): the scale of a mesh, from which a self-collision thickness is chosen.
+    pub fn mean_edge_length(&self) -> f64 {
+        let x = &self.initial;
+        let total: f64 = self
+            .triangles
+            .iter()
+            .map(|t| (0..3).map(|k| (x[t[(k + 1) % 3]] - x[t[k]]).length()).sum::<f64>())
+            .sum();
+        total / (3 * self.triangles.len()) as f64
+    }
+
     /// The block pattern of the implicit matrix (zero blocks): every pair of vertices that
     /// share an element of the model. Allocates.
     pub fn pattern(&self) -> BlockMatrix {
@@ -177,6 +211,11 @@ impl Model {
             self.gravity.is_finite() && self.thickness.is_finite() && self.thickness >= 0.0,
             "gravity",
             || "gravity and thickness must be finite".into(),
+        )?;
+        check(
+            self.self_collision.is_none_or(|s| s.friction.is_finite() && s.friction >= 0.0),
+            "self_collision",
+            || "friction must be finite and >= 0".into(),
         )?;
         self.check_elements(n)?;
         self.check_slots(n)

@@ -82,6 +82,8 @@ pub struct Solver {
     /// The explicit path's integrator (its stages; the cloth's explicit methods keep no
     /// history).
     pub(super) stepper: Option<Stepper>,
+    /// Self-collision's tree and buffers (built on the first step that needs them).
+    pub(super) self_work: Option<Box<super::self_collide::Work>>,
     /// The state before the step being taken, put back when it fails.
     saved: State,
     /// Numbers of the last completed step (a report; no step reads it).
@@ -102,6 +104,7 @@ impl Solver {
             scratch: Scratch::new(model.len()),
             cholesky: None,
             stepper: None,
+            self_work: None,
             saved: model.state(),
             stats: StepStats::default(),
         }
@@ -151,6 +154,10 @@ impl Solver {
                 Method::Trapezoidal => Err(Error::invalid(
                     "integrator",
                     "trapezoidal is not offered for cloth; use implicit_euler or bdf2",
+                )),
+                _ if model.self_collision.is_some() => Err(Error::invalid(
+                    "integrator",
+                    "self-collision needs an implicit integrator (implicit_euler or bdf2)",
                 )),
                 explicit => self.step_explicit(model, state, &mut stats, dt, explicit),
             };

@@ -10,16 +10,24 @@
 //! - [`segment`]: closest points of a segment to a point and of two segments;
 //! - [`material`]: the surface's [`Material`] (restitution, Coulomb friction), kept apart from
 //!   the shape so one shape can carry any material;
+//! - [`triangle`]: the closest point of a triangle, an exact triangle–triangle intersection
+//!   test on the exact predicates of [`exact`], and the search for intersecting triangles of
+//!   a mesh;
+//! - [`ccd`]: continuous collision detection of a moving vertex and triangle, or two edges
+//!   (the coplanarity cubic of Provot 1997);
 //! - [`solid`]: the body-frame [`Solid`]s of rigid bodies (sphere, box, capsule, cylinder,
 //!   closed mesh) with their mass properties.
 //!
 //! This module imports no system of kinema (only [`crate::error`]); systems import it.
 
+pub mod ccd;
+pub mod exact;
 pub mod material;
 pub mod query;
 pub mod segment;
 pub mod shape;
 pub mod solid;
+pub mod triangle;
 
 pub use material::Material;
 pub use shape::{Capsule, Cuboid, Plane, Shape, Sphere};

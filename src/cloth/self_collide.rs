@@ -1,0 +1,429 @@
+//! Self-collision of the cloth, after Bridson, Fedkiw & Anderson (2002), "Robust treatment of
+//! collisions, contact and friction for cloth animation": a filter on the motion of a step
+//! that the implicit solve proposes (each vertex from `x₀` to `x₁ = x₀ + d`), in three stages.
+//!
+//! 1. **Proximity** (§7.2): every vertex–triangle and edge–edge pair closer than the thickness
+//!    `h` at `x₀` gets an inelastic impulse that stops its approach and a repulsion
+//!    `min(Δt k (h − dist), m (0.1 (h − dist)/Δt − v_N))` (`k` the stretch stiffness), with
+//!    Coulomb friction on the tangential motion (§7.2.1: the tangential relative velocity is
+//!    reduced by `μ` times the normal change, at most to rest).
+//! 2. **Continuous collision detection** (§6.4, §7.3): on the linear motion of the step, a
+//!    pair whose four points become coplanar within `δ = h/4` of each other, or which ends the
+//!    step closer than `δ` after starting farther apart, is a collision; an impulse along the
+//!    normal at impact moves it to end the step `h/2` apart on the side it came from. Passes
+//!    repeat until one finds no collision or `iterations` passes were made.
+//! 3. **Rigid impact zones** (Provot 1997; Bridson §7.4): the vertices of the collisions that
+//!    remain are merged into zones, each moved as a rigid body with the linear and angular
+//!    momentum of its vertices (an exact rotation, so that distances within the zone are kept
+//!    and, the motion being affine at every instant, no pair inside it can cross); zones grow
+//!    until no collision between zones remains.
+//!
+//! Impulses act on the pair's four vertices with the weights `α` of the contact points
+//! (`Σ αₖ = 0`, so linear momentum is conserved) in proportion to inverse masses; vertices
+//! with a user constraint (pinned, plane, line, prescribed velocity) have infinite mass. The
+//! changed displacement becomes the step's end position and its change, divided by `Δt`, is
+//! added to the velocity. The broad phase is [`super::bvh::Bvh`], refit at every pass.
+
+use super::bvh::Bvh;
+use super::{Model, SelfCollision, Solver, State, StepStats};
+use crate::geometry::ccd::{edge_edge, segment_weights, vertex_triangle, Impact};
+use crate::geometry::segment::closest_points_of_segments;
+use crate::geometry::triangle::closest_point_on_triangle;
+use glam::{DMat3, DQuat, DVec3};
+
+/// The closest distance the filter keeps a pair at (CCD tolerance), as a fraction of the
+/// thickness.
+pub const MIN_DISTANCE: f64 = 0.25;
+/// The separation, as a fraction of the thickness, a collision impulse moves a pair to.
+const TARGET_DISTANCE: f64 = 0.5;
+
+/// A candidate pair: vertex–triangle `[p, a, b, c]` or edge–edge `[p, q, r, s]`.
+#[derive(Clone, Copy, Debug)]
+struct Pair {
+    verts: [usize; 4],
+    edges: bool,
+}
+
+/// The workspace of self-collision (in the solver; built on the first step that needs it).
+#[derive(Debug)]
+pub(super) struct Work {
+    bvh: Bvh,
+    /// Per triangle, bits 0–2: the triangle is the first holding its vertex k; bits 3–5: the
+    /// first holding its edge k (`t[k]`, `t[k+1]`), so every feature pair is found once.
+    owns: Vec<u8>,
+    /// Displacements of the step (m), and as proposed by the solve.
+    d: Vec<DVec3>,
+    d_solve: Vec<DVec3>,
+    /// End positions `x₀ + d` (m), for refitting.
+    x1: Vec<DVec3>,
+    /// Inverse masses (1/kg), 0 for constrained vertices.
+    w: Vec<f64>,
+    pairs: Vec<Pair>,
+    /// Impact zones: union-find parents, the vertices in zones, per-root sums.
+    parent: Vec<usize>,
+    zoned: Vec<usize>,
+    in_zone: Vec<bool>,
+    sums: Vec<ZoneSums>,
+}
+
+/// Mass, first moment and momentum (displacement-weighted) of a zone, then its inertia and
+/// angular momentum about the centre of mass.
+#[derive(Clone, Copy, Debug, Default)]
+struct ZoneSums {
+    m: f64,
+    mx: DVec3,
+    md: DVec3,
+    inertia: DMat3,
+    angular: DVec3,
+}
+
+impl ZoneSums {
+    /// The zone's displacement of a vertex at `x` (m): the translation of the centre of mass
+    /// and the exact rotation by `ω = I⁻¹ L` (regularised so that a zone on a line gets no
+    /// turn about it).
+    fn displacement(&self, x: DVec3) -> DVec3 {
+        let (c, vc) = (self.mx / self.m, self.md / self.m);
+        let i = self.inertia;
+        let trace = i.x_axis.x + i.y_axis.y + i.z_axis.z;
+        let regular = i + DMat3::from_diagonal(DVec3::splat(1e-9 * trace + f64::MIN_POSITIVE));
+        let omega = regular.inverse() * self.angular;
+        let arm = x - c;
+        vc + DQuat::from_scaled_axis(omega) * arm - arm
+    }
+}
+
+impl Work {
+    /// The workspace of `model`.
+    pub(super) fn new(model: &Model) -> Work {
+        let n = model.len();
+        let tris = &model.triangles;
+        let mut first_vertex = vec![usize::MAX; n];
+        let mut first_edge = std::collections::HashMap::new();
+        let mut owns = vec![0u8; tris.len()];
+        for (k, t) in tris.iter().enumerate() {
+            for c in 0..3 {
+                if first_vertex[t[c]] == usize::MAX {
+                    first_vertex[t[c]] = k;
+                    owns[k] |= 1 << c;
+                }
+                let (a, b) = (t[c], t[(c + 1) % 3]);
+                if *first_edge.entry((a.min(b), a.max(b))).or_insert(k) == k {
+                    owns[k] |= 8 << c;
+                }
+            }
+        }
+        let zero = vec![DVec3::ZERO; n];
+        Work {
+            bvh: Bvh::new(&model.initial, tris),
+            owns,
+            d: zero.clone(),
+            d_solve: zero.clone(),
+            x1: zero,
+            w: vec![0.0; n],
+            // Room for the candidates of a crumpled cloth, so that steps rarely allocate.
+            pairs: Vec::with_capacity(32 * tris.len()),
+            parent: (0..n).collect(),
+            zoned: Vec::new(),
+            in_zone: vec![false; n],
+            sums: vec![ZoneSums::default(); n],
+        }
+    }
+}
+
+impl Solver {
+    /// Filter the step's proposed motion (`state.x` to the scratch's `x_new`, velocities
+    /// `v_new`) of a step of `h` seconds for self-collision, if the model has it on; counts
+    /// into `stats`.
+    pub(super) fn self_collide(
+        &mut self,
+        model: &Model,
+        state: &State,
+        h: f64,
+        stats: &mut StepStats,
+    ) {
+        let Some(settings) = model.self_collision else {
+            return;
+        };
+        let t0 = std::time::Instant::now();
+        let work = self.self_work.get_or_insert_with(|| Box::new(Work::new(model)));
+        let s = &mut self.scratch;
+        for i in 0..state.len() {
+            work.d[i] = s.x_new[i] - state.x[i];
+            work.d_solve[i] = work.d[i];
+            work.w[i] = if state.constraints[i].is_some() { 0.0 } else { 1.0 / model.mass[i] };
+        }
+        let filter = Filter { model, x0: &state.x, h, settings };
+        stats.proximities += filter.proximity(work);
+        for _ in 0..settings.iterations {
+            if filter.ccd_pass(work) == 0 {
+                break;
+            }
+            stats.ccd_iterations += 1;
+        }
+        stats.impact_zones += filter.impact_zones(work);
+        for i in 0..state.len() {
+            s.x_new[i] = state.x[i] + work.d[i];
+            s.v_new[i] += (work.d[i] - work.d_solve[i]) / h;
+        }
+        stats.self_collision_seconds += t0.elapsed().as_secs_f64();
+    }
+}
+
+/// What the stages of one filter share.
+struct Filter<'a> {
+    model: &'a Model,
+    x0: &'a [DVec3],
+    h: f64,
+    settings: SelfCollision,
+}
+
+impl Filter<'_> {
+    /// Refit the tree to the motion (`swept`) or to the start positions, grown by `margin / 2`,
+    /// and list the candidate pairs.
+    fn candidates(&self, work: &mut Work, swept: bool, margin: f64) {
+        let tris = &self.model.triangles;
+        if swept {
+            for i in 0..self.x0.len() {
+                work.x1[i] = self.x0[i] + work.d[i];
+            }
+        }
+        let Work { bvh, owns, pairs, x1, .. } = work;
+        let (x0, x1) = (self.x0, if swept { &x1[..] } else { self.x0 });
+        bvh.refit(tris, x0, x1, 0.5 * margin);
+        pairs.clear();
+        // The pair's own boxes (of its features' motion) must overlap too.
+        let close = |a: &[usize], b: &[usize]| {
+            let bounds = |v: &[usize]| {
+                v.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &k| {
+                    (lo.min(x0[k]).min(x1[k]), hi.max(x0[k]).max(x1[k]))
+                })
+            };
+            let ((alo, ahi), (blo, bhi)) = (bounds(a), bounds(b));
+            (alo - margin).cmple(bhi).all() && (blo - margin).cmple(ahi).all()
+        };
+        bvh.self_pairs(|i, j| {
+            for (a, b) in [(i, j), (j, i)] {
+                let (ta, tb) = (tris[a], tris[b]);
+                for (c, &p) in ta.iter().enumerate() {
+                    if owns[a] & (1 << c) != 0 && !tb.contains(&p) && close(&[p], &tb) {
+                        pairs.push(Pair { verts: [p, tb[0], tb[1], tb[2]], edges: false });
+                    }
+                }
+            }
+            for c in 0..3 {
+                if owns[i] & (8 << c) == 0 {
+                    continue;
+                }
+                let (p, q) = (tris[i][c], tris[i][(c + 1) % 3]);
+                for e in 0..3 {
+                    let (r, s) = (tris[j][e], tris[j][(e + 1) % 3]);
+                    let apart = ![r, s].iter().any(|v| *v == p || *v == q);
+                    if owns[j] & (8 << e) != 0 && apart && close(&[p, q], &[r, s]) {
+                        pairs.push(Pair { verts: [p, q, r, s], edges: true });
+                    }
+                }
+            }
+        });
+    }
+
+    /// Stage 1: repulsion and friction impulses on the pairs closer than the thickness at the
+    /// start of the step; returns their number.
+    fn proximity(&self, work: &mut Work) -> usize {
+        let thickness = self.model.thickness;
+        self.candidates(work, false, thickness);
+        let mut count = 0;
+        for k in 0..work.pairs.len() {
+            let pair = work.pairs[k];
+            let x = pair.verts.map(|v| self.x0[v]);
+            let (distance, weights, normal) = closest(pair, x);
+            if distance < thickness {
+                count += 1;
+                self.repulse(work, pair.verts, weights, normal, thickness - distance);
+            }
+        }
+        count
+    }
+
+    /// The proximity impulse of one pair (see the module documentation) on the displacements.
+    fn repulse(&self, work: &mut Work, verts: [usize; 4], alpha: [f64; 4], n: DVec3, overlap: f64) {
+        let w: f64 = (0..4).map(|k| alpha[k] * alpha[k] * work.w[verts[k]]).sum();
+        if w <= 0.0 || w.is_nan() {
+            return;
+        }
+        let rel = (0..4).fold(DVec3::ZERO, |s, k| s + work.d[verts[k]] * alpha[k]);
+        let dn = n.dot(rel);
+        // Inelastic: stop the approach; then the spring repulsion up to 0.1 overlap per step.
+        let mut change = (-dn).max(0.0);
+        let wanted = 0.1 * overlap - (dn + change);
+        if wanted > 0.0 {
+            let spring = self.h * self.h * self.model.material.stretch * overlap * w;
+            change += spring.min(wanted);
+        }
+        if change <= 0.0 {
+            return;
+        }
+        let tangent = rel - n * dn;
+        let slide = tangent.length();
+        let friction = (self.settings.friction * change).min(slide);
+        let mut impulse = n * (change / w);
+        if slide > 0.0 {
+            impulse -= tangent * (friction / (slide * w));
+        }
+        for k in 0..4 {
+            work.d[verts[k]] += impulse * (alpha[k] * work.w[verts[k]]);
+        }
+    }
+
+    /// Stage 2: one pass of continuous collision detection, each collision answered by its
+    /// impulse at once; returns the number of collisions.
+    fn ccd_pass(&self, work: &mut Work) -> usize {
+        let delta = MIN_DISTANCE * self.model.thickness;
+        self.candidates(work, true, delta);
+        let mut count = 0;
+        for k in 0..work.pairs.len() {
+            let pair = work.pairs[k];
+            if let Some(impact) = self.collision(work, pair) {
+                if self.push_apart(work, pair.verts, impact) {
+                    count += 1;
+                }
+            }
+        }
+        count
+    }
+
+    /// The collision of a pair in the current motion, if any (see the module documentation).
+    fn collision(&self, work: &Work, pair: Pair) -> Option<Impact> {
+        let delta = MIN_DISTANCE * self.model.thickness;
+        let x0 = pair.verts.map(|v| self.x0[v]);
+        let x1 = pair.verts.map(|v| self.x0[v] + work.d[v]);
+        let crossing =
+            if pair.edges { edge_edge(x0, x1, delta) } else { vertex_triangle(x0, x1, delta) };
+        if crossing.is_some() {
+            return crossing;
+        }
+        let (end, weights, normal) = closest(pair, x1);
+        if end >= delta || end >= closest(pair, x0).0 - 1e-6 * delta {
+            return None;
+        }
+        Some(Impact { time: 1.0, weights, distance: end, normal })
+    }
+
+    /// The impulse that moves a colliding pair to end the step `TARGET_DISTANCE · thickness`
+    /// apart along the impact's normal; `false` when it already does or cannot move.
+    fn push_apart(&self, work: &mut Work, verts: [usize; 4], impact: Impact) -> bool {
+        let alpha = impact.weights;
+        let w: f64 = (0..4).map(|k| alpha[k] * alpha[k] * work.w[verts[k]]).sum();
+        let end =
+            (0..4).fold(DVec3::ZERO, |s, k| s + (self.x0[verts[k]] + work.d[verts[k]]) * alpha[k]);
+        let change = TARGET_DISTANCE * self.model.thickness - impact.normal.dot(end);
+        if !(w > 0.0 && change > 0.0) {
+            return false;
+        }
+        let impulse = impact.normal * (change / w);
+        for k in 0..4 {
+            work.d[verts[k]] += impulse * (alpha[k] * work.w[verts[k]]);
+        }
+        true
+    }
+
+    /// Stage 3: rigid impact zones until no collision between zones remains (at most one
+    /// merge per vertex); returns the number of zones of two or more vertices.
+    fn impact_zones(&self, work: &mut Work) -> usize {
+        let n = self.x0.len();
+        work.zoned.clear();
+        let mut merged = false;
+        for _ in 0..n {
+            let delta = MIN_DISTANCE * self.model.thickness;
+            self.candidates(work, true, delta);
+            let mut found = false;
+            for k in 0..work.pairs.len() {
+                let pair = work.pairs[k];
+                let root = find(&mut work.parent, pair.verts[0]);
+                if pair.verts[1..].iter().all(|&v| find(&mut work.parent, v) == root) {
+                    continue;
+                }
+                if self.collision(work, pair).is_some() {
+                    found = true;
+                    for &v in &pair.verts {
+                        if !work.in_zone[v] {
+                            work.in_zone[v] = true;
+                            work.zoned.push(v);
+                        }
+                        let r = find(&mut work.parent, v);
+                        let root = find(&mut work.parent, pair.verts[0]);
+                        work.parent[r] = root;
+                    }
+                }
+            }
+            if !found {
+                break;
+            }
+            merged = true;
+            self.rigidify(work);
+        }
+        let zones =
+            if merged { work.zoned.iter().filter(|&&v| work.parent[v] == v).count() } else { 0 };
+        for &v in &work.zoned {
+            work.parent[v] = v;
+            work.in_zone[v] = false;
+        }
+        zones
+    }
+
+    /// Move the free vertices of every zone rigidly with the zone's momentum (Bridson §7.4;
+    /// [`ZoneSums::displacement`]).
+    fn rigidify(&self, work: &mut Work) {
+        let Work { parent, zoned, sums, d, w, .. } = work;
+        let m = &self.model.mass;
+        for &v in zoned.iter() {
+            let r = find(parent, v);
+            let s = &mut sums[r];
+            s.m += m[v];
+            s.mx += self.x0[v] * m[v];
+            s.md += d[v] * m[v];
+        }
+        for &v in zoned.iter() {
+            let r = find(parent, v);
+            let s = &mut sums[r];
+            let (c, vc) = (s.mx / s.m, s.md / s.m);
+            let arm = self.x0[v] - c;
+            s.angular += arm.cross(d[v] - vc) * m[v];
+            s.inertia += (DMat3::from_diagonal(DVec3::splat(arm.length_squared()))
+                - crate::math::outer(arm, arm))
+                * m[v];
+        }
+        for &v in zoned.iter() {
+            if w[v] > 0.0 {
+                d[v] = sums[find(parent, v)].displacement(self.x0[v]);
+            }
+        }
+        for &v in zoned.iter() {
+            sums[v] = ZoneSums::default();
+        }
+    }
+}
+
+/// The root of `v`'s zone (with path halving).
+fn find(parent: &mut [usize], mut v: usize) -> usize {
+    while parent[v] != v {
+        parent[v] = parent[parent[v]];
+        v = parent[v];
+    }
+    v
+}
+
+/// Distance (m), weights `α` and unit direction of the closest points of a pair at positions
+/// `x` (the triangle's normal, or the edges' cross product, where the points coincide).
+fn closest(pair: Pair, x: [DVec3; 4]) -> (f64, [f64; 4], DVec3) {
+    let [p, a, b, c] = x;
+    let (sep, weights, fallback) = if pair.edges {
+        let (c1, c2) = closest_points_of_segments(p, a, b, c);
+        (c1 - c2, segment_weights(p, a, c1, b, c, c2), (a - p).cross(c - b))
+    } else {
+        let (q, w) = closest_point_on_triangle(p, a, b, c);
+        (p - q, [1.0, -w[0], -w[1], -w[2]], (b - a).cross(c - a))
+    };
+    let distance = sep.length();
+    let normal = sep.try_normalize().or(fallback.try_normalize()).unwrap_or(DVec3::Y);
+    (distance, weights, normal)
+}
