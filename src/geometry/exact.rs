@@ -176,11 +176,10 @@ mod tests {
 
     #[test]
     fn near_degenerate_cases_are_decided_exactly() {
-        // A point 2⁻⁶⁰ off a plane through points whose differences round in f64: the filter
-        // cannot decide, the expansions must.
+        // A point a fraction of an ulp off a plane through points whose differences round in
+        // f64: the filter cannot decide, the expansions must.
         let (a, b, c) =
             (DVec3::new(0.1, 0.2, 0.3), DVec3::new(1.1, 0.2, 0.3), DVec3::new(0.1, 1.2, 0.3));
-        let tiny = 2f64.powi(-60);
         assert_eq!(orient3d(a, b, c, DVec3::new(0.5, 0.5, 0.3)), Ordering::Equal);
         assert_eq!(
             orient3d(a, b, c, DVec3::new(0.5, 0.5, 0.3 + 0.3 * f64::EPSILON)),
@@ -188,8 +187,11 @@ mod tests {
         );
         let p = DVec2::new(0.5, 0.5);
         assert_eq!(orient2d(DVec2::ZERO, DVec2::ONE, p), Ordering::Equal);
-        assert_eq!(orient2d(DVec2::ZERO, DVec2::ONE, p + DVec2::new(0.0, tiny)), Ordering::Greater);
-        assert_eq!(orient2d(DVec2::ZERO, DVec2::ONE, p - DVec2::new(0.0, tiny)), Ordering::Less);
+        // One ulp above 0.5 (2⁻⁵³) and one below (2⁻⁵⁴): the nearest points off the line.
+        let above = DVec2::new(0.5, 0.5 + 2f64.powi(-53));
+        let below = DVec2::new(0.5, 0.5 - 2f64.powi(-54));
+        assert_eq!(orient2d(DVec2::ZERO, DVec2::ONE, above), Ordering::Greater);
+        assert_eq!(orient2d(DVec2::ZERO, DVec2::ONE, below), Ordering::Less);
         // Points on the line y = 3x through values that are not exact in binary: the naive
         // cross product rounds, the exact sign is that of the binary values' products.
         let (q, r) = (DVec2::new(0.1, 0.3), DVec2::new(0.7, 2.1));
