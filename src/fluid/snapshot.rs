@@ -3,8 +3,8 @@
 //! model ([`Model::fingerprint`]) so that it is restored only onto it.
 
 use super::{Fluid, Model, State};
-use crate::error::{Error, Result};
-use crate::snapshot::{check, finite, Snapshot};
+use crate::error::Result;
+use crate::snapshot::{check, finite, from_stamped, to_stamped, Snapshot, Stamped};
 
 impl Model {
     /// Check a decoded model: settings in range, the derived sizes those of the settings, a
@@ -40,7 +40,7 @@ impl State {
     /// # Errors
     /// None in practice (every part of a state can be encoded).
     pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        Stored { fingerprint: model.fingerprint(), state: self.clone() }.to_snapshot()
+        to_stamped(self, model.fingerprint())
     }
 
     /// The state stored by [`State::to_snapshot`], for `model`.
@@ -49,30 +49,12 @@ impl State {
     /// Bytes that are not a fluid state snapshot of this version or are damaged (argument
     /// `data`); a state of a model of another fingerprint (argument `model`).
     pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
-        let stored = Stored::from_snapshot(data)?;
-        if stored.fingerprint != model.fingerprint() {
-            return Err(Error::invalid(
-                "model",
-                "the state snapshot was taken of a model with another fingerprint",
-            ));
-        }
-        Ok(stored.state)
+        from_stamped(data, model.fingerprint(), State::validate)
     }
 }
 
-/// A state snapshot: the state and the fingerprint of its model.
-#[derive(serde::Serialize, serde::Deserialize)]
-struct Stored {
-    fingerprint: u64,
-    state: State,
-}
-
-impl Snapshot for Stored {
+impl Stamped for State {
     const TAG: &'static str = "FluidState";
-
-    fn validate(&self) -> Result<()> {
-        self.state.validate()
-    }
 }
 
 impl Snapshot for Fluid {

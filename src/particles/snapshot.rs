@@ -3,8 +3,8 @@
 //! fingerprint of its model ([`Model::fingerprint`]) so that it is restored only onto it.
 
 use super::{Model, ParticleSystem, State};
-use crate::error::{Error, Result};
-use crate::snapshot::{check, finite, Snapshot};
+use crate::error::Result;
+use crate::snapshot::{check, finite, from_stamped, to_stamped, Snapshot, Stamped};
 
 impl Model {
     /// Check a decoded model: every force, collider and emitter valid for the capacity.
@@ -84,7 +84,7 @@ impl State {
     /// # Errors
     /// None in practice (every part of a state can be encoded).
     pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        Stored { fingerprint: model.fingerprint(), state: self.clone() }.to_snapshot()
+        to_stamped(self, model.fingerprint())
     }
 
     /// The state stored by [`State::to_snapshot`], for `model`.
@@ -94,34 +94,12 @@ impl State {
     /// `data`); a state of a model of another fingerprint (argument `model`); a state that
     /// does not fit `model` (argument `data`).
     pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
-        let stored = Stored::from_snapshot(data)?;
-        if stored.fingerprint != model.fingerprint() {
-            return Err(Error::invalid(
-                "model",
-                "the state snapshot was taken of a model with another fingerprint",
-            ));
-        }
-        stored.state.validate(model).map_err(|e| {
-            Error::invalid("data", format!("inconsistent {} snapshot: {e}", Stored::TAG))
-        })?;
-        Ok(stored.state)
+        from_stamped(data, model.fingerprint(), |state: &State| state.validate(model))
     }
 }
 
-/// A state snapshot: the state and the fingerprint of its model.
-#[derive(serde::Serialize, serde::Deserialize)]
-struct Stored {
-    fingerprint: u64,
-    state: State,
-}
-
-impl Snapshot for Stored {
+impl Stamped for State {
     const TAG: &'static str = "ParticleState";
-
-    /// The state is checked against the model by [`State::from_snapshot`], which has it.
-    fn validate(&self) -> Result<()> {
-        Ok(())
-    }
 }
 
 impl Snapshot for ParticleSystem {
