@@ -604,30 +604,45 @@ fn reduced_pendulums_have_no_drift_keep_energy_to_order_and_match_multipliers() 
 }
 
 /// A failed step leaves the particles and the constraint system exactly as they were: the
-/// state bit for bit, and the steps after it (which read the CG warm start, the tracked curve
-/// parameter) bit for bit those of a copy that never tried it. (The integrator's evaluation
-/// counters do count the failed attempt's work.)
+/// particles and the whole constraint snapshot (multipliers, iteration count, tracked curve
+/// parameters, the integrator's history and counters) bit for bit, and the steps after it
+/// bit for bit those of a copy that never tried it — with explicit and BDF2 steps, with
+/// post-stabilisation (whose failure comes after the integrator's step) and with the
+/// projection step.
 #[test]
 fn failed_constrained_step_leaves_nothing_behind() {
     use kinema::snapshot::Snapshot;
     let bits = |p: &ParticleSystem| -> Vec<u64> {
-        p.positions().iter().chain(p.velocities()).map(|v| v.to_bits()).collect()
+        let (x, v) = (p.positions().iter(), p.velocities().iter());
+        x.chain(v).chain([&p.time()]).map(|v| v.to_bits()).collect()
+    };
+    let stabilized = |(p, mut c): (ParticleSystem, ConstrainedSystem)| {
+        c.set_stabilization(true).unwrap();
+        (p, c)
     };
     let systems = [
-        double_pendulum(10.0, 5.0, ConstraintSolver::ConjugateGradient),
-        double_pendulum(10.0, 5.0, ConstraintSolver::Cholesky),
-        bead_on_curve(CIRCLE, 10.0, 5.0),
+        (double_pendulum(10.0, 5.0, ConstraintSolver::ConjugateGradient), Method::Rk4),
+        (double_pendulum(10.0, 5.0, ConstraintSolver::Cholesky), Method::Bdf2),
+        (stabilized(double_pendulum(0.0, 0.0, ConstraintSolver::Cholesky)), Method::Bdf2),
+        (bead_on_curve(CIRCLE, 10.0, 5.0), Method::Rk4),
+        (stabilized(bead_on_curve(CIRCLE, 0.0, 0.0)), Method::Bdf2),
     ];
-    for (mut p, mut c) in systems {
-        c.step(&mut p, 1e-3, 10, Method::Rk4).unwrap();
+    for ((mut p, mut c), method) in systems {
+        c.step(&mut p, 1e-3, 10, method).unwrap();
         let (mut p2, mut c2) =
             (p.clone(), ConstrainedSystem::from_snapshot(&c.to_snapshot().unwrap()).unwrap());
-        assert!(c.step(&mut p, 1e200, 1, Method::Rk4).is_err());
+        let before = c.to_snapshot().unwrap();
+        assert!(c.step(&mut p, 1e200, 1, method).is_err(), "{method:?}");
         assert_eq!(bits(&p), bits(&p2));
-        assert_eq!(p.time().to_bits(), p2.time().to_bits());
-        c.step(&mut p, 1e-3, 5, Method::Rk4).unwrap();
-        c2.step(&mut p2, 1e-3, 5, Method::Rk4).unwrap();
+        assert!(c.to_snapshot().unwrap() == before, "{method:?}: the constraint state changed");
+        c.step(&mut p, 1e-3, 5, method).unwrap();
+        c2.step(&mut p2, 1e-3, 5, method).unwrap();
         assert_eq!(bits(&p), bits(&p2));
         assert_eq!(c.iterations(), c2.iterations());
+        if c.formulation() == kinema::constraints::Formulation::Multipliers {
+            let before = c.to_snapshot().unwrap();
+            assert!(c.step_projection(&mut p, 1e200, 1).is_err());
+            assert!(c.to_snapshot().unwrap() == before, "projection: the state changed");
+        }
     }
 }

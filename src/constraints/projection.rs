@@ -96,8 +96,7 @@ fn projection_steps(
 ) -> Result<()> {
     let n = y.len() / 6;
     for s in 0..steps {
-        let (w, st) = (&mut *system.work, &*system.state);
-        w.saved.0.clone_from(&st.implicit_lambda);
+        system.save_state();
         let result = projection_step(system, *time, y, dt, next).and_then(|()| {
             match next.iter().position(|v| !v.is_finite()) {
                 Some(bad) => Err(Error::Diverged {
@@ -108,13 +107,12 @@ fn projection_steps(
                 None => Ok(()),
             }
         });
+        let result = result
+            .and_then(|()| track_curves(&system.model.constraints, next, &mut system.state.curves));
         if let Err(e) = result {
-            system.state.implicit_lambda.clone_from(&system.work.saved.0);
+            system.restore_state();
             return Err(e);
         }
-        // On failure the tracked parameters may have moved on: they are only the starting
-        // guesses of the closest-point search, so the particles' state is what is kept.
-        track_curves(&system.model.constraints, next, &mut system.state.curves)?;
         y.copy_from_slice(next);
         *time += dt;
     }

@@ -59,10 +59,13 @@ pub(super) struct Work {
     pub(super) chol: Option<SparseCholesky>,
     /// The implicit projection's KKT system (built at the first projection step).
     pub(super) kkt: Option<Kkt>,
-    /// The warm start (`lambda` or `implicit_lambda`) and `iterations` before the current
-    /// step, put back when it fails (a failed step's multipliers may be huge or NaN and would
-    /// poison the next solve).
-    pub(super) saved: (Vec<f64>, usize),
+    /// The constraint state before the current step (multipliers, iteration count, tracked
+    /// curve parameters), put back when the step fails: a failed step leaves the state
+    /// exactly as it was (its multipliers may be huge or NaN and would poison the next solve).
+    pub(super) saved: State,
+    /// The ODE history (BDF2's previous step, counters) before the current step, put back
+    /// with [`Self::saved`].
+    pub(super) saved_history: Option<History>,
     /// The values of `J W Jᵀ + εI` on its pattern.
     pub(super) values: Vec<f64>,
     /// (value index, row r, row s, particle) per contribution w_p J_rp · J_sp.
@@ -207,7 +210,11 @@ impl Solver {
             if backup {
                 system.work.backup.copy_from_slice(y);
             }
-            system.save_warm_start();
+            system.save_state();
+            match &mut system.work.saved_history {
+                Some(saved) => saved.clone_from(&history),
+                empty => *empty = Some(history.clone()),
+            }
             result = ode.step(&mut history, &mut system, *time, y, dt);
             if result.is_ok() {
                 // The step is committed only when its post-stabilisation and curve tracking
@@ -215,11 +222,11 @@ impl Solver {
                 result = system.finish_step(y);
                 if result.is_err() {
                     y.copy_from_slice(&system.work.backup);
-                    history.reset();
                 }
             }
             if let Err(e) = result {
-                system.restore_warm_start();
+                system.restore_state();
+                history.clone_from(system.work.saved_history.as_ref().expect("saved above"));
                 result = Err(match e {
                     Error::Diverged { index, reason, .. } => {
                         Error::Diverged { step: s, index: (index % (3 * n)) / 3, reason }
@@ -292,18 +299,14 @@ impl Solver {
 }
 
 impl Constrained<'_> {
-    /// Keep the CG warm start and iteration count of `state` to restore on failure.
-    fn save_warm_start(&mut self) {
-        let (w, s) = (&mut *self.work, &*self.state);
-        w.saved.0.clone_from(&s.lambda);
-        w.saved.1 = s.iterations;
+    /// Keep the constraint state to restore when the coming step fails.
+    pub(super) fn save_state(&mut self) {
+        self.work.saved.clone_from(self.state);
     }
 
-    /// Put back what [`Self::save_warm_start`] kept.
-    fn restore_warm_start(&mut self) {
-        let (w, s) = (&*self.work, &mut *self.state);
-        s.lambda.clone_from(&w.saved.0);
-        s.iterations = w.saved.1;
+    /// Put back what [`Self::save_state`] kept.
+    pub(super) fn restore_state(&mut self) {
+        self.state.clone_from(&self.work.saved);
     }
 
     /// After a successful integrator step of `y`: the post-stabilisation (when on) and the
