@@ -120,7 +120,7 @@ fn a_state_snapshot_resumes_bit_for_bit_and_refuses_another_model() {
     let mut s = other_state(&m);
     solver.step(&m, &mut s, DT, 30).unwrap();
     let bytes = s.to_snapshot(&m).unwrap();
-    let mut restored = State::from_snapshot(&bytes, &m).unwrap();
+    let mut restored = State::from_snapshot(&m, &bytes).unwrap();
     let mut fresh = Solver::new(&m).unwrap();
     solver.step(&m, &mut s, DT, 30).unwrap();
     fresh.step(&m, &mut restored, DT, 30).unwrap();
@@ -130,7 +130,7 @@ fn a_state_snapshot_resumes_bit_for_bit_and_refuses_another_model() {
     changed.contact_iterations += 1;
     assert_ne!(changed.fingerprint(), m.fingerprint());
     assert_eq!(model().fingerprint(), m.fingerprint());
-    let err = State::from_snapshot(&bytes, &changed).unwrap_err().to_string();
+    let err = State::from_snapshot(&changed, &bytes).unwrap_err().to_string();
     assert!(err.contains("model"), "{err}");
     // A state of another number of bodies cannot be stepped, nor set into a world.
     let mut small = Model::new(G, RotationIntegrator::Splitting);

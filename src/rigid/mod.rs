@@ -50,7 +50,7 @@
 //! assert!(thrown.position(&model, 0).x > 0.5 && dropped.position(&model, 0).x.abs() < 1e-6);
 //! // A state's snapshot names its model by fingerprint, and is refused on another.
 //! let bytes = thrown.to_snapshot(&model)?;
-//! assert_eq!(State::from_snapshot(&bytes, &model)?.v, thrown.v);
+//! assert_eq!(State::from_snapshot(&model, &bytes)?.v, thrown.v);
 //! # Ok::<(), kinema::Error>(())
 //! ```
 

@@ -7,7 +7,7 @@ use super::contact::Contact;
 use super::joint::SLOTS;
 use super::Model;
 use crate::error::{Error, Result};
-use crate::snapshot::{check, finite, Snapshot};
+use crate::snapshot::{check, finite, from_stamped, to_stamped, Stamped};
 use glam::{DQuat, DVec3};
 
 /// The time-varying part of a rigid world of `N` bodies (index = body id), all in the world
@@ -118,47 +118,28 @@ impl State {
     }
 }
 
-/// A state as stored by [`State::to_snapshot`]: the fingerprint of its model, and the state.
-#[derive(serde::Serialize, serde::Deserialize)]
-struct Stored {
-    model: u64,
-    state: State,
-}
-
-impl Snapshot for Stored {
+impl Stamped for State {
     const TAG: &'static str = "RigidState";
-
-    fn validate(&self) -> Result<()> {
-        self.state.validate_values()
-    }
 }
 
 impl State {
-    /// The state as bytes, with the fingerprint of `model` (see [`crate::snapshot`] for the
-    /// layout), for [`State::from_snapshot`] onto the same model.
+    /// The state as bytes, with the fingerprint of `model` ([`crate::snapshot::to_stamped`]),
+    /// for [`State::from_snapshot`] onto the same model.
     ///
     /// # Errors
     /// None in practice (a state holds nothing that cannot be stored).
     pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        Stored { model: model.fingerprint(), state: self.clone() }.to_snapshot()
+        to_stamped(self, model.fingerprint())
     }
 
-    /// The state stored by [`State::to_snapshot`], onto `model`.
+    /// The state stored by [`State::to_snapshot`], for `model`.
     ///
     /// # Errors
-    /// Bytes that are not a rigid state's snapshot of this version, damaged or inconsistent
-    /// (argument `"data"`); a snapshot taken of a model with another fingerprint (argument
-    /// `"model"`).
-    pub fn from_snapshot(data: &[u8], model: &Model) -> Result<State> {
-        let stored = Stored::from_snapshot(data)?;
-        if stored.model != model.fingerprint() {
-            return Err(Error::invalid(
-                "model",
-                "is not the model the state was saved with (its fingerprint differs)",
-            ));
-        }
-        stored.state.validate(model)?;
-        Ok(stored.state)
+    /// Bytes that are not a rigid state's snapshot of this version or are damaged (argument
+    /// `data`); a snapshot taken of a model with another fingerprint (argument `model`); a
+    /// state that does not fit `model` (argument `data`).
+    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
+        from_stamped(data, model.fingerprint(), |state: &State| state.validate(model))
     }
 
     /// Check a decoded state against `model`: its sizes, then its values.
