@@ -20,6 +20,7 @@ pub mod ode;
 pub mod particles;
 pub mod rigid;
 pub mod rotation;
+pub mod skin;
 pub mod snapshot;
 pub mod spline;
 
