@@ -8,7 +8,7 @@ emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`k
 (rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.fluid`
 (SPH fluids), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
-editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.scene` (scenes coupling them,
+editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.skin` (skinning), :mod:`kinema.scene` (scenes coupling them,
 checkpoints), :mod:`kinema.scenefile` (scenes from TOML), :mod:`kinema.sweep` (parameter sweeps on
 Dask), :mod:`kinema.plot` (pictures and animations), :mod:`kinema.demos` and the ``kinema`` command line (:mod:`kinema.cli`).
 
@@ -88,6 +88,7 @@ _SUBMODULES = frozenset(
         "rotation",
         "scene",
         "scenefile",
+        "skin",
         "sweep",
         "transform",
     }

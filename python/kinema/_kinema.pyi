@@ -506,10 +506,43 @@ class BvhSkeleton:
     def end_sites(self) -> list[list[float] | None]: ...
     @property
     def frame_time(self) -> float: ...
-    def forward_kinematics(self, motion: AmcMotion) -> tuple[_F64, _F64]: ...
+    @property
+    def stride(self) -> int: ...
+    def forward_kinematics(self, motion: AmcMotion | npt.ArrayLike) -> tuple[_F64, _F64]: ...
 
 def mocap_parse_bvh(text: str, file: str) -> tuple[BvhSkeleton, AmcMotion]: ...
 def mocap_write_bvh(skeleton: BvhSkeleton, motion: AmcMotion) -> str: ...
+
+# --- skin ---
+@final
+class Skin:
+    def __new__(
+        cls,
+        vertices: npt.ArrayLike,
+        k: int,
+        bones: npt.NDArray[np.uint32],
+        weights: npt.NDArray[np.float64],
+        origins: list[int],
+        bind_positions: npt.ArrayLike,
+        bind_orientations: npt.ArrayLike,
+    ) -> Skin: ...
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]: ...
+    @staticmethod
+    def _from_snapshot(data: bytes) -> Skin: ...
+    @property
+    def weights(self) -> _F64: ...
+    def deform(
+        self, positions: npt.ArrayLike, orientations: npt.ArrayLike, method: str
+    ) -> _F64: ...
+
+def skin_proximity_weights(
+    vertices: npt.ArrayLike,
+    segments: npt.ArrayLike,
+    owners: list[int],
+    bones: int,
+    k: int,
+    falloff: float,
+) -> tuple[npt.NDArray[np.uint32], _F64]: ...
 
 # --- ik ---
 @final

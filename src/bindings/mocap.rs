@@ -8,10 +8,8 @@ use crate::mocap::{
     Motion, Skeleton,
 };
 use crate::snapshot::Snapshot;
-use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArray3, PyArrayLike1, PyArrayMethods};
+use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArrayLike1, PyArrayMethods};
 use pyo3::prelude::*;
-
-type Array3<'py> = Bound<'py, PyArray3<f64>>;
 
 /// An Acclaim skeleton; see `kinema.mocap.read_asf`.
 #[pyclass(module = "kinema._kinema", name = "AsfSkeleton", frozen)]
@@ -34,6 +32,57 @@ pub(super) fn pose_values<'a>(
     arg: &str,
 ) -> PyResult<&'a [f64]> {
     pose.as_slice().map_err(|_| crate::Error::invalid(arg, "must be a contiguous 1-D array").into())
+}
+
+/// The motion `motion` is, or a one-frame motion of the pose (1-D values, `stride` of them)
+/// it holds, made in `one`; and whether it was a pose.
+fn motion_or_pose<'a, 'py>(
+    motion: &'a Bound<'py, PyAny>,
+    stride: usize,
+    one: &'a mut Option<Motion>,
+) -> PyResult<(&'a Motion, bool)> {
+    if let Ok(m) = motion.cast::<PyMotion>() {
+        return Ok((&m.get().motion, false));
+    }
+    let pose: PyArrayLike1<'py, f64, AllowTypeChange> = motion
+        .extract()
+        .map_err(|_| crate::Error::invalid("motion", "expected a motion or one pose (1-D values)"))?;
+    let values = pose_values(&pose, "motion")?;
+    if values.len() != stride {
+        return Err(crate::Error::invalid(
+            "motion",
+            format!("a pose needs {stride} values, got {}", values.len()),
+        )
+        .into());
+    }
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err(crate::Error::invalid("motion", "contains NaN or infinity").into());
+    }
+    let frame_rate = crate::mocap::CMU_FRAME_RATE;
+    Ok((one.insert(Motion { values: values.to_vec(), stride, frames: 1, frame_rate }), true))
+}
+
+/// Python's forward kinematics result: joint positions and orientations of `motion` (`j`
+/// joints) computed by `fk` with the GIL released, `(F, J, 3)` and `(F, J, 4)`, or `(J, 3)`
+/// and `(J, 4)` when the motion is a `single` pose.
+fn joint_frames<'py>(
+    py: Python<'py>,
+    motion: &Motion,
+    j: usize,
+    single: bool,
+    fk: impl FnOnce(&mut [[f64; 3]], &mut [[f64; 4]]) -> crate::Result<()> + Send,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let f = motion.frames;
+    let mut pos = vec![[0.0; 3]; f * j];
+    let mut ori = vec![[0.0; 4]; f * j];
+    super::error::detached(py, || fk(&mut pos, &mut ori))?;
+    let pos = PyArray1::from_vec(py, pos.into_flattened());
+    let ori = PyArray1::from_vec(py, ori.into_flattened());
+    if single {
+        Ok((pos.reshape([j, 3])?.into_any(), ori.reshape([j, 4])?.into_any()))
+    } else {
+        Ok((pos.reshape([f, j, 3])?.into_any(), ori.reshape([f, j, 4])?.into_any()))
+    }
 }
 
 /// A core error about `pose` as one about the Python argument `motion`.
@@ -151,44 +200,9 @@ impl PySkeleton {
         motion: &Bound<'py, PyAny>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
         let sk = &self.skeleton;
-        let j = 1 + sk.bones.len();
-        let one;
-        let (m, single) = if let Ok(m) = motion.cast::<PyMotion>() {
-            (&m.get().motion, false)
-        } else {
-            let pose: PyArrayLike1<'py, f64, AllowTypeChange> = motion.extract().map_err(|_| {
-                crate::Error::invalid("motion", "expected a motion or one pose (1-D values)")
-            })?;
-            let values = pose_values(&pose, "motion")?;
-            if values.len() != sk.stride() {
-                return Err(crate::Error::invalid(
-                    "motion",
-                    format!("a pose needs {} values, got {}", sk.stride(), values.len()),
-                )
-                .into());
-            }
-            if values.iter().any(|v| !v.is_finite()) {
-                return Err(crate::Error::invalid("motion", "contains NaN or infinity").into());
-            }
-            one = Motion {
-                values: values.to_vec(),
-                stride: sk.stride(),
-                frames: 1,
-                frame_rate: crate::mocap::CMU_FRAME_RATE,
-            };
-            (&one, true)
-        };
-        let f = m.frames;
-        let mut pos = vec![[0.0; 3]; f * j];
-        let mut ori = vec![[0.0; 4]; f * j];
-        super::error::detached(py, || sk.forward_kinematics(m, &mut pos, &mut ori))?;
-        let pos = PyArray1::from_vec(py, pos.into_flattened());
-        let ori = PyArray1::from_vec(py, ori.into_flattened());
-        if single {
-            Ok((pos.reshape([j, 3])?.into_any(), ori.reshape([j, 4])?.into_any()))
-        } else {
-            Ok((pos.reshape([f, j, 3])?.into_any(), ori.reshape([f, j, 4])?.into_any()))
-        }
+        let mut one = None;
+        let (m, single) = motion_or_pose(motion, sk.stride(), &mut one)?;
+        joint_frames(py, m, 1 + sk.bones.len(), single, |p, o| sk.forward_kinematics(m, p, o))
     }
 }
 
@@ -426,20 +440,23 @@ impl PyBvhSkeleton {
         self.skeleton.frame_time
     }
 
-    /// Positions (F, J, 3) in file units and orientations (F, J, 4) of every joint.
+    /// Values per pose (per frame): every joint's channels in file order.
+    #[getter]
+    fn stride(&self) -> usize {
+        self.skeleton.stride()
+    }
+
+    /// Positions (F, J, 3) in file units and orientations (F, J, 4) of every joint of a
+    /// motion; for one pose (values of one frame), (J, 3) and (J, 4).
     fn forward_kinematics<'py>(
         &self,
         py: Python<'py>,
-        motion: &PyMotion,
-    ) -> PyResult<(Array3<'py>, Array3<'py>)> {
-        let (f, j) = (motion.motion.frames, self.skeleton.joints.len());
-        let mut pos = vec![[0.0; 3]; f * j];
-        let mut ori = vec![[0.0; 4]; f * j];
+        motion: &Bound<'py, PyAny>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
         let sk = &self.skeleton;
-        super::error::detached(py, || sk.forward_kinematics(&motion.motion, &mut pos, &mut ori))?;
-        let pos = PyArray1::from_vec(py, pos.into_flattened()).reshape([f, j, 3])?;
-        let ori = PyArray1::from_vec(py, ori.into_flattened()).reshape([f, j, 4])?;
-        Ok((pos, ori))
+        let mut one = None;
+        let (m, single) = motion_or_pose(motion, sk.stride(), &mut one)?;
+        joint_frames(py, m, sk.joints.len(), single, |p, o| sk.forward_kinematics(m, p, o))
     }
 }
 

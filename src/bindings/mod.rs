@@ -20,6 +20,7 @@ mod particles;
 mod pickle;
 mod rigid;
 mod rotation;
+mod skin;
 mod view;
 
 /// Use `n` threads (1 to `MAX_THREADS` = 1024) in every parallel kernel from now on (any
@@ -78,5 +79,6 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     anim::register(m)?;
     mocap::register(m)?;
     ik::register(m)?;
+    skin::register(m)?;
     Ok(())
 }

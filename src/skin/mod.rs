@@ -19,6 +19,7 @@
 //! the positions given (metres in kinema, file units for motion capture).
 
 mod blend;
+mod snapshot;
 mod weights;
 
 pub use weights::proximity_weights;

@@ -1,0 +1,115 @@
+//! `kinema.skin`: skinning of a bind-pose surface by a skeleton's joint frames.
+
+use super::array::{compute, rows};
+use super::args::Int;
+use super::error::detached;
+use super::pickle::{reduce, Reduced};
+use crate::error::Error;
+use crate::skin::{proximity_weights, Method, Skin};
+use crate::snapshot::Snapshot;
+use numpy::{PyArray1, PyArrayDyn, PyReadonlyArray1, PyReadonlyArrayDyn};
+use pyo3::prelude::*;
+
+/// Vertices in a bind pose bound to a skeleton's bones; see `kinema.skin.Skin`.
+#[pyclass(module = "kinema._kinema", name = "Skin", frozen)]
+pub struct PySkin {
+    skin: Skin,
+}
+
+fn method(name: &str) -> PyResult<Method> {
+    match name {
+        "lbs" => Ok(Method::Linear),
+        "dqs" => Ok(Method::DualQuaternion),
+        _ => Err(Error::invalid("method", "must be \"dqs\" or \"lbs\"").into()),
+    }
+}
+
+#[pymethods]
+impl PySkin {
+    /// A skin of `vertices` (V, 3) with `k` influences per vertex, `bones` and `weights`
+    /// (V k values each, flat), bone `b` having its origin at joint `origins[b]`, bound at
+    /// the pose `bind_positions` (J, 3) and `bind_orientations` (J, 4).
+    #[new]
+    fn new(
+        py: Python<'_>,
+        vertices: PyReadonlyArrayDyn<'_, f64>,
+        k: Int,
+        bones: PyReadonlyArray1<'_, u32>,
+        weights: PyReadonlyArray1<'_, f64>,
+        origins: Vec<usize>,
+        bind_positions: PyReadonlyArrayDyn<'_, f64>,
+        bind_orientations: PyReadonlyArrayDyn<'_, f64>,
+    ) -> PyResult<Self> {
+        let rest = rows::<3>(&vertices, "vertices", &[3])?;
+        let k = k.range("influences", 1, 64)?;
+        let bones = bones.as_slice().map_err(|_| Error::invalid("bones", "must be contiguous"))?;
+        let weights =
+            weights.as_slice().map_err(|_| Error::invalid("weights", "must be contiguous"))?;
+        let p = rows::<3>(&bind_positions, "bind_positions", &[3])?;
+        let q = rows::<4>(&bind_orientations, "bind_orientations", &[4])?;
+        let skin = detached(py, || Skin::new(rest, k, bones, weights, &origins, p, q))?;
+        Ok(Self { skin })
+    }
+
+    /// Pickle support: the skin as a snapshot.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        reduce(slf, |s| &s.skin, vec![])
+    }
+
+    /// The skin stored by `__reduce__`, validated.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { skin: Skin::from_snapshot(data)? })
+    }
+
+    /// The normalised weights (V k values, flat).
+    #[getter]
+    fn weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, self.skin.weights())
+    }
+
+    /// The skinned vertices (P V, 3) of `P` poses given as joint `positions` (P J, 3) and
+    /// `orientations` (P J, 4), blended by `method` ("dqs" or "lbs").
+    fn deform<'py>(
+        &self,
+        py: Python<'py>,
+        positions: PyReadonlyArrayDyn<'py, f64>,
+        orientations: PyReadonlyArrayDyn<'py, f64>,
+        method: &str,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let m = self::method(method)?;
+        let p = rows::<3>(&positions, "positions", &[3])?;
+        let q = rows::<4>(&orientations, "orientations", &[4])?;
+        let poses = p.len() / self.skin.bones().max(1);
+        let skin = &self.skin;
+        compute(py, poses * skin.vertices(), &[3], |out| skin.deform(p, q, m, out))
+    }
+}
+
+/// The `k` nearest bones of every vertex (V, 3) and their weights by inverse distance to
+/// the power `falloff` to the bones' segments (S, 2, 3), segment `s` owned by bone
+/// `owners[s]` of `bones`: `(bones (V k,), weights (V k,))`.
+#[pyfunction]
+fn skin_proximity_weights<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArrayDyn<'py, f64>,
+    segments: PyReadonlyArrayDyn<'py, f64>,
+    owners: Vec<u32>,
+    bones: usize,
+    k: Int,
+    falloff: f64,
+) -> PyResult<(Bound<'py, PyArray1<u32>>, Bound<'py, PyArray1<f64>>)> {
+    let v = rows::<3>(&vertices, "vertices", &[3])?;
+    let s = rows::<6>(&segments, "segments", &[2, 3])?;
+    let k = k.range("influences", 1, 64)?;
+    let pairs: Vec<([f64; 3], [f64; 3])> =
+        s.iter().map(|r| ([r[0], r[1], r[2]], [r[3], r[4], r[5]])).collect();
+    let (b, w) = detached(py, || proximity_weights(v, &pairs, &owners, bones, k, falloff))?;
+    Ok((PyArray1::from_vec(py, b), PyArray1::from_vec(py, w)))
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySkin>()?;
+    m.add_function(wrap_pyfunction!(skin_proximity_weights, m)?)?;
+    Ok(())
+}
