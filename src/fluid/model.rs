@@ -1,9 +1,10 @@
 //! The fluid model: what every step reads and no step changes — the settings (spacing, rest
 //! density, kernel, viscosity, pressure solver and its tolerances, time-step limits, gravity),
 //! the particle mass and volume derived from them, and the walls with their boundary
-//! particles and Akinci volumes.
+//! particles and Akinci volumes, the emitters and the kill box.
 
 use super::boundary::{offset, volumes, Wall};
+use super::emitter::{validate_kill_box, Emitter};
 use super::Kernel;
 use crate::error::{Error, Result};
 use glam::DVec3;
@@ -170,6 +171,10 @@ pub struct Model {
     pub(super) boundary: Vec<DVec3>,
     /// Their Akinci volumes `V_b` (m³), one per boundary particle.
     pub(super) boundary_volume: Vec<f64>,
+    /// The emitters, in the order added.
+    pub(super) emitters: Vec<Emitter>,
+    /// The kill box `(lower, upper)` (m): particles outside it are removed.
+    pub(super) kill_box: Option<(DVec3, DVec3)>,
 }
 
 impl Model {
@@ -197,6 +202,8 @@ impl Model {
             walls: Vec::new(),
             boundary: Vec::new(),
             boundary_volume: Vec::new(),
+            emitters: Vec::new(),
+            kill_box: None,
         })
     }
 
@@ -258,6 +265,38 @@ impl Model {
         volumes(&boundary, self.settings.kernel, self.support, &mut self.boundary_volume);
         self.boundary = boundary;
         self.walls.push(wall);
+        Ok(())
+    }
+
+    /// The emitters, in the order added.
+    pub fn emitters(&self) -> &[Emitter] {
+        &self.emitters
+    }
+
+    /// Add an emitter (see the `emitter` module).
+    ///
+    /// # Errors
+    /// Non-finite values, a direction not unit, a speed not > 0, a radius under half a
+    /// spacing (each named).
+    pub fn add_emitter(&mut self, emitter: Emitter) -> Result<()> {
+        emitter.validate(self.settings.spacing)?;
+        self.emitters.push(emitter);
+        Ok(())
+    }
+
+    /// The kill box `(lower, upper)` (m), if any.
+    pub fn kill_box(&self) -> Option<(DVec3, DVec3)> {
+        self.kill_box
+    }
+
+    /// Remove every particle that is outside `[lower, upper]` (m) at the end of a substep
+    /// (replacing an earlier kill box).
+    ///
+    /// # Errors
+    /// Non-finite corners (`lower`), `lower` not below `upper` on every axis (`upper`).
+    pub fn set_kill_box(&mut self, lower: DVec3, upper: DVec3) -> Result<()> {
+        validate_kill_box(lower, upper)?;
+        self.kill_box = Some((lower, upper));
         Ok(())
     }
 

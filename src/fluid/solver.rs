@@ -22,7 +22,7 @@
 use super::grid::Grid;
 use super::model::{Model, Pressure};
 use super::{State, Stats};
-use crate::error::{Error, Result};
+use crate::error::{reserve, Error, Result};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -59,6 +59,10 @@ pub struct Solver {
     dv: Vec<DVec3>,
     /// PBF: the positions at the start of the substep (m).
     x0: Vec<DVec3>,
+    /// The stepped copy of the state's emitter distances (m).
+    emitted: Vec<f64>,
+    /// An emitter's new layer (m).
+    layer: Vec<DVec3>,
 }
 
 /// Which DFSPH solve.
@@ -75,12 +79,14 @@ impl Solver {
     }
 
     /// Advance `state` by `steps` frames of `dt` seconds, each in substeps of the CFL
-    /// condition (at most `max_dt`, at most `cfl` spacings per substep, and
+    /// condition (at most `max_dt`, at most `cfl` spacings per substep for the fastest
+    /// particle or emitter, and
     /// `dt ≤ sqrt(cfl spacing / |g|)`), frames split evenly into substeps.
     ///
     /// # Errors
     /// `dt` not finite and positive; a frame needing more than `max_substeps`
-    /// ([`Error::SolverFailed`]); a non-finite position or velocity ([`Error::Diverged`]).
+    /// ([`Error::SolverFailed`]); a non-finite position or velocity ([`Error::Diverged`]);
+    /// emitters making more particles than memory or the limit of 2³⁰ allow (`steps`).
     /// The state is then left as it was.
     pub fn step(
         &mut self,
@@ -97,24 +103,86 @@ impl Solver {
         self.v.clone_from(&state.velocities);
         self.pressure.clone_from(&state.pressure);
         self.divergence.clone_from(&state.divergence);
-        let n = state.len();
+        self.emitted.clone_from(&state.emitted);
+        self.emitted.resize(model.emitters.len(), model.settings.spacing);
+        for _ in 0..steps {
+            if state.len() > 0 || !model.emitters.is_empty() {
+                self.frame(model, dt, &mut stats)?;
+            }
+        }
+        let n = self.v.len();
+        for buffer in [&mut state.positions, &mut state.velocities] {
+            reserve("steps", buffer, n.saturating_sub(buffer.len()))?;
+        }
+        for buffer in [&mut state.pressure, &mut state.divergence] {
+            reserve("steps", buffer, n.saturating_sub(buffer.len()))?;
+        }
+        state.positions.clear();
+        state.positions.extend_from_slice(&self.points[..n]);
+        state.velocities.clone_from(&self.v);
+        state.pressure.clone_from(&self.pressure);
+        state.divergence.clone_from(&self.divergence);
+        state.emitted.clone_from(&self.emitted);
+        state.time += dt * steps as f64;
+        Ok(stats)
+    }
+
+    /// Emit the layers every emitter owes after a substep of `h` (s), then size the
+    /// per-particle buffers.
+    fn emit(&mut self, model: &Model, h: f64) -> Result<()> {
+        let s = model.settings.spacing;
+        for (e, moved) in model.emitters.iter().zip(&mut self.emitted) {
+            *moved += e.speed * h;
+            while *moved >= s {
+                *moved -= s;
+                let n = self.v.len();
+                self.layer.clear();
+                e.layer(s, *moved, &self.points[..n], &mut self.layer);
+                let k = self.layer.len();
+                if n + k >= u32::MAX as usize / 4 {
+                    return Err(Error::invalid("steps", "the emitters exceed 2^30 particles"));
+                }
+                self.points.truncate(n);
+                reserve("steps", &mut self.points, k)?;
+                reserve("steps", &mut self.v, k)?;
+                reserve("steps", &mut self.pressure, k)?;
+                reserve("steps", &mut self.divergence, k)?;
+                self.points.extend_from_slice(&self.layer);
+                self.v.resize(n + k, e.direction * e.speed);
+                self.pressure.resize(n + k, 0.0);
+                self.divergence.resize(n + k, 0.0);
+            }
+        }
+        let n = self.v.len();
+        self.points.truncate(n);
         for buffer in
             [&mut self.density, &mut self.alpha, &mut self.residual, &mut self.k, &mut self.total]
         {
             buffer.resize(n, 0.0);
         }
         self.dv.resize(n, DVec3::ZERO);
-        for _ in 0..steps {
-            if n > 0 {
-                self.frame(model, dt, &mut stats)?;
+        Ok(())
+    }
+
+    /// Remove the particles outside the kill box, keeping the others' order.
+    fn kill(&mut self, model: &Model) {
+        let Some((lower, upper)) = model.kill_box else { return };
+        let n = self.v.len();
+        let mut kept = 0;
+        for i in 0..n {
+            let x = self.points[i];
+            if x.cmpge(lower).all() && x.cmple(upper).all() {
+                self.points[kept] = x;
+                self.v[kept] = self.v[i];
+                self.pressure[kept] = self.pressure[i];
+                self.divergence[kept] = self.divergence[i];
+                kept += 1;
             }
         }
-        state.positions.copy_from_slice(&self.points[..n]);
-        state.velocities.clone_from(&self.v);
-        state.pressure.clone_from(&self.pressure);
-        state.divergence.clone_from(&self.divergence);
-        state.time += dt * steps as f64;
-        Ok(stats)
+        self.points.truncate(kept);
+        self.v.truncate(kept);
+        self.pressure.truncate(kept);
+        self.divergence.truncate(kept);
     }
 
     /// One frame of `dt` in CFL substeps.
@@ -142,7 +210,8 @@ impl Solver {
     /// The longest substep the CFL condition allows now (s).
     fn substep_limit(&self, model: &Model) -> f64 {
         let s = &model.settings;
-        let mut speed = self.v.iter().map(|v| v.length()).fold(0.0, f64::max);
+        let emitted = model.emitters.iter().map(|e| e.speed);
+        let mut speed = self.v.iter().map(|v| v.length()).chain(emitted).fold(0.0, f64::max);
         if let Pressure::Wcsph { sound_speed } = s.pressure {
             speed += sound_speed;
         }
@@ -159,7 +228,12 @@ impl Solver {
 
     /// One substep of length `h` (s).
     fn substep(&mut self, model: &Model, h: f64, stats: &mut Stats) -> Result<()> {
+        self.emit(model, h)?;
         let n = self.v.len();
+        stats.substeps += 1;
+        if n == 0 {
+            return Ok(());
+        }
         let gravity = model.settings.gravity * h;
         match model.settings.pressure {
             Pressure::Dfsph { max_iterations, divergence_tolerance, density_tolerance } => {
@@ -200,8 +274,8 @@ impl Solver {
                 self.advect(model, h);
             }
         }
-        stats.substeps += 1;
         let bad = (0..n).find(|&i| !(self.points[i].is_finite() && self.v[i].is_finite()));
+        self.kill(model);
         match bad {
             Some(index) => Err(Error::Diverged {
                 step: stats.substeps - 1,
