@@ -106,7 +106,7 @@ impl Solver {
         self.emitted.clone_from(&state.emitted);
         self.emitted.resize(model.emitters.len(), model.settings.spacing);
         for _ in 0..steps {
-            if state.len() > 0 || !model.emitters.is_empty() {
+            if !state.is_empty() || !model.emitters.is_empty() {
                 self.frame(model, dt, &mut stats)?;
             }
         }
