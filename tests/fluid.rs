@@ -85,9 +85,27 @@ fn column_at_rest_keeps_its_height_and_hydrostatic_pressure() {
         / pts.iter().map(|q| (q.0 - my) * (q.0 - my)).sum::<f64>();
     let surface = my + mp / -slope;
     eprintln!("dp/dy = {slope} Pa/m (rho g = 9810), zero pressure at y = {surface} (surface {h0})");
-    // Measured: 1.20 ρ g here (1.18 in a slab 10 particles thick), so the pressure variable
-    // is not yet the physical pressure to better than 20 % (see docs/fluid.md).
+    // The discrete gradient `Σ_j V (p_j - p_i) ∇W_ij` of a field of slope `b` is `N b`, with
+    // `N = Σ_j V (y_j - y_i) ∂W_ij/∂y_i` over the fluid neighbours: 1.02 on the cubic
+    // lattice, but the settled column's particles are arranged otherwise and the slab's walls
+    // take neighbours away (measured mean over the fitted particles: 0.84). Hydrostatic
+    // balance is `N dp/dy = -ρ g`: the measured slope is 1.20 ρ g, and `N` times it is ρ g
+    // within 2 % (measured 1.2 %).
+    let kernel = fluid.model().settings().kernel;
+    let (vol, sup) = (fluid.model().particle_mass() / 1000.0, fluid.model().support());
+    let xs = fluid.state().positions();
+    let inside: Vec<&DVec3> = xs.iter().filter(|x| x.y > 3.0 * s && x.y < h0 - 3.0 * s).collect();
+    let norm = inside
+        .iter()
+        .map(|&&xi| {
+            let near = xs.iter().filter(|&&xj| xj != xi && (xi - xj).length() < sup);
+            near.map(|&xj| vol * (xj - xi).y * kernel.gradient(xi - xj, sup).y).sum::<f64>()
+        })
+        .sum::<f64>()
+        / inside.len() as f64;
+    eprintln!("gradient normalisation N = {norm}, N dp/dy = {} rho g", norm * slope / 9810.0);
     assert!((slope / -9810.0 - 1.0).abs() < 0.25, "{slope}");
+    assert!((norm * slope / 9810.0 + 1.0).abs() < 0.02, "{norm} {slope}");
     assert!((surface - h0).abs() < 2.0 * s, "{surface}");
     // The surface particles still jitter (measured: 0.27 m/s at most after 1.5 s).
     let vmax = fluid.state().velocities().iter().map(|v| v.length()).fold(0.0, f64::max);
@@ -129,7 +147,8 @@ fn front_at(history: &[(f64, f64)], t: f64) -> f64 {
 #[test]
 fn dam_break_front_follows_martin_and_moyce() {
     // Measured at L/10, 4 layers: +12 %, +18 %, +16 %, +13 % (ahead of the experiment, as
-    // most simulations without the gate's opening are); the 5 % is not met yet.
+    // inviscid simulations without the gate's opening and the walls' friction are; see
+    // docs/fluid.md); the 5 % is not met.
     let history = dam_break(10.0, 4.0);
     for (t, z) in MARTIN_MOYCE {
         let got = front_at(&history, t);
@@ -139,7 +158,9 @@ fn dam_break_front_follows_martin_and_moyce() {
 }
 
 /// The same at `L/20` (8 layers): too slow for the default run (`cargo test --release
-/// --test fluid -- --ignored`); prints the comparison.
+/// --test fluid -- --ignored`); prints the comparison. Measured (optimised test build, the
+/// same set-up): +15.3 %, +19.5 %, +18.1 %, +14.9 %: refining moves the front further
+/// ahead, not towards the experiment (docs/fluid.md).
 #[test]
 #[ignore]
 fn dam_break_finer() {
@@ -320,16 +341,31 @@ fn extremes_overlapping_blocks_and_a_drop_from_ten_metres() {
     let mut drop = Fluid::new(Settings::new(0.04)).unwrap();
     tank(&mut drop, [0.0; 3], [0.4, 10.6, 0.16]);
     drop.add_block(DVec3::new(0.1, 10.0, 0.0), DVec3::new(0.3, 10.4, 0.16), DVec3::ZERO).unwrap();
-    let mut vmax: f64 = 0.0;
+    // Mechanical energy per unit mass (J/kg): kinetic plus potential.
+    let energy = |f: &Fluid| {
+        let (x, v) = (f.state().positions(), f.state().velocities());
+        let sum: f64 = x.iter().zip(v).map(|(x, v)| 0.5 * v.length_squared() + 9.81 * x.y).sum();
+        sum / x.len() as f64
+    };
+    let e0 = energy(&drop);
+    let (mut vmax, mut gain): (f64, f64) = (0.0, f64::NEG_INFINITY);
     for _ in 0..100 {
         drop.step(1.0 / 60.0, 1).unwrap();
         let v = drop.state().velocities().iter().map(|v| v.length()).fold(0.0, f64::max);
         vmax = vmax.max(v);
+        gain = gain.max(energy(&drop) - e0);
     }
     assert!(all_finite(&drop));
-    // Lands at 14 m/s; the impact splashes some particles up faster (measured: 27 m/s at
-    // most, an energy gain of the impact still to be investigated).
+    // Lands at 14 m/s; the impact throws a few particles up faster (measured: 27 m/s at
+    // most, a splash sheet), but the fluid's energy never grows (measured: never above its
+    // start, to 1e-4 J/kg of 100 J/kg; after the impact it has lost most of it).
+    eprintln!(
+        "drop: fastest {vmax} m/s, largest energy gain {gain} J/kg, finally {}",
+        energy(&drop) - e0
+    );
     assert!(vmax > 13.0 && vmax < 50.0, "{vmax}");
+    assert!(gain < 1e-3 * e0, "{gain}");
+    assert!(energy(&drop) - e0 < -0.5 * e0);
     let inside =
         |p: &DVec3| p.cmpge(DVec3::ZERO).all() && p.cmple(DVec3::new(0.4, 10.6, 0.16)).all();
     assert!(drop.state().positions().iter().all(inside));

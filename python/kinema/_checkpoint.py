@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from kinema import _kinema, anim, cloth, particles, rigid
+from kinema import _kinema, anim, cloth, fluid, particles, rigid
 from kinema.constraints import ConstrainedSystem
 from kinema.rotation import Rotation
 from kinema.scene import FORMAT_VERSION, AnimatedSphere, Character, CheckpointError, Scene, _Entry
@@ -57,6 +57,7 @@ _NATIVES: dict[str, Any] = {
         _kinema.Constrained,
         _kinema.ClothCore,
         _kinema.RigidWorld,
+        _kinema.Fluid,
         _kinema.KeyTrack,
         _kinema.AsfSkeleton,
         _kinema.AmcMotion,
@@ -121,6 +122,7 @@ _SCHEMAS: dict[str, _Schema] = {
         ),
         _Schema(cloth.Cloth, {"_core": _kinema.ClothCore, "model": str}),
         _Schema(rigid.World, {"_world": _kinema.RigidWorld, "_shapes": list}),
+        _Schema(fluid.Fluid, {"_f": _kinema.Fluid}),
         _Schema(rigid.Sphere, {"radius": _Number}),
         _Schema(rigid.Box, {"half_extents": object}),
         _Schema(rigid.Capsule, {"radius": _Number, "height": _Number}),
@@ -481,7 +483,7 @@ def _check_scene(scene: Scene) -> None:
 def _check_entry(e: Any, where: str) -> None:
     _need(isinstance(e, _Entry), f"{where}: a {type(e).__name__}")
     obj = e.obj
-    kinds = (particles.ParticleSystem, ConstrainedSystem, cloth.Cloth, rigid.World)
+    kinds = (particles.ParticleSystem, ConstrainedSystem, cloth.Cloth, rigid.World, fluid.Fluid)
     _need(isinstance(obj, kinds), f"{where}: a {type(obj).__name__}")
     _need(
         e.receives == isinstance(obj, (cloth.Cloth, particles.ParticleSystem)),

@@ -1,12 +1,14 @@
-"""Particle fluids by SPH: DFSPH (Bender & Koschier 2015, 2017) or WCSPH (Becker & Teschner
-2007), walls sampled as boundary particles (Akinci et al. 2012), XSPH viscosity, CFL
-substeps.
+"""Particle fluids by SPH: DFSPH (Bender & Koschier 2015, 2017), PBF (Macklin & Müller
+2013) or WCSPH (Becker & Teschner 2007), walls sampled as boundary particles (Akinci et al.
+2012), XSPH viscosity, CFL substeps, emitters and a kill box.
 
 Build a :class:`Fluid`, add tanks (:meth:`Fluid.add_boundary_box`) or floors
-(:meth:`Fluid.add_boundary_plane`) and fluid (:meth:`Fluid.add_block`), then ``step`` it by
-frames: each frame is split into substeps of the CFL condition. ``positions`` and
-``velocities`` are read-only numpy views of the Rust state, updated in place (no copy); once
-one was taken no more blocks can be added (the views must stay valid). See docs/fluid.md.
+(:meth:`Fluid.add_boundary_plane`), fluid (:meth:`Fluid.add_block`) and nozzles
+(:meth:`Fluid.add_emitter`), then ``step`` it by frames: each frame is split into substeps
+of the CFL condition. ``positions`` and ``velocities`` are read-only numpy views of the Rust
+state, updated in place (no copy); once one was taken no more blocks, emitters or kill box
+can be added (the views must stay valid). With emitters or a kill box the particle count
+changes, and they are copies instead. See docs/fluid.md.
 """
 
 from __future__ import annotations
@@ -28,8 +30,10 @@ class Fluid:
     which a substep moves a velocity towards its neighbours' mean); ``solver`` ``"dfsph"``
     (stops when the mean density error is below ``density_tolerance`` percent and the
     divergence error below ``divergence_tolerance`` percent, at most ``max_iterations``
-    iterations per solve) or ``"wcsph"`` (Tait equation with speed of sound
-    ``sound_speed`` m/s); ``kernel`` ``"cubic"`` or ``"wendland"``. Substeps move no particle
+    iterations per solve), ``"pbf"`` (position-based fluids: iterations until the mean
+    density error is below ``density_tolerance`` percent, at most ``max_iterations``, with
+    the tensile-instability term of strength ``tensile`` in [0, 1]) or ``"wcsph"`` (Tait
+    equation with speed of sound ``sound_speed`` m/s); ``kernel`` ``"cubic"`` or ``"wendland"``. Substeps move no particle
     more than ``cfl`` spacings and last at most ``max_dt`` s; a frame needing more than
     ``max_substeps`` fails with :class:`kinema.SimulationError` (the fluid unchanged).
     """
@@ -46,13 +50,14 @@ class Fluid:
         divergence_tolerance: float = 0.1,
         max_iterations: int = 100,
         sound_speed: float = 30.0,
+        tensile: float = 0.1,
         cfl: float = 0.4,
         max_dt: float = 0.005,
         max_substeps: int = 10_000,
         gravity: Any = (0.0, -9.81, 0.0),
     ) -> None:
         if not isinstance(solver, str):
-            raise TypeError("solver: expected 'dfsph' or 'wcsph'")
+            raise TypeError("solver: expected 'dfsph', 'pbf' or 'wcsph'")
         if not isinstance(kernel, str):
             raise TypeError("kernel: expected 'cubic' or 'wendland'")
         self._f = _kinema.Fluid(
@@ -65,6 +70,7 @@ class Fluid:
             real(divergence_tolerance, "divergence_tolerance"),
             max_iterations,
             real(sound_speed, "sound_speed"),
+            real(tensile, "tensile"),
             real(cfl, "cfl"),
             real(max_dt, "max_dt"),
             max_substeps,
@@ -94,6 +100,28 @@ class Fluid:
             as_vector3(point, "point"), (n / length).tolist(), real(half_extent, "half_extent")
         )
 
+    def add_emitter(self, position: Any, direction: Any, speed: float, radius: float) -> None:
+        """Add a nozzle: a disc of ``radius`` (m, at least half a spacing) about ``position``
+        (m) facing ``direction`` (made unit), emitting fluid at ``speed`` (m/s) in layers on
+        the lattice of the spacing, one each time the fluid has moved a spacing: the mass
+        flow is ``rest_density * A * speed`` with ``A`` about ``pi radius**2`` (the lattice's
+        share of the disc). Points with fluid closer than half a spacing are skipped."""
+        d = np.asarray(as_vector3(direction, "direction"))
+        length = float(np.linalg.norm(d))
+        if not length > 0.0:
+            raise ValueError("direction: must be a non-zero vector")
+        self._f.add_emitter(
+            as_vector3(position, "position"),
+            (d / length).tolist(),
+            real(speed, "speed"),
+            real(radius, "radius"),
+        )
+
+    def kill_box(self, lower: Any, upper: Any) -> None:
+        """Remove every particle that is outside the box ``[lower, upper]`` (m) at the end of
+        a substep (replacing an earlier kill box)."""
+        self._f.kill_box(as_vector3(lower, "lower"), as_vector3(upper, "upper"))
+
     def step(self, dt: float, steps: int = 1) -> None:
         """Advance ``steps`` frames of ``dt`` seconds, each in CFL substeps (a frame ten
         times the CFL limit takes ten substeps or more)."""
@@ -104,12 +132,14 @@ class Fluid:
 
     @property
     def positions(self) -> np.ndarray:
-        """Read-only view ``(N, 3)`` of the positions (m)."""
+        """Read-only view ``(N, 3)`` of the positions (m); a copy with emitters or a kill
+        box."""
         return self._f.positions
 
     @property
     def velocities(self) -> np.ndarray:
-        """Read-only view ``(N, 3)`` of the velocities (m/s)."""
+        """Read-only view ``(N, 3)`` of the velocities (m/s); a copy with emitters or a kill
+        box."""
         return self._f.velocities
 
     @property

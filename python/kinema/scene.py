@@ -1,7 +1,7 @@
 """Scenes: one clock for any mix of systems, with coupling, recording, checkpoints.
 
 A :class:`Scene` steps what was added to it (particle systems, constrained particles, cloth,
-rigid worlds) with one clock: every frame of ``dt`` seconds is ``substeps`` steps of
+rigid worlds, fluids) with one clock: every frame of ``dt`` seconds is ``substeps`` steps of
 ``dt / substeps``. Kinematic objects (an :class:`AnimatedSphere` on a keyframed path, a
 motion-captured :class:`Character` whose bones are capsules) and the spheres, capsules and boxes of
 rigid worlds are colliders for every cloth and particle system in the scene (one-way: cloth and
@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from kinema import cloth as _cloth
+from kinema import fluid as _fluid
 from kinema import ode as _ode
 from kinema import particles as _particles
 from kinema import rigid as _rigid
@@ -213,7 +214,8 @@ class Scene:
         """Add a system or a kinematic object and return it.
 
         Systems: :class:`kinema.particles.ParticleSystem`, :class:`kinema.cloth.Cloth`,
-        :class:`kinema.rigid.World`, :class:`kinema.constraints.ConstrainedSystem` (which steps
+        :class:`kinema.rigid.World`, :class:`kinema.fluid.Fluid` (its walls only, no
+        colliders yet), :class:`kinema.constraints.ConstrainedSystem` (which steps
         its particles: do not add those too). ``options`` are passed to the system's ``step``
         every step, e.g. ``method="rk4"`` or ``integrator="bdf2", solver="cholesky"``.
         Kinematic objects: :class:`AnimatedSphere`, :class:`Character` (no options)."""
@@ -233,9 +235,9 @@ class Scene:
                 for e in self._entries
             ):
                 raise ValueError("item: it is stepped by a constrained system in the scene")
-        elif not isinstance(item, (_cloth.Cloth, _rigid.World)):
+        elif not isinstance(item, (_cloth.Cloth, _rigid.World, _fluid.Fluid)):
             raise ValueError(
-                "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, "
+                "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, Fluid, "
                 f"AnimatedSphere or Character, got {type(item).__name__}"
             )
         self._entries.append(_Entry(item, dict(options)))
@@ -577,6 +579,8 @@ def _checkpoint(entry: _Entry) -> Callable[[], None]:
         cores = [obj._core]
     elif isinstance(obj, _particles.ParticleSystem):
         cores = [obj._sys]
+    elif isinstance(obj, _fluid.Fluid):
+        cores = [obj._f]
     else:
         cores = [obj._world]
     for core in cores:

@@ -7,7 +7,7 @@ use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::error::Error;
-use crate::fluid::{Fluid as Core, Kernel, Pressure, Settings, Wall};
+use crate::fluid::{Emitter, Fluid as Core, Kernel, Pressure, Settings, State, Stats, Wall};
 use crate::snapshot::Snapshot;
 use glam::DVec3;
 use numpy::PyArrayDyn;
@@ -19,8 +19,51 @@ use pyo3::types::PyDict;
 pub struct Fluid {
     fluid: Core,
     /// Whether a view of the positions or velocities was handed out: their buffers must then
-    /// never be reallocated, so no block may be added.
+    /// never be reallocated, so no block, emitter or kill box may be added.
     viewed: bool,
+    /// The scene's undo point (`_mark`).
+    saved: Option<(State, Stats)>,
+}
+
+impl Fluid {
+    fn wrap(fluid: Core) -> Self {
+        Fluid { fluid, viewed: false, saved: None }
+    }
+
+    /// Whether the particle count can change in a step (then positions and velocities are
+    /// copies, not views).
+    fn varying(&self) -> bool {
+        let model = self.fluid.model();
+        !model.emitters().is_empty() || model.kill_box().is_some()
+    }
+
+    fn refuse_if_viewed(&self, arg: &str, what: &str) -> PyResult<()> {
+        if self.viewed {
+            let why = format!(
+                "add {what} before reading positions or velocities (their views must stay valid)"
+            );
+            return Err(Error::invalid(arg, why).into());
+        }
+        Ok(())
+    }
+
+    fn rows<'py>(
+        slf: &Bound<'py, Self>,
+        pick: fn(&State) -> &[DVec3],
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let this = slf.borrow();
+        let n = this.fluid.state().len();
+        if this.varying() {
+            let rows = pick(this.fluid.state());
+            return compute::<3>(slf.py(), n, &[3], |out| {
+                out.iter_mut().zip(rows).for_each(|(o, p)| *o = p.to_array());
+                Ok(())
+            });
+        }
+        drop(this);
+        slf.borrow_mut().viewed = true;
+        view(slf, &[n, 3], move |f| bytemuck::cast_slice(pick(f.fluid.state())))
+    }
 }
 
 fn v3(p: [f64; 3]) -> DVec3 {
@@ -44,13 +87,31 @@ impl Fluid {
     /// The object stored by `__reduce__`.
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { fluid: Core::from_snapshot(data)?, viewed: false })
+        Ok(Self::wrap(Core::from_snapshot(data)?))
+    }
+
+    /// Remember the state and stats as they are now (a scene's undo point before a frame; no
+    /// allocation after the first time).
+    fn _mark(&mut self) {
+        let fluid = &self.fluid;
+        let saved = self.saved.get_or_insert_with(|| (fluid.state().clone(), fluid.stats));
+        saved.0.clone_from(fluid.state());
+        saved.1 = fluid.stats;
+    }
+
+    /// Put the state and stats back as they were at the last `_mark`, in place (views of the
+    /// state stay valid: their particle count cannot change).
+    fn _rollback(&mut self) {
+        if let Some((state, stats)) = &self.saved {
+            self.fluid.state_mut().clone_from(state);
+            self.fluid.stats = *stats;
+        }
     }
 
     /// An empty fluid: `spacing` (m), `rest_density` (kg/m³), `kernel` ("cubic" or
-    /// "wendland"), XSPH `viscosity`, `solver` ("dfsph" or "wcsph") with its tolerances (%)
-    /// and iteration cap, or `sound_speed` (m/s); `cfl`, `max_dt` (s), `max_substeps`,
-    /// `gravity` (m/s²).
+    /// "wendland"), XSPH `viscosity`, `solver` ("dfsph", "pbf" or "wcsph") with its
+    /// tolerances (%) and iteration cap, PBF's `tensile` `k`, or `sound_speed` (m/s); `cfl`,
+    /// `max_dt` (s), `max_substeps`, `gravity` (m/s²).
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -63,6 +124,7 @@ impl Fluid {
         divergence_tolerance: f64,
         max_iterations: Int,
         sound_speed: f64,
+        tensile: f64,
         cfl: f64,
         max_dt: f64,
         max_substeps: Int,
@@ -79,8 +141,13 @@ impl Fluid {
                 divergence_tolerance,
                 max_iterations: max_iterations.range("max_iterations", 1, MAX_ITERATIONS)?,
             },
+            "pbf" => Pressure::Pbf {
+                density_tolerance,
+                max_iterations: max_iterations.range("max_iterations", 1, MAX_ITERATIONS)?,
+                tensile,
+            },
             "wcsph" => Pressure::Wcsph { sound_speed },
-            _ => return Err(Error::invalid("solver", "expected 'dfsph' or 'wcsph'").into()),
+            _ => return Err(Error::invalid("solver", "expected 'dfsph', 'pbf' or 'wcsph'").into()),
         };
         let settings = Settings {
             spacing,
@@ -93,7 +160,7 @@ impl Fluid {
             max_substeps: max_substeps.range("max_substeps", 1, MAX_ITERATIONS)?,
             gravity: v3(gravity),
         };
-        Ok(Fluid { fluid: Core::new(settings)?, viewed: false })
+        Ok(Self::wrap(Core::new(settings)?))
     }
 
     /// Fill the box `[lower, upper]` (m) with fluid moving at `velocity` (m/s); returns the
@@ -104,14 +171,28 @@ impl Fluid {
         upper: [f64; 3],
         velocity: [f64; 3],
     ) -> PyResult<usize> {
-        if self.viewed {
-            return Err(Error::invalid(
-                "lower",
-                "add blocks before reading positions or velocities (their views must stay valid)",
-            )
-            .into());
-        }
+        self.refuse_if_viewed("lower", "blocks")?;
         Ok(self.fluid.add_block(v3(lower), v3(upper), v3(velocity))?)
+    }
+
+    /// Add a nozzle: a disc of `radius` (m) about `position` (m) facing the unit `direction`,
+    /// emitting fluid at `speed` (m/s).
+    fn add_emitter(
+        &mut self,
+        position: [f64; 3],
+        direction: [f64; 3],
+        speed: f64,
+        radius: f64,
+    ) -> PyResult<()> {
+        self.refuse_if_viewed("position", "emitters")?;
+        let emitter = Emitter { position: v3(position), direction: v3(direction), speed, radius };
+        Ok(self.fluid.add_emitter(emitter)?)
+    }
+
+    /// Remove every particle that leaves the box `[lower, upper]` (m).
+    fn kill_box(&mut self, lower: [f64; 3], upper: [f64; 3]) -> PyResult<()> {
+        self.refuse_if_viewed("lower", "a kill box")?;
+        Ok(self.fluid.kill_box(v3(lower), v3(upper))?)
     }
 
     /// Add a closed tank: the inside of the box `[lower, upper]` (m).
@@ -142,20 +223,18 @@ impl Fluid {
         self.fluid.state().len()
     }
 
-    /// Read-only view (N, 3) of the positions (m), updated in place by `step`.
+    /// Read-only view (N, 3) of the positions (m), updated in place by `step`; a copy if
+    /// emitters or a kill box change the particle count.
     #[getter]
     fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        slf.borrow_mut().viewed = true;
-        let n = slf.borrow().fluid.state().len();
-        view(slf, &[n, 3], |f| bytemuck::cast_slice(f.fluid.state().positions()))
+        Self::rows(slf, State::positions)
     }
 
-    /// Read-only view (N, 3) of the velocities (m/s), updated in place by `step`.
+    /// Read-only view (N, 3) of the velocities (m/s), updated in place by `step`; a copy if
+    /// emitters or a kill box change the particle count.
     #[getter]
     fn velocities<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        slf.borrow_mut().viewed = true;
-        let n = slf.borrow().fluid.state().len();
-        view(slf, &[n, 3], |f| bytemuck::cast_slice(f.fluid.state().velocities()))
+        Self::rows(slf, State::velocities)
     }
 
     /// Densities (N,) in kg/m³ of the particles as they are now (a new array).

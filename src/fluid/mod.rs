@@ -20,6 +20,7 @@
 //! one solver can advance several states. [`Fluid`] is the three together.
 
 mod boundary;
+mod emitter;
 mod grid;
 mod kernel;
 mod model;
@@ -28,6 +29,7 @@ mod solver;
 mod state;
 
 pub use boundary::Wall;
+pub use emitter::Emitter;
 pub use kernel::Kernel;
 pub use model::{Model, Pressure, Settings};
 pub use solver::Solver;
@@ -126,6 +128,25 @@ impl Fluid {
     /// Those of [`State::add_block`].
     pub fn add_block(&mut self, lower: DVec3, upper: DVec3, velocity: DVec3) -> Result<usize> {
         self.state.add_block(&self.model, lower, upper, velocity)
+    }
+
+    /// Add an emitter ([`Model::add_emitter`]); its first layer comes out in the next
+    /// substep.
+    ///
+    /// # Errors
+    /// Those of [`Model::add_emitter`]; the fluid is then unchanged.
+    pub fn add_emitter(&mut self, emitter: Emitter) -> Result<()> {
+        self.model.add_emitter(emitter)?;
+        self.state.emitted.push(self.model.settings.spacing);
+        Ok(())
+    }
+
+    /// Set the kill box ([`Model::set_kill_box`]).
+    ///
+    /// # Errors
+    /// Those of [`Model::set_kill_box`]; the fluid is then unchanged.
+    pub fn kill_box(&mut self, lower: DVec3, upper: DVec3) -> Result<()> {
+        self.model.set_kill_box(lower, upper)
     }
 
     /// Advance `steps` frames of `dt` seconds ([`Solver::step`]); `stats` then describes

@@ -30,6 +30,12 @@ impl Model {
             "boundary",
             || "non-finite boundary particle or volume".into(),
         )?;
+        for e in &self.emitters {
+            e.validate(self.settings.spacing)?;
+        }
+        if let Some((lower, upper)) = self.kill_box {
+            super::emitter::validate_kill_box(lower, upper)?;
+        }
         check(self.boundary.len() < u32::MAX as usize / 2, "boundary", || "too large".into())
     }
 }
@@ -62,6 +68,8 @@ impl Snapshot for Fluid {
 
     fn validate(&self) -> Result<()> {
         self.model.validate()?;
-        self.state.validate()
+        self.state.validate()?;
+        let (have, want) = (self.state.emitted.len(), self.model.emitters.len());
+        check(have == want, "emitted", || format!("{have} entries for {want} emitters"))
     }
 }

@@ -22,7 +22,7 @@
 use super::grid::Grid;
 use super::model::{Model, Pressure};
 use super::{State, Stats};
-use crate::error::{Error, Result};
+use crate::error::{reserve, Error, Result};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -55,8 +55,14 @@ pub struct Solver {
     k: Vec<f64>,
     /// The pressure accumulated by the current solve (m²/s²).
     total: Vec<f64>,
-    /// Velocity change scratch (m/s).
+    /// Velocity change scratch (m/s); PBF's position corrections (m).
     dv: Vec<DVec3>,
+    /// PBF: the positions at the start of the substep (m).
+    x0: Vec<DVec3>,
+    /// The stepped copy of the state's emitter distances (m).
+    emitted: Vec<f64>,
+    /// An emitter's new layer (m).
+    layer: Vec<DVec3>,
 }
 
 /// Which DFSPH solve.
@@ -73,12 +79,14 @@ impl Solver {
     }
 
     /// Advance `state` by `steps` frames of `dt` seconds, each in substeps of the CFL
-    /// condition (at most `max_dt`, at most `cfl` spacings per substep, and
+    /// condition (at most `max_dt`, at most `cfl` spacings per substep for the fastest
+    /// particle or emitter, and
     /// `dt ≤ sqrt(cfl spacing / |g|)`), frames split evenly into substeps.
     ///
     /// # Errors
     /// `dt` not finite and positive; a frame needing more than `max_substeps`
-    /// ([`Error::SolverFailed`]); a non-finite position or velocity ([`Error::Diverged`]).
+    /// ([`Error::SolverFailed`]); a non-finite position or velocity ([`Error::Diverged`]);
+    /// emitters making more particles than memory or the limit of 2³⁰ allow (`steps`).
     /// The state is then left as it was.
     pub fn step(
         &mut self,
@@ -95,24 +103,86 @@ impl Solver {
         self.v.clone_from(&state.velocities);
         self.pressure.clone_from(&state.pressure);
         self.divergence.clone_from(&state.divergence);
-        let n = state.len();
+        self.emitted.clone_from(&state.emitted);
+        self.emitted.resize(model.emitters.len(), model.settings.spacing);
+        for _ in 0..steps {
+            if !state.is_empty() || !model.emitters.is_empty() {
+                self.frame(model, dt, &mut stats)?;
+            }
+        }
+        let n = self.v.len();
+        for buffer in [&mut state.positions, &mut state.velocities] {
+            reserve("steps", buffer, n.saturating_sub(buffer.len()))?;
+        }
+        for buffer in [&mut state.pressure, &mut state.divergence] {
+            reserve("steps", buffer, n.saturating_sub(buffer.len()))?;
+        }
+        state.positions.clear();
+        state.positions.extend_from_slice(&self.points[..n]);
+        state.velocities.clone_from(&self.v);
+        state.pressure.clone_from(&self.pressure);
+        state.divergence.clone_from(&self.divergence);
+        state.emitted.clone_from(&self.emitted);
+        state.time += dt * steps as f64;
+        Ok(stats)
+    }
+
+    /// Emit the layers every emitter owes after a substep of `h` (s), then size the
+    /// per-particle buffers.
+    fn emit(&mut self, model: &Model, h: f64) -> Result<()> {
+        let s = model.settings.spacing;
+        for (e, moved) in model.emitters.iter().zip(&mut self.emitted) {
+            *moved += e.speed * h;
+            while *moved >= s {
+                *moved -= s;
+                let n = self.v.len();
+                self.layer.clear();
+                e.layer(s, *moved, &self.points[..n], &mut self.layer);
+                let k = self.layer.len();
+                if n + k >= u32::MAX as usize / 4 {
+                    return Err(Error::invalid("steps", "the emitters exceed 2^30 particles"));
+                }
+                self.points.truncate(n);
+                reserve("steps", &mut self.points, k)?;
+                reserve("steps", &mut self.v, k)?;
+                reserve("steps", &mut self.pressure, k)?;
+                reserve("steps", &mut self.divergence, k)?;
+                self.points.extend_from_slice(&self.layer);
+                self.v.resize(n + k, e.direction * e.speed);
+                self.pressure.resize(n + k, 0.0);
+                self.divergence.resize(n + k, 0.0);
+            }
+        }
+        let n = self.v.len();
+        self.points.truncate(n);
         for buffer in
             [&mut self.density, &mut self.alpha, &mut self.residual, &mut self.k, &mut self.total]
         {
             buffer.resize(n, 0.0);
         }
         self.dv.resize(n, DVec3::ZERO);
-        for _ in 0..steps {
-            if n > 0 {
-                self.frame(model, dt, &mut stats)?;
+        Ok(())
+    }
+
+    /// Remove the particles outside the kill box, keeping the others' order.
+    fn kill(&mut self, model: &Model) {
+        let Some((lower, upper)) = model.kill_box else { return };
+        let n = self.v.len();
+        let mut kept = 0;
+        for i in 0..n {
+            let x = self.points[i];
+            if x.cmpge(lower).all() && x.cmple(upper).all() {
+                self.points[kept] = x;
+                self.v[kept] = self.v[i];
+                self.pressure[kept] = self.pressure[i];
+                self.divergence[kept] = self.divergence[i];
+                kept += 1;
             }
         }
-        state.positions.copy_from_slice(&self.points[..n]);
-        state.velocities.clone_from(&self.v);
-        state.pressure.clone_from(&self.pressure);
-        state.divergence.clone_from(&self.divergence);
-        state.time += dt * steps as f64;
-        Ok(stats)
+        self.points.truncate(kept);
+        self.v.truncate(kept);
+        self.pressure.truncate(kept);
+        self.divergence.truncate(kept);
     }
 
     /// One frame of `dt` in CFL substeps.
@@ -140,7 +210,8 @@ impl Solver {
     /// The longest substep the CFL condition allows now (s).
     fn substep_limit(&self, model: &Model) -> f64 {
         let s = &model.settings;
-        let mut speed = self.v.iter().map(|v| v.length()).fold(0.0, f64::max);
+        let emitted = model.emitters.iter().map(|e| e.speed);
+        let mut speed = self.v.iter().map(|v| v.length()).chain(emitted).fold(0.0, f64::max);
         if let Pressure::Wcsph { sound_speed } = s.pressure {
             speed += sound_speed;
         }
@@ -157,40 +228,54 @@ impl Solver {
 
     /// One substep of length `h` (s).
     fn substep(&mut self, model: &Model, h: f64, stats: &mut Stats) -> Result<()> {
+        self.emit(model, h)?;
         let n = self.v.len();
-        self.search(model);
+        stats.substeps += 1;
+        if n == 0 {
+            return Ok(());
+        }
+        let gravity = model.settings.gravity * h;
         match model.settings.pressure {
             Pressure::Dfsph { max_iterations, divergence_tolerance, density_tolerance } => {
+                self.search(model);
                 self.densities(model, true);
                 let (it, err, _) =
                     self.solve(model, h, Solve::Divergence, max_iterations, divergence_tolerance);
                 stats.divergence_iterations += it;
                 stats.divergence_error = stats.divergence_error.max(err);
-                self.non_pressure(model, h);
+                self.non_pressure(model, gravity);
                 let (it, err, max) =
                     self.solve(model, h, Solve::Density, max_iterations, density_tolerance);
                 stats.density_iterations += it;
                 stats.density_error = stats.density_error.max(err);
                 stats.max_density_error = stats.max_density_error.max(max);
+                self.advect(model, h);
+            }
+            Pressure::Pbf { max_iterations, density_tolerance, tensile } => {
+                let (it, err, max) = self.pbf(model, h, max_iterations, density_tolerance, tensile);
+                stats.density_iterations += it;
+                stats.density_error = stats.density_error.max(err);
+                stats.max_density_error = stats.max_density_error.max(max);
             }
             Pressure::Wcsph { sound_speed } => {
+                self.search(model);
                 self.densities(model, false);
                 self.residual.iter_mut().zip(&self.density).for_each(|(e, r)| *e = r - 1.0);
                 let (mean, max) = compression(&self.residual);
                 stats.density_error = stats.density_error.max(mean);
                 stats.max_density_error = stats.max_density_error.max(max);
-                self.non_pressure(model, h);
+                self.non_pressure(model, gravity);
                 let c2 = sound_speed * sound_speed / 7.0;
                 for ((p, k), &r) in self.pressure.iter_mut().zip(&mut self.k).zip(&self.density) {
                     *p = (c2 * (r.powi(7) - 1.0)).max(0.0);
                     *k = *p / (r * r);
                 }
                 self.apply(model, h);
+                self.advect(model, h);
             }
         }
-        self.advect(model, h);
-        stats.substeps += 1;
         let bad = (0..n).find(|&i| !(self.points[i].is_finite() && self.v[i].is_finite()));
+        self.kill(model);
         match bad {
             Some(index) => Err(Error::Diverged {
                 step: stats.substeps - 1,
@@ -236,11 +321,12 @@ impl Solver {
         });
     }
 
-    /// Gravity and XSPH viscosity: `v_i += dt g + ν Σ_j (V / ρ̂_j) (v_j - v_i) W_ij`.
-    fn non_pressure(&mut self, model: &Model, h: f64) {
+    /// Gravity's velocity change `g` (m/s: `dt` times gravity) and XSPH viscosity:
+    /// `v_i += g + ν Σ_j (V / ρ̂_j) (v_j - v_i) W_ij`.
+    fn non_pressure(&mut self, model: &Model, g: DVec3) {
         let Solver { grid, points, v, density, dv, .. } = self;
         let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, v.len());
-        let (g, nu) = (model.settings.gravity * h, model.settings.viscosity);
+        let nu = model.settings.viscosity;
         dv.par_iter_mut().enumerate().for_each(|(i, out)| {
             let mut sum = DVec3::ZERO;
             for &j in grid.neighbours(i) {
@@ -345,6 +431,93 @@ impl Solver {
             *s = if density { t } else { t * h };
         }
         (iterations, mean, largest)
+    }
+
+    /// One PBF substep of length `h` (s) (Macklin & Müller 2013, algorithm 1): predict
+    /// `v += h g`, `x* = x + h v` (walls confine `x*`), then until the mean compression is
+    /// at most `tol` percent (or `max` iterations): `λ_i = -max(ρ̂_i - 1, 0) α_i` (unrelaxed Jacobi, as in the paper) and
+    /// [`Solver::displace`]; then `v = (x* - x) / h`, the walls again, XSPH viscosity.
+    /// The pressure stored is `κ = -Σ λ / h²` (the pressure whose DFSPH impulse over `h`
+    /// gives the same displacement). Returns the iterations, the mean and the largest
+    /// compression reached (percent).
+    fn pbf(
+        &mut self,
+        model: &Model,
+        h: f64,
+        max: usize,
+        tol: f64,
+        tensile: f64,
+    ) -> (usize, f64, f64) {
+        let n = self.v.len();
+        self.x0.clear();
+        self.x0.extend_from_slice(&self.points[..n]);
+        let g = model.settings.gravity * h;
+        self.v.iter_mut().for_each(|v| *v += g);
+        self.advect(model, h);
+        self.search(model);
+        self.total.fill(0.0);
+        let corr = tensile * model.lattice_factor();
+        let mut iterations = 0;
+        let (mean, largest) = loop {
+            self.densities(model, true);
+            let Solver { residual, density, .. } = self;
+            residual.iter_mut().zip(&*density).for_each(|(r, d)| *r = d - 1.0);
+            let (mean, largest) = compression(&self.residual);
+            if mean <= tol || iterations == max {
+                break (mean, largest);
+            }
+            let Solver { k, total, residual, alpha, .. } = self;
+            for (((k, t), &r), &a) in
+                k.iter_mut().zip(total.iter_mut()).zip(&*residual).zip(&*alpha)
+            {
+                *k = -r.max(0.0) * a;
+                *t += *k;
+            }
+            self.displace(model, corr);
+            iterations += 1;
+        };
+        let Solver { points, v, x0, pressure, total, .. } = self;
+        for ((v, x), x0) in v.iter_mut().zip(&points[..n]).zip(&*x0) {
+            *v = (*x - *x0) / h;
+        }
+        for (p, t) in pressure.iter_mut().zip(&*total) {
+            *p = -t / (h * h);
+        }
+        let margin = 0.25 * model.settings.spacing;
+        points[..n].par_iter_mut().zip(v).for_each(|(x, v)| {
+            for wall in &model.walls {
+                wall.confine(x, v, margin);
+            }
+        });
+        self.non_pressure(model, DVec3::ZERO);
+        (iterations, mean, largest)
+    }
+
+    /// PBF's position correction (Macklin & Müller 2013, eq. 12-14) with this iteration's
+    /// `λ` (in `k`): `Δx_i = Σ_j V (λ_i + λ_j + s_corr) ∇W_ij + Σ_b V_b λ_i ∇W_ib`,
+    /// `s_corr = -corr (W_ij / W(0.2 h))⁴`, added to the positions. `corr` (m²) is `k`
+    /// times the lattice's `α`: the artificial pressure of a compression `k` at `r = 0.2 h`.
+    fn displace(&mut self, model: &Model, corr: f64) {
+        let Solver { grid, points, k, dv, .. } = self;
+        let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, k.len());
+        let vb = &model.boundary_volume;
+        let w_dq = kernel.value(0.2 * sup, sup);
+        dv.par_iter_mut().enumerate().for_each(|(i, out)| {
+            let mut sum = DVec3::ZERO;
+            for &j in grid.neighbours(i) {
+                let j = j as usize;
+                let d = points[i] - points[j];
+                let g = kernel.gradient(d, sup);
+                sum += if j < n {
+                    let q = kernel.value(d.length(), sup) / w_dq;
+                    g * (vol * (k[i] + k[j] - corr * (q * q) * (q * q)))
+                } else {
+                    g * (vb[j - n] * k[i])
+                };
+            }
+            *out = sum;
+        });
+        points[..n].par_iter_mut().zip(&*dv).for_each(|(x, d)| *x += *d);
     }
 
     /// `x += dt v`, then every wall puts back fluid that crossed it (a quarter spacing

@@ -1,7 +1,8 @@
 //! The fluid state: what changes in time and what a later step reads — positions,
 //! velocities, the time, and DFSPH's warm starts (the pressures of the constant-density
 //! solve and the impulses of the divergence-free solve of the last substep, from which the
-//! next substep's solves start).
+//! next substep's solves start), and how far each emitter's fluid has moved since its
+//! last layer.
 
 use super::Model;
 use crate::error::{reserve, Error, Result};
@@ -22,12 +23,16 @@ pub struct State {
     pub(super) divergence: Vec<f64>,
     /// Simulated time (s).
     pub(super) time: f64,
+    /// Per emitter of the model: the distance (m) its fluid has moved since its last layer
+    /// was emitted (a layer is emitted when it reaches the spacing).
+    pub(super) emitted: Vec<f64>,
 }
 
 impl State {
     /// An empty state of `model` at time 0 (add fluid with [`State::add_block`]).
-    pub fn new(_model: &Model) -> Self {
-        State::default()
+    pub fn new(model: &Model) -> Self {
+        let emitted = vec![model.settings.spacing; model.emitters.len()];
+        State { emitted, ..State::default() }
     }
 
     /// Fill the box `[lower, upper]` (m) with particles on a cubic lattice of the model's
@@ -161,6 +166,7 @@ impl State {
             "non-finite".into()
         })?;
         check(self.time.is_finite(), "time", || "non-finite".into())?;
+        check(finite(self.emitted.iter().copied()), "emitted", || "non-finite".into())?;
         check(n < u32::MAX as usize / 4, "positions", || "too many particles".into())?;
         Ok(())
     }

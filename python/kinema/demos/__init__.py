@@ -14,4 +14,5 @@ DEMOS: dict[str, str] = {
     "rigid": "the tumbling T-handle and the drift of each rotation integrator",
     "cloth": "Baraff–Witkin cloth draping over a sphere onto the ground (GIF)",
     "mocap": "a CMU walk on its skeleton, edited by IK to step over an obstacle (GIF)",
+    "fluid": "an SPH dam break (DFSPH), particles coloured by speed (GIF)",
 }
