@@ -20,7 +20,7 @@
 //! one solver can advance several states. [`Fluid`] is the three together.
 
 mod boundary;
-mod grid;
+pub(crate) mod grid;
 mod kernel;
 mod model;
 mod snapshot;
