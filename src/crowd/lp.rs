@@ -174,6 +174,15 @@ pub fn solve(
     (v, false)
 }
 
+/// Uniform numbers in `[0, 1)` from a 64-bit LCG (Knuth's MMIX constants), for tests.
+#[cfg(test)]
+pub(crate) fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -220,13 +229,7 @@ mod tests {
     fn random_feasible_programs_match_a_brute_force_optimum() {
         // Lines tangent to circles around the origin keep 0 feasible; the optimum found must
         // be feasible and no worse than any feasible point of a fine polar grid.
-        let mut seed = 12345u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = uniform(12345);
         let mut scratch = Vec::new();
         for _ in 0..200 {
             let lines: Vec<Line> = (0..6)
@@ -287,20 +290,10 @@ mod tests {
         assert!(fell);
         assert!((v.x - 0.5).abs() < 1e-12, "{v}");
     }
-}
-#[cfg(test)]
-mod fallback_oracle {
-    use super::*;
 
     #[test]
     fn random_infeasible_programs_match_a_brute_force_minimax() {
-        let mut seed = 777u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = uniform(777);
         let mut scratch = Vec::new();
         let mut checked = 0;
         for _ in 0..300 {

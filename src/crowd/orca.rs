@@ -405,13 +405,7 @@ mod tests {
 
     #[test]
     fn velocities_permitted_to_both_agents_do_not_collide_within_the_horizon() {
-        let mut seed = 99u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = super::super::lp::uniform(99);
         let (combined, tau) = (3.0, 10.0);
         let mut checked = 0;
         for _ in 0..2000 {
