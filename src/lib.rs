@@ -9,6 +9,7 @@ pub mod anim;
 pub mod batch;
 pub mod cloth;
 pub mod constraints;
+pub mod crowd;
 pub mod error;
 pub mod fluid;
 pub mod geometry;

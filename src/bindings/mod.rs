@@ -10,6 +10,7 @@ mod args;
 mod array;
 mod cloth;
 mod constraints;
+mod crowd;
 mod error;
 mod fluid;
 mod geometry;
@@ -76,6 +77,7 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     constraints::register(m)?;
     cloth::register(m)?;
     fluid::register(m)?;
+    crowd::register(m)?;
     anim::register(m)?;
     mocap::register(m)?;
     ik::register(m)?;

@@ -17,7 +17,7 @@
 //! ([`Wall::confine`]). The pressure of the boundary particles normally keeps the fluid half a
 //! spacing away, so this acts only on particles the pressure solve could not stop.
 
-use super::grid::Grid;
+use crate::geometry::grid::Grid;
 use super::Kernel;
 use crate::error::{Error, Result};
 use glam::DVec3;

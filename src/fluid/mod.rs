@@ -21,7 +21,6 @@
 
 mod boundary;
 mod emitter;
-mod grid;
 mod kernel;
 mod model;
 mod snapshot;

@@ -22,6 +22,7 @@
 
 pub mod ccd;
 pub mod exact;
+pub(crate) mod grid;
 pub mod material;
 pub mod query;
 pub mod segment;

@@ -1,0 +1,169 @@
+"""Crowds on the ground plane: ORCA (van den Berg, Guy, Lin & Manocha 2011, "Reciprocal
+n-body collision avoidance") with RVO2's obstacle handling, or social forces (Helbing &
+Molnár 1995; Helbing, Farkas & Vicsek 2000).
+
+Build a :class:`Crowd`, add static obstacle polygons (:meth:`Crowd.add_obstacle`) and agents
+with goals (:meth:`Crowd.add_agents`), then ``step`` it. Coordinates are 2-D in metres on the
+ground (world ``x`` and ``z``). ``positions``, ``velocities`` and ``goals`` are read-only
+numpy views of the Rust state, updated in place; once one was taken no more agents can be
+added. :meth:`Crowd.metrics` reports collisions, times to goal and path lengths, and
+:func:`flow_rate` the flow through a door from crossing times. See docs/crowd.md.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from kinema import _kinema
+from kinema._array import as_batch, real
+
+__all__ = ["Crowd", "crossings", "flow_rate"]
+
+
+def _points(value: object, name: str) -> np.ndarray:
+    arr, _ = as_batch(value, name, (2,))
+    return arr
+
+
+class Crowd:
+    """A crowd of agents of one ``radius`` (m) walking to goals.
+
+    ``model`` is ``"orca"`` (each step every agent takes the collision-free velocity closest
+    to its preferred one, against its ``max_neighbours`` nearest agents within
+    ``neighbour_distance`` m over ``time_horizon`` s and obstacles over
+    ``obstacle_time_horizon`` s) or ``"social_force"`` (driving, exponential, body and
+    friction forces with Helbing, Farkas & Vicsek's 2000 parameters ``mass`` kg,
+    ``relaxation_time`` s, ``strength`` N, ``range`` m, ``body`` kg/s², ``friction``
+    kg/(m s); substeps of at most ``max_substep`` s; agents within ``neighbour_distance``
+    interact). Agents walk at ``preferred_speed`` m/s, never faster than ``max_speed``, and
+    have arrived within ``goal_tolerance`` m of their goal.
+    """
+
+    def __init__(
+        self,
+        model: str = "orca",
+        radius: float = 0.25,
+        max_speed: float = 2.0,
+        preferred_speed: float = 1.34,
+        *,
+        neighbour_distance: float = 5.0,
+        max_neighbours: int = 10,
+        time_horizon: float = 5.0,
+        obstacle_time_horizon: float = 2.0,
+        goal_tolerance: float = 0.25,
+        mass: float = 80.0,
+        relaxation_time: float = 0.5,
+        strength: float = 2000.0,
+        range: float = 0.08,
+        body: float = 1.2e5,
+        friction: float = 2.4e5,
+        max_substep: float = 0.005,
+    ) -> None:
+        if not isinstance(model, str):
+            raise TypeError("model: expected 'orca' or 'social_force'")
+        self._c = _kinema.Crowd(
+            model,
+            real(radius, "radius"),
+            real(max_speed, "max_speed"),
+            real(preferred_speed, "preferred_speed"),
+            real(neighbour_distance, "neighbour_distance"),
+            max_neighbours,
+            real(time_horizon, "time_horizon"),
+            real(obstacle_time_horizon, "obstacle_time_horizon"),
+            real(goal_tolerance, "goal_tolerance"),
+            real(mass, "mass"),
+            real(relaxation_time, "relaxation_time"),
+            real(strength, "strength"),
+            real(range, "range"),
+            real(body, "body"),
+            real(friction, "friction"),
+            real(max_substep, "max_substep"),
+        )
+
+    def add_agents(self, positions: Any, goals: Any) -> None:
+        """Add agents at rest at ``positions`` ``(N, 2)`` (m), each walking to its goal in
+        ``goals`` ``(N, 2)`` (m). Agents may start overlapping, even on one point."""
+        self._c.add_agents(_points(positions, "positions"), _points(goals, "goals"))
+
+    def add_obstacle(self, polygon: Any) -> None:
+        """Add a static obstacle: a polygon ``(K, 2)`` (m) listed counterclockwise (agents
+        stay outside; clockwise keeps them inside), or two points: a wall segment."""
+        self._c.add_obstacle(_points(polygon, "polygon"))
+
+    def step(self, dt: float, steps: int = 1) -> None:
+        """Advance ``steps`` steps of ``dt`` seconds."""
+        self._c.step(real(dt, "dt"), steps)
+
+    def __len__(self) -> int:
+        return len(self._c)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Read-only view ``(N, 2)`` of the positions (m)."""
+        return self._c.positions
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """Read-only view ``(N, 2)`` of the velocities (m/s)."""
+        return self._c.velocities
+
+    @property
+    def goals(self) -> np.ndarray:
+        """Read-only view ``(N, 2)`` of the goals (m)."""
+        return self._c.goals
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._c.time
+
+    @property
+    def stats(self) -> dict[str, int]:
+        """What the last ``step`` did: ``steps``, ``substeps`` and ``fallbacks`` (agent-steps
+        whose ORCA program was infeasible and took the least-penetration velocity)."""
+        return self._c.stats()
+
+    def metrics(self) -> dict[str, Any]:
+        """Measurements since the agents were added: ``agent_collisions`` (overlapping pairs
+        summed over steps), ``obstacle_collisions`` (agent–polygon penetrations summed over
+        steps), ``steps_with_collisions``, ``max_overlap`` and ``max_penetration`` (m),
+        ``arrival_times`` ``(N,)`` (s, ``inf`` until arrived), ``arrived`` (count),
+        ``mean_time_to_goal`` (s, over the arrived; NaN if none), ``path_lengths`` ``(N,)``
+        (m) and ``path_ratio`` ``(N,)`` (path over the straight line from start to goal)."""
+        m: dict[str, Any] = self._c.metrics()
+        arrival = m["arrival_times"]
+        done = np.isfinite(arrival)
+        m["arrived"] = int(done.sum())
+        m["mean_time_to_goal"] = float(arrival[done].mean()) if done.any() else float("nan")
+        walked, straight = m.pop("path_lengths"), m.pop("straight_lengths")
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(walked == 0.0, 1.0, walked / straight)
+        m["path_lengths"] = walked
+        m["path_ratio"] = ratio
+        return m
+
+
+def crossings(frames: Any, times: Any, door: Any) -> np.ndarray:
+    """The times (s, sorted) at which agents of the trajectory ``frames`` ``(F, N, 2)`` (m,
+    at ``times`` ``(F,)`` s) cross the segment ``door`` ``((x0, y0), (x1, y1))`` (m) from its
+    right to its left (the left of the direction from the first point to the second),
+    interpolated linearly between frames."""
+    f = np.ascontiguousarray(frames, dtype=np.float64)
+    if f.ndim != 3 or f.shape[2] != 2:
+        raise ValueError(f"frames: expected shape (F, N, 2), got {f.shape}")
+    t = np.ascontiguousarray(times, dtype=np.float64).reshape(-1, 1)
+    d = np.asarray(door, dtype=np.float64)
+    if d.shape != (2, 2):
+        raise ValueError(f"door: expected shape (2, 2), got {d.shape}")
+    return _kinema.crowd_crossings(f, t, d[0].tolist(), d[1].tolist())
+
+
+def flow_rate(times: Any) -> float:
+    """The flow (agents/s) of crossings at sorted ``times`` (s): ``(N - 1) / (t_N - t_1)``
+    (Seyfried et al. 2009); NaN for fewer than two crossings."""
+    t = np.asarray(times, dtype=np.float64)
+    if t.size < 2 or not t[-1] > t[0]:
+        return float("nan")
+    return float((t.size - 1) / (t[-1] - t[0]))

@@ -1,0 +1,285 @@
+//! Crowds: ORCA's guarantees on RVO2's scenes (head-on pair, circle crossing), the extremes
+//! (agents on top of each other, unreachable goals), obstacles, several states of one model,
+//! determinism across thread counts, snapshots; social forces through a door.
+
+use glam::DVec2;
+use kinema::crowd::{metrics, Crowd, Kind, Model, Settings, SocialForce, Solver, State};
+use std::f64::consts::TAU;
+
+/// `n` agents evenly on a circle of `radius` (m), each going to its antipode.
+fn circle(n: usize, radius: f64) -> (Vec<DVec2>, Vec<DVec2>) {
+    let p: Vec<DVec2> = (0..n)
+        .map(|i| {
+            let a = i as f64 * TAU / n as f64;
+            radius * DVec2::new(a.cos(), a.sin())
+        })
+        .collect();
+    let g = p.iter().map(|&x| -x).collect();
+    (p, g)
+}
+
+/// Step until every agent has arrived or `max_steps` pass; returns the steps taken.
+fn run(crowd: &mut Crowd, dt: f64, max_steps: usize) -> usize {
+    for k in 0..max_steps {
+        if crowd.state().arrival_times().iter().all(|t| t.is_finite()) {
+            return k;
+        }
+        crowd.step(dt, 1).unwrap();
+    }
+    max_steps
+}
+
+fn min_distance(p: &[DVec2]) -> f64 {
+    let mut best = f64::INFINITY;
+    for i in 0..p.len() {
+        for j in i + 1..p.len() {
+            best = best.min((p[i] - p[j]).length());
+        }
+    }
+    best
+}
+
+#[test]
+fn head_on_pair_passes_without_overlap() {
+    let settings =
+        Settings { radius: 0.5, max_speed: 1.5, preferred_speed: 1.0, ..Settings::rvo2_circle() };
+    let mut crowd = Crowd::new(settings).unwrap();
+    // Exactly head-on: the symmetric case, resolved by both turning to the same side.
+    let p = [DVec2::new(-10.0, 0.0), DVec2::new(10.0, 0.0)];
+    crowd.add_agents(&p, &[p[1], p[0]]).unwrap();
+    let mut closest = f64::INFINITY;
+    let mut swerve: f64 = 0.0;
+    for _ in 0..400 {
+        crowd.step(0.1, 1).unwrap();
+        let q = crowd.state().positions();
+        closest = closest.min((q[0] - q[1]).length());
+        swerve = swerve.max(q[0].y.abs());
+    }
+    assert!(crowd.state().arrival_times().iter().all(|t| t.is_finite()));
+    assert!(closest >= 1.0 - 1e-9, "closest approach {closest}");
+    assert!(swerve > 0.3, "they must step aside: {swerve}");
+    assert_eq!(crowd.state().tally().agent_collisions, 0);
+    // Reciprocity: each takes half the avoidance, so the paths are point-symmetric.
+    let q = crowd.state().positions();
+    assert!((q[0] + q[1]).length() < 1e-9, "{q:?}");
+}
+
+/// `n` agents on a circle of `radius` (m) going to their antipodes, each start moved by up to
+/// 6 mm along x (perfectly symmetric starts deadlock: the agents form a ring and stop).
+fn perturbed_circle(n: usize, radius: f64) -> (Vec<DVec2>, Vec<DVec2>) {
+    let (mut p, g) = circle(n, radius);
+    for (i, x) in p.iter_mut().enumerate() {
+        x.x += 1e-3 * ((i * 7919 % 13) as f64 - 6.0);
+    }
+    (p, g)
+}
+
+/// Overlapping pairs by brute force.
+fn overlapping_pairs(p: &[DVec2], radius: f64) -> u64 {
+    let mut count = 0;
+    for i in 0..p.len() {
+        for j in i + 1..p.len() {
+            count += u64::from((p[i] - p[j]).length() < 2.0 * radius - metrics::EPSILON);
+        }
+    }
+    count
+}
+
+#[test]
+fn circle_crossing_64_agents_reach_antipodes_and_collisions_are_counted() {
+    let mut crowd = Crowd::new(Settings::rvo2_circle()).unwrap();
+    let (p, g) = perturbed_circle(64, 60.0);
+    crowd.add_agents(&p, &g).unwrap();
+    let (mut steps, mut brute, mut fallbacks) = (0, 0, 0);
+    while steps < 2000 && !crowd.state().arrival_times().iter().all(|t| t.is_finite()) {
+        crowd.step(0.25, 1).unwrap();
+        brute += overlapping_pairs(crowd.state().positions(), 1.5);
+        fallbacks += crowd.stats.fallbacks;
+        steps += 1;
+    }
+    let s = crowd.state();
+    assert!(s.arrival_times().iter().all(|t| t.is_finite()), "not all arrived in {steps} steps");
+    assert_eq!(s.tally().agent_collisions, brute);
+    assert_eq!(s.tally().steps, steps as u64);
+    let mean: f64 = s.arrival_times().iter().sum::<f64>() / 64.0;
+    // 120 m at 1 m/s less the 1.5 m tolerance is 118.5 s without anyone in the way.
+    assert!(mean > 118.0 && mean < 2.0 * 118.5, "mean time to goal {mean}");
+    eprintln!(
+        "64 agents: mean time to goal {mean:.2} s, {steps} steps, {fallbacks} fallbacks, {:?}",
+        s.tally()
+    );
+}
+
+/// RVO2's example at full size (250 agents, radius 200 m); run with `--ignored`.
+#[test]
+#[ignore]
+fn circle_crossing_250_agents_rvo2_setup() {
+    let mut crowd = Crowd::new(Settings::rvo2_circle()).unwrap();
+    let (p, g) = perturbed_circle(250, 200.0);
+    crowd.add_agents(&p, &g).unwrap();
+    let steps = run(&mut crowd, 0.25, 4000);
+    let s = crowd.state();
+    assert!(s.arrival_times().iter().all(|t| t.is_finite()), "{steps} steps");
+    assert_eq!(s.tally().agent_collisions, 0, "{:?}", s.tally());
+    let mean: f64 = s.arrival_times().iter().sum::<f64>() / 250.0;
+    eprintln!("250 agents: mean time to goal {mean:.2} s, {steps} steps, {:?}", s.tally());
+}
+
+#[test]
+fn agents_starting_on_one_point_separate() {
+    let settings = Settings { radius: 0.5, ..Settings::rvo2_circle() };
+    let mut crowd = Crowd::new(settings).unwrap();
+    let p = [DVec2::new(1.0, 2.0); 4];
+    let g = [
+        DVec2::new(10.0, 2.0),
+        DVec2::new(-10.0, 2.0),
+        DVec2::new(1.0, 12.0),
+        DVec2::new(1.0, -8.0),
+    ];
+    crowd.add_agents(&p, &g).unwrap();
+    crowd.step(0.1, 20).unwrap();
+    let q = crowd.state().positions();
+    assert!(q.iter().all(|x| x.is_finite()));
+    assert!(min_distance(q) > 0.5, "{q:?}");
+    crowd.step(0.1, 200).unwrap();
+    assert!(crowd.state().arrival_times().iter().all(|t| t.is_finite()));
+    assert!(min_distance(crowd.state().positions()) >= 1.0 - metrics::EPSILON);
+}
+
+#[test]
+fn unreachable_goal_inside_an_obstacle_does_not_hang() {
+    let settings = Settings { radius: 0.5, ..Settings::rvo2_circle() };
+    let mut crowd = Crowd::new(settings).unwrap();
+    // A counterclockwise square; the goal is its centre.
+    let square = [
+        DVec2::new(-2.0, -2.0),
+        DVec2::new(2.0, -2.0),
+        DVec2::new(2.0, 2.0),
+        DVec2::new(-2.0, 2.0),
+    ];
+    crowd.add_obstacle(&square).unwrap();
+    crowd.add_agents(&[DVec2::new(-10.0, 0.3)], &[DVec2::ZERO]).unwrap();
+    crowd.step(0.1, 500).unwrap();
+    let s = crowd.state();
+    assert!(s.arrival_times()[0].is_infinite());
+    assert!(s.positions()[0].x < -2.5 + 1e-6, "{}", s.positions()[0]);
+    assert_eq!(s.tally().obstacle_collisions, 0, "{:?}", s.tally());
+}
+
+#[test]
+fn agent_walks_around_an_obstacle_without_penetrating_it() {
+    let settings = Settings { radius: 0.5, obstacle_time_horizon: 2.0, ..Settings::rvo2_circle() };
+    let mut crowd = Crowd::new(settings).unwrap();
+    let square = [
+        DVec2::new(-2.0, -2.0),
+        DVec2::new(2.0, -2.0),
+        DVec2::new(2.0, 2.0),
+        DVec2::new(-2.0, 2.0),
+    ];
+    crowd.add_obstacle(&square).unwrap();
+    // The straight line to the goal grazes the square's corner (-2, 2); ORCA is local, so a
+    // goal straight behind the square would stop the agent at the wall.
+    crowd.add_agents(&[DVec2::new(-10.0, 0.3)], &[DVec2::new(10.0, 4.5)]).unwrap();
+    let mut closest = f64::INFINITY;
+    for _ in 0..600 {
+        crowd.step(0.1, 1).unwrap();
+        let p = crowd.state().positions()[0];
+        let outside = DVec2::new((p.x.abs() - 2.0).max(0.0), (p.y.abs() - 2.0).max(0.0)).length();
+        closest = closest.min(outside);
+    }
+    assert!(crowd.state().arrival_times()[0].is_finite());
+    assert!(closest >= 0.5 - 1e-6, "closest approach to the square {closest}");
+    assert!(closest < 0.6, "the corner must be grazed: {closest}");
+    assert_eq!(crowd.state().tally().obstacle_collisions, 0);
+}
+
+#[test]
+fn two_states_of_one_model_step_as_if_alone() {
+    let mut model = Model::new(Settings::rvo2_circle()).unwrap();
+    model.add_obstacle(&[DVec2::new(-5.0, 30.0), DVec2::new(5.0, 30.0)]).unwrap();
+    let mut a = State::new(&model);
+    let (p, g) = perturbed_circle(24, 40.0);
+    a.add_agents(&p, &g).unwrap();
+    let mut b = State::new(&model);
+    b.add_agents(&g[..10], &p[..10]).unwrap();
+    let (mut a_alone, mut b_alone) = (a.clone(), b.clone());
+    let mut solver = Solver::new(&model);
+    for _ in 0..30 {
+        solver.step(&model, &mut a, 0.25, 2).unwrap();
+        let b_before = b.clone();
+        solver.step(&model, &mut b, 0.25, 1).unwrap();
+        solver.step(&model, &mut b, 0.25, 1).unwrap();
+        assert_ne!(b, b_before);
+    }
+    let mut fresh = Solver::new(&model);
+    fresh.step(&model, &mut a_alone, 0.25, 60).unwrap();
+    Solver::new(&model).step(&model, &mut b_alone, 0.25, 60).unwrap();
+    assert_eq!(a, a_alone);
+    assert_eq!(b, b_alone);
+    // A state snapshot restores only onto its model.
+    let bytes = a.to_snapshot(&model).unwrap();
+    assert_eq!(State::from_snapshot(&model, &bytes).unwrap(), a);
+    let other = Model::new(Settings::rvo2_circle()).unwrap();
+    let err = State::from_snapshot(&other, &bytes).unwrap_err().to_string();
+    assert!(err.contains("model"), "{err}");
+}
+
+#[test]
+fn bitwise_the_same_on_one_and_two_threads() {
+    for kind in [Kind::Orca, Kind::SocialForce(SocialForce::default())] {
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let settings = Settings {
+                    radius: 0.3,
+                    neighbour_distance: 3.0,
+                    kind,
+                    ..Settings::rvo2_circle()
+                };
+                let mut crowd = Crowd::new(settings).unwrap();
+                let (p, g) = perturbed_circle(700, 60.0);
+                crowd.add_agents(&p, &g).unwrap();
+                crowd.step(0.1, 30).unwrap();
+                crowd.state().clone()
+            })
+        };
+        assert_eq!(run(1), run(2), "{kind:?}");
+    }
+}
+
+#[test]
+fn crowd_snapshot_round_trips_and_continues_bitwise() {
+    use kinema::snapshot::Snapshot;
+    let mut crowd = Crowd::new(Settings::rvo2_circle()).unwrap();
+    crowd
+        .add_obstacle(&[DVec2::new(-3.0, -3.0), DVec2::new(3.0, -3.0), DVec2::new(0.0, 3.0)])
+        .unwrap();
+    let (p, g) = perturbed_circle(16, 30.0);
+    crowd.add_agents(&p, &g).unwrap();
+    crowd.step(0.25, 10).unwrap();
+    let mut copy = Crowd::from_snapshot(&crowd.to_snapshot().unwrap()).unwrap();
+    crowd.step(0.25, 20).unwrap();
+    copy.step(0.25, 20).unwrap();
+    assert_eq!(crowd.state(), copy.state());
+}
+
+#[test]
+fn bad_arguments_are_named_and_leave_the_crowd_unchanged() {
+    let bad = Settings { radius: -1.0, ..Settings::rvo2_circle() };
+    assert!(Crowd::new(bad).unwrap_err().to_string().contains("radius"));
+    let mut crowd = Crowd::new(Settings::rvo2_circle()).unwrap();
+    let err = crowd.add_agents(&[DVec2::new(f64::NAN, 0.0)], &[DVec2::ZERO]).unwrap_err();
+    assert!(err.to_string().contains("positions"), "{err}");
+    let err = crowd.add_agents(&[DVec2::ZERO], &[]).unwrap_err();
+    assert!(err.to_string().contains("goals"), "{err}");
+    let err = crowd.add_obstacle(&[DVec2::ZERO]).unwrap_err();
+    assert!(err.to_string().contains("polygon"), "{err}");
+    let err = crowd.add_obstacle(&[DVec2::ZERO, DVec2::ZERO]).unwrap_err();
+    assert!(err.to_string().contains("polygon"), "{err}");
+    crowd.add_agents(&[DVec2::ZERO], &[DVec2::X]).unwrap();
+    let before = crowd.state().clone();
+    for dt in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        assert!(crowd.step(dt, 1).unwrap_err().to_string().contains("dt"));
+    }
+    assert_eq!(*crowd.state(), before);
+}

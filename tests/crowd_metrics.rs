@@ -1,0 +1,129 @@
+//! Crowd metrics on hand-built trajectories with known answers, and social forces through a
+//! door (a bottleneck): everyone exits a wide door, and the flow grows with the width.
+
+use glam::DVec2;
+use kinema::crowd::{metrics, Crowd, Kind, Model, Settings, SocialForce};
+
+fn v(x: f64, y: f64) -> DVec2 {
+    DVec2::new(x, y)
+}
+
+#[test]
+fn collisions_count_pairs_and_obstacle_penetrations() {
+    // Radius 0.5: pairs closer than 1 m collide. (0,1): 0.9 apart (depth 0.1); (1,2): 1.0
+    // apart (touching, not a collision); (3,4): on one point (depth 1).
+    let p = [v(0.0, 0.0), v(0.9, 0.0), v(1.9, 0.0), v(5.0, 5.0), v(5.0, 5.0)];
+    let c = metrics::agent_collisions(&p, 0.5);
+    assert_eq!(c.count, 2);
+    assert!((c.depth - 1.0).abs() < 1e-12);
+    let mut model = Model::new(Settings { radius: 0.5, ..Settings::rvo2_circle() }).unwrap();
+    // A square [10, 12]²; the first agent 0.3 m from its left side (depth 0.2), the second
+    // near its corner (0.4 m from both sides: one penetration of the polygon, depth 0.1 + ...).
+    model.add_obstacle(&[v(10.0, 10.0), v(12.0, 10.0), v(12.0, 12.0), v(10.0, 12.0)]).unwrap();
+    let q = [v(9.7, 11.0), v(12.4, 12.0), v(0.0, 0.0)];
+    let c = metrics::obstacle_collisions(&model, &q);
+    assert_eq!(c.count, 2);
+    assert!((c.depth - 0.2).abs() < 1e-12, "{}", c.depth);
+}
+
+#[test]
+fn time_to_goal_and_path_ratio_of_known_walks() {
+    // Agent 0 walks straight at 1 m/s to (4, 0); agent 1 walks an L of 3 + 4 m to (3, 4),
+    // one frame per second; agent 2 never arrives.
+    let frames: Vec<Vec<DVec2>> = (0..8)
+        .map(|t| {
+            let t = t as f64;
+            let l = if t <= 3.0 { v(t, 0.0) } else { v(3.0, (t - 3.0).min(4.0)) };
+            vec![v(t.min(4.0), 0.0), l, v(-1.0, 0.0)]
+        })
+        .collect();
+    let refs: Vec<&[DVec2]> = frames.iter().map(|f| f.as_slice()).collect();
+    let times: Vec<f64> = (0..8).map(f64::from).collect();
+    let goals = [v(4.0, 0.0), v(3.0, 4.0), v(100.0, 0.0)];
+    let t = metrics::time_to_goal(&refs, &times, &goals, 0.5).unwrap();
+    assert!((t[0].unwrap() - 3.5).abs() < 1e-12, "{t:?}");
+    assert!((t[1].unwrap() - 6.5).abs() < 1e-12, "{t:?}");
+    assert_eq!(t[2], None);
+    let r = metrics::path_ratio(&refs, &times, &goals).unwrap();
+    assert!((r[0] - 1.0).abs() < 1e-12 && (r[1] - 7.0 / 5.0).abs() < 1e-12 && r[2] == 1.0, "{r:?}");
+    assert!(metrics::time_to_goal(&refs, &times[..3], &goals, 0.5).is_err());
+    assert!(metrics::path_ratio(&refs, &times, &goals[..2]).is_err());
+}
+
+#[test]
+fn flow_through_a_door_of_known_crossings() {
+    // Four agents walk up through the door from (0, 0) to (2, 0) at 1 m/s, starting 1, 2, 3
+    // and 4 m below it; a fifth walks down through it (not counted) and a sixth passes beside.
+    let frames: Vec<Vec<DVec2>> = (0..=20)
+        .map(|k| {
+            let t = k as f64 * 0.5;
+            let mut f: Vec<DVec2> = (1..=4).map(|d| v(1.0, t - d as f64)).collect();
+            f.push(v(0.5, 3.0 - t));
+            f.push(v(5.0, t - 2.0));
+            f
+        })
+        .collect();
+    let refs: Vec<&[DVec2]> = frames.iter().map(|f| f.as_slice()).collect();
+    let times: Vec<f64> = (0..=20).map(|k| k as f64 * 0.5).collect();
+    // The door from (0, 0) to (2, 0): its left is +y.
+    let c = metrics::crossings(&refs, &times, v(0.0, 0.0), v(2.0, 0.0)).unwrap();
+    let down = metrics::crossings(&refs, &times, v(2.0, 0.0), v(0.0, 0.0)).unwrap();
+    assert_eq!(down, vec![3.0]);
+    assert_eq!(c, vec![1.0, 2.0, 3.0, 4.0]);
+    assert_eq!(metrics::flow_rate(&c), Some(1.0));
+    assert!(metrics::crossings(&refs, &times, v(1.0, 1.0), v(1.0, 1.0)).is_err());
+}
+
+/// Agents on a grid in the room `x < 0` leave through a door of `width` (m) in the wall
+/// `x = 0`, to goals far beyond it; returns (agents out, flow in agents/s).
+fn bottleneck(width: f64, agents: usize, steps: usize) -> (usize, Option<f64>, Vec<DVec2>) {
+    let sf = SocialForce::default();
+    let settings = Settings {
+        radius: 0.25,
+        max_speed: 2.0,
+        preferred_speed: 1.34,
+        neighbour_distance: 2.0,
+        goal_tolerance: 0.5,
+        kind: Kind::SocialForce(sf),
+        ..Settings::rvo2_circle()
+    };
+    let mut crowd = Crowd::new(settings).unwrap();
+    let h = width / 2.0;
+    // Two wall segments with the door between them (thin counterclockwise rectangles).
+    for (lo, hi) in [(h, 10.0), (-10.0, -h)] {
+        crowd.add_obstacle(&[v(0.0, lo), v(0.2, lo), v(0.2, hi), v(0.0, hi)]).unwrap();
+    }
+    let cols = 10;
+    let p: Vec<DVec2> = (0..agents)
+        .map(|i| v(-1.0 - 0.7 * (i / cols) as f64, -3.15 + 0.7 * (i % cols) as f64))
+        .collect();
+    let g: Vec<DVec2> = p.iter().map(|q| v(20.0, q.y * 0.2)).collect();
+    crowd.add_agents(&p, &g).unwrap();
+    let dt = 0.05;
+    let mut frames = vec![crowd.state().positions().to_vec()];
+    for _ in 0..steps {
+        crowd.step(dt, 1).unwrap();
+        frames.push(crowd.state().positions().to_vec());
+    }
+    let refs: Vec<&[DVec2]> = frames.iter().map(|f| f.as_slice()).collect();
+    let times: Vec<f64> = (0..frames.len()).map(|k| k as f64 * dt).collect();
+    let c = metrics::crossings(&refs, &times, v(0.2, h), v(0.2, -h)).unwrap();
+    (c.len(), metrics::flow_rate(&c), crowd.state().positions().to_vec())
+}
+
+#[test]
+fn bottleneck_flow_grows_with_door_width() {
+    let n = 100;
+    let mut flows = Vec::new();
+    for width in [0.8, 1.2, 1.6, 2.0, 2.4] {
+        let (out, flow, _) = bottleneck(width, n, 1200);
+        eprintln!("door {width:.1} m: {out} of {n} out, flow {flow:?} /s");
+        flows.push((width, out, flow.unwrap_or(0.0)));
+    }
+    let (out, _, left) = bottleneck(2.4, n, 2400);
+    let inside: Vec<&DVec2> = left.iter().filter(|p| p.x < 0.2).collect();
+    assert_eq!(out, n, "everyone exits the widest door in 120 s: {inside:?}");
+    for w in flows.windows(2) {
+        assert!(w[1].2 > w[0].2, "flow must grow with width: {flows:?}");
+    }
+}

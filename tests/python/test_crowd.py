@@ -1,0 +1,124 @@
+"""kinema.crowd: ORCA and social forces through the Python API, metrics, bad arguments,
+pickling, determinism across thread counts."""
+
+import pickle
+
+import numpy as np
+import pytest
+
+import kinema
+from kinema.crowd import Crowd, crossings, flow_rate
+
+
+def circle(n: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    a = np.arange(n) * 2 * np.pi / n
+    p = radius * np.stack([np.cos(a), np.sin(a)], axis=1)
+    p[:, 0] += 1e-3 * ((np.arange(n) * 7919 % 13) - 6.0)  # break the deadlock of symmetry
+    return p, -radius * np.stack([np.cos(a), np.sin(a)], axis=1)
+
+
+def test_head_on_pair_passes_and_arrives() -> None:
+    c = Crowd("orca", radius=0.5, max_speed=1.5, preferred_speed=1.0, time_horizon=10.0)
+    c.add_agents([[-10.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [-10.0, 0.0]])
+    gaps = []
+    for _ in range(300):
+        c.step(0.1)
+        gaps.append(np.linalg.norm(c.positions[0] - c.positions[1]))
+    m = c.metrics()
+    assert min(gaps) >= 1.0 - 1e-9
+    assert m["arrived"] == 2 and m["agent_collisions"] == 0
+    # 20 m at 1 m/s less the 0.25 m tolerance, plus the detour.
+    assert 19.7 < m["mean_time_to_goal"] < 23.0
+    assert np.all(m["path_ratio"] >= 1.0) and np.all(m["path_ratio"] < 1.1)
+    assert c.positions.shape == (2, 2) and not c.positions.flags.writeable
+
+
+def test_social_force_agents_walk_to_their_goals() -> None:
+    c = Crowd("social_force", radius=0.3, neighbour_distance=2.0)
+    c.add_obstacle([[3.0, -5.0], [3.0, 5.0]])  # a wall segment beside the path
+    c.add_agents([[0.0, 0.0], [0.0, 1.0]], [[0.0, 8.0], [0.0, 9.0]])
+    c.step(0.05, 200)
+    m = c.metrics()
+    assert m["arrived"] == 2
+    assert c.stats == {"steps": 200, "substeps": 2000, "fallbacks": 0}
+    assert c.time == pytest.approx(10.0)
+
+
+def test_door_flow_from_crossings() -> None:
+    t = np.arange(21) * 0.5
+    frames = np.stack([np.stack([np.full(4, 1.0), tk - np.arange(1, 5)], axis=1) for tk in t])
+    found = crossings(frames, t, [[0.0, 0.0], [2.0, 0.0]])
+    np.testing.assert_allclose(found, [1.0, 2.0, 3.0, 4.0])
+    assert flow_rate(found) == pytest.approx(1.0)
+    assert np.isnan(flow_rate([1.0]))
+    assert crossings(frames, t, [[2.0, 0.0], [0.0, 0.0]]).size == 0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "arg"),
+    [
+        ({"model": "boids"}, "model"),
+        ({"radius": -1.0}, "radius"),
+        ({"max_speed": float("nan")}, "max_speed"),
+        ({"max_neighbours": -1}, "max_neighbours"),
+        ({"time_horizon": 0.0}, "time_horizon"),
+        ({"model": "social_force", "mass": 0.0}, "mass"),
+    ],
+)
+def test_bad_settings_name_the_argument(kwargs: dict, arg: str) -> None:
+    with pytest.raises(ValueError, match=arg):
+        Crowd(**kwargs)
+
+
+def test_bad_agents_and_steps_name_the_argument_and_change_nothing() -> None:
+    c = Crowd()
+    with pytest.raises(ValueError, match="positions"):
+        c.add_agents([[0.0, np.nan]], [[1.0, 1.0]])
+    with pytest.raises(ValueError, match="goals"):
+        c.add_agents([[0.0, 0.0]], [[1.0, 1.0], [2.0, 2.0]])
+    with pytest.raises(ValueError, match="positions"):
+        c.add_agents([[0.0, 0.0, 0.0]], [[1.0, 1.0, 1.0]])
+    with pytest.raises(ValueError, match="polygon"):
+        c.add_obstacle([[0.0, 0.0]])
+    with pytest.raises(ValueError, match="polygon"):
+        c.add_obstacle([[0.0, 0.0], [0.0, 0.0]])
+    c.add_agents([[0.0, 0.0]], [[1.0, 1.0]])
+    before = c.positions.copy()
+    for dt in (0.0, -1.0, np.inf):
+        with pytest.raises(ValueError, match="dt"):
+            c.step(dt)
+    with pytest.raises(ValueError, match="steps"):
+        c.step(0.1, -1)
+    np.testing.assert_array_equal(c.positions, before)
+    with pytest.raises(ValueError, match="positions"):
+        c.add_agents([[5.0, 5.0]], [[6.0, 6.0]])  # a view was taken
+
+
+def test_pickle_round_trip_continues_bitwise() -> None:
+    c = Crowd("orca", radius=1.5, neighbour_distance=15.0, time_horizon=10.0)
+    p, g = circle(12, 20.0)
+    c.add_agents(p, g)
+    c.add_obstacle([[-1.0, -1.0], [1.0, -1.0], [0.0, 1.0]])
+    c.step(0.25, 10)
+    d = pickle.loads(pickle.dumps(c))
+    c.step(0.25, 30)
+    d.step(0.25, 30)
+    np.testing.assert_array_equal(c.positions, d.positions)
+    assert c.metrics()["agent_collisions"] == d.metrics()["agent_collisions"]
+
+
+@pytest.mark.parametrize("model", ["orca", "social_force"])
+def test_same_bits_on_one_and_two_threads(model: str) -> None:
+    def run(threads: int) -> np.ndarray:
+        kinema.set_num_threads(threads)
+        c = Crowd(model, radius=0.3, neighbour_distance=3.0)
+        p, g = circle(600, 40.0)
+        c.add_agents(p, g)
+        c.step(0.1, 10)
+        return np.array(c.positions)
+
+    old = kinema.num_threads()
+    try:
+        np.testing.assert_array_equal(run(1), run(2))
+    finally:
+        kinema.set_num_threads(old)
