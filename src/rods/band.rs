@@ -7,11 +7,24 @@
 /// lower band: row `i`, column `j` (`i - k ≤ j ≤ i`) at `i (k + 1) + (i - j)`. After
 /// [`Band::factor`] the same storage holds `L` (unit diagonal, not stored) below and `D` on
 /// the diagonal.
-#[derive(Clone, Debug, Default)]
+#[derive(Debug, Default)]
 pub struct Band {
     n: usize,
     k: usize,
     a: Vec<f64>,
+}
+
+impl Clone for Band {
+    fn clone(&self) -> Self {
+        Band { n: self.n, k: self.k, a: self.a.clone() }
+    }
+
+    /// Reuses the storage (no allocation once the sizes match).
+    fn clone_from(&mut self, source: &Self) {
+        self.n = source.n;
+        self.k = source.k;
+        self.a.clone_from(&source.a);
+    }
 }
 
 impl Band {

@@ -9,13 +9,17 @@
 //!
 //! - **Implicit Euler** (Bergou et al. 2010, sec. 6; Gast et al. 2015's optimisation form):
 //!   `q_{k+1}` minimises the incremental potential
-//!   `Φ(q) = ½ (q − q̃)ᵀ M (q − q̃) / h² + E(q) − fᵀ q`, `q̃ = q_k + h v_k`, with `M` the lumped
+//!   `Φ(q) = ½ (q − q̃)ᵀ M (q − q̃) / h² + E(q) − fᵀ (q − q_k)`, `q̃ = q_k + h v_k`, with `M` the lumped
 //!   masses and twist inertias, `E` the elastic energy and `f` gravity plus the external
 //!   forces; then `v_{k+1} = (q_{k+1} − q_k) / h`. Each Newton iteration solves
 //!   `(M/h² + ∇²E) Δ = −∇Φ`; when the band is not positive definite it adds
 //!   `λ diag|H|` (`λ` from 1e-8, ×10 until it factors, Levenberg–Marquardt style), and a
 //!   backtracking (Armijo) line search on `Φ` halves the step until `Φ` decreases enough.
-//! - **Static equilibrium**: the same minimisation without the inertial term (`Φ = E − fᵀq`).
+//!   Newton stops when a step moves no vertex more than `tolerance` times the rod's length
+//!   and no twist angle more than `tolerance` rad, or when the decrease of `Φ` it predicts
+//!   is at the rounding level of `Φ` (`ROUNDING`).
+//! - **Static equilibrium**: the same minimisation without the inertial term
+//!   (`Φ = E − fᵀ(q − q_k)`).
 //! - **Symplectic Euler**: `v += h M⁻¹ (f − ∇E)`, `q += h v`.
 //!
 //! Pinned vertices and locked twist angles keep their values: their rows and columns are
@@ -35,6 +39,12 @@ const HALF_BANDWIDTH: usize = 10;
 const ARMIJO: f64 = 1e-4;
 /// The most halvings of one line search.
 const HALVINGS: usize = 40;
+/// Newton has converged when the decrease of `Φ` it predicts, `−∇Φ·Δ` (twice the distance
+/// to the minimum for a quadratic), is below this fraction of `Φ`'s magnitude: the
+/// rounding level, below which the gradient's rounding noise (large stretching forces
+/// cancelling, amplified by soft bending modes) moves the steps and no step can decrease
+/// `Φ` measurably.
+const ROUNDING: f64 = 1e-13;
 
 /// The workspaces of a rod step (see the module docs).
 #[derive(Clone, Debug, Default)]
@@ -43,8 +53,12 @@ pub struct Solver {
     work: Option<State>,
     /// Frames of the configuration being evaluated.
     frames: Frames,
-    /// Tangents at the start of the step, `n`.
+    /// The frames the evaluated configurations are transported from (tangents, reference
+    /// directors, reference twists): the state's at the start of a step, then each Newton
+    /// iterate's.
     base: Vec<DVec3>,
+    base_reference: Vec<DVec3>,
+    base_twist: Vec<f64>,
     /// Degrees of freedom: start of the step, inertial target, current, trial.
     q0: Vec<f64>,
     target: Vec<f64>,
@@ -64,6 +78,9 @@ pub struct Solver {
     copy: Band,
     /// `|diag H|`, the scale of the positive-definiteness shift.
     diag: Vec<f64>,
+    /// The sum of the magnitudes of the terms of the last `Φ` evaluated (J): its rounding
+    /// error is about `ε` times this.
+    scale: f64,
 }
 
 /// Which minimisation a Newton solve does.
@@ -211,19 +228,21 @@ impl Solver {
         }
         self.base.clear();
         self.base.extend(work.positions.windows(2).map(|w| (w[1] - w[0]).normalize()));
+        self.base_reference.clone_from(&work.reference);
+        self.base_twist.clone_from(&work.reference_twist);
+    }
+
+    /// Transport later configurations from the frames last evaluated.
+    fn rebase(&mut self) {
+        self.base.clone_from(&self.frames.tangents);
+        self.base_reference.clone_from(&self.frames.reference);
+        self.base_twist.clone_from(&self.frames.reference_twist);
     }
 
     /// `Φ` at `q` (`Goal`), its gradient into `grad` and, with `hess`, its Hessian into the
     /// band (fixed rows and columns replaced by the identity). `None` when the
     /// configuration is unusable (a collapsed edge, a half turn, a non-finite value).
-    fn evaluate(
-        &mut self,
-        model: &Model,
-        work: &State,
-        trial: bool,
-        goal: Goal,
-        hess: bool,
-    ) -> Option<f64> {
+    fn evaluate(&mut self, model: &Model, trial: bool, goal: Goal, hess: bool) -> Option<f64> {
         let n = model.edges();
         let q = if trial { &self.trial } else { &self.q };
         if !q.iter().all(|v| v.is_finite()) {
@@ -237,8 +256,8 @@ impl Solver {
             &self.x,
             &self.theta,
             &self.base,
-            &work.reference,
-            &work.reference_twist,
+            &self.base_reference,
+            &self.base_twist,
         ) {
             return None;
         }
@@ -252,9 +271,13 @@ impl Solver {
             Goal::Step(h) => 1.0 / (h * h),
             Goal::Static => 0.0,
         };
+        self.scale = phi.abs();
         for k in 0..q.len() {
             let d = q[k] - self.target[k];
-            phi += 0.5 * self.mass[k] * inv_h2 * d * d - self.force[k] * q[k];
+            let (inertia, work) =
+                (0.5 * self.mass[k] * inv_h2 * d * d, self.force[k] * (q[k] - self.q0[k]));
+            phi += inertia - work;
+            self.scale += inertia + work.abs();
             self.grad[k] += self.mass[k] * inv_h2 * d - self.force[k];
             if hess {
                 self.band.add(k, k, self.mass[k] * inv_h2);
@@ -319,20 +342,24 @@ impl Solver {
         let tol = model.settings.tolerance;
         for _ in 0..model.settings.max_iterations {
             stats.iterations += 1;
-            let phi =
-                self.evaluate(model, work, false, goal, true).ok_or_else(|| diverged(&self.q))?;
+            let phi = self.evaluate(model, false, goal, true).ok_or_else(|| diverged(&self.q))?;
+            // From here on Φ is the energy with frames transported from this iterate, whose
+            // exact gradient and Hessian are the analytic ones just evaluated, so the Newton
+            // direction descends it. Rebasing leaves Φ at this iterate unchanged, so Φ
+            // decreases from iterate to iterate.
+            self.rebase();
             self.factor()?;
             for k in 0..self.dir.len() {
                 self.dir[k] = -self.grad[k];
             }
             self.band.solve(&mut self.dir);
             let slope: f64 = self.grad.iter().zip(&self.dir).map(|(g, d)| g * d).sum();
-            let small = self.dir.chunks(4).all(|c| {
-                c[..3].iter().all(|d| d.abs() <= tol * length)
-                    && c.get(3).is_none_or(|d| d.abs() <= tol)
-            });
-            let alpha =
-                if small { 1.0 } else { self.line_search(model, work, goal, phi, slope, stats)? };
+            let small = -slope <= ROUNDING * self.scale
+                || self.dir.chunks(4).all(|c| {
+                    c[..3].iter().all(|d| d.abs() <= tol * length)
+                        && c.get(3).is_none_or(|d| d.abs() <= tol)
+                });
+            let alpha = if small { 1.0 } else { self.line_search(model, goal, phi, slope, stats)? };
             for k in 0..self.q.len() {
                 self.q[k] += alpha * self.dir[k];
             }
@@ -353,7 +380,6 @@ impl Solver {
     fn line_search(
         &mut self,
         model: &Model,
-        work: &State,
         goal: Goal,
         phi: f64,
         slope: f64,
@@ -364,7 +390,7 @@ impl Solver {
             for k in 0..self.q.len() {
                 self.trial[k] = self.q[k] + alpha * self.dir[k];
             }
-            if let Some(trial) = self.evaluate(model, work, true, goal, false) {
+            if let Some(trial) = self.evaluate(model, true, goal, false) {
                 if trial <= phi + ARMIJO * alpha * slope {
                     return Ok(alpha);
                 }
@@ -380,7 +406,7 @@ impl Solver {
     /// Write the converged `q` into `work`: positions, twists, frames, and (for a step of
     /// `h`) the velocities `(q − q0) / h`.
     fn commit(&mut self, model: &Model, work: &mut State, goal: Goal) -> Result<()> {
-        self.evaluate(model, work, false, goal, false).ok_or_else(|| diverged(&self.q))?;
+        self.evaluate(model, false, goal, false).ok_or_else(|| diverged(&self.q))?;
         let n = model.edges();
         for i in 0..=n {
             let x = DVec3::from_slice(&self.q[4 * i..4 * i + 3]);
@@ -405,7 +431,7 @@ impl Solver {
         self.load(model, work, None);
         self.q.copy_from_slice(&self.q0);
         self.target.copy_from_slice(&self.q0);
-        self.evaluate(model, work, false, Goal::Static, false).ok_or_else(|| diverged(&self.q))?;
+        self.evaluate(model, false, Goal::Static, false).ok_or_else(|| diverged(&self.q))?;
         for (k, pinned) in fixed_dofs(model).enumerate() {
             let (i, r) = (k / 4, k % 4);
             let accel = if pinned { None } else { Some(-self.grad[k] / self.mass[k]) };

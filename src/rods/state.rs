@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use glam::DVec3;
 
 /// The state of a rod of a [`Model`] of `n` edges. `clone_from` reuses every buffer.
-#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Debug, PartialEq)]
 pub struct State {
     /// Vertex positions (m), `n + 1`.
     pub(super) positions: Vec<DVec3>,
@@ -29,6 +29,35 @@ pub struct State {
     pub(super) forces: Vec<DVec3>,
     /// Simulated time (s).
     pub(super) time: f64,
+}
+
+impl Clone for State {
+    fn clone(&self) -> Self {
+        let mut s = State {
+            positions: Vec::new(),
+            velocities: Vec::new(),
+            twists: Vec::new(),
+            twist_rates: Vec::new(),
+            reference: Vec::new(),
+            reference_twist: Vec::new(),
+            forces: Vec::new(),
+            time: 0.0,
+        };
+        s.clone_from(self);
+        s
+    }
+
+    /// Field by field, reusing every buffer (no allocation once the sizes match).
+    fn clone_from(&mut self, source: &Self) {
+        self.positions.clone_from(&source.positions);
+        self.velocities.clone_from(&source.velocities);
+        self.twists.clone_from(&source.twists);
+        self.twist_rates.clone_from(&source.twist_rates);
+        self.reference.clone_from(&source.reference);
+        self.reference_twist.clone_from(&source.reference_twist);
+        self.forces.clone_from(&source.forces);
+        self.time = source.time;
+    }
 }
 
 impl State {
