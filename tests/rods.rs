@@ -141,3 +141,27 @@ fn stiff_hair_is_stable_at_animation_steps_with_implicit_euler_only() {
     let x = rod.state().positions();
     assert!(x.iter().all(|p| p.length() <= 0.1 + 1e-9), "{x:?}");
 }
+
+/// Large loads and steps: a static solve straight into a large deflection (tip load
+/// `F L²/(EI)` = 3, the tip drops by about 0.6 L), a heavy soft rod (`w L³/(EI)` = 4000)
+/// settling in one static solve from horizontal to hanging, and implicit steps of 0.5 s of
+/// a soft rod dropped from horizontal all converge. Full Newton steps (no line search)
+/// cycle without converging on the heavy rod: its first step, from the linearised beam,
+/// lands far beyond the hanging shape.
+#[test]
+fn large_loads_and_steps_converge_with_the_line_search() {
+    let settings = Settings { gravity: DVec3::ZERO, ..Settings::default() };
+    let mut rod = cantilever(40, 1.0, SOFT, settings);
+    rod.state_mut().set_force(41, DVec3::new(0.0, -3.0 * bending(&SOFT), 0.0)).unwrap();
+    rod.solve_static().unwrap();
+    let tip = rod.state().positions()[41];
+    assert!(tip.y < -0.55 && tip.y > -0.7, "{tip}");
+    let heavy = Settings { gravity: DVec3::new(0.0, -100.0, 0.0), ..Settings::default() };
+    let mut rod = cantilever(40, 1.0, SOFT, heavy);
+    rod.solve_static().unwrap();
+    let tip = rod.state().positions()[41];
+    assert!(tip.x.abs() < 0.05 && tip.y < -1.0, "{tip}");
+    let mut rod = cantilever(20, 1.0, SOFT, Settings::default());
+    rod.step(0.5, 4).unwrap();
+    assert!(rod.state().positions()[21].y < -0.8);
+}
