@@ -112,10 +112,10 @@ fn check_derivatives(seed: u64, n: usize) -> (f64, f64) {
     };
     let (h, hh) = (1e-6, 1e-4);
     let (mut gerr, mut herr, mut gmax, mut hmax) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-    for k in 0..c.q.len() {
+    for (k, g) in grad.iter().enumerate() {
         let fd = (energy(k, h, k, 0.0) - energy(k, -h, k, 0.0)) / (2.0 * h);
-        gerr = gerr.max((fd - grad[k]).abs());
-        gmax = gmax.max(grad[k].abs());
+        gerr = gerr.max((fd - g).abs());
+        gmax = gmax.max(g.abs());
         for r in 0..=k {
             let fd = (energy(k, hh, r, hh) - energy(k, hh, r, -hh) - energy(k, -hh, r, hh)
                 + energy(k, -hh, r, -hh))

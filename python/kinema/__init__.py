@@ -6,7 +6,7 @@ transforms), :mod:`kinema.ode` (integrators and stability), :mod:`kinema.geometr
 shapes), :mod:`kinema.particles` (forces, colliders,
 emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`kinema.rigid`
 (rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.fluid`
-(SPH fluids), :mod:`kinema.anim`
+(SPH fluids), :mod:`kinema.rods` (discrete elastic rods), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
 editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.scene` (scenes coupling them,
 checkpoints), :mod:`kinema.scenefile` (scenes from TOML), :mod:`kinema.sweep` (parameter sweeps on
@@ -85,6 +85,7 @@ _SUBMODULES = frozenset(
         "particles",
         "plot",
         "rigid",
+        "rods",
         "rotation",
         "scene",
         "scenefile",

@@ -19,6 +19,7 @@ mod ode;
 mod particles;
 mod pickle;
 mod rigid;
+mod rods;
 mod rotation;
 mod view;
 
@@ -75,6 +76,7 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     constraints::register(m)?;
     cloth::register(m)?;
     fluid::register(m)?;
+    rods::register(m)?;
     anim::register(m)?;
     mocap::register(m)?;
     ik::register(m)?;

@@ -98,21 +98,15 @@ impl Band {
     pub fn solve(&self, b: &mut [f64]) {
         let (n, k, w) = (self.n, self.k, self.k + 1);
         for i in 0..n {
-            let mut s = b[i];
-            for p in i.saturating_sub(k)..i {
-                s -= self.a[i * w + (i - p)] * b[p];
-            }
-            b[i] = s;
+            let s: f64 = (i.saturating_sub(k)..i).map(|p| self.a[i * w + (i - p)] * b[p]).sum();
+            b[i] -= s;
         }
-        for i in 0..n {
-            b[i] /= self.a[i * w];
+        for (x, row) in b.iter_mut().zip(self.a.chunks_exact(w)) {
+            *x /= row[0];
         }
         for i in (0..n).rev() {
-            let mut s = b[i];
-            for r in i + 1..(i + k + 1).min(n) {
-                s -= self.a[r * w + (r - i)] * b[r];
-            }
-            b[i] = s;
+            let s: f64 = (i + 1..(i + k + 1).min(n)).map(|r| self.a[r * w + (r - i)] * b[r]).sum();
+            b[i] -= s;
         }
     }
 }
@@ -133,19 +127,20 @@ mod tests {
         };
         let mut m = Band::default();
         m.reset(n, k);
-        let mut dense = vec![vec![0.0; n]; n];
+        let mut dense = vec![0.0; n * n];
         for i in 0..n {
             for j in i.saturating_sub(k)..i {
                 let v = rnd();
                 m.add(i, j, v);
-                dense[i][j] = v;
-                dense[j][i] = v;
+                dense[i * n + j] = v;
+                dense[j * n + i] = v;
             }
             m.add(i, i, 12.0);
-            dense[i][i] = 12.0;
+            dense[i * n + i] = 12.0;
         }
         let x: Vec<f64> = (0..n).map(|_| rnd()).collect();
-        let mut b: Vec<f64> = (0..n).map(|i| (0..n).map(|j| dense[i][j] * x[j]).sum()).collect();
+        let mut b: Vec<f64> =
+            (0..n).map(|i| dense[i * n..][..n].iter().zip(&x).map(|(a, b)| a * b).sum()).collect();
         m.factor().unwrap();
         m.solve(&mut b);
         for (got, want) in b.iter().zip(&x) {

@@ -168,7 +168,7 @@ mod tests {
 
     #[test]
     fn curvature_binormal_has_length_two_tan_half_the_turning_angle() {
-        for phi in [0.0, 0.1, 1.0, 2.5] {
+        for phi in [0.0f64, 0.1, 1.0, 2.5] {
             let e = DVec3::new(2.0, 0.0, 0.0);
             let f = 0.5 * DVec3::new(phi.cos(), phi.sin(), 0.0);
             let kb = curvature_binormal(e, f);

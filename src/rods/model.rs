@@ -169,7 +169,9 @@ impl Model {
         let n = points.len() - 1;
         let edges: Vec<DVec3> = points.windows(2).map(|w| w[1] - w[0]).collect();
         let scale = edges.iter().map(|e| e.length()).fold(0.0, f64::max);
-        if let Some(j) = edges.iter().position(|e| !(e.length() > 1e-9 * scale)) {
+        if let Some(j) =
+            edges.iter().position(|e| e.length() <= 1e-9 * scale || !e.length().is_finite())
+        {
             return Err(Error::invalid("points", "coincides with the next point").at(j));
         }
         let tangents: Vec<DVec3> = edges.iter().map(|e| e.normalize()).collect();

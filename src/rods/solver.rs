@@ -272,6 +272,7 @@ impl Solver {
             Goal::Static => 0.0,
         };
         self.scale = phi.abs();
+        #[allow(clippy::needless_range_loop)] // six arrays indexed alike
         for k in 0..q.len() {
             let d = q[k] - self.target[k];
             let (inertia, work) =
