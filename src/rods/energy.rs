@@ -83,8 +83,8 @@ impl Local {
         }
     }
 
-    /// `self += w (a ∇aᵀ... )`: add `w (a − rest)² / 2`, its gradient and Hessian (the
-    /// Gauss–Newton term plus `w (a − rest) ∇²a`).
+    /// Add `w (a − rest)² / 2` for the scalar `a` of the same stencil, its gradient
+    /// `w (a − rest) ∇a` and Hessian `w (∇a ∇aᵀ + (a − rest) ∇²a)`.
     fn add_quadratic(&mut self, a: &Local, rest: f64, w: f64) {
         let d = a.value - rest;
         self.value += 0.5 * w * d * d;
@@ -113,14 +113,6 @@ pub fn stretch(e: DVec3, rest: f64, ea: f64) -> (f64, DVec3, DMat3) {
         hess += (DMat3::IDENTITY - tt) * (ea * strain / len);
     }
     (energy, grad, hess)
-}
-
-/// The exact stretching Hessian (with the transverse term also in compression), for tests.
-pub fn stretch_exact_hessian(e: DVec3, rest: f64, ea: f64) -> DMat3 {
-    let len = e.length();
-    let t = e / len;
-    let tt = outer(t, t);
-    tt * (ea / rest) + (DMat3::IDENTITY - tt) * (ea * (len / rest - 1.0) / len)
 }
 
 /// The two edges of a stencil and their material directors.

@@ -93,7 +93,7 @@ pub struct Frames {
 
 impl Frames {
     /// Size every buffer for `n` edges (allocates only when they grow).
-    pub fn resize(&mut self, n: usize) {
+    fn resize(&mut self, n: usize) {
         for v in
             [&mut self.edges, &mut self.tangents, &mut self.reference, &mut self.m1, &mut self.m2]
         {

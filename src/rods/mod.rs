@@ -25,9 +25,7 @@ mod solver;
 mod state;
 
 pub use band::Band;
-pub use energy::{
-    curvature, elastic, stretch, stretch_exact_hessian, twist, Local, Stencil, STENCIL,
-};
+pub use energy::{curvature, elastic, stretch, twist, Local, Stencil, STENCIL};
 pub use frames::{curvature_binormal, directors, reference_twist, transport, Frames};
 pub use model::{End, Integrator, Material, Model, Settings};
 pub use solver::Solver;
