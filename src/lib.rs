@@ -20,6 +20,7 @@ pub mod mocap;
 pub mod ode;
 pub mod particles;
 pub mod rigid;
+pub mod rods;
 pub mod rotation;
 pub mod skin;
 pub mod snapshot;

@@ -20,6 +20,7 @@ mod ode;
 mod particles;
 mod pickle;
 mod rigid;
+mod rods;
 mod rotation;
 mod skin;
 mod view;
@@ -78,6 +79,7 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     cloth::register(m)?;
     fluid::register(m)?;
     crowd::register(m)?;
+    rods::register(m)?;
     anim::register(m)?;
     mocap::register(m)?;
     ik::register(m)?;

@@ -1,0 +1,202 @@
+"""Discrete elastic rods (Bergou, Wardetzky, Robinson, Audoly & Grinspun 2008; time-parallel
+transport of Bergou, Audoly, Vouga, Wardetzky & Grinspun 2010): hair, ropes, cables and stems
+as a polyline of vertices with one twist angle per edge, bending (with the natural curvature
+of the shape given), twisting and stretching, stepped by implicit Euler (Newton on a banded
+system with a line search, stable at dt = 1/60 for stiff hair) or symplectic Euler.
+
+Build a :class:`Rod` from points (its rest shape) or with :meth:`Rod.straight`, clamp or pin
+it, then ``step`` it or ``solve_static`` it. ``positions``, ``velocities`` and ``twists`` are
+read-only numpy views of the Rust state, updated in place (no copy). See docs/rods.md.
+"""
+
+from __future__ import annotations
+
+import operator
+from typing import Any, SupportsIndex
+
+import numpy as np
+
+from kinema import _kinema
+from kinema._array import as_vector3, real
+
+__all__ = ["Rod"]
+
+
+def _index(value: object, name: str) -> int:
+    """An integer argument as an ``int`` (``TypeError`` naming ``name`` otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, SupportsIndex):
+        raise TypeError(f"{name}: expected an integer, got {type(value).__name__}")
+    return operator.index(value)
+
+
+class Rod:
+    """An elastic rod at rest in the shape of ``points`` ``(N, 3)`` (m, N >= 2).
+
+    The cross-section is an ellipse of semi-axes ``radius`` (m; one number for a round rod,
+    or ``(a, b)`` with ``a`` along the material director ``m1``); ``youngs_modulus`` and
+    ``shear_modulus`` in Pa (the shear modulus defaults to ``E / 3``, an incompressible
+    material); ``density`` in kg/m³. The shape given is the rest shape (its curvature is the
+    rod's natural curvature); ``twist`` ``(N - 1,)`` (rad) turns the material frames of the
+    edges from it, or is ``None`` (untwisted). ``gravity`` in m/s²; ``integrator``
+    ``"implicit"`` (implicit Euler) or ``"symplectic"`` (symplectic Euler); Newton stops when
+    a step moves no vertex more than ``tolerance`` times the rod's length and no angle more
+    than ``tolerance`` rad (or at the rounding level), and fails with
+    :class:`kinema.SimulationError` after ``max_iterations`` (the rod unchanged).
+    """
+
+    def __init__(
+        self,
+        points: Any,
+        radius: Any = 1e-3,
+        youngs_modulus: float = 1e6,
+        shear_modulus: float | None = None,
+        density: float = 1000.0,
+        twist: Any = None,
+        *,
+        gravity: Any = (0.0, -9.81, 0.0),
+        integrator: str = "implicit",
+        tolerance: float = 1e-10,
+        max_iterations: int = 100,
+    ) -> None:
+        pts = _floats(points, "points")
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ValueError(f"points: expected shape (N, 3), got {pts.shape}")
+        radii = _floats(radius, "radius")
+        if radii.shape not in ((), (2,)):
+            raise ValueError("radius: expected a number or two semi-axes (a, b)")
+        pair = [float(radii)] * 2 if radii.shape == () else radii.tolist()
+        e = real(youngs_modulus, "youngs_modulus")
+        g = e / 3.0 if shear_modulus is None else real(shear_modulus, "shear_modulus")
+        angles = None
+        if twist is not None:
+            t = _floats(twist, "twist")
+            if t.ndim != 1:
+                raise ValueError(f"twist: expected shape (N - 1,), got {t.shape}")
+            angles = t.tolist()
+        if not isinstance(integrator, str):
+            raise TypeError("integrator: expected 'implicit' or 'symplectic'")
+        self._r = _kinema.Rod(
+            np.ascontiguousarray(pts),
+            pair,
+            e,
+            g,
+            real(density, "density"),
+            angles,
+            as_vector3(gravity, "gravity"),
+            integrator,
+            real(tolerance, "tolerance"),
+            max_iterations,
+        )
+
+    @classmethod
+    def straight(
+        cls,
+        n: int,
+        length: float,
+        direction: Any = (1.0, 0.0, 0.0),
+        origin: Any = (0.0, 0.0, 0.0),
+        **kwargs: Any,
+    ) -> Rod:
+        """A straight rod of ``n`` vertices (n >= 2) over ``length`` (m) from ``origin`` along
+        ``direction`` (made unit); ``kwargs`` as for :class:`Rod`."""
+        count = _index(n, "n")
+        if count < 2:
+            raise ValueError("n: a rod needs at least 2 vertices")
+        size = real(length, "length")
+        if not (np.isfinite(size) and size > 0.0):
+            raise ValueError("length: must be finite and > 0")
+        d = np.asarray(as_vector3(direction, "direction"))
+        norm = float(np.linalg.norm(d))
+        if not (np.isfinite(norm) and norm > 0.0):
+            raise ValueError("direction: must be a finite non-zero vector")
+        o = np.asarray(as_vector3(origin, "origin"))
+        s = np.linspace(0.0, size, count)[:, None]
+        return cls(o + s * (d / norm), **kwargs)
+
+    def clamp(self, end: int = 0) -> None:
+        """Clamp an end, ``0`` (the first vertex) or ``-1`` (the last): its first or last edge
+        keeps its position and material frame."""
+        e = _index(end, "end")
+        if e not in (0, -1):
+            raise ValueError("end: expected 0 (the first end) or -1 (the last)")
+        self._r.clamp(e == -1)
+
+    def pin(self, index: int) -> None:
+        """Hold vertex ``index`` (negative counts from the end) where it is."""
+        k = _index(index, "index")
+        self._r.pin(k + len(self) if k < 0 else k)
+
+    def set_force(self, index: int, force: Any) -> None:
+        """Apply ``force`` (N) to vertex ``index`` (negative counts from the end) during the
+        later steps, until changed (gravity comes on top)."""
+        k = _index(index, "index")
+        self._r.set_force(k + len(self) if k < 0 else k, as_vector3(force, "force"))
+
+    def step(self, dt: float, steps: int = 1) -> None:
+        """Advance ``steps`` steps of ``dt`` seconds."""
+        self._r.step(real(dt, "dt"), steps)
+
+    def solve_static(self) -> None:
+        """Move to the static equilibrium under gravity and the forces set, nearest the current
+        shape (Newton with a line search on the potential energy); velocities become 0."""
+        self._r.solve_static()
+
+    def energy(self) -> float:
+        """The elastic energy (J): stretching, bending and twisting."""
+        return self._r.energy()
+
+    def __len__(self) -> int:
+        return len(self._r)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Read-only view ``(N, 3)`` of the vertex positions (m)."""
+        return self._r.positions
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """Read-only view ``(N, 3)`` of the vertex velocities (m/s)."""
+        return self._r.velocities
+
+    @property
+    def twists(self) -> np.ndarray:
+        """Read-only view ``(N - 1,)`` of the edges' twist angles (rad) from their reference
+        frames."""
+        return self._r.twists
+
+    @property
+    def material_frames(self) -> np.ndarray:
+        """The material frames ``(N - 1, 3, 3)`` (a new array): per edge the rows tangent,
+        ``m1``, ``m2`` (unit, right-handed)."""
+        return self._r.material_frames()
+
+    @property
+    def masses(self) -> np.ndarray:
+        """The lumped vertex masses ``(N,)`` (kg, a new array)."""
+        return self._r.masses()
+
+    @property
+    def stiffness(self) -> dict[str, Any]:
+        """``stretching`` ``EA`` (N), ``bending`` ``(EI1, EI2)`` (N m²), ``twisting`` ``GJ``
+        (N m²)."""
+        ea, ei, gj = self._r.stiffness()
+        return {"stretching": ea, "bending": tuple(ei), "twisting": gj}
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._r.time
+
+    @property
+    def stats(self) -> dict[str, int]:
+        """What the last ``step`` or ``solve_static`` did: ``steps``, ``iterations`` (Newton,
+        summed), ``halvings`` (of the line searches, summed)."""
+        return self._r.stats()
+
+
+def _floats(value: object, name: str) -> np.ndarray:
+    """``value`` as a float64 array, or ``ValueError`` naming ``name`` (never quoting it)."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected numbers, got {type(value).__name__}") from None

@@ -1,0 +1,182 @@
+//! `kinema.rods`: a compiled discrete elastic rod whose positions, velocities and twists
+//! numpy views without a copy.
+
+use super::args::{Int, MAX_ITERATIONS};
+use super::array::{compute, rows};
+use super::error::detached;
+use super::pickle::{reduce, Reduced};
+use super::view::view;
+use crate::error::Error;
+use crate::rods::{End, Integrator, Material, Rod as Core, Settings};
+use crate::snapshot::Snapshot;
+use glam::DVec3;
+use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// A discrete elastic rod; see `kinema.rods.Rod` for the API.
+#[pyclass(module = "kinema._kinema")]
+pub struct Rod {
+    rod: Core,
+}
+
+#[pymethods]
+impl Rod {
+    /// Pickle support: the rod as a snapshot (model and state).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        reduce(slf, |s| &s.rod, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { rod: Core::from_snapshot(data)? })
+    }
+
+    /// A rod at rest in the shape of `points` (N, 3) in m: semi-axes `radius` (m, along
+    /// `m1` and `m2`), `youngs_modulus` and `shear_modulus` (Pa), `density` (kg/m³), twist
+    /// angles `twist` (N - 1, rad) or none, `gravity` (m/s²), `integrator` ("implicit" or
+    /// "symplectic"), Newton `tolerance` and `max_iterations`.
+    #[new]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        points: PyReadonlyArrayDyn<'_, f64>,
+        radius: [f64; 2],
+        youngs_modulus: f64,
+        shear_modulus: f64,
+        density: f64,
+        twist: Option<Vec<f64>>,
+        gravity: [f64; 3],
+        integrator: &str,
+        tolerance: f64,
+        max_iterations: Int,
+    ) -> PyResult<Self> {
+        let points: Vec<DVec3> =
+            rows::<3>(&points, "points", &[3])?.iter().map(|p| DVec3::from_array(*p)).collect();
+        let integrator = match integrator {
+            "implicit" => Integrator::ImplicitEuler,
+            "symplectic" => Integrator::SymplecticEuler,
+            _ => {
+                return Err(
+                    Error::invalid("integrator", "expected 'implicit' or 'symplectic'").into()
+                )
+            }
+        };
+        let material = Material { youngs_modulus, shear_modulus, density, radius };
+        let settings = Settings {
+            gravity: DVec3::from_array(gravity),
+            integrator,
+            tolerance,
+            max_iterations: max_iterations.range("max_iterations", 1, MAX_ITERATIONS)?,
+        };
+        Ok(Rod { rod: Core::new(&points, material, settings, twist.as_deref())? })
+    }
+
+    /// Clamp the first (`last` false) or last end: its edge keeps position and frame.
+    fn clamp(&mut self, last: bool) {
+        self.rod.model_mut().clamp(if last { End::Last } else { End::First });
+    }
+
+    /// Hold vertex `index` where it is.
+    fn pin(&mut self, index: Int) -> PyResult<()> {
+        Ok(self.rod.model_mut().pin(index.count("index")?)?)
+    }
+
+    /// Set the external force (N) on vertex `index` for the later steps.
+    fn set_force(&mut self, index: Int, force: [f64; 3]) -> PyResult<()> {
+        let index = index.count("index")?;
+        Ok(self.rod.state_mut().set_force(index, DVec3::from_array(force))?)
+    }
+
+    /// Advance `steps` steps of `dt` seconds (GIL released).
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: Int) -> PyResult<()> {
+        let steps = steps.count("steps")?;
+        let rod = &mut self.rod;
+        detached(py, || rod.step(dt, steps))
+    }
+
+    /// Move to the static equilibrium nearest the current shape (GIL released).
+    fn solve_static(&mut self, py: Python<'_>) -> PyResult<()> {
+        let rod = &mut self.rod;
+        detached(py, || rod.solve_static())
+    }
+
+    /// Number of vertices.
+    fn __len__(&self) -> usize {
+        self.rod.state().positions().len()
+    }
+
+    /// Read-only view (N, 3) of the positions (m), updated in place by `step`.
+    #[getter]
+    fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().rod.state().positions().len();
+        view(slf, &[n, 3], |r| bytemuck::cast_slice(r.rod.state().positions()))
+    }
+
+    /// Read-only view (N, 3) of the velocities (m/s), updated in place by `step`.
+    #[getter]
+    fn velocities<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().rod.state().velocities().len();
+        view(slf, &[n, 3], |r| bytemuck::cast_slice(r.rod.state().velocities()))
+    }
+
+    /// Read-only view (N - 1,) of the twist angles (rad), updated in place by `step`.
+    #[getter]
+    fn twists<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().rod.state().twists().len();
+        view(slf, &[n], |r| r.rod.state().twists())
+    }
+
+    /// The material frames (N - 1, 3, 3): per edge the rows tangent, m1, m2 (a new array).
+    fn material_frames<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let frames = self.rod.material_frames();
+        compute::<9>(py, frames.len(), &[3, 3], |out| {
+            for (o, f) in out.iter_mut().zip(&frames) {
+                for (r, v) in f.iter().enumerate() {
+                    o[3 * r..3 * r + 3].copy_from_slice(&v.to_array());
+                }
+            }
+            Ok(())
+        })
+    }
+
+    /// The elastic energy (J).
+    fn energy(&mut self) -> f64 {
+        self.rod.energy()
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.rod.state().time()
+    }
+
+    /// The lumped vertex masses (N,) in kg (a new array).
+    fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let m = self.rod.model().masses();
+        compute::<1>(py, m.len(), &[], |out| {
+            out.iter_mut().zip(m).for_each(|(o, v)| o[0] = *v);
+            Ok(())
+        })
+    }
+
+    /// Stiffnesses: stretching `EA` (N), bending `(EI1, EI2)` (N m²), twisting `GJ` (N m²).
+    fn stiffness(&self) -> (f64, [f64; 2], f64) {
+        let m = self.rod.model();
+        (m.stretching_stiffness(), m.bending_stiffness(), m.twisting_stiffness())
+    }
+
+    /// What the last `step` or `solve_static` did.
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.rod.stats;
+        let d = PyDict::new(py);
+        d.set_item("steps", s.steps)?;
+        d.set_item("iterations", s.iterations)?;
+        d.set_item("halvings", s.halvings)?;
+        Ok(d)
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Rod>()
+}

@@ -1,0 +1,341 @@
+//! The rod model: what every step reads and no step changes — the rest shape (edge lengths,
+//! Voronoi lengths, material curvatures and twists of the given points, their reference
+//! frames), the cross-section and material, the lumped masses and twist inertias, gravity,
+//! the solver settings and the boundary conditions (pinned vertices, locked twist angles).
+
+use super::frames::{curvature_binormal, directors, perpendicular, reference_twist, transport};
+use crate::error::{Error, Result};
+use glam::DVec3;
+use std::f64::consts::PI;
+
+/// The rod's material and cross-section.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// Young's modulus `E` (Pa).
+    pub youngs_modulus: f64,
+    /// Shear modulus `G` (Pa); `E / (2 (1 + ν))` for Poisson's ratio `ν`.
+    pub shear_modulus: f64,
+    /// Density `ρ` (kg/m³).
+    pub density: f64,
+    /// Semi-axes `(a, b)` of the elliptic cross-section (m): `a` along the material director
+    /// `m1`, `b` along `m2`; equal for a round rod of radius `a`.
+    pub radius: [f64; 2],
+}
+
+/// How [`super::Solver::step`] integrates in time.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Integrator {
+    /// Implicit (backward) Euler: each step minimises the incremental potential by Newton's
+    /// method on the banded Hessian with a backtracking line search (the default; stable at
+    /// any step, first order, damps).
+    ImplicitEuler,
+    /// Symplectic (semi-implicit) Euler: explicit, first order, stable only below the rod's
+    /// fastest period over `π` (for comparison).
+    SymplecticEuler,
+}
+
+/// Settings of the solver and the world.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Gravity (m/s², default `(0, -9.81, 0)`).
+    pub gravity: DVec3,
+    /// The time integrator (default implicit Euler).
+    pub integrator: Integrator,
+    /// Newton stops when a step moves no vertex more than `tolerance` times the rod's length
+    /// and turns no twist angle more than `tolerance` rad (default 1e-10).
+    pub tolerance: f64,
+    /// The most Newton iterations of one step or static solve (default 100).
+    pub max_iterations: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            gravity: DVec3::new(0.0, -9.81, 0.0),
+            integrator: Integrator::ImplicitEuler,
+            tolerance: 1e-10,
+            max_iterations: 100,
+        }
+    }
+}
+
+/// A rod model (see the module docs): read-only during a step (`&Model`); several
+/// [`super::State`]s may share it. A rod of `n` edges has `n + 1` vertices.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
+pub struct Model {
+    pub(super) material: Material,
+    pub(super) settings: Settings,
+    /// The rest positions (m), `n + 1`: the shape the rod was built from.
+    pub(super) rest_positions: Vec<DVec3>,
+    /// The reference directors `d1` of the rest shape (space-parallel transported from the
+    /// first edge's), `n`.
+    pub(super) rest_reference: Vec<DVec3>,
+    /// Rest edge lengths `l̄_j` (m), `n`.
+    pub(super) rest_lengths: Vec<f64>,
+    /// Voronoi lengths `(l̄_{i−1} + l̄_i) / 2` of the interior vertices (m), `n − 1`.
+    pub(super) voronoi: Vec<f64>,
+    /// Rest material curvatures `(κ̄1, κ̄2)` of the interior vertices, `n − 1` (natural
+    /// curvature: those of the rest shape at zero twist).
+    pub(super) rest_curvatures: Vec<[f64; 2]>,
+    /// Rest twists `m̄` of the interior vertices (rad), `n − 1`: the rest shape's reference
+    /// twist (zero for its space-parallel frames).
+    pub(super) rest_twists: Vec<f64>,
+    /// Lumped vertex masses `ρ A (l̄_{i−1} + l̄_i)/2` (kg), `n + 1`.
+    pub(super) masses: Vec<f64>,
+    /// Twist inertias `ρ (I1 + I2) l̄_j` (kg m²) of the edges, `n`.
+    pub(super) inertias: Vec<f64>,
+    /// Pinned vertices (position held), `n + 1`.
+    pub(super) pinned: Vec<bool>,
+    /// Edges whose twist angle is held, `n`.
+    pub(super) locked: Vec<bool>,
+}
+
+/// An end of a rod.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum End {
+    /// Vertex 0 and edge 0.
+    First,
+    /// The last vertex and edge.
+    Last,
+}
+
+impl Material {
+    fn validate(&self) -> Result<()> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        for (arg, v) in [
+            ("youngs_modulus", self.youngs_modulus),
+            ("shear_modulus", self.shear_modulus),
+            ("density", self.density),
+            ("radius", self.radius[0]),
+            ("radius", self.radius[1]),
+        ] {
+            if !positive(v) {
+                return Err(Error::invalid(arg, "must be finite and > 0"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Cross-section area `A = π a b` (m²).
+    pub fn area(&self) -> f64 {
+        PI * self.radius[0] * self.radius[1]
+    }
+
+    /// Second moments of area `(I1, I2) = (π a³ b / 4, π a b³ / 4)` (m⁴): resisting bending
+    /// towards `m1` and towards `m2`.
+    pub fn second_moments(&self) -> [f64; 2] {
+        let [a, b] = self.radius;
+        [PI * a * a * a * b / 4.0, PI * a * b * b * b / 4.0]
+    }
+
+    /// Torsion constant of the ellipse `J = π a³ b³ / (a² + b²)` (m⁴; `π r⁴ / 2` when round).
+    pub fn torsion_constant(&self) -> f64 {
+        let [a, b] = self.radius;
+        PI * (a * b).powi(3) / (a * a + b * b)
+    }
+}
+
+impl Settings {
+    fn validate(&self) -> Result<()> {
+        if !self.gravity.is_finite() {
+            return Err(Error::invalid("gravity", "must be finite"));
+        }
+        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+            return Err(Error::invalid("tolerance", "must be finite and > 0"));
+        }
+        if self.max_iterations == 0 {
+            return Err(Error::invalid("max_iterations", "must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
+impl Model {
+    /// The model of a rod whose rest shape is `points` (m, at least 2, consecutive points
+    /// distinct, no turn of 170° or more at a vertex), free (nothing pinned).
+    ///
+    /// # Errors
+    /// Fewer than 2 points, non-finite or coincident points, a near half turn (`points`, with
+    /// index); a material or setting out of range (named).
+    pub fn new(points: &[DVec3], material: Material, settings: Settings) -> Result<Self> {
+        material.validate()?;
+        settings.validate()?;
+        if points.len() < 2 {
+            return Err(Error::invalid("points", "a rod needs at least 2 points"));
+        }
+        if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+            return Err(Error::invalid("points", "contains NaN or infinity").at(i));
+        }
+        let n = points.len() - 1;
+        let edges: Vec<DVec3> = points.windows(2).map(|w| w[1] - w[0]).collect();
+        let scale = edges.iter().map(|e| e.length()).fold(0.0, f64::max);
+        if let Some(j) =
+            edges.iter().position(|e| e.length() <= 1e-9 * scale || !e.length().is_finite())
+        {
+            return Err(Error::invalid("points", "coincides with the next point").at(j));
+        }
+        let tangents: Vec<DVec3> = edges.iter().map(|e| e.normalize()).collect();
+        if let Some(j) =
+            tangents.windows(2).position(|t| t[0].dot(t[1]) < (170f64).to_radians().cos())
+        {
+            return Err(Error::invalid("points", "turns by 170 degrees or more").at(j + 1));
+        }
+        let mut reference = vec![perpendicular(tangents[0])];
+        for j in 1..n {
+            let d = transport(reference[j - 1], tangents[j - 1], tangents[j]);
+            reference.push((d - d.dot(tangents[j]) * tangents[j]).normalize());
+        }
+        let rest_lengths: Vec<f64> = edges.iter().map(|e| e.length()).collect();
+        let voronoi: Vec<f64> = rest_lengths.windows(2).map(|l| 0.5 * (l[0] + l[1])).collect();
+        let mut rest_curvatures = Vec::with_capacity(n - 1);
+        let mut rest_twists = Vec::with_capacity(n - 1);
+        for i in 1..n {
+            let kb = curvature_binormal(edges[i - 1], edges[i]);
+            let (m1e, m2e) = directors(tangents[i - 1], reference[i - 1], 0.0);
+            let (m1f, m2f) = directors(tangents[i], reference[i], 0.0);
+            rest_curvatures.push([0.5 * kb.dot(m2e + m2f), -0.5 * kb.dot(m1e + m1f)]);
+            let (t0, t1) = (tangents[i - 1], tangents[i]);
+            rest_twists.push(reference_twist(t0, reference[i - 1], t1, reference[i], 0.0));
+        }
+        let rho_a = material.density * material.area();
+        let mut masses = vec![0.0; n + 1];
+        for (j, l) in rest_lengths.iter().enumerate() {
+            masses[j] += 0.5 * rho_a * l;
+            masses[j + 1] += 0.5 * rho_a * l;
+        }
+        let [i1, i2] = material.second_moments();
+        let inertias = rest_lengths.iter().map(|l| material.density * (i1 + i2) * l).collect();
+        Ok(Model {
+            material,
+            settings,
+            rest_positions: points.to_vec(),
+            rest_reference: reference,
+            rest_lengths,
+            voronoi,
+            rest_curvatures,
+            rest_twists,
+            masses,
+            inertias,
+            pinned: vec![false; n + 1],
+            locked: vec![false; n],
+        })
+    }
+
+    /// Number of edges `n` (the rod has `n + 1` vertices).
+    pub fn edges(&self) -> usize {
+        self.rest_lengths.len()
+    }
+
+    /// The material and cross-section.
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// The rest positions (m), `n + 1`.
+    pub fn rest_positions(&self) -> &[DVec3] {
+        &self.rest_positions
+    }
+
+    /// The rest edge lengths (m), `n`.
+    pub fn rest_lengths(&self) -> &[f64] {
+        &self.rest_lengths
+    }
+
+    /// The lumped vertex masses (kg), `n + 1`.
+    pub fn masses(&self) -> &[f64] {
+        &self.masses
+    }
+
+    /// Stretching stiffness `E A` (N).
+    pub fn stretching_stiffness(&self) -> f64 {
+        self.material.youngs_modulus * self.material.area()
+    }
+
+    /// Bending stiffnesses `(E I1, E I2)` (N m²).
+    pub fn bending_stiffness(&self) -> [f64; 2] {
+        self.material.second_moments().map(|i| self.material.youngs_modulus * i)
+    }
+
+    /// Twisting stiffness `G J` (N m²).
+    pub fn twisting_stiffness(&self) -> f64 {
+        self.material.shear_modulus * self.material.torsion_constant()
+    }
+
+    /// Pinned vertices, `n + 1`.
+    pub fn pinned(&self) -> &[bool] {
+        &self.pinned
+    }
+
+    /// Edges whose twist angle is held, `n`.
+    pub fn locked(&self) -> &[bool] {
+        &self.locked
+    }
+
+    /// Hold vertex `i` where it is.
+    ///
+    /// # Errors
+    /// `i` beyond the last vertex (`index`).
+    pub fn pin(&mut self, i: usize) -> Result<()> {
+        let Some(p) = self.pinned.get_mut(i) else {
+            return Err(Error::invalid("index", "beyond the last vertex"));
+        };
+        *p = true;
+        Ok(())
+    }
+
+    /// Clamp an end: hold its two vertices and its edge's twist angle, so its edge keeps its
+    /// position and material frame.
+    pub fn clamp(&mut self, end: End) {
+        let n = self.edges();
+        let (a, j) = match end {
+            End::First => (0, 0),
+            End::Last => (n - 1, n - 1),
+        };
+        self.pinned[a] = true;
+        self.pinned[a + 1] = true;
+        self.locked[j] = true;
+    }
+
+    /// Change the settings (gravity, integrator, tolerances).
+    ///
+    /// # Errors
+    /// A setting out of range (named).
+    pub fn set_settings(&mut self, settings: Settings) -> Result<()> {
+        settings.validate()?;
+        self.settings = settings;
+        Ok(())
+    }
+
+    /// A deterministic 64-bit hash of the model ([`crate::snapshot::fingerprint`]), recorded
+    /// by state snapshots so that a state is not restored onto another model.
+    pub fn fingerprint(&self) -> u64 {
+        crate::snapshot::fingerprint(self)
+    }
+
+    /// Check a decoded model: lengths consistent, values finite and in range.
+    pub(super) fn validate(&self) -> Result<()> {
+        use crate::snapshot::check;
+        let fresh = Model::new(&self.rest_positions, self.material, self.settings)?;
+        check(
+            fresh.rest_lengths == self.rest_lengths
+                && fresh.voronoi == self.voronoi
+                && fresh.rest_curvatures == self.rest_curvatures
+                && fresh.rest_twists == self.rest_twists
+                && fresh.masses == self.masses
+                && fresh.inertias == self.inertias
+                && fresh.rest_reference == self.rest_reference,
+            "rest_positions",
+            || "rest quantities do not match the rest shape".into(),
+        )?;
+        check(
+            self.pinned.len() == self.masses.len() && self.locked.len() == self.rest_lengths.len(),
+            "pinned",
+            || "one flag per vertex and per edge".into(),
+        )
+    }
+}

@@ -1,0 +1,483 @@
+//! The rod solver: implicit Euler by Newton's method on the banded system, symplectic Euler,
+//! and the static equilibrium. It owns every workspace and carries nothing a later step
+//! reads: [`Solver::step`] steps a copy of the state and writes it back only when every step
+//! succeeded, so a failed call leaves the state exactly as it was.
+//!
+//! The degrees of freedom are interleaved, `q = (x0, θ0, x1, θ1, …, x_n)` (`4n + 3`), so
+//! every stencil lies within 10 of the diagonal and the Newton system is a band of
+//! half-bandwidth 10, factored in `O(n)` ([`Band`]).
+//!
+//! - **Implicit Euler** (Bergou et al. 2010, sec. 6; Gast et al. 2015's optimisation form):
+//!   `q_{k+1}` minimises the incremental potential
+//!   `Φ(q) = ½ (q − q̃)ᵀ M (q − q̃) / h² + E(q) − fᵀ (q − q_k)`, `q̃ = q_k + h v_k`, with `M` the lumped
+//!   masses and twist inertias, `E` the elastic energy and `f` gravity plus the external
+//!   forces; then `v_{k+1} = (q_{k+1} − q_k) / h`. Each Newton iteration solves
+//!   `(M/h² + ∇²E) Δ = −∇Φ`; when the band is not positive definite it adds
+//!   `λ diag|H|` (`λ` from 1e-8, ×10 until it factors, Levenberg–Marquardt style), and a
+//!   backtracking (Armijo) line search on `Φ` halves the step until `Φ` decreases enough.
+//!   Newton stops when a step moves no vertex more than `tolerance` times the rod's length
+//!   and no twist angle more than `tolerance` rad, or when the decrease of `Φ` it predicts
+//!   is at the rounding level of `Φ` (`ROUNDING`).
+//! - **Static equilibrium**: the same minimisation without the inertial term
+//!   (`Φ = E − fᵀ(q − q_k)`).
+//! - **Symplectic Euler**: `v += h M⁻¹ (f − ∇E)`, `q += h v`.
+//!
+//! Pinned vertices and locked twist angles keep their values: their rows and columns are
+//! replaced by the identity and their gradient entries by zero.
+
+use super::band::Band;
+use super::energy::elastic;
+use super::frames::Frames;
+use super::model::Integrator;
+use super::{Model, State, Stats};
+use crate::error::{Error, Result};
+use glam::DVec3;
+
+/// Half-bandwidth of the interleaved Newton system.
+const HALF_BANDWIDTH: usize = 10;
+/// Armijo's sufficient-decrease constant.
+const ARMIJO: f64 = 1e-4;
+/// The most halvings of one line search.
+const HALVINGS: usize = 40;
+/// Newton has converged when the decrease of `Φ` it predicts, `−∇Φ·Δ` (twice the distance
+/// to the minimum for a quadratic), is below this fraction of `Φ`'s magnitude: the
+/// rounding level, below which the gradient's rounding noise (large stretching forces
+/// cancelling, amplified by soft bending modes) moves the steps and no step can decrease
+/// `Φ` measurably.
+const ROUNDING: f64 = 1e-13;
+
+/// The workspaces of a rod step (see the module docs).
+#[derive(Clone, Debug, Default)]
+pub struct Solver {
+    /// The stepped copy of the state.
+    work: Option<State>,
+    /// Frames of the configuration being evaluated.
+    frames: Frames,
+    /// The frames the evaluated configurations are transported from (tangents, reference
+    /// directors, reference twists): the state's at the start of a step, then each Newton
+    /// iterate's.
+    base: Vec<DVec3>,
+    base_reference: Vec<DVec3>,
+    base_twist: Vec<f64>,
+    /// Degrees of freedom: start of the step, inertial target, current, trial.
+    q0: Vec<f64>,
+    target: Vec<f64>,
+    q: Vec<f64>,
+    trial: Vec<f64>,
+    /// Gradient of `Φ` and Newton direction.
+    grad: Vec<f64>,
+    dir: Vec<f64>,
+    /// Mass per degree of freedom (kg or kg m²), external force per degree of freedom.
+    mass: Vec<f64>,
+    force: Vec<f64>,
+    /// Unpacked positions and twists of the configuration evaluated.
+    x: Vec<DVec3>,
+    theta: Vec<f64>,
+    /// The Newton matrix, and its copy before a failed factorisation.
+    band: Band,
+    copy: Band,
+    /// `|diag H|`, the scale of the positive-definiteness shift.
+    diag: Vec<f64>,
+    /// The sum of the magnitudes of the terms of the last `Φ` evaluated (J): its rounding
+    /// error is about `ε` times this.
+    scale: f64,
+}
+
+/// Which minimisation a Newton solve does.
+#[derive(Clone, Copy)]
+enum Goal {
+    /// One implicit Euler step of this length (s).
+    Step(f64),
+    /// The static equilibrium.
+    Static,
+}
+
+impl Solver {
+    /// A solver for `model` (its buffers are sized on the first step).
+    pub fn new(_model: &Model) -> Self {
+        Solver::default()
+    }
+
+    /// Advance `state` by `steps` steps of `dt` seconds with the model's integrator.
+    ///
+    /// # Errors
+    /// `dt` not finite and positive (`dt`); Newton not converging within `max_iterations`
+    /// or a line search failing ([`Error::SolverFailed`]); a non-finite or collapsed
+    /// configuration ([`Error::Diverged`], naming the step and the vertex). The state is
+    /// then left as it was.
+    pub fn step(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        dt: f64,
+        steps: usize,
+    ) -> Result<Stats> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Error::invalid("dt", "must be finite and > 0"));
+        }
+        let mut work = self.work.take().unwrap_or_else(|| state.clone());
+        work.clone_from(state);
+        let mut stats = Stats::default();
+        let mut result = Ok(());
+        for s in 0..steps {
+            result = match model.settings.integrator {
+                Integrator::ImplicitEuler => {
+                    self.newton(model, &mut work, Goal::Step(dt), &mut stats)
+                }
+                Integrator::SymplecticEuler => self.explicit(model, &mut work, dt),
+            }
+            .map_err(|e| at_step(e, s));
+            if result.is_err() {
+                break;
+            }
+            work.time += dt;
+            stats.steps += 1;
+        }
+        if result.is_ok() {
+            state.clone_from(&work);
+        }
+        self.work = Some(work);
+        result.map(|()| stats)
+    }
+
+    /// Move `state` to the static equilibrium of the model's loads (gravity and the state's
+    /// forces) nearest it, by Newton's method on `E − fᵀq`; the velocities become zero.
+    ///
+    /// # Errors
+    /// As [`Solver::step`]; the state is then left as it was.
+    pub fn solve_static(&mut self, model: &Model, state: &mut State) -> Result<Stats> {
+        let mut work = self.work.take().unwrap_or_else(|| state.clone());
+        work.clone_from(state);
+        let mut stats = Stats::default();
+        let result = self.newton(model, &mut work, Goal::Static, &mut stats);
+        if result.is_ok() {
+            work.velocities.fill(DVec3::ZERO);
+            work.twist_rates.fill(0.0);
+            state.clone_from(&work);
+        }
+        self.work = Some(work);
+        result.map(|()| stats)
+    }
+
+    /// The elastic energy of `state` (J).
+    pub fn energy(&mut self, model: &Model, state: &State) -> f64 {
+        if !state.frames_into(&mut self.frames, &mut self.base) {
+            return f64::NAN;
+        }
+        self.grad.clear();
+        self.grad.resize(4 * model.edges() + 3, 0.0);
+        elastic(model, &self.frames, &state.twists, &mut self.grad, None)
+    }
+
+    /// The elastic forces `−∂E/∂x` on the vertices (N) and torques `−∂E/∂θ` on the twist
+    /// angles (N m) of `state`, into `forces` (`n + 1`) and `torques` (`n`).
+    pub fn elastic_forces(
+        &mut self,
+        model: &Model,
+        state: &State,
+        forces: &mut Vec<DVec3>,
+        torques: &mut Vec<f64>,
+    ) {
+        self.energy(model, state);
+        let n = model.edges();
+        forces.clear();
+        forces.extend((0..=n).map(|i| -DVec3::from_slice(&self.grad[4 * i..4 * i + 3])));
+        torques.clear();
+        torques.extend((0..n).map(|j| -self.grad[4 * j + 3]));
+    }
+
+    /// Size the workspaces and load `work` into them: masses, forces, `q0`, the inertial
+    /// target (for a step of `h`), the base tangents.
+    fn load(&mut self, model: &Model, work: &State, h: Option<f64>) {
+        let n = model.edges();
+        let dofs = 4 * n + 3;
+        for v in [
+            &mut self.q0,
+            &mut self.target,
+            &mut self.q,
+            &mut self.trial,
+            &mut self.grad,
+            &mut self.dir,
+            &mut self.mass,
+            &mut self.force,
+            &mut self.diag,
+        ] {
+            v.resize(dofs, 0.0);
+        }
+        let g = model.settings.gravity;
+        for i in 0..=n {
+            let f = model.masses[i] * g + work.forces[i];
+            for r in 0..3 {
+                self.q0[4 * i + r] = work.positions[i][r];
+                self.target[4 * i + r] =
+                    work.positions[i][r] + h.unwrap_or(0.0) * work.velocities[i][r];
+                self.mass[4 * i + r] = model.masses[i];
+                self.force[4 * i + r] = f[r];
+            }
+            if i < n {
+                self.q0[4 * i + 3] = work.twists[i];
+                self.target[4 * i + 3] = work.twists[i] + h.unwrap_or(0.0) * work.twist_rates[i];
+                self.mass[4 * i + 3] = model.inertias[i];
+                self.force[4 * i + 3] = 0.0;
+            }
+        }
+        for (k, fixed) in fixed_dofs(model).enumerate() {
+            if fixed {
+                self.target[k] = self.q0[k];
+            }
+        }
+        self.base.clear();
+        self.base.extend(work.positions.windows(2).map(|w| (w[1] - w[0]).normalize()));
+        self.base_reference.clone_from(&work.reference);
+        self.base_twist.clone_from(&work.reference_twist);
+    }
+
+    /// Transport later configurations from the frames last evaluated.
+    fn rebase(&mut self) {
+        self.base.clone_from(&self.frames.tangents);
+        self.base_reference.clone_from(&self.frames.reference);
+        self.base_twist.clone_from(&self.frames.reference_twist);
+    }
+
+    /// `Φ` at `q` (`Goal`), its gradient into `grad` and, with `hess`, its Hessian into the
+    /// band (fixed rows and columns replaced by the identity). `None` when the
+    /// configuration is unusable (a collapsed edge, a half turn, a non-finite value).
+    fn evaluate(&mut self, model: &Model, trial: bool, goal: Goal, hess: bool) -> Option<f64> {
+        let n = model.edges();
+        let q = if trial { &self.trial } else { &self.q };
+        if !q.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        self.x.clear();
+        self.x.extend((0..=n).map(|i| DVec3::from_slice(&q[4 * i..4 * i + 3])));
+        self.theta.clear();
+        self.theta.extend((0..n).map(|j| q[4 * j + 3]));
+        if !self.frames.update(
+            &self.x,
+            &self.theta,
+            &self.base,
+            &self.base_reference,
+            &self.base_twist,
+        ) {
+            return None;
+        }
+        self.grad.fill(0.0);
+        if hess {
+            self.band.reset(4 * n + 3, HALF_BANDWIDTH);
+        }
+        let band = if hess { Some(&mut self.band) } else { None };
+        let mut phi = elastic(model, &self.frames, &self.theta, &mut self.grad, band);
+        let inv_h2 = match goal {
+            Goal::Step(h) => 1.0 / (h * h),
+            Goal::Static => 0.0,
+        };
+        self.scale = phi.abs();
+        #[allow(clippy::needless_range_loop)] // six arrays indexed alike
+        for k in 0..q.len() {
+            let d = q[k] - self.target[k];
+            let (inertia, work) =
+                (0.5 * self.mass[k] * inv_h2 * d * d, self.force[k] * (q[k] - self.q0[k]));
+            phi += inertia - work;
+            self.scale += inertia + work.abs();
+            self.grad[k] += self.mass[k] * inv_h2 * d - self.force[k];
+            if hess {
+                self.band.add(k, k, self.mass[k] * inv_h2);
+            }
+        }
+        for (k, fixed) in fixed_dofs(model).enumerate() {
+            if fixed {
+                self.grad[k] = 0.0;
+                if hess {
+                    for j in k.saturating_sub(HALF_BANDWIDTH)..k {
+                        self.band.set(k, j, 0.0);
+                    }
+                    for i in k + 1..(k + HALF_BANDWIDTH + 1).min(q.len()) {
+                        self.band.set(i, k, 0.0);
+                    }
+                    self.band.set(k, k, 1.0);
+                }
+            }
+        }
+        phi.is_finite().then_some(phi)
+    }
+
+    /// Factor the band, shifting its diagonal by `λ |diag H|` until it is positive definite.
+    fn factor(&mut self) -> Result<()> {
+        let n = self.band.len();
+        for k in 0..n {
+            self.diag[k] = self.band.get(k, k).abs().max(f64::MIN_POSITIVE);
+        }
+        self.copy.clone_from(&self.band);
+        let mut lambda = 1e-8;
+        while self.band.factor().is_err() {
+            if lambda > 1e8 {
+                return Err(Error::SolverFailed {
+                    reason: "the rod's Newton matrix cannot be made positive definite".into(),
+                });
+            }
+            self.band.clone_from(&self.copy);
+            for k in 0..n {
+                self.band.add(k, k, lambda * self.diag[k]);
+            }
+            lambda *= 10.0;
+        }
+        Ok(())
+    }
+
+    /// Minimise `Φ` of `goal` from `work`'s configuration; on success write the result
+    /// (positions, twists, velocities for a step, frames) into `work`.
+    fn newton(
+        &mut self,
+        model: &Model,
+        work: &mut State,
+        goal: Goal,
+        stats: &mut Stats,
+    ) -> Result<()> {
+        let h = match goal {
+            Goal::Step(h) => Some(h),
+            Goal::Static => None,
+        };
+        self.load(model, work, h);
+        self.q.copy_from_slice(&self.q0);
+        let length: f64 = model.rest_lengths.iter().sum();
+        let tol = model.settings.tolerance;
+        for _ in 0..model.settings.max_iterations {
+            stats.iterations += 1;
+            let phi = self.evaluate(model, false, goal, true).ok_or_else(|| diverged(&self.q))?;
+            // From here on Φ is the energy with frames transported from this iterate, whose
+            // exact gradient and Hessian are the analytic ones just evaluated, so the Newton
+            // direction descends it. Rebasing leaves Φ at this iterate unchanged, so Φ
+            // decreases from iterate to iterate.
+            self.rebase();
+            self.factor()?;
+            for k in 0..self.dir.len() {
+                self.dir[k] = -self.grad[k];
+            }
+            self.band.solve(&mut self.dir);
+            let slope: f64 = self.grad.iter().zip(&self.dir).map(|(g, d)| g * d).sum();
+            let small = -slope <= ROUNDING * self.scale
+                || self.dir.chunks(4).all(|c| {
+                    c[..3].iter().all(|d| d.abs() <= tol * length)
+                        && c.get(3).is_none_or(|d| d.abs() <= tol)
+                });
+            let alpha = if small { 1.0 } else { self.line_search(model, goal, phi, slope, stats)? };
+            for k in 0..self.q.len() {
+                self.q[k] += alpha * self.dir[k];
+            }
+            if small {
+                return self.commit(model, work, goal);
+            }
+        }
+        Err(Error::SolverFailed {
+            reason: format!(
+                "Newton did not converge in {} iterations (lower dt or raise max_iterations)",
+                model.settings.max_iterations
+            ),
+        })
+    }
+
+    /// The step length along `dir` from `q` (where `Φ = phi` and `∇Φ·dir = slope`): 1, halved
+    /// until Armijo's condition holds.
+    fn line_search(
+        &mut self,
+        model: &Model,
+        goal: Goal,
+        phi: f64,
+        slope: f64,
+        stats: &mut Stats,
+    ) -> Result<f64> {
+        let mut alpha = 1.0;
+        for _ in 0..HALVINGS {
+            for k in 0..self.q.len() {
+                self.trial[k] = self.q[k] + alpha * self.dir[k];
+            }
+            if let Some(trial) = self.evaluate(model, true, goal, false) {
+                if trial <= phi + ARMIJO * alpha * slope {
+                    return Ok(alpha);
+                }
+            }
+            alpha *= 0.5;
+            stats.halvings += 1;
+        }
+        Err(Error::SolverFailed {
+            reason: "the line search found no decrease of the incremental potential".into(),
+        })
+    }
+
+    /// Write the converged `q` into `work`: positions, twists, frames, and (for a step of
+    /// `h`) the velocities `(q − q0) / h`.
+    fn commit(&mut self, model: &Model, work: &mut State, goal: Goal) -> Result<()> {
+        self.evaluate(model, false, goal, false).ok_or_else(|| diverged(&self.q))?;
+        let n = model.edges();
+        for i in 0..=n {
+            let x = DVec3::from_slice(&self.q[4 * i..4 * i + 3]);
+            if let Goal::Step(h) = goal {
+                work.velocities[i] = (x - work.positions[i]) / h;
+            }
+            work.positions[i] = x;
+        }
+        for j in 0..n {
+            if let Goal::Step(h) = goal {
+                work.twist_rates[j] = (self.q[4 * j + 3] - work.twists[j]) / h;
+            }
+            work.twists[j] = self.q[4 * j + 3];
+        }
+        work.reference.copy_from_slice(&self.frames.reference);
+        work.reference_twist.copy_from_slice(&self.frames.reference_twist);
+        Ok(())
+    }
+
+    /// One symplectic Euler step of `h` on `work`.
+    fn explicit(&mut self, model: &Model, work: &mut State, h: f64) -> Result<()> {
+        self.load(model, work, None);
+        self.q.copy_from_slice(&self.q0);
+        self.target.copy_from_slice(&self.q0);
+        self.evaluate(model, false, Goal::Static, false).ok_or_else(|| diverged(&self.q))?;
+        for (k, pinned) in fixed_dofs(model).enumerate() {
+            let (i, r) = (k / 4, k % 4);
+            let accel = if pinned { None } else { Some(-self.grad[k] / self.mass[k]) };
+            if r < 3 {
+                let v = &mut work.velocities[i][r];
+                *v = accel.map_or(0.0, |a| *v + h * a);
+                self.q[k] += h * *v;
+            } else {
+                let w = &mut work.twist_rates[i];
+                *w = accel.map_or(0.0, |a| *w + h * a);
+                self.q[k] += h * *w;
+            }
+        }
+        self.commit(model, work, Goal::Static)
+    }
+}
+
+/// Whether each degree of freedom of `model` (interleaved) is held.
+fn fixed_dofs(model: &Model) -> impl Iterator<Item = bool> + '_ {
+    let n = model.edges();
+    (0..4 * n + 3).map(move |k| {
+        let (i, r) = (k / 4, k % 4);
+        if r < 3 {
+            model.pinned[i]
+        } else {
+            model.locked[i]
+        }
+    })
+}
+
+/// The divergence error of a configuration `q` that cannot be evaluated: the vertex of its
+/// first non-finite value (or 0).
+fn diverged(q: &[f64]) -> Error {
+    let index = q.iter().position(|v| !v.is_finite()).map_or(0, |k| k / 4);
+    Error::Diverged {
+        step: 0,
+        index,
+        reason: "non-finite or collapsed configuration (an edge of zero length or turned by a half turn)".into(),
+    }
+}
+
+/// `e` attributed to step `s` of the call.
+fn at_step(e: Error, s: usize) -> Error {
+    match e {
+        Error::Diverged { index, reason, .. } => Error::Diverged { step: s, index, reason },
+        other => other,
+    }
+}

@@ -1,0 +1,194 @@
+//! The rod state: what changes in time and what a later step reads — vertex positions and
+//! velocities, edge twist angles and their rates, the reference frames carried in time (the
+//! time-parallel transport of Bergou et al. 2010 starts each step from the last step's
+//! frames, so they are state, as is the reference twist whose branch they continue), the
+//! external forces applied during the next steps, and the time.
+
+use super::frames::Frames;
+use super::Model;
+use crate::error::{Error, Result};
+use glam::DVec3;
+
+/// The state of a rod of a [`Model`] of `n` edges. `clone_from` reuses every buffer.
+#[derive(serde::Serialize, serde::Deserialize, Debug, PartialEq)]
+pub struct State {
+    /// Vertex positions (m), `n + 1`.
+    pub(super) positions: Vec<DVec3>,
+    /// Vertex velocities (m/s), `n + 1`.
+    pub(super) velocities: Vec<DVec3>,
+    /// Twist angles `θ` of the material frames from the reference frames (rad), `n`.
+    pub(super) twists: Vec<f64>,
+    /// Their rates (rad/s), `n`.
+    pub(super) twist_rates: Vec<f64>,
+    /// Reference directors `d1` (unit, perpendicular to the edges), `n`.
+    pub(super) reference: Vec<DVec3>,
+    /// Reference twist at the interior vertices (rad), `n − 1`.
+    pub(super) reference_twist: Vec<f64>,
+    /// External forces on the vertices (N), `n + 1`, applied during every later step until
+    /// changed (gravity comes from the model).
+    pub(super) forces: Vec<DVec3>,
+    /// Simulated time (s).
+    pub(super) time: f64,
+}
+
+impl Clone for State {
+    fn clone(&self) -> Self {
+        let mut s = State {
+            positions: Vec::new(),
+            velocities: Vec::new(),
+            twists: Vec::new(),
+            twist_rates: Vec::new(),
+            reference: Vec::new(),
+            reference_twist: Vec::new(),
+            forces: Vec::new(),
+            time: 0.0,
+        };
+        s.clone_from(self);
+        s
+    }
+
+    /// Field by field, reusing every buffer (no allocation once the sizes match).
+    fn clone_from(&mut self, source: &Self) {
+        self.positions.clone_from(&source.positions);
+        self.velocities.clone_from(&source.velocities);
+        self.twists.clone_from(&source.twists);
+        self.twist_rates.clone_from(&source.twist_rates);
+        self.reference.clone_from(&source.reference);
+        self.reference_twist.clone_from(&source.reference_twist);
+        self.forces.clone_from(&source.forces);
+        self.time = source.time;
+    }
+}
+
+impl State {
+    /// The rod at rest in its rest shape, untwisted, at time 0.
+    pub fn new(model: &Model) -> Self {
+        let n = model.edges();
+        State {
+            positions: model.rest_positions.clone(),
+            velocities: vec![DVec3::ZERO; n + 1],
+            twists: vec![0.0; n],
+            twist_rates: vec![0.0; n],
+            reference: model.rest_reference.clone(),
+            reference_twist: model.rest_twists.clone(),
+            forces: vec![DVec3::ZERO; n + 1],
+            time: 0.0,
+        }
+    }
+
+    /// Vertex positions (m), `n + 1`.
+    pub fn positions(&self) -> &[DVec3] {
+        &self.positions
+    }
+
+    /// Vertex velocities (m/s), `n + 1`.
+    pub fn velocities(&self) -> &[DVec3] {
+        &self.velocities
+    }
+
+    /// Twist angles (rad), `n`.
+    pub fn twists(&self) -> &[f64] {
+        &self.twists
+    }
+
+    /// External forces on the vertices (N), `n + 1`.
+    pub fn forces(&self) -> &[DVec3] {
+        &self.forces
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Set the twist angles (rad), `n` (a rod twisted from its rest shape).
+    ///
+    /// # Errors
+    /// A length other than the edge count or a non-finite value (`twist`, with index).
+    pub fn set_twists(&mut self, twists: &[f64]) -> Result<()> {
+        if twists.len() != self.twists.len() {
+            return Err(Error::invalid("twist", "expected one angle per edge"));
+        }
+        if let Some(j) = twists.iter().position(|t| !t.is_finite()) {
+            return Err(Error::invalid("twist", "contains NaN or infinity").at(j));
+        }
+        self.twists.copy_from_slice(twists);
+        Ok(())
+    }
+
+    /// Set the vertex velocities (m/s), `n + 1`.
+    ///
+    /// # Errors
+    /// A length other than the vertex count or a non-finite value (`velocities`, with index).
+    pub fn set_velocities(&mut self, velocities: &[DVec3]) -> Result<()> {
+        if velocities.len() != self.velocities.len() {
+            return Err(Error::invalid("velocities", "expected one per vertex"));
+        }
+        if let Some(i) = velocities.iter().position(|v| !v.is_finite()) {
+            return Err(Error::invalid("velocities", "contains NaN or infinity").at(i));
+        }
+        self.velocities.copy_from_slice(velocities);
+        Ok(())
+    }
+
+    /// Set the external force (N) on vertex `index` for the later steps.
+    ///
+    /// # Errors
+    /// `index` beyond the last vertex (`index`); a non-finite force (`force`).
+    pub fn set_force(&mut self, index: usize, force: DVec3) -> Result<()> {
+        if !force.is_finite() {
+            return Err(Error::invalid("force", "must be finite"));
+        }
+        let Some(f) = self.forces.get_mut(index) else {
+            return Err(Error::invalid("index", "beyond the last vertex"));
+        };
+        *f = force;
+        Ok(())
+    }
+
+    /// The frames of the state (edges, tangents, reference and material directors,
+    /// reference twists) into `frames`; `false` if an edge has collapsed.
+    pub(super) fn frames_into(&self, frames: &mut Frames, tangents: &mut Vec<DVec3>) -> bool {
+        tangents.clear();
+        tangents.extend(self.positions.windows(2).map(|w| (w[1] - w[0]).normalize()));
+        frames.update(
+            &self.positions,
+            &self.twists,
+            tangents,
+            &self.reference,
+            &self.reference_twist,
+        )
+    }
+
+    /// Check a decoded state against its model: lengths, finite values, unit directors.
+    pub(super) fn validate(&self, model: &Model) -> Result<()> {
+        use crate::snapshot::{check, finite};
+        let n = model.edges();
+        for (field, len, want) in [
+            ("positions", self.positions.len(), n + 1),
+            ("velocities", self.velocities.len(), n + 1),
+            ("forces", self.forces.len(), n + 1),
+            ("twists", self.twists.len(), n),
+            ("twist_rates", self.twist_rates.len(), n),
+            ("reference", self.reference.len(), n),
+            ("reference_twist", self.reference_twist.len(), n - 1),
+        ] {
+            check(len == want, field, || format!("{len} entries, expected {want}"))?;
+        }
+        let vectors = [&self.positions, &self.velocities, &self.forces, &self.reference];
+        check(
+            finite(vectors.iter().flat_map(|v| v.iter().flat_map(|p| p.to_array()))),
+            "positions",
+            || "non-finite".into(),
+        )?;
+        let scalars = self.twists.iter().chain(&self.twist_rates).chain(&self.reference_twist);
+        check(finite(scalars.copied()) && self.time.is_finite(), "twists", || "non-finite".into())?;
+        check(self.reference.iter().all(|d| (d.length() - 1.0).abs() < 1e-9), "reference", || {
+            "reference directors must be unit".into()
+        })?;
+        let mut frames = Frames::default();
+        check(self.frames_into(&mut frames, &mut Vec::new()), "positions", || {
+            "an edge has zero length".into()
+        })
+    }
+}

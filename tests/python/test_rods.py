@@ -1,0 +1,174 @@
+"""kinema.rods: the large-deflection cantilever against the elastica (a shooting solution
+with scipy), a straight rod at rest, views, pickling, failed steps and bad arguments."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+import kinema
+from kinema.rods import Rod
+
+SOFT = {"radius": 0.01, "youngs_modulus": 1e6, "shear_modulus": 4e5, "density": 1000.0}
+
+
+def cantilever(n: int, length: float = 1.0, **kwargs: object) -> Rod:
+    """A horizontal cantilever of ``n + 1`` edges along +x, clamped at its first edge, whose
+    middle (the clamp point of the discrete beam, see docs/rods.md) is the origin."""
+    h = length / (n + 0.5)
+    points = np.zeros((n + 2, 3))
+    points[:, 0] = (np.arange(n + 2) - 0.5) * h
+    rod = Rod(points, **{**SOFT, "gravity": (0.0, 0.0, 0.0), **kwargs})  # type: ignore[arg-type]
+    rod.clamp(0)
+    return rod
+
+
+def elastica_tip(load: float) -> tuple[float, float]:
+    """Tip ``(x, y)`` of an inextensible cantilever of unit length and bending stiffness
+    under a dead vertical tip load ``load = F L² / EI`` (Bisshopp & Drucker 1945), by
+    shooting: ``θ'' = -load cos θ``, ``θ(0) = 0``, ``θ'(1) = 0``, with ``x' = cos θ``,
+    ``y' = -sin θ`` (θ the downward angle)."""
+
+    def run(k0: float) -> np.ndarray:
+        def rhs(_s: float, u: np.ndarray) -> list[float]:
+            th, dth = u[0], u[1]
+            return [dth, -load * np.cos(th), np.cos(th), -np.sin(th)]
+
+        sol = solve_ivp(rhs, (0.0, 1.0), [0.0, k0, 0.0, 0.0], rtol=1e-12, atol=1e-12)
+        return sol.y[:, -1]
+
+    k0 = brentq(lambda k: run(k)[1], 1e-9, load, xtol=1e-14)
+    end = run(k0)
+    return float(end[2]), float(end[3])
+
+
+@pytest.mark.parametrize("load", [1.0, 3.0, 10.0])
+def test_large_deflection_matches_the_elastica(load: float) -> None:
+    rod = cantilever(40)
+    ei = rod.stiffness["bending"][0]
+    rod.set_force(-1, (0.0, -load * ei, 0.0))
+    rod.solve_static()
+    x, y = elastica_tip(load)
+    tip = rod.positions[-1]
+    # Within 1 % of the length in each coordinate, and 1 % of the deflection.
+    assert abs(tip[0] - x) < 0.01 and abs(tip[1] - y) < 0.01, (tip, x, y)
+    assert abs(tip[1] / y - 1.0) < 0.01, (tip, x, y)
+
+
+def test_straight_rod_is_at_rest_and_frames_are_orthonormal() -> None:
+    rod = Rod.straight(10, 0.5, direction=(0.0, 0.0, 2.0), gravity=(0.0, 0.0, 0.0))
+    assert len(rod) == 10 and rod.twists.shape == (9,)
+    assert rod.energy() < 1e-25
+    rod.step(1.0 / 60.0, steps=10)
+    np.testing.assert_allclose(rod.positions[:, 2], np.linspace(0.0, 0.5, 10), atol=1e-12)
+    f = rod.material_frames
+    assert f.shape == (9, 3, 3)
+    np.testing.assert_allclose(
+        f @ f.transpose(0, 2, 1), np.broadcast_to(np.eye(3), f.shape), atol=1e-12
+    )
+    np.testing.assert_allclose(f[:, 0], np.broadcast_to([0.0, 0.0, 1.0], (9, 3)), atol=1e-12)
+    np.testing.assert_allclose(np.cross(f[:, 1], f[:, 2]), f[:, 0], atol=1e-12)
+
+
+def test_twisted_rod_stores_twist_energy() -> None:
+    """A rod twisted uniformly by ``Φ`` over its length ``L`` (both ends free of load) holds
+    ``GJ Φ² / (2 L')`` with ``L'`` the interior vertices' Voronoi length."""
+    n, length, total = 11, 1.0, 1.5
+    twist = np.linspace(0.0, total, n - 1)
+    rod = Rod.straight(n, length, twist=twist, gravity=(0.0, 0.0, 0.0), **SOFT)  # type: ignore[arg-type]
+    gj = rod.stiffness["twisting"]
+    h = length / (n - 1)
+    per_vertex = total / (n - 2)
+    expected = (n - 2) * gj * per_vertex**2 / (2.0 * h)
+    assert rod.energy() == pytest.approx(expected, rel=1e-12)
+
+
+def test_views_are_read_only_and_outlive_the_rod() -> None:
+    rod = cantilever(8, gravity=(0.0, -9.81, 0.0))
+    x = rod.positions
+    assert not x.flags.writeable
+    with pytest.raises(ValueError):
+        x[0, 0] = 1.0
+    rod.step(0.01, 3)
+    assert x[-1, 1] < 0.0  # updated in place
+    del rod
+    assert np.isfinite(x).all()
+
+
+def test_pickle_resumes_bitwise() -> None:
+    rod = cantilever(8, gravity=(0.0, -9.81, 0.0))
+    rod.step(1.0 / 60.0, 5)
+    copy = pickle.loads(pickle.dumps(rod))
+    rod.step(1.0 / 60.0, 5)
+    copy.step(1.0 / 60.0, 5)
+    assert np.array_equal(rod.positions, copy.positions)
+    assert np.array_equal(rod.twists, copy.twists)
+    assert rod.time == copy.time
+
+
+def test_a_failed_step_leaves_the_rod_as_it_was() -> None:
+    rod = cantilever(8, gravity=(0.0, -9.81, 0.0), max_iterations=1)
+    before = rod.positions.copy()
+    with pytest.raises(kinema.SimulationError):
+        rod.step(0.5)
+    assert np.array_equal(rod.positions, before)
+    explicit = cantilever(8, gravity=(0.0, -9.81, 0.0), integrator="symplectic")
+    with pytest.raises(kinema.SimulationError, match="diverged"):
+        explicit.step(0.05, 100)
+    assert np.array_equal(explicit.positions[:, 1], np.zeros(10))
+
+
+SECRET = "zebra-7731"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "name"),
+    [
+        ({"points": [[0.0, 0.0, 0.0]]}, ValueError, "points"),
+        ({"points": [[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0]]}, ValueError, "points"),
+        ({"points": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]}, ValueError, "points"),
+        ({"points": SECRET}, ValueError, "points"),
+        ({"radius": -1.0}, ValueError, "radius"),
+        ({"radius": [1.0, 2.0, 3.0]}, ValueError, "radius"),
+        ({"radius": SECRET}, ValueError, "radius"),
+        ({"youngs_modulus": 0.0}, ValueError, "youngs_modulus"),
+        ({"youngs_modulus": SECRET}, TypeError, "youngs_modulus"),
+        ({"shear_modulus": np.inf}, ValueError, "shear_modulus"),
+        ({"density": -1.0}, ValueError, "density"),
+        ({"twist": [0.0]}, ValueError, "twist"),
+        ({"twist": SECRET}, ValueError, "twist"),
+        ({"integrator": SECRET}, ValueError, "integrator"),
+        ({"tolerance": 0.0}, ValueError, "tolerance"),
+        ({"max_iterations": 0}, ValueError, "max_iterations"),
+        ({"gravity": (0.0, np.nan, 0.0)}, ValueError, "gravity"),
+    ],
+)
+def test_bad_arguments_name_the_argument(kwargs: dict, error: type, name: str) -> None:
+    args = {"points": [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], **kwargs}
+    with pytest.raises(error, match=f"^{name}") as info:
+        Rod(**args)
+    assert SECRET not in str(info.value)
+
+
+def test_bad_method_arguments_name_the_argument() -> None:
+    rod = Rod.straight(5, 1.0)
+    for call, name in [
+        (lambda: rod.step(-1.0), "dt"),
+        (lambda: rod.step(np.nan), "dt"),
+        (lambda: rod.step(0.01, steps=-1), "steps"),
+        (lambda: rod.clamp(3), "end"),
+        (lambda: rod.pin(5), "index"),
+        (lambda: rod.set_force(0, (np.inf, 0.0, 0.0)), "force"),
+        (lambda: rod.set_force(9, (0.0, 0.0, 0.0)), "index"),
+    ]:
+        with pytest.raises(ValueError, match=f"^{name}"):
+            call()
+    with pytest.raises(TypeError, match=r"^index"):
+        rod.pin(1.5)  # type: ignore[arg-type]
+    for bad in [(lambda: Rod.straight(1, 1.0), "n"), (lambda: Rod.straight(3, -1.0), "length")]:
+        with pytest.raises(ValueError, match=f"^{bad[1]}"):
+            bad[0]()
