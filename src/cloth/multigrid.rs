@@ -310,9 +310,9 @@ fn coarsen(fine: &mut Level, graph: &[Vec<u32>]) -> (Vec<Vec<u32>>, Vec<u32>) {
     let points = fine.points();
     let mut aggregate = vec![NONE; points];
     let mut count = 0u32;
-    for p in 0..points {
-        if graph[p].iter().all(|&q| aggregate[q as usize] == NONE) {
-            graph[p].iter().for_each(|&q| aggregate[q as usize] = count);
+    for row in graph.iter().take(points) {
+        if row.iter().all(|&q| aggregate[q as usize] == NONE) {
+            row.iter().for_each(|&q| aggregate[q as usize] = count);
             count += 1;
         }
     }

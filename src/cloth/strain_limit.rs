@@ -38,7 +38,7 @@ impl Edges {
                 edges.push((i as u32, j as u32, rest));
             }
         }
-        edges.sort_unstable_by(|p, q| (p.0, p.1).cmp(&(q.0, q.1)));
+        edges.sort_unstable_by_key(|e| (e.0, e.1));
         edges.dedup_by(|p, q| (p.0, p.1) == (q.0, q.1));
         Edges { edges, before: vec![DVec3::ZERO; model.len()] }
     }
