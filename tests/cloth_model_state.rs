@@ -39,13 +39,14 @@ fn two_states(model: &Model) -> (State, State) {
     (a, b)
 }
 
-/// A mix of every path: BDF2 and implicit Euler with either linear solver, and an explicit one.
-const RUNS: [(Method, LinearSolver, f64); 5] = [
-    (Method::Bdf2, LinearSolver::Pcg, 0.01),
-    (Method::Bdf2, LinearSolver::Pcg, 0.02),
+/// A mix of every path: BDF2 and implicit Euler with any linear solver, and an explicit one.
+const RUNS: [(Method, LinearSolver, f64); 6] = [
+    (Method::Bdf2, LinearSolver::BlockSsor, 0.01),
+    (Method::ImplicitEuler, LinearSolver::Multigrid, 0.01),
+    (Method::Bdf2, LinearSolver::BlockSsor, 0.02),
     (Method::ImplicitEuler, LinearSolver::Cholesky, 0.01),
     (Method::Bdf2, LinearSolver::Cholesky, 0.01),
-    (Method::Rk4, LinearSolver::Pcg, 1e-4),
+    (Method::Rk4, LinearSolver::BlockSsor, 1e-4),
 ];
 
 fn step(solver: &mut Solver, model: &Model, state: &mut State, run: usize) {

@@ -107,10 +107,11 @@ fn particle_scenes() -> Vec<(String, usize)> {
 fn cloth_scenes() -> Vec<(String, usize)> {
     let mut found = Vec::new();
     let runs = [
-        (Elasticity::BaraffWitkin, Method::ImplicitEuler, LinearSolver::Pcg),
+        (Elasticity::BaraffWitkin, Method::ImplicitEuler, LinearSolver::BlockSsor),
         (Elasticity::BaraffWitkin, Method::ImplicitEuler, LinearSolver::Cholesky),
-        (Elasticity::BaraffWitkin, Method::Bdf2, LinearSolver::Pcg),
-        (Elasticity::MassSpring, Method::ImplicitEuler, LinearSolver::Pcg),
+        (Elasticity::BaraffWitkin, Method::Bdf2, LinearSolver::BlockSsor),
+        (Elasticity::MassSpring, Method::ImplicitEuler, LinearSolver::BlockSsor),
+        (Elasticity::BaraffWitkin, Method::ImplicitEuler, LinearSolver::Multigrid),
     ];
     for (k, (model, method, solver)) in runs.into_iter().enumerate() {
         let mesh = Mesh::grid(16, 16, 1.0, 1.0, Triangulation::Alternating).unwrap();

@@ -9,10 +9,12 @@ a constant velocity or be moved with :meth:`Cloth.set_collider`) and :meth:`Clot
 Integrators: ``"implicit_euler"`` (the paper's one Newton step per time step), ``"bdf2"``
 (Choi & Ko 2002, second order, less numerical damping), or any explicit method of
 :mod:`kinema.ode` (``"symplectic_euler"``, ``"rk4"``, ...) for comparison — they need far
-smaller steps. Solvers for the implicit step: ``"pcg"`` (the paper's modified preconditioned
-conjugate gradient with the constraint filter, symmetric block Gauss–Seidel preconditioner,
-tolerance ``tol``)
-or ``"cholesky"`` (faer sparse Cholesky, symbolic analysis done once).
+smaller steps. Solvers for the implicit step: ``"multigrid"`` (the default: conjugate gradient
+with the constraint filter, preconditioned by smoothed aggregation multigrid, Tamstorf, Jones &
+McCormick 2015), ``"block_ssor"`` (the paper's modified preconditioned conjugate gradient with
+a block SSOR preconditioner), both to the tolerance ``tol``, or ``"cholesky"`` (faer sparse
+Cholesky, symbolic analysis done once). After the solve, strain limiting (Provot 1995) keeps
+every edge within ``1 + max_strain`` of its rest length (off by default).
 
 Units: metres, kilograms, seconds; ``density`` kg/m², ``stretch`` and ``shear`` N/m (membrane
 stiffness, independent of the mesh resolution), ``bend`` N·m, ``damping`` s (stiffness
@@ -37,6 +39,18 @@ from kinema.geometry import Box, Capsule, Plane, Shape, Sphere, shape_params
 __all__ = ["Box", "Capsule", "Cloth", "Plane", "Sphere"]
 
 MODELS = ("baraff_witkin", "mass_spring")
+
+MATERIAL = {
+    "density": 0.1,
+    "stretch": 1e3,
+    "shear": 1e2,
+    "bend": 1e-5,
+    "damping": 1e-3,
+    "air_damping": 0.0,
+}
+"""The default material (the one place it is written in Python): 0.1 kg/m², stretch 1e3 N/m,
+shear 1e2 N/m, bending 1e-5 N m, stiffness-proportional damping 1e-3 s, no air damping."""
+_CONTACT = ("thickness", "self_collision", "self_friction", "self_iterations")
 
 
 def _collider(c: Shape) -> tuple[str, list[float]]:
@@ -63,6 +77,17 @@ def _material(
     if model not in MODELS:
         raise ValueError(f"model: {model!r} is not one of {', '.join(MODELS)}")
     return [float(x) for x in (density, stretch, shear, bend, damping, air_damping)]
+
+
+def _options(model: str, kwargs: dict[str, Any]) -> tuple[list[float], dict[str, Any]]:
+    """The material (the defaults of :data:`MATERIAL` for what ``kwargs`` leaves out) and the
+    contact keywords of :class:`Cloth` in ``kwargs``; anything else is a ``TypeError``."""
+    unknown = set(kwargs) - set(MATERIAL) - set(_CONTACT)
+    if unknown:
+        raise TypeError(f"unexpected keyword arguments: {sorted(unknown)}")
+    material = {**MATERIAL, **{k: v for k, v in kwargs.items() if k in MATERIAL}}
+    contact = {k: v for k, v in kwargs.items() if k in _CONTACT}
+    return _material(model, **material), contact
 
 
 class Cloth:
@@ -94,12 +119,12 @@ class Cloth:
         uv: Any = None,
         *,
         model: str = "baraff_witkin",
-        density: float = 0.1,
-        stretch: float = 1e3,
-        shear: float = 1e2,
-        bend: float = 1e-5,
-        damping: float = 1e-3,
-        air_damping: float = 0.0,
+        density: float = MATERIAL["density"],
+        stretch: float = MATERIAL["stretch"],
+        shear: float = MATERIAL["shear"],
+        bend: float = MATERIAL["bend"],
+        damping: float = MATERIAL["damping"],
+        air_damping: float = MATERIAL["air_damping"],
         gravity: Any = (0.0, -9.81, 0.0),
         thickness: float | None = None,
         self_collision: bool = False,
@@ -141,40 +166,23 @@ class Cloth:
         *,
         triangulation: str = "alternating",
         model: str = "baraff_witkin",
-        density: float = 0.1,
-        stretch: float = 1e3,
-        shear: float = 1e2,
-        bend: float = 1e-5,
-        damping: float = 1e-3,
-        air_damping: float = 0.0,
         gravity: Any = (0.0, -9.81, 0.0),
-        thickness: float | None = None,
-        self_collision: bool = False,
-        self_friction: float = 0.1,
-        self_iterations: int = 8,
+        **kwargs: Any,
     ) -> Cloth:
         """An ``nx`` by ``ny`` grid of vertices in the x–z plane at height 0, centred on the origin.
 
         ``width`` (m) along x, ``height`` (m) along z; vertex ``i + nx*j`` is at
         ``(-width/2 + i·width/(nx-1), 0, -height/2 + j·height/(ny-1))``; rest coordinates
         ``(u, v) = (x, z)``. ``triangulation`` is ``"alternating"`` (checkerboard diagonals, no
-        preferred shear direction) or ``"regular"``.
+        preferred shear direction) or ``"regular"``. Other keyword arguments (material,
+        contact) as for :class:`Cloth`.
         """
-        mat = _material(model, density, stretch, shear, bend, damping, air_damping)
+        mat, contact = _options(model, kwargs)
         g = as_vector3(gravity, "gravity")
         core = _kinema.ClothCore.grid(
             nx, ny, real(width, "width"), real(height, "height"), triangulation, model, mat, g
         )
-        return cls(
-            None,
-            None,
-            model=model,
-            thickness=thickness,
-            self_collision=self_collision,
-            self_friction=self_friction,
-            self_iterations=self_iterations,
-            _core=core,
-        )
+        return cls(None, None, model=model, _core=core, **contact)
 
     @classmethod
     def from_obj(cls, path: str | os.PathLike[str], **kwargs: Any) -> Cloth:
@@ -185,25 +193,8 @@ class Cloth:
         :class:`Cloth`.
         """
         model = kwargs.pop("model", "baraff_witkin")
-        contact = {
-            k: kwargs.pop(k)
-            for k in ("thickness", "self_collision", "self_friction", "self_iterations")
-            if k in kwargs
-        }
         gravity = as_vector3(kwargs.pop("gravity", (0.0, -9.81, 0.0)), "gravity")
-        defaults = {
-            "density": 0.1,
-            "stretch": 1e3,
-            "shear": 1e2,
-            "bend": 1e-5,
-            "damping": 1e-3,
-            "air_damping": 0.0,
-        }
-        unknown = set(kwargs) - set(defaults)
-        if unknown:
-            raise TypeError(f"unexpected keyword arguments: {sorted(unknown)}")
-        defaults.update(kwargs)
-        mat = _material(model, **defaults)
+        mat, contact = _options(model, kwargs)
         data = Path(path).read_bytes()
         try:
             text = data.decode("utf-8")
@@ -272,17 +263,22 @@ class Cloth:
         steps: int = 1,
         *,
         integrator: str = "implicit_euler",
-        solver: str = "pcg",
+        solver: str = "multigrid",
         tol: float = 1e-6,
         max_iterations: int = 1000,
         max_strain_change: float = 0.01,
+        max_strain: float = float("inf"),
     ) -> None:
         """Advance ``steps`` steps of ``dt`` seconds (GIL released).
 
         ``integrator``: ``"implicit_euler"``, ``"bdf2"`` or an explicit method of
-        :mod:`kinema.ode`. ``solver``: ``"pcg"`` (stops when the preconditioned residual drops
-        below ``tol`` relative to the right-hand side, or after ``max_iterations``; see
-        ``stats["converged"]``) or ``"cholesky"``. An implicit step that changes any stretch
+        :mod:`kinema.ode`. ``solver``: ``"multigrid"`` or ``"block_ssor"`` (conjugate gradient
+        with that preconditioner; it stops when ``sqrt(rᵀ M⁻¹ r / bᵀ M⁻¹ b) < tol`` for the
+        filtered system ``A Δv = b`` of the step's velocity change, or after ``max_iterations``;
+        see ``stats["converged"]``; with multigrid, ``M⁻¹ ≈ A⁻¹`` and ``tol`` bounds the
+        relative error of ``Δv`` in the energy norm ``‖·‖_A``) or ``"cholesky"``. After the
+        solve no edge stays longer than ``1 + max_strain`` times its rest length (strain
+        limiting, Provot 1995; ``inf`` turns it off). An implicit step that changes any stretch
         ratio by more than ``max_strain_change`` is redone as two half steps (Baraff & Witkin
         §5; ``stats["substeps"]`` counts them; ``inf`` turns this off). On divergence a
         :class:`kinema.SimulationError` names the step and vertex and the cloth stays at the
@@ -296,6 +292,7 @@ class Cloth:
             real(tol, "tol"),
             max_iterations,
             real(max_strain_change, "max_strain_change"),
+            real(max_strain, "max_strain"),
         )
 
     def set_state(self, positions: Any, velocities: Any = None) -> None:

@@ -224,6 +224,7 @@ impl ClothCore {
         tol: f64,
         max_iterations: Int,
         max_strain_change: f64,
+        max_strain: f64,
     ) -> PyResult<()> {
         let steps = steps.count("steps")?;
         let max_iterations = max_iterations.range("max_iterations", 1, MAX_ITERATIONS)?;
@@ -231,17 +232,18 @@ impl ClothCore {
             Error::invalid("integrator", format!("{integrator:?} is not implicit_euler, bdf2 or an explicit method of kinema.ode"))
         })?;
         let solver = match solver {
-            "pcg" => LinearSolver::Pcg,
+            "multigrid" => LinearSolver::Multigrid,
+            "block_ssor" => LinearSolver::BlockSsor,
             "cholesky" => LinearSolver::Cholesky,
-            other => {
+            _ => {
                 return Err(Error::invalid(
                     "solver",
-                    format!("{other:?} is not 'pcg' or 'cholesky'"),
+                    "must be 'multigrid', 'block_ssor' or 'cholesky'",
                 )
                 .into())
             }
         };
-        let options = SolveOptions { solver, tol, max_iterations, max_strain_change };
+        let options = SolveOptions { solver, tol, max_iterations, max_strain_change, max_strain };
         let cloth = &mut self.cloth;
         detached(py, || cloth.step(dt, steps, method, options))
     }

@@ -50,7 +50,8 @@ impl Solver {
 
         let t2 = Instant::now();
         let (iterations, residual, converged) = match options.solver {
-            LinearSolver::Pcg => self.solve_pcg(state, options)?,
+            LinearSolver::Multigrid => self.solve_multigrid(model, state, options)?,
+            LinearSolver::BlockSsor => self.solve_pcg(state, options)?,
             LinearSolver::Cholesky => self.solve_cholesky(state)?,
         };
         stats.iterations += iterations;
@@ -62,6 +63,7 @@ impl Solver {
             && options.max_strain_change.is_finite()
             && strain_change(model, &state.x, &self.scratch.x_new) > options.max_strain_change;
         if !strained {
+            self.limit_strain(model, h_eff, options.max_strain);
             self.self_collide(model, state, h, stats);
             let s = &self.scratch;
             let n = state.len();

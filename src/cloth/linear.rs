@@ -1,9 +1,11 @@
-//! The linear solves of the implicit step (Baraff & Witkin 1998, §5.3): the modified PCG's
-//! setup (block SSOR preconditioner, warm start, filtered right-hand sides; the iterations are
-//! in [`super::pcg`]) and the sparse Cholesky path on the equivalent SPD system.
+//! The linear solves of the implicit step (Baraff & Witkin 1998, §5.3): the prefiltered PCG
+//! with the smoothed aggregation multigrid preconditioner ([`super::multigrid`]), the modified
+//! PCG's setup with block SSOR (warm start, filtered right-hand sides; the iterations are in
+//! [`super::pcg`]) and the sparse Cholesky path on the equivalent SPD system.
 
-use super::{bsr, pcg, SolveOptions, Solver, State};
-use crate::error::Result;
+use super::multigrid::Hierarchy;
+use super::{bsr, pcg, Model, SolveOptions, Solver, State};
+use crate::error::{Error, Result};
 use crate::linalg::SparseCholesky;
 use glam::{DMat3, DVec3};
 
@@ -76,6 +78,80 @@ impl Solver {
         Ok(outcome)
     }
 
+    /// The prefiltered PCG of Tamstorf, Jones & McCormick (2015, §4.2, Algorithm 2) with the
+    /// multigrid preconditioner `M` of `Â = S A S + I - S`: it solves `Â y = S (b - A Δv₀)` on
+    /// `range(S)` from the warm start `Δv₀ = z + S Δv_last`, preconditioned by `S M⁻¹ S`
+    /// (symmetric positive definite on `range(S)`, so every iterate stays in `z + range(S)`, as
+    /// in Baraff & Witkin's modified PCG), and stops when `δ = rᵀ S M⁻¹ S r < ε² δ₀` with
+    /// `δ₀ = (S b)ᵀ S M⁻¹ S (S b)` (Baraff & Witkin's rule). With `M⁻¹ ≈ Â⁻¹` this bounds the
+    /// error of `Δv` in the energy norm: `‖Δv - Δv*‖_Â ≈ √δ ≤ ε ‖S b‖_{Â⁻¹}`.
+    pub(super) fn solve_multigrid(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        options: SolveOptions,
+    ) -> Result<pcg::Outcome> {
+        let n = state.len();
+        let (a, s) = (&self.matrix, &mut self.scratch);
+        let mg =
+            self.multigrid.get_or_insert_with(|| Box::new(Multigrid::new(a, &model.triangles)));
+        mg.hierarchy.update(a, &s.filter, &state.x)?;
+        let Multigrid { hierarchy: h, r, d, z, q } = &mut **mg;
+        // Warm start Δv₀ = z + S Δv_last; r = S (b - A Δv₀); the floor as for block SSOR.
+        for i in 0..n {
+            state.dv[i] = s.z[i] + s.filter[i] * state.dv[i];
+        }
+        a.mul(&state.dv, &mut s.q);
+        let mut floor = 0.0;
+        for i in 0..n {
+            r[i] = s.filter[i] * (s.b[i] - s.q[i]);
+            q[i] = s.filter[i] * s.b[i];
+            floor += s.b[i].dot(a.blocks[i].inverse() * s.b[i]);
+        }
+        let floor = (1e3 * f64::EPSILON).powi(2) * floor;
+        h.apply(&s.filter, q, z);
+        let delta0 = dot(q, z);
+        h.apply(&s.filter, r, z);
+        d.copy_from_slice(z);
+        let mut delta = dot(r, z);
+        if !(delta0.is_finite() && delta.is_finite()) {
+            return Err(Error::SolverFailed {
+                reason: "PCG: the residual overflows (the step is too large); reduce dt".into(),
+            });
+        }
+        let target = (options.tol * options.tol * delta0).max(floor);
+        let mut iterations = 0;
+        while delta > target && iterations < options.max_iterations {
+            h.mul(d, q);
+            let dq = dot(d, q);
+            if dq <= 0.0 || !dq.is_finite() {
+                return Err(Error::SolverFailed {
+                    reason: format!(
+                        "PCG: the system matrix is not positive definite (pᵀAp = {dq})"
+                    ),
+                });
+            }
+            let alpha = delta / dq;
+            for i in 0..n {
+                state.dv[i] += alpha * d[i];
+                r[i] -= alpha * q[i];
+            }
+            h.apply(&s.filter, r, z);
+            let next = dot(r, z);
+            let beta = next / delta;
+            for i in 0..n {
+                d[i] = z[i] + beta * d[i];
+            }
+            delta = next;
+            iterations += 1;
+            if delta <= 0.0 {
+                break;
+            }
+        }
+        let residual = if delta0 > 0.0 { (delta.max(0.0) / delta0).sqrt() } else { 0.0 };
+        Ok((iterations, residual, delta <= target))
+    }
+
     /// Sparse Cholesky of `S A S + (I - S)` with right-hand side `S (b - A z)`.
     pub(super) fn solve_cholesky(&mut self, state: &mut State) -> Result<pcg::Outcome> {
         let n = state.len();
@@ -130,6 +206,35 @@ impl Solver {
         }
         let residual = if den > 0.0 { (num / den).sqrt() } else { 0.0 };
         Ok((0, residual, true))
+    }
+}
+
+/// `Σ xᵢ · yᵢ`.
+fn dot(x: &[DVec3], y: &[DVec3]) -> f64 {
+    x.iter().zip(y).map(|(a, b)| a.dot(*b)).sum()
+}
+
+/// The multigrid path's hierarchy and the PCG's vectors: residual, direction, preconditioned
+/// residual and `Â d`.
+pub(super) struct Multigrid {
+    hierarchy: Hierarchy,
+    r: Vec<DVec3>,
+    d: Vec<DVec3>,
+    z: Vec<DVec3>,
+    q: Vec<DVec3>,
+}
+
+impl Multigrid {
+    /// The hierarchy's symbolic setup on `a`'s pattern and the vectors.
+    fn new(a: &bsr::BlockMatrix, triangles: &[[usize; 3]]) -> Multigrid {
+        let zero = vec![DVec3::ZERO; a.n()];
+        Multigrid {
+            hierarchy: Hierarchy::new(a, triangles),
+            r: zero.clone(),
+            d: zero.clone(),
+            z: zero.clone(),
+            q: zero,
+        }
     }
 }
 

@@ -58,12 +58,14 @@ mod implicit;
 mod linear;
 mod mesh;
 mod model;
+mod multigrid;
 mod pcg;
 mod self_collide;
 mod settings;
 mod snapshot;
 mod solver;
 mod state;
+mod strain_limit;
 
 pub use bsr::BlockMatrix;
 pub use collide::Collider;

@@ -5,7 +5,7 @@
 //! solver advances any number of states of one [`Model`], in any interleaving, bit for bit as
 //! if each had its own.
 
-use super::linear::CholeskyState;
+use super::linear::{CholeskyState, Multigrid};
 use super::pcg;
 use super::{BlockMatrix, ContactState, Model, SolveOptions, State, StepStats};
 use crate::error::{Error, Result};
@@ -79,6 +79,11 @@ pub struct Solver {
     pub(super) scratch: Scratch,
     /// The Cholesky path's symbolic factorisation (built on first use, reused) and values.
     pub(super) cholesky: Option<CholeskyState>,
+    /// The multigrid path's hierarchy (its symbolic setup built on first use, reused) and
+    /// vectors.
+    pub(super) multigrid: Option<Box<Multigrid>>,
+    /// The strain limiter's edges (built on first use from the model) and work vector.
+    pub(super) limiter: Option<Box<super::strain_limit::Edges>>,
     /// The explicit path's integrator (its stages; the cloth's explicit methods keep no
     /// history).
     pub(super) stepper: Option<Stepper>,
@@ -103,6 +108,8 @@ impl Solver {
             matrix: model.pattern(),
             scratch: Scratch::new(model.len()),
             cholesky: None,
+            multigrid: None,
+            limiter: None,
             stepper: None,
             self_work: None,
             saved: model.state(),
@@ -218,6 +225,12 @@ fn check_step(dt: f64, options: SolveOptions) -> Result<()> {
         return Err(Error::invalid(
             "max_strain_change",
             "must be positive (inf turns the check off)",
+        ));
+    }
+    if options.max_strain.is_nan() || options.max_strain <= 0.0 {
+        return Err(Error::invalid(
+            "max_strain",
+            "must be positive (inf turns strain limiting off)",
         ));
     }
     Ok(())

@@ -7,7 +7,7 @@
 
 use super::{Collider, ContactState, Model, VertexConstraint};
 use crate::error::{Error, Result};
-use crate::snapshot::{check, finite, Snapshot};
+use crate::snapshot::{check, finite, from_stamped, to_stamped, Stamped};
 use glam::DVec3;
 
 /// The state of a cloth of `N` vertices (see the module documentation). Copy it with
@@ -71,21 +71,8 @@ impl Clone for State {
     }
 }
 
-/// A state snapshot: the model's fingerprint and the state.
-#[derive(serde::Serialize, serde::Deserialize)]
-struct Stamped {
-    fingerprint: u64,
-    state: State,
-}
-
-impl Snapshot for Stamped {
+impl Stamped for State {
     const TAG: &'static str = "ClothState";
-
-    /// Only what needs no model: the fingerprint is checked, and the state against the
-    /// model, by [`State::from_snapshot`].
-    fn validate(&self) -> Result<()> {
-        Ok(())
-    }
 }
 
 impl State {
@@ -272,7 +259,7 @@ impl State {
     /// # Errors
     /// None in practice (a state holds nothing that cannot be stored).
     pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        Stamped { fingerprint: model.fingerprint(), state: self.clone() }.to_snapshot()
+        to_stamped(self, model.fingerprint())
     }
 
     /// The state stored by [`State::to_snapshot`], for `model`.
@@ -282,17 +269,7 @@ impl State {
     /// or are inconsistent with `model`, argument `"model"` if they were saved from a model
     /// with another fingerprint.
     pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
-        let Stamped { fingerprint, state } = Stamped::from_snapshot(data)?;
-        if fingerprint != model.fingerprint() {
-            return Err(Error::invalid(
-                "model",
-                "is not the model the state was saved from (another fingerprint)",
-            ));
-        }
-        state.validate(model).map_err(|e| {
-            Error::invalid("data", format!("inconsistent ClothState snapshot: {e}"))
-        })?;
-        Ok(state)
+        from_stamped(data, model.fingerprint(), |state: &State| state.validate(model))
     }
 
     /// Check the state against `model`: one entry per vertex, finite values, unit

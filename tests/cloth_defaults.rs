@@ -1,0 +1,67 @@
+//! Strain limiting (issue #21): hanging cotton-like cloth with the default solver and
+//! tolerance and a 3% strain limit stretches by 3% at most, and strain limiting is what holds
+//! it.
+
+use glam::DVec3;
+use kinema::cloth::{Cloth, Elasticity, Material, Mesh, SolveOptions, Triangulation};
+use kinema::ode::Method;
+
+const G: DVec3 = DVec3::new(0.0, -9.81, 0.0);
+
+/// The largest edge strain `l/L - 1` of an `n` x `n` grid of 1 m (rest spacing `1/(n-1)`;
+/// the alternating triangulation's diagonals `√2` times that).
+fn max_edge_strain(cloth: &Cloth, n: usize) -> f64 {
+    let x = cloth.positions();
+    let h = 1.0 / (n - 1) as f64;
+    let mut worst: f64 = 0.0;
+    for t in cloth.triangles() {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            let diagonal = a % n != b % n && a / n != b / n;
+            let rest = if diagonal { h * 2f64.sqrt() } else { h };
+            worst = worst.max((x[a] - x[b]).length() / rest - 1.0);
+        }
+    }
+    worst
+}
+
+/// A 32² sheet of 1 kg/m² of cotton-like cloth, pinned at two corners, after 2 s of
+/// hanging at dt = 1/60 with `options`: its largest edge strain.
+fn hang(options: SolveOptions) -> f64 {
+    let n = 32;
+    let mesh = Mesh::grid(n, n, 1.0, 1.0, Triangulation::Alternating).unwrap();
+    let material = Material {
+        density: 1.0,
+        stretch: 1e4,
+        shear: 1e3,
+        bend: 1e-3,
+        damping: 0.1,
+        air_damping: 0.0,
+    };
+    let mut cloth = Cloth::new(mesh, Elasticity::BaraffWitkin, material, G).unwrap();
+    cloth.pin(&[0, n - 1], None).unwrap();
+    cloth.step(1.0 / 60.0, 120, Method::ImplicitEuler, options).unwrap();
+    assert!(cloth.stats().converged);
+    max_edge_strain(&cloth, n)
+}
+
+#[test]
+fn hanging_cotton_with_a_3_percent_limit_stretches_by_3_percent() {
+    let limited = hang(SolveOptions { max_strain: 0.03, ..SolveOptions::default() });
+    let free = hang(SolveOptions::default());
+    println!("largest edge strain: {limited:.4} limited, {free:.4} without the limit");
+    assert!(limited <= 0.03 + 2e-3, "{limited}");
+    assert!(free > limited + 5e-3, "the material alone holds it: {free}");
+}
+
+#[test]
+fn strain_limit_must_be_positive() {
+    let mesh = Mesh::grid(3, 3, 1.0, 1.0, Triangulation::Alternating).unwrap();
+    let mut cloth = Cloth::new(mesh, Elasticity::BaraffWitkin, Material::default(), G).unwrap();
+    let before = cloth.positions().to_vec();
+    for bad in [0.0, -1.0, f64::NAN] {
+        let options = SolveOptions { max_strain: bad, ..SolveOptions::default() };
+        let e = cloth.step(1.0 / 60.0, 1, Method::ImplicitEuler, options).unwrap_err();
+        assert!(e.to_string().contains("max_strain"), "{e}");
+    }
+    assert_eq!(cloth.positions(), &before[..]);
+}
