@@ -172,7 +172,10 @@ SECRET = "zq_secret_text"  # must never appear in an error message
             "sweep.retries",
         ),
         (f'[sweep\nbuild = "{SECRET}"', "sweep.toml"),
-        (f'[sweep]\nbuild = "tasks:build"\nrun = "tasks:run"\n[{SECRET}]\n[grid]\nk = [1]', "sweep.toml"),
+        (
+            f'[sweep]\nbuild = "tasks:build"\nrun = "tasks:run"\n[{SECRET}]\n[grid]\nk = [1]',
+            "sweep.toml",
+        ),
     ],
 )
 def test_a_bad_config_exits_2_naming_the_key(tmp_path, capsys, body, key):

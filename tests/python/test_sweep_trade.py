@@ -80,6 +80,7 @@ def test_trade_by_wall_time_and_diverged_runs():
         reference={"method": "rk4", "dt": 1e-3},
         dts=[0.05, 0.005],
         methods=["rk4", "symplectic_euler"],
+        repeat=2,
     )
     assert table["cost"].equals(table["seconds"]) and (table["cost"] > 0).all()
     assert list(table["status"]) == ["failed", "ok", "failed", "ok"]
@@ -104,6 +105,7 @@ def test_trade_by_wall_time_and_diverged_runs():
         ({"methods": [4]}, "methods"),
         ({"cost": "flops"}, "cost"),
         ({"cost": ""}, "cost"),
+        ({"repeat": 0}, "repeat"),
     ],
 )
 def test_trade_rejects_bad_arguments(kwargs, name):
@@ -139,9 +141,7 @@ def test_a_grid_becomes_a_dataset_over_its_parameters():
 
 def test_a_latin_hypercube_becomes_a_dataset_over_tasks():
     design = ks.latin_hypercube(5, seed=3, dt=(0.001, 0.01), tag=(0.0, 1.0))
-    table = ks.sweep(
-        lambda dt, tag: build("rk4", dt), design, run, client="serial", progress=False
-    )
+    table = ks.sweep(lambda dt, tag: build("rk4", dt), design, run, client="serial", progress=False)
     ds = ks.to_xarray(table)
     assert ds["x"].dims == ("task", "x_dim0", "x_dim1")
     assert ds["dt"].dims == ds["tag"].dims == ("task",)  # 5 points, not a 5 x 5 grid
