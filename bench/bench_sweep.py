@@ -3,8 +3,9 @@
 All in one process, one after the other, on a machine that may be busy (ratios matter):
 
 1. overhead: ``--tiny`` tasks that do nothing, on a 2-worker LocalCluster (one thread each):
-   wall time per task, batching included; and tasks of about 1 ms (a spring chain), whose
-   2-worker time is compared with half the serial time;
+   wall time per task, batching included; and tasks of a few ms (a spring chain), whose
+   2-worker time is compared with the serial time, and the workers' time outside the tasks
+   (2 x wall - the sum of the tasks' own seconds) with the time inside them;
 2. speed-up: ``--tasks`` cloth tasks (a 16x16 Baraff-Witkin cloth, 40 implicit steps, a
    stiffness x dt grid) run (a) in a plain loop in this process, (b) split between two plain
    ``multiprocessing`` processes started beforehand, (c) by ``sweep`` on the 2-worker cluster.
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing as mp
+import os
 import time
 
 import numpy as np
@@ -117,11 +119,14 @@ def main() -> None:
     sweep(chain_build, chains, chain_run, client="serial", progress=False)
     serial = time.perf_counter() - t0
     t0 = time.perf_counter()
-    sweep(chain_build, chains, chain_run, client=client, progress=False)
+    batched = sweep(chain_build, chains, chain_run, client=client, progress=False)
     dask = time.perf_counter() - t0
+    busy = batched["seconds"].sum()  # worker time inside build + run
     print(
         f"{len(chains)} tasks of {serial / len(chains) * 1e3:.2f} ms: serial {serial:.2f} s, "
-        f"2 workers {dask:.2f} s, speed-up {serial / dask:.2f}"
+        f"2 workers {dask:.2f} s, speed-up {serial / dask:.2f}; worker time outside the "
+        f"tasks (batched): {(2 * dask - busy) / busy * 100:.1f} % of the time in them, "
+        f"{(2 * dask - busy) / len(chains) * 1e6:.0f} µs per task"
     )
 
     t0 = time.perf_counter()
@@ -131,13 +136,16 @@ def main() -> None:
     t0 = time.perf_counter()
     on_dask = sweep(cloth_build, design, cloth_run, client=client, progress=False)
     dask = time.perf_counter() - t0
+    busy = on_dask["seconds"].sum()
     assert np.array_equal(table["lowest"], on_dask["lowest"], equal_nan=True)
     print(
         f"{len(design)} cloth tasks of {serial / len(design):.2f} s: serial {serial:.1f} s, "
         f"two plain processes {plain:.1f} s (x{serial / plain:.2f}), "
         f"sweep on 2 workers {dask:.1f} s (x{serial / dask:.2f}): "
-        f"{plain / dask * 100:.0f} % of the plain processes' speed-up"
+        f"{plain / dask * 100:.0f} % of the plain processes' speed-up; worker time outside "
+        f"the tasks {(2 * dask - busy) / busy * 100:.1f} %"
     )
+    print(f"load average (1, 5, 15 min) after the run: {os.getloadavg()}")
     client.close()
     cluster.close()
 

@@ -7,6 +7,9 @@
   ``--allow-read``). Failures print one line on stderr and exit with 1 (the simulation failed:
   ``kinema.SimulationError``) or 2 (bad input: a scene file, checkpoint or data file that
   cannot be used, or a file that cannot be read or written).
+- ``kinema sweep CONFIG.toml``: a parameter sweep described in a TOML file (see
+  :mod:`kinema.sweep.config`); prints the result table; exit 1 if a task failed, 2 for a
+  config that cannot be used.
 - ``kinema bench``: the peer comparisons of ``bench/`` (quick sizes unless ``--full``).
 - ``kinema info``: versions, threads, build flags.
 
@@ -187,6 +190,12 @@ def main(argv: list[str] | None = None) -> int:
         help="a folder the scene file may read from besides its own (repeatable)",
     )
     run.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    sw = sub.add_parser("sweep", help="run a parameter sweep described in a TOML file")
+    sw.add_argument("config", type=Path, help="the sweep file (see docs/sweep.md)")
+    sw.add_argument(
+        "--code", type=Path, help="the folder of the build/run module (default: the file's)"
+    )
+    sw.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
     bench = sub.add_parser("bench", help="compare kinema with its peers (bench/*.py)")
     bench.add_argument("names", nargs="*", help="benchmarks to run (default: all)")
     bench.add_argument("--full", action="store_true", help="full sizes (default: quick)")
@@ -204,6 +213,14 @@ def main(argv: list[str] | None = None) -> int:
                 return _run_scene(args)
         except (ValueError, OSError) as e:
             print(f"kinema run: {_line(e)}", file=sys.stderr)
+            return 2
+    if args.command == "sweep":
+        from kinema.sweep import config
+
+        try:
+            return config.main(args.config, args.code, args.progress)
+        except (ValueError, OSError) as e:
+            print(f"kinema sweep: {_line(e)}", file=sys.stderr)
             return 2
     if args.command == "bench":
         return _bench(args)

@@ -164,15 +164,15 @@ def test_sweep_rejects_bad_arguments(kwargs, name, tmp_path):
         ks.sweep(args.pop("build"), args.pop("params"), args.pop("run"), **args)
 
 
-def test_results_must_be_a_directory(tmp_path):
+def test_checkpoint_dir_must_be_a_directory(tmp_path):
     (tmp_path / "file").write_text("x")
-    with pytest.raises(ValueError, match=r"^results:"):
+    with pytest.raises(ValueError, match=r"^checkpoint_dir:"):
         ks.sweep(
             build,
             ks.grid(stiffness=[1.0], dt=[0.01]),
             run,
             client="serial",
-            results=tmp_path / "file",
+            checkpoint_dir=tmp_path / "file",
             progress=False,
         )
 
@@ -235,15 +235,17 @@ def test_an_interrupted_sweep_resumes_on_the_cluster_without_recomputing(client,
 
     results = tmp_path / "results"
     with pytest.raises(KeyboardInterrupt):
-        ks.sweep(build, design, interrupted_run, client="serial", results=results, progress=False)
+        ks.sweep(
+            build, design, interrupted_run, client="serial", checkpoint_dir=results, progress=False
+        )
     assert len(calls(log)) == stop_at
     assert len(list(results.glob("part-*.parquet"))) == stop_at  # one file per finished task
     assert not list(results.glob(".*"))  # no temporary files left
 
-    resumed = ks.sweep(build, design, run, client=client, results=results, progress=False)
+    resumed = ks.sweep(build, design, run, client=client, checkpoint_dir=results, progress=False)
     assert sorted(calls(log)) == sorted(f"{(p['stiffness'], p['dt'])}" for p in design)
     # A third run finds everything on disk and calls nothing.
-    again = ks.sweep(build, design, run, client=client, results=results, progress=False)
+    again = ks.sweep(build, design, run, client=client, checkpoint_dir=results, progress=False)
     assert len(calls(log)) == len(design)
     reference = ks.sweep(build, design, run, client="serial", progress=False)
     same_numbers(reference, resumed)
@@ -261,18 +263,20 @@ def test_array_and_integer_outputs_come_back_from_parquet_unchanged(tmp_path):
         }
 
     design = ks.grid(stiffness=[1.0], dt=[0.1, 0.3])
-    first = ks.sweep(build, design, many, client="serial", results=tmp_path, progress=False)
+    first = ks.sweep(build, design, many, client="serial", checkpoint_dir=tmp_path, progress=False)
 
     def never(system: dict) -> dict:
         raise AssertionError("a finished task was run again")
 
-    back = ks.sweep(build, design, never, client="serial", results=tmp_path, progress=False)
+    back = ks.sweep(build, design, never, client="serial", checkpoint_dir=tmp_path, progress=False)
     for a, b in zip(first["grid"], back["grid"], strict=True):
         assert b.shape == (2, 3, 2) and b.dtype == np.float64 and np.array_equal(a, b)
     assert back["flags"][0].dtype == np.bool_ and list(back["flags"][1]) == [True, False]
     assert list(back["count"]) == [7, 7] and list(back["tiny"]) == [5e-324, 5e-324]
     # Only the design's tasks are returned, in its order, even with other results on disk.
-    one = ks.sweep(build, design[1:], never, client="serial", results=tmp_path, progress=False)
+    one = ks.sweep(
+        build, design[1:], never, client="serial", checkpoint_dir=tmp_path, progress=False
+    )
     assert list(one["dt"]) == [0.3]
 
 

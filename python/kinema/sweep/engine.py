@@ -1,0 +1,312 @@
+"""The sweep itself: tasks run in batches on Dask distributed or in a plain loop.
+
+Tasks carry parameter dicts (and the two functions), never systems: each worker builds its own,
+so a sweep's numbers do not depend on where or in which order its tasks ran. Tiny tasks are
+sent in batches sized from the measured time per task, so Dask's cost per submission stays a
+few per cent. With a ``checkpoint_dir`` every finished batch is written there at once
+(:mod:`kinema.sweep.store`) and a later sweep with the same directory runs only what is
+missing. See docs/sweep.md.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import numbers
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinema.sweep import store
+from kinema.sweep.design import RESERVED, SHAPE, check, integer, key
+
+# A batch of tasks aims at this many seconds of work, so Dask's cost per submitted task (a few
+# milliseconds of scheduling, messages and, here, writing its Parquet file) stays a few per cent.
+_BATCH_SECONDS = 0.5
+# Batches kept in flight per worker: enough to hide the round trip. A batch is at most
+# _BATCH_SECONDS of work and at most an equal share of what is left among the batches in
+# flight, so the last batches (the tail, when workers run out of work) stay short.
+_IN_FLIGHT = 2
+_META = ("status", "error", "seconds")
+
+Build = Callable[..., Any]
+Run = Callable[[Any], Mapping[str, Any]]
+
+
+# ---------------------------------------------------------------- one batch, on a worker
+
+
+def _run_batch(
+    build: Build,
+    run: Run,
+    tasks: list[tuple[str, dict[str, Any]]],
+    single_thread: bool,
+    directory: str | None,
+) -> list[dict[str, Any]]:
+    """Run ``tasks`` (key, parameters) one after the other and return one row per task. An
+    exception raised by ``build`` or ``run`` makes that task's row ``failed`` with the error's
+    text; the batch goes on. With a checkpoint ``directory``, a task that finished in an
+    earlier attempt of this batch is read back, not run; one that saved a checkpoint restarts
+    from it; each finished task is recorded there at once."""
+    if single_thread:
+        import kinema
+
+        if kinema.num_threads() != 1:  # the worker processes are the parallelism
+            kinema.set_num_threads(1)
+    rows = []
+    for k, p in tasks:
+        task = None if directory is None else store.Task(directory, k)
+        earlier = None if task is None else store.finished(task)
+        if earlier is not None:
+            rows.append(earlier)
+            continue
+        start = time.perf_counter()
+        token = store.current.set(task)
+        try:
+            if task is not None and task.scene.exists():
+                from kinema.scene import Scene
+
+                system = Scene.load(task.scene)
+            else:
+                system = build(**p)
+            row: dict[str, Any] = {"status": "ok", "error": None, **_outputs(run(system))}
+        except Exception as e:
+            row = {"status": "failed", "error": f"{type(e).__name__}: {e}"}
+        finally:
+            store.current.reset(token)
+        row["seconds"] = time.perf_counter() - start
+        row["_key"] = k
+        if task is not None:
+            store.finish(task, row)
+        rows.append(row)
+    return rows
+
+
+def _outputs(out: Any) -> dict[str, Any]:
+    """What ``run`` returned as columns: numbers stay scalars, arrays are stored flat (float64,
+    int64 or bool) with their shape in a hidden column, restored by :func:`store.restore`."""
+    if not isinstance(out, Mapping):
+        raise TypeError(f"run: must return a dict of numbers or arrays, got {type(out).__name__}")
+    row: dict[str, Any] = {}
+    for name, value in out.items():
+        if not isinstance(name, str) or name in RESERVED or name.startswith(SHAPE):
+            raise TypeError(f"run: result names must be strings other than {sorted(RESERVED)}")
+        a = np.asarray(value)
+        if a.dtype.kind not in "biuf":
+            raise TypeError(f"run: result {name!r} must be numbers, got dtype {a.dtype}")
+        a = a.astype(np.bool_ if a.dtype.kind == "b" else np.result_type(a.dtype, np.int64))
+        if a.ndim == 0:
+            row[name] = a.item()
+        else:
+            row[name] = a.ravel()
+            row[SHAPE + name] = np.array(a.shape, dtype=np.int64)
+    return row
+
+
+# ---------------------------------------------------------------- the sweep
+
+
+def sweep(
+    build: Build,
+    params: Sequence[Mapping[str, Any]],
+    run: Run,
+    *,
+    client: Any = None,
+    checkpoint_dir: str | os.PathLike[str] | None = None,
+    retries: int = 2,
+    progress: bool = True,
+) -> Any:
+    """Run ``run(build(**p))`` for every parameter set ``p`` of ``params`` and return a pandas
+    ``DataFrame`` with one row per ``p``, in the design's order: the parameters, then one column
+    per name ``run`` returned (a number, or a numpy array with its shape), then ``status``
+    (``"ok"`` or ``"failed"``), ``error`` (``"ExceptionType: message"`` of a failed task, else
+    ``None``) and ``seconds`` (wall time of ``build`` plus ``run`` on its worker). The
+    parameters' names are in ``table.attrs["params"]`` (for :func:`to_xarray`).
+
+    ``client``: ``None`` starts a Dask ``LocalCluster`` of one single-threaded worker process per
+    core for this call (and stops it after); a ``dask.distributed.Client`` uses its cluster (a
+    ``LocalCluster``, dask-jobqueue on Slurm/PBS, Kubernetes...); ``"serial"`` runs every task in
+    this process, in order, with no Dask. On Dask workers kinema's own thread pool is set to one
+    thread (the workers are the parallelism). Tiny tasks are sent in batches sized from the
+    measured time per task (about half a second of work per batch, at most an equal share of
+    what is left among the batches in flight); the numbers never depend on batching or order.
+
+    ``checkpoint_dir``: a directory (made if missing) where each finished batch is written as a
+    Parquet file at once; tasks whose result is already there (``ok`` or ``failed``) are not
+    run again, so a crashed or interrupted sweep resumes where it stopped. Workers record each
+    finished task there too, and save the checkpoints of :func:`checkpoint`, so a batch whose
+    worker was lost neither runs its finished tasks again nor restarts its running task from
+    zero (for that the workers must see the directory: a local cluster, or a shared file
+    system). Without it, results live only in memory and a lost batch runs again in full.
+
+    An exception raised by ``build`` or ``run`` (say a diverging step,
+    ``kinema.SimulationError``) fails that task only, recorded with its parameters and error; it
+    is not retried, since a simulation gives the same error again. ``retries`` is how many
+    times a batch is submitted again when Dask could not run it (a worker lost or killed); after
+    that its tasks are recorded as failed. ``progress`` shows a tqdm bar (done, failed,
+    running). Ctrl-C stops the sweep (``KeyboardInterrupt``) with every finished result kept.
+    """
+    import pandas as pd
+
+    if not callable(build):
+        raise ValueError("build: expected a callable build(**params) -> system")
+    if not callable(run):
+        raise ValueError("run: expected a callable run(system) -> dict of numbers or arrays")
+    retries = integer(retries, "retries", 0)
+    if not isinstance(progress, bool):
+        raise ValueError(f"progress: expected a bool, got {type(progress).__name__}")
+    if not (client is None or client == "serial" or hasattr(client, "submit")):
+        raise ValueError("client: expected None, 'serial' or a dask.distributed.Client")
+    design = check(params)
+    keys = [key(p) for p in design]
+    directory = None if checkpoint_dir is None else Path(checkpoint_dir).resolve()
+    if directory is not None:
+        if directory.exists() and not directory.is_dir():
+            raise ValueError("checkpoint_dir: expected a directory, got an existing file")
+        directory.mkdir(parents=True, exist_ok=True)
+    done = {} if directory is None else store.load(directory)
+    done = {k: done[k] for k in keys if k in done}
+    todo = [(k, p) for k, p in zip(keys, design, strict=True) if k not in done]
+
+    bar = _bar(len(design), len(done), progress)
+    failed = [sum(r["status"] == "failed" for r in done.values())]
+    bar.set_postfix(failed=failed[0])
+
+    def finished(rows: list[dict[str, Any]], running: int) -> None:
+        if directory is not None:
+            store.save_part(directory, rows)
+            store.forget(directory, (r["_key"] for r in rows))
+        done.update((r["_key"], store.restore(r)) for r in rows)
+        failed[0] += sum(r["status"] == "failed" for r in rows)
+        bar.set_postfix(failed=failed[0], running=running, refresh=False)
+        bar.update(len(rows))
+
+    where = None if directory is None else str(directory)
+    try:
+        if client == "serial":
+            for task in todo:
+                finished(_run_batch(build, run, [task], False, where), 0)
+        elif todo:
+            _on_dask(client, build, run, todo, retries, where, finished)
+    finally:
+        bar.close()
+
+    frame = pd.DataFrame(design)
+    rows = [done[k] for k in keys]
+    outputs = list(dict.fromkeys(n for r in rows for n in r if n not in RESERVED))
+    for name in outputs:
+        frame[name] = pd.Series([r.get(name) for r in rows], dtype=_dtype(rows, name))
+    for name in _META:
+        frame[name] = pd.Series([r.get(name) for r in rows], dtype=object)
+    frame["seconds"] = frame["seconds"].astype("float64")
+    frame.attrs["params"] = list(design[0])
+    return frame
+
+
+def _dtype(rows: list[dict[str, Any]], name: str) -> Any:
+    """The column type of output ``name``: ``bool`` or ``int64`` when every task gave one and
+    none failed, ``float64`` for numbers (a failed task's value is NaN), else ``object``
+    (arrays; a failed task's is ``None``)."""
+    values = [r[name] for r in rows if name in r]
+    complete = len(values) == len(rows)
+    flags = [isinstance(v, (bool, np.bool_)) for v in values]
+    if complete and all(flags):
+        return "bool"
+    if complete and all(
+        isinstance(v, numbers.Integral) and not f for v, f in zip(values, flags, strict=True)
+    ):
+        return "int64"
+    numeric = all(isinstance(v, numbers.Real) and not f for v, f in zip(values, flags, strict=True))
+    return "float64" if numeric else object
+
+
+def _lost(future: Any) -> str:
+    """Why Dask could not give a batch's result, as ``"ExceptionType: message"``."""
+    try:
+        future.result()
+    except (
+        Exception,
+        asyncio.CancelledError,
+    ) as e:  # a lost worker, a cancelled task, a result that cannot travel
+        return f"{type(e).__name__}: {e}"
+    return "the batch was lost"
+
+
+def _bar(total: int, initial: int, enabled: bool) -> Any:
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, unit="task", desc="sweep", disable=not enabled)
+
+
+def _on_dask(
+    client: Any,
+    build: Build,
+    run: Run,
+    todo: list[tuple[str, dict[str, Any]]],
+    retries: int,
+    directory: str | None,
+    finished: Callable[[list[dict[str, Any]], int], None],
+) -> None:
+    """Run ``todo`` on Dask: batches sized from the measured time per task, ``_IN_FLIGHT`` per
+    worker at a time, results handed to ``finished`` as they arrive."""
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    own = None
+    if client is None:
+        cluster = LocalCluster(
+            n_workers=os.cpu_count() or 1,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
+            env={"KINEMA_NUM_THREADS": "1"},
+        )
+        own = client = Client(cluster)
+    try:
+        workers = max(1, sum(client.nthreads().values()))
+        queue = list(reversed(todo))  # pop() takes the next task
+        timing = [0.0, 0]  # seconds and tasks measured so far
+        tries: dict[Any, tuple[list[tuple[str, dict[str, Any]]], int]] = {}
+        pending = as_completed()
+
+        def submit(batch: list[tuple[str, dict[str, Any]]], attempt: int) -> None:
+            future = client.submit(_run_batch, build, run, batch, True, directory, pure=False)
+            tries[future] = (batch, attempt)
+            pending.add(future)
+
+        def next_batch() -> list[tuple[str, dict[str, Any]]]:
+            per_task = max(timing[0] / timing[1], 1e-6) if timing[1] else _BATCH_SECONDS
+            share = -(-len(queue) // (_IN_FLIGHT * workers))  # ceil: every slot gets some
+            size = max(1, min(int(_BATCH_SECONDS / per_task), share))
+            return [queue.pop() for _ in range(min(size, len(queue)))]
+
+        for _ in range(_IN_FLIGHT * workers):
+            if queue:
+                submit([queue.pop()], 0)  # one task each until the time per task is known
+        for future in pending:
+            batch, attempt = tries.pop(future)
+            if future.status == "finished":
+                rows = future.result()
+                timing[0] += sum(r["seconds"] for r in rows)
+                timing[1] += len(rows)
+                finished(rows, len(tries))
+            elif attempt < retries:
+                submit(batch, attempt + 1)
+                continue
+            else:
+                error = _lost(future)
+                finished(
+                    [{"status": "failed", "error": error, "_key": k} for k, _ in batch], len(tries)
+                )
+            while queue and len(tries) < _IN_FLIGHT * workers:
+                submit(next_batch(), 0)
+    except BaseException:
+        for future in list(tries):
+            future.cancel()
+        raise
+    finally:
+        if own is not None:
+            own.close()
+            own.cluster.close()
