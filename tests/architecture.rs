@@ -49,7 +49,17 @@ fn the_file_map_names_every_source_file_and_no_other() {
 #[test]
 fn shared_layers_import_no_system() {
     let systems = [
-        "particles", "cloth", "rigid", "constraints", "anim", "mocap", "ik", "fluid", "crowd", "rods", "skin",
+        "particles",
+        "cloth",
+        "rigid",
+        "constraints",
+        "anim",
+        "mocap",
+        "ik",
+        "fluid",
+        "crowd",
+        "rods",
+        "skin",
     ];
     let shared = ["error", "batch", "math", "linalg", "spline", "geometry", "rotation", "ode"];
     let mut offenders = Vec::new();

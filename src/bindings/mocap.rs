@@ -44,9 +44,9 @@ fn motion_or_pose<'a, 'py>(
     if let Ok(m) = motion.cast::<PyMotion>() {
         return Ok((&m.get().motion, false));
     }
-    let pose: PyArrayLike1<'py, f64, AllowTypeChange> = motion
-        .extract()
-        .map_err(|_| crate::Error::invalid("motion", "expected a motion or one pose (1-D values)"))?;
+    let pose: PyArrayLike1<'py, f64, AllowTypeChange> = motion.extract().map_err(|_| {
+        crate::Error::invalid("motion", "expected a motion or one pose (1-D values)")
+    })?;
     let values = pose_values(&pose, "motion")?;
     if values.len() != stride {
         return Err(crate::Error::invalid(

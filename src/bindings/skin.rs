@@ -1,7 +1,7 @@
 //! `kinema.skin`: skinning of a bind-pose surface by a skeleton's joint frames.
 
-use super::array::{compute, rows};
 use super::args::Int;
+use super::array::{compute, rows};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use crate::error::Error;

@@ -17,9 +17,9 @@
 //! ([`Wall::confine`]). The pressure of the boundary particles normally keeps the fluid half a
 //! spacing away, so this acts only on particles the pressure solve could not stop.
 
-use crate::geometry::grid::Grid;
 use super::Kernel;
 use crate::error::{Error, Result};
+use crate::geometry::grid::Grid;
 use glam::DVec3;
 
 /// A wall that bounds the fluid.

@@ -19,10 +19,10 @@
 //!   increments `(Dρ̂_i/Dt) α_i / dt`, ignoring particles with fewer than 20 neighbours
 //!   (a free surface, as SPlisHSPlasH does).
 
-use crate::geometry::grid::Grid;
 use super::model::{Model, Pressure};
 use super::{State, Stats};
 use crate::error::{reserve, Error, Result};
+use crate::geometry::grid::Grid;
 use glam::DVec3;
 use rayon::prelude::*;
 

@@ -10,9 +10,11 @@ impl Snapshot for Skin {
     fn validate(&self) -> Result<()> {
         let (n, k, joints) = (self.rest.len(), self.k, self.origins.len());
         check(finite(self.rest.iter().flatten().copied()), "vertices", || "non-finite".into())?;
-        check(k > 0 && self.bones.len() == n * k && self.weights.len() == n * k, "weights", || {
-            "influences of the wrong size".into()
-        })?;
+        check(
+            k > 0 && self.bones.len() == n * k && self.weights.len() == n * k,
+            "weights",
+            || "influences of the wrong size".into(),
+        )?;
         check(self.bones.iter().all(|&b| (b as usize) < joints), "bones", || {
             "a bone beyond the joints".into()
         })?;
