@@ -30,6 +30,7 @@ impl PySkin {
     /// (V k values each, flat), bone `b` having its origin at joint `origins[b]`, bound at
     /// the pose `bind_positions` (J, 3) and `bind_orientations` (J, 4).
     #[new]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         vertices: PyReadonlyArrayDyn<'_, f64>,
@@ -86,6 +87,9 @@ impl PySkin {
     }
 }
 
+/// Bones and weights of the influences, `k` per vertex, flat.
+type Influences<'py> = (Bound<'py, PyArray1<u32>>, Bound<'py, PyArray1<f64>>);
+
 /// The `k` nearest bones of every vertex (V, 3) and their weights by inverse distance to
 /// the power `falloff` to the bones' segments (S, 2, 3), segment `s` owned by bone
 /// `owners[s]` of `bones`: `(bones (V k,), weights (V k,))`.
@@ -98,7 +102,7 @@ fn skin_proximity_weights<'py>(
     bones: usize,
     k: Int,
     falloff: f64,
-) -> PyResult<(Bound<'py, PyArray1<u32>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<Influences<'py>> {
     let v = rows::<3>(&vertices, "vertices", &[3])?;
     let s = rows::<6>(&segments, "segments", &[2, 3])?;
     let k = k.range("influences", 1, 64)?;
