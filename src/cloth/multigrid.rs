@@ -456,34 +456,11 @@ fn smooth_prolongator(fine: &mut Level, position: &mut [usize]) {
     }
 }
 
-/// `Â P`, then the coarse operator `Pᵀ (Â P)`, row by row with a sparse accumulator.
+/// `Â P`, then the coarse operator `Pᵀ (Â P)` ([`product_into`]).
 fn galerkin(fine: &mut Level, coarse: &mut Level, position: &mut [usize]) {
-    let (a, p, ap) = (&fine.a, &fine.p, &mut fine.ap);
-    for i in 0..a.n() {
-        for t in ap.row(i) {
-            position[ap.cols[t] as usize] = t;
-            ap.blocks[t] = DMat3::ZERO;
-        }
-        for s in a.row(i) {
-            let k = a.cols[s] as usize;
-            for t in p.row(k) {
-                ap.blocks[position[p.cols[t] as usize]] += a.blocks[s] * p.blocks[t];
-            }
-        }
-    }
-    let (pt, ac) = (&fine.pt, &mut coarse.a);
-    for c in 0..ac.n() {
-        for t in ac.row(c) {
-            position[ac.cols[t] as usize] = t;
-            ac.blocks[t] = DMat3::ZERO;
-        }
-        for t in pt.row(c) {
-            let i = pt.cols[t] as usize;
-            for u in ap.row(i) {
-                ac.blocks[position[ap.cols[u] as usize]] += pt.blocks[t] * ap.blocks[u];
-            }
-        }
-    }
+    product_into(&fine.a, &fine.p, &mut fine.ap, position);
+    let ac = &mut coarse.a;
+    product_into(&fine.pt, &fine.ap, ac, position);
     // The rotation about the line of an aggregate of two points (or collinear points) is no
     // motion: its coarse row is zero up to rounding. A relative 1e-10 on the diagonal keeps
     // the coarse operator definite (the preconditioner stays SPD; that direction's
@@ -492,6 +469,24 @@ fn galerkin(fine: &mut Level, coarse: &mut Level, position: &mut [usize]) {
         let block = &mut ac.blocks[d];
         let trace = block.x_axis.x + block.y_axis.y + block.z_axis.z;
         *block += DMat3::from_diagonal(DVec3::splat(if trace > 0.0 { 1e-10 * trace } else { 1.0 }));
+    }
+}
+
+/// The values of `out = left · right` on `out`'s pattern (which holds the product's),
+/// row by row with a sparse accumulator: `position` (one slot per column of `right`) maps a
+/// column to its slot in the row being built.
+fn product_into(left: &Blocks, right: &Blocks, out: &mut Blocks, position: &mut [usize]) {
+    for i in 0..out.n() {
+        for t in out.row(i) {
+            position[out.cols[t] as usize] = t;
+            out.blocks[t] = DMat3::ZERO;
+        }
+        for s in left.row(i) {
+            let k = left.cols[s] as usize;
+            for t in right.row(k) {
+                out.blocks[position[right.cols[t] as usize]] += left.blocks[s] * right.blocks[t];
+            }
+        }
     }
 }
 
