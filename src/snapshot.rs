@@ -140,11 +140,51 @@ pub fn fingerprint<T: Serialize>(value: &T) -> u64 {
 }
 
 /// A system's state whose snapshot alone is stamped with the fingerprint of its model
-/// ([`fingerprint`]), so that it is restored only onto that model ([`to_stamped`],
-/// [`from_stamped`]).
+/// ([`fingerprint`]), so that it is restored only onto that model. Every system's `State`
+/// implements it: [`Stamped::to_snapshot`] and [`Stamped::from_snapshot`] are written once,
+/// here.
 pub trait Stamped: Serialize + DeserializeOwned + Clone {
     /// The tag of the state's snapshots, e.g. `"ConstraintState"`.
     const TAG: &'static str;
+
+    /// The model the state belongs to; its [`fingerprint`] stamps the state's snapshots.
+    type Model: Serialize;
+
+    /// Check a decoded state against `model` (sizes, then values), before it is used.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] naming the first inconsistent field.
+    fn validate(&self, model: &Self::Model) -> Result<()>;
+
+    /// The state as bytes (see the module documentation), stamped with the fingerprint of
+    /// `model`, for [`Stamped::from_snapshot`] onto the same model.
+    ///
+    /// # Errors
+    /// As [`Snapshot::to_snapshot`] (none in practice: a state holds nothing that cannot be
+    /// encoded).
+    fn to_snapshot(&self, model: &Self::Model) -> Result<Vec<u8>> {
+        Stored { fingerprint: fingerprint(model), state: self.clone() }.to_snapshot()
+    }
+
+    /// The state stored by [`Stamped::to_snapshot`], for `model`.
+    ///
+    /// # Errors
+    /// Bytes that are not a snapshot of this tag and version or are damaged (argument `data`);
+    /// a state of a model of another fingerprint (argument `model`); a state that
+    /// [`Stamped::validate`] refuses (argument `data`).
+    fn from_snapshot(model: &Self::Model, data: &[u8]) -> Result<Self> {
+        let stored = Stored::<Self>::from_snapshot(data)?;
+        if stored.fingerprint != fingerprint(model) {
+            return Err(Error::invalid(
+                "model",
+                "the state snapshot was taken of a model with another fingerprint",
+            ));
+        }
+        stored.state.validate(model).map_err(|e| {
+            Error::invalid("data", format!("inconsistent {} snapshot: {e}", Self::TAG))
+        })?;
+        Ok(stored.state)
+    }
 }
 
 /// A stamped state as stored: the fingerprint of its model and the state.
@@ -157,40 +197,8 @@ struct Stored<S> {
 impl<S: Stamped> Snapshot for Stored<S> {
     const TAG: &'static str = S::TAG;
 
-    /// The state is checked against its model by [`from_stamped`], which has it.
+    /// The state is checked against its model by [`Stamped::from_snapshot`], which has it.
     fn validate(&self) -> Result<()> {
         Ok(())
     }
-}
-
-/// `state` as bytes (see the module documentation), stamped with `fingerprint`, its model's.
-///
-/// # Errors
-/// As [`Snapshot::to_snapshot`].
-pub fn to_stamped<S: Stamped>(state: &S, fingerprint: u64) -> Result<Vec<u8>> {
-    Stored { fingerprint, state: state.clone() }.to_snapshot()
-}
-
-/// The state stored by [`to_stamped`] if it was taken of a model of `fingerprint`, after
-/// `validate` (its check against that model) accepts it.
-///
-/// # Errors
-/// Bytes that are not a snapshot of this tag and version or are damaged (argument `data`); a
-/// state of a model of another fingerprint (argument `model`); a state that `validate`
-/// refuses (argument `data`).
-pub fn from_stamped<S: Stamped>(
-    data: &[u8],
-    fingerprint: u64,
-    validate: impl FnOnce(&S) -> Result<()>,
-) -> Result<S> {
-    let stored = Stored::<S>::from_snapshot(data)?;
-    if stored.fingerprint != fingerprint {
-        return Err(Error::invalid(
-            "model",
-            "the state snapshot was taken of a model with another fingerprint",
-        ));
-    }
-    validate(&stored.state)
-        .map_err(|e| Error::invalid("data", format!("inconsistent {} snapshot: {e}", S::TAG)))?;
-    Ok(stored.state)
 }

@@ -9,6 +9,7 @@ use kinema::cloth::{
 };
 use kinema::geometry::{Shape, Sphere};
 use kinema::ode::Method;
+use kinema::snapshot::Stamped;
 use kinema::Error;
 
 const G: DVec3 = DVec3::new(0.0, -9.81, 0.0);

@@ -8,7 +8,7 @@ use kinema::constraints::{
 };
 use kinema::ode::Method;
 use kinema::particles::{self, Force, ParticleSystem};
-use kinema::snapshot::{fingerprint, Snapshot};
+use kinema::snapshot::{fingerprint, Snapshot, Stamped};
 use std::fs;
 use std::sync::Arc;
 

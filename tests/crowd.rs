@@ -4,6 +4,7 @@
 
 use glam::DVec2;
 use kinema::crowd::{metrics, Crowd, Kind, Model, Settings, SocialForce, Solver, State};
+use kinema::snapshot::Stamped;
 use std::f64::consts::TAU;
 
 /// `n` agents evenly on a circle of `radius` (m), each going to its antipode.

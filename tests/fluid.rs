@@ -4,6 +4,7 @@
 
 use glam::DVec3;
 use kinema::fluid::{Fluid, Kernel, Model, Pressure, Settings, Solver, State, Wall};
+use kinema::snapshot::Stamped;
 use kinema::Error;
 
 fn tank(fluid: &mut Fluid, lower: [f64; 3], upper: [f64; 3]) {

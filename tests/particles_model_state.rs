@@ -5,6 +5,7 @@ use glam::DVec3;
 use kinema::geometry::{Material, Plane, Shape};
 use kinema::ode::Method;
 use kinema::particles::{Appearance, Collider, Emitter, Force, Model, Solver, State, StepStats};
+use kinema::snapshot::Stamped;
 
 /// A model of 300 slots with gravity, drag, a ground plane and an emitter whose particles live
 /// 6 ms (so slots are born and die within a few calls) when `emitter`, and springs when

@@ -8,6 +8,7 @@ use kinema::rigid::{
     BodyDesc, JointDesc, JointKind, JointMethod, Model, RotationIntegrator, Solver, State, World,
     PENALTY_DAMPING, PENALTY_STIFFNESS,
 };
+use kinema::snapshot::Stamped;
 
 const G: DVec3 = DVec3::new(0.0, -9.81, 0.0);
 const DT: f64 = 1.0 / 120.0;

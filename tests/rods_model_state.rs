@@ -7,7 +7,7 @@ use common::thread_allocations;
 
 use glam::DVec3;
 use kinema::rods::{End, Integrator, Material, Model, Rod, Settings, Solver, State};
-use kinema::snapshot::Snapshot;
+use kinema::snapshot::{Snapshot, Stamped};
 
 const MATERIAL: Material =
     Material { youngs_modulus: 5e6, shear_modulus: 2e6, density: 1100.0, radius: [0.004, 0.003] };

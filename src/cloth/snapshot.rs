@@ -6,7 +6,7 @@
 
 use super::{Cloth, Model, Solver, State, StepStats};
 use crate::error::Result;
-use crate::snapshot::Snapshot;
+use crate::snapshot::{Snapshot, Stamped};
 
 /// A cloth as stored.
 #[derive(serde::Serialize)]

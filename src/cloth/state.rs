@@ -7,7 +7,7 @@
 
 use super::{Collider, ContactState, Model, VertexConstraint};
 use crate::error::{Error, Result};
-use crate::snapshot::{check, finite, from_stamped, to_stamped, Stamped};
+use crate::snapshot::{check, finite, Stamped};
 use glam::DVec3;
 
 /// The state of a cloth of `N` vertices (see the module documentation). Copy it with
@@ -73,6 +73,56 @@ impl Clone for State {
 
 impl Stamped for State {
     const TAG: &'static str = "ClothState";
+    type Model = Model;
+
+    /// Check the state against `model`: one entry per vertex, finite values, unit
+    /// constraint directions, valid colliders.
+    ///
+    /// # Errors
+    /// [`Error::InvalidInput`] naming the first inconsistent field.
+    fn validate(&self, model: &Model) -> Result<()> {
+        let n = model.len();
+        let vec3 = |v: &[DVec3]| finite(v.iter().flat_map(|p| p.to_array()));
+        let per_vertex = [&self.x, &self.v, &self.previous_x, &self.previous_v, &self.dv];
+        check(
+            per_vertex.iter().all(|v| v.len() == n)
+                && self.contact.len() == n
+                && self.constraints.len() == n,
+            "state",
+            || format!("not of {n} vertices"),
+        )?;
+        check(vec3(&self.x) && vec3(&self.v), "x", || "non-finite positions or velocities".into())?;
+        check(
+            vec3(&self.previous_x) && vec3(&self.previous_v) && vec3(&self.dv),
+            "history",
+            || "non-finite values".into(),
+        )?;
+        check(self.previous_dt.is_none_or(|h| h.is_finite() && h > 0.0), "history", || {
+            "previous step not finite and > 0".into()
+        })?;
+        check(self.time.is_finite(), "time", || "non-finite".into())?;
+        let constraint_ok = |c: &VertexConstraint| match *c {
+            VertexConstraint::Pinned(p) | VertexConstraint::Velocity(p) => p.is_finite(),
+            VertexConstraint::Plane(d) | VertexConstraint::Line(d) => {
+                d.is_finite() && (d.length() - 1.0).abs() < 1e-6
+            }
+        };
+        check(self.constraints.iter().flatten().all(constraint_ok), "constraints", || {
+            "non-finite or non-unit constraint vectors".into()
+        })?;
+        check(
+            self.contact.iter().all(|c| match c {
+                ContactState::Touching(j) => j.is_finite(),
+                _ => true,
+            }),
+            "contact",
+            || "non-finite contact impulses".into(),
+        )?;
+        for c in &self.colliders {
+            c.checked()?;
+        }
+        Ok(())
+    }
 }
 
 impl State {
@@ -250,74 +300,6 @@ impl State {
             Error::invalid("index", format!("no collider {index} (have {count})"))
         })?;
         *slot = collider.checked()?;
-        Ok(())
-    }
-
-    /// The state as bytes ([`crate::snapshot`] layout, tag `ClothState`), stamped with
-    /// `model`'s fingerprint ([`Model::fingerprint`]).
-    ///
-    /// # Errors
-    /// None in practice (a state holds nothing that cannot be stored).
-    pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        to_stamped(self, model.fingerprint())
-    }
-
-    /// The state stored by [`State::to_snapshot`], for `model`.
-    ///
-    /// # Errors
-    /// [`Error::InvalidInput`]: argument `"data"` if the bytes are not a cloth state snapshot
-    /// or are inconsistent with `model`, argument `"model"` if they were saved from a model
-    /// with another fingerprint.
-    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
-        from_stamped(data, model.fingerprint(), |state: &State| state.validate(model))
-    }
-
-    /// Check the state against `model`: one entry per vertex, finite values, unit
-    /// constraint directions, valid colliders.
-    ///
-    /// # Errors
-    /// [`Error::InvalidInput`] naming the first inconsistent field.
-    pub(super) fn validate(&self, model: &Model) -> Result<()> {
-        let n = model.len();
-        let vec3 = |v: &[DVec3]| finite(v.iter().flat_map(|p| p.to_array()));
-        let per_vertex = [&self.x, &self.v, &self.previous_x, &self.previous_v, &self.dv];
-        check(
-            per_vertex.iter().all(|v| v.len() == n)
-                && self.contact.len() == n
-                && self.constraints.len() == n,
-            "state",
-            || format!("not of {n} vertices"),
-        )?;
-        check(vec3(&self.x) && vec3(&self.v), "x", || "non-finite positions or velocities".into())?;
-        check(
-            vec3(&self.previous_x) && vec3(&self.previous_v) && vec3(&self.dv),
-            "history",
-            || "non-finite values".into(),
-        )?;
-        check(self.previous_dt.is_none_or(|h| h.is_finite() && h > 0.0), "history", || {
-            "previous step not finite and > 0".into()
-        })?;
-        check(self.time.is_finite(), "time", || "non-finite".into())?;
-        let constraint_ok = |c: &VertexConstraint| match *c {
-            VertexConstraint::Pinned(p) | VertexConstraint::Velocity(p) => p.is_finite(),
-            VertexConstraint::Plane(d) | VertexConstraint::Line(d) => {
-                d.is_finite() && (d.length() - 1.0).abs() < 1e-6
-            }
-        };
-        check(self.constraints.iter().flatten().all(constraint_ok), "constraints", || {
-            "non-finite or non-unit constraint vectors".into()
-        })?;
-        check(
-            self.contact.iter().all(|c| match c {
-                ContactState::Touching(j) => j.is_finite(),
-                _ => true,
-            }),
-            "contact",
-            || "non-finite contact impulses".into(),
-        )?;
-        for c in &self.colliders {
-            c.checked()?;
-        }
         Ok(())
     }
 

@@ -41,6 +41,7 @@
 //! use kinema::constraints::{self, Constraint, ConstraintSolver, Particles};
 //! use kinema::ode::Method;
 //! use kinema::particles::{self, Force};
+//! use kinema::snapshot::Stamped;
 //!
 //! // One particle model and one constraint model: two rods hanging from a pinned particle.
 //! let mut bodies = particles::Model::new(3);

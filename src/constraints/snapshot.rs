@@ -6,7 +6,7 @@
 
 use super::{ConstrainedSystem, Constraint, Formulation, Model, State};
 use crate::error::Result;
-use crate::snapshot::{check, finite, from_stamped, to_stamped, Snapshot, Stamped};
+use crate::snapshot::{check, finite, Snapshot, Stamped};
 
 impl Model {
     /// Check a decoded model: gains and penalty constants in range, every constraint's
@@ -48,7 +48,10 @@ impl Model {
     }
 }
 
-impl State {
+impl Stamped for State {
+    const TAG: &'static str = "ConstraintState";
+    type Model = Model;
+
     /// Check a decoded state against its model: an entry per constraint and a multiplier per
     /// row, finite values, a valid history.
     fn validate(&self, model: &Model) -> Result<()> {
@@ -67,28 +70,6 @@ impl State {
         }
         Ok(())
     }
-
-    /// The state as bytes, with the fingerprint of `model` ([`crate::snapshot::to_stamped`]).
-    ///
-    /// # Errors
-    /// None in practice (every part of a state can be encoded).
-    pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        to_stamped(self, model.fingerprint())
-    }
-
-    /// The state stored by [`State::to_snapshot`], for `model`.
-    ///
-    /// # Errors
-    /// Bytes that are not a constraint state snapshot of this version or are damaged
-    /// (argument `data`); a state of a model of another fingerprint (argument `model`); a
-    /// state that does not fit `model` (argument `data`).
-    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
-        from_stamped(data, model.fingerprint(), |state: &State| state.validate(model))
-    }
-}
-
-impl Stamped for State {
-    const TAG: &'static str = "ConstraintState";
 }
 
 impl Snapshot for ConstrainedSystem {

@@ -2,9 +2,9 @@
 //! snapshot (model and state), and a state's alone, stamped with the fingerprint of its
 //! model ([`Model::fingerprint`]) so that it is restored only onto it.
 
-use super::{Crowd, Model, State};
+use super::{Crowd, Model, State, MAX_AGENTS};
 use crate::error::Result;
-use crate::snapshot::{check, from_stamped, to_stamped, Snapshot, Stamped};
+use crate::snapshot::{check, Snapshot, Stamped};
 
 impl Model {
     /// Check a decoded model: settings in range, and the obstacle data exactly what
@@ -25,27 +25,42 @@ impl Model {
     }
 }
 
-impl State {
-    /// The state as bytes, with the fingerprint of `model` (see [`crate::snapshot`]).
-    ///
-    /// # Errors
-    /// None in practice (every part of a state can be encoded).
-    pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        to_stamped(self, model.fingerprint())
-    }
-
-    /// The state stored by [`State::to_snapshot`], for `model`.
-    ///
-    /// # Errors
-    /// Bytes that are not a crowd state snapshot of this version or are damaged (argument
-    /// `data`); a state of a model of another fingerprint (argument `model`).
-    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
-        from_stamped(data, model.fingerprint(), State::validate)
-    }
-}
+impl State {}
 
 impl Stamped for State {
     const TAG: &'static str = "CrowdState";
+    type Model = Model;
+
+    /// Check a decoded state: lengths equal, values finite (arrival times may be infinite,
+    /// never NaN or negative), not too many agents.
+    fn validate(&self, _: &Model) -> Result<()> {
+        use crate::snapshot::{check, finite};
+        let n = self.positions.len();
+        check(n <= MAX_AGENTS, "positions", || "too many agents".into())?;
+        for (field, len) in [
+            ("velocities", self.velocities.len()),
+            ("goals", self.goals.len()),
+            ("preferred", self.preferred.len()),
+            ("starts", self.starts.len()),
+            ("path_length", self.path_length.len()),
+            ("arrival", self.arrival.len()),
+        ] {
+            check(len == n, field, || format!("{len} entries for {n} agents"))?;
+        }
+        let vectors =
+            [&self.positions, &self.velocities, &self.goals, &self.preferred, &self.starts];
+        check(
+            finite(vectors.iter().flat_map(|v| v.iter().flat_map(|p| p.to_array()))),
+            "positions",
+            || "non-finite".into(),
+        )?;
+        check(self.path_length.iter().all(|l| l.is_finite() && *l >= 0.0), "path_length", || {
+            "non-finite or negative".into()
+        })?;
+        check(self.arrival.iter().all(|t| *t >= 0.0), "arrival", || "NaN or negative".into())?;
+        check(self.time.is_finite(), "time", || "non-finite".into())?;
+        self.tally.validate()
+    }
 }
 
 impl Snapshot for Crowd {
@@ -53,6 +68,6 @@ impl Snapshot for Crowd {
 
     fn validate(&self) -> Result<()> {
         self.model.validate()?;
-        self.state.validate()
+        self.state.validate(&self.model)
     }
 }

@@ -174,35 +174,4 @@ impl State {
         self.goals.copy_from_slice(goals);
         Ok(())
     }
-
-    /// Check a decoded state: lengths equal, values finite (arrival times may be infinite,
-    /// never NaN or negative), not too many agents.
-    pub(super) fn validate(&self) -> Result<()> {
-        use crate::snapshot::{check, finite};
-        let n = self.positions.len();
-        check(n <= MAX_AGENTS, "positions", || "too many agents".into())?;
-        for (field, len) in [
-            ("velocities", self.velocities.len()),
-            ("goals", self.goals.len()),
-            ("preferred", self.preferred.len()),
-            ("starts", self.starts.len()),
-            ("path_length", self.path_length.len()),
-            ("arrival", self.arrival.len()),
-        ] {
-            check(len == n, field, || format!("{len} entries for {n} agents"))?;
-        }
-        let vectors =
-            [&self.positions, &self.velocities, &self.goals, &self.preferred, &self.starts];
-        check(
-            finite(vectors.iter().flat_map(|v| v.iter().flat_map(|p| p.to_array()))),
-            "positions",
-            || "non-finite".into(),
-        )?;
-        check(self.path_length.iter().all(|l| l.is_finite() && *l >= 0.0), "path_length", || {
-            "non-finite or negative".into()
-        })?;
-        check(self.arrival.iter().all(|t| *t >= 0.0), "arrival", || "NaN or negative".into())?;
-        check(self.time.is_finite(), "time", || "non-finite".into())?;
-        self.tally.validate()
-    }
 }

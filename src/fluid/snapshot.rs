@@ -4,7 +4,7 @@
 
 use super::{Fluid, Model, State};
 use crate::error::Result;
-use crate::snapshot::{check, finite, from_stamped, to_stamped, Snapshot, Stamped};
+use crate::snapshot::{check, finite, Snapshot, Stamped};
 
 impl Model {
     /// Check a decoded model: settings in range, the derived sizes those of the settings, a
@@ -40,27 +40,33 @@ impl Model {
     }
 }
 
-impl State {
-    /// The state as bytes, with the fingerprint of `model` (see [`crate::snapshot`]).
-    ///
-    /// # Errors
-    /// None in practice (every part of a state can be encoded).
-    pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        to_stamped(self, model.fingerprint())
-    }
-
-    /// The state stored by [`State::to_snapshot`], for `model`.
-    ///
-    /// # Errors
-    /// Bytes that are not a fluid state snapshot of this version or are damaged (argument
-    /// `data`); a state of a model of another fingerprint (argument `model`).
-    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
-        from_stamped(data, model.fingerprint(), State::validate)
-    }
-}
+impl State {}
 
 impl Stamped for State {
     const TAG: &'static str = "FluidState";
+    type Model = Model;
+
+    /// Check a decoded state: lengths equal, finite values, not too many particles.
+    fn validate(&self, _: &Model) -> Result<()> {
+        use crate::snapshot::{check, finite};
+        let n = self.positions.len();
+        for (field, len) in [
+            ("velocities", self.velocities.len()),
+            ("pressure", self.pressure.len()),
+            ("divergence", self.divergence.len()),
+        ] {
+            check(len == n, field, || format!("{len} entries for {n} particles"))?;
+        }
+        let values = self.positions.iter().chain(&self.velocities).flat_map(|v| v.to_array());
+        check(finite(values), "positions", || "non-finite".into())?;
+        check(finite(self.pressure.iter().chain(&self.divergence).copied()), "pressure", || {
+            "non-finite".into()
+        })?;
+        check(self.time.is_finite(), "time", || "non-finite".into())?;
+        check(finite(self.emitted.iter().copied()), "emitted", || "non-finite".into())?;
+        check(n < u32::MAX as usize / 4, "positions", || "too many particles".into())?;
+        Ok(())
+    }
 }
 
 impl Snapshot for Fluid {
@@ -68,7 +74,7 @@ impl Snapshot for Fluid {
 
     fn validate(&self) -> Result<()> {
         self.model.validate()?;
-        self.state.validate()?;
+        self.state.validate(&self.model)?;
         let (have, want) = (self.state.emitted.len(), self.model.emitters.len());
         check(have == want, "emitted", || format!("{have} entries for {want} emitters"))
     }

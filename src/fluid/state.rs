@@ -148,26 +148,4 @@ impl State {
         self.velocities.copy_from_slice(velocities);
         Ok(())
     }
-
-    /// Check a decoded state: lengths equal, finite values, not too many particles.
-    pub(super) fn validate(&self) -> Result<()> {
-        use crate::snapshot::{check, finite};
-        let n = self.positions.len();
-        for (field, len) in [
-            ("velocities", self.velocities.len()),
-            ("pressure", self.pressure.len()),
-            ("divergence", self.divergence.len()),
-        ] {
-            check(len == n, field, || format!("{len} entries for {n} particles"))?;
-        }
-        let values = self.positions.iter().chain(&self.velocities).flat_map(|v| v.to_array());
-        check(finite(values), "positions", || "non-finite".into())?;
-        check(finite(self.pressure.iter().chain(&self.divergence).copied()), "pressure", || {
-            "non-finite".into()
-        })?;
-        check(self.time.is_finite(), "time", || "non-finite".into())?;
-        check(finite(self.emitted.iter().copied()), "emitted", || "non-finite".into())?;
-        check(n < u32::MAX as usize / 4, "positions", || "too many particles".into())?;
-        Ok(())
-    }
 }

@@ -4,7 +4,7 @@
 
 use super::{Model, ParticleSystem, State};
 use crate::error::Result;
-use crate::snapshot::{check, finite, from_stamped, to_stamped, Snapshot, Stamped};
+use crate::snapshot::{check, finite, Snapshot, Stamped};
 
 impl Model {
     /// Check a decoded model: every force, collider and emitter valid for the capacity.
@@ -22,7 +22,10 @@ impl Model {
     }
 }
 
-impl State {
+impl Stamped for State {
+    const TAG: &'static str = "ParticleState";
+    type Model = Model;
+
     /// Check a decoded state against its model: lengths of the capacity, finite values, masses
     /// with their inverses, an emission count per emitter, a history of the state's size.
     fn validate(&self, model: &Model) -> Result<()> {
@@ -78,28 +81,6 @@ impl State {
         }
         Ok(())
     }
-
-    /// The state as bytes, with the fingerprint of `model` (see [`crate::snapshot`]).
-    ///
-    /// # Errors
-    /// None in practice (every part of a state can be encoded).
-    pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        to_stamped(self, model.fingerprint())
-    }
-
-    /// The state stored by [`State::to_snapshot`], for `model`.
-    ///
-    /// # Errors
-    /// Bytes that are not a particle state snapshot of this version or are damaged (argument
-    /// `data`); a state of a model of another fingerprint (argument `model`); a state that
-    /// does not fit `model` (argument `data`).
-    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
-        from_stamped(data, model.fingerprint(), |state: &State| state.validate(model))
-    }
-}
-
-impl Stamped for State {
-    const TAG: &'static str = "ParticleState";
 }
 
 impl Snapshot for ParticleSystem {

@@ -21,6 +21,7 @@
 //! use glam::{DQuat, DVec3};
 //! use kinema::geometry::Solid;
 //! use kinema::rigid::{BodyDesc, Model, RotationIntegrator, Solver, State};
+//! use kinema::snapshot::Stamped;
 //!
 //! // The model: a ground plane and a box 0.5 m above it (built once, validated).
 //! let mut model = Model::new(DVec3::new(0.0, -9.81, 0.0), RotationIntegrator::Splitting);

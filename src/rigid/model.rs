@@ -10,7 +10,7 @@ use super::state::{finite_vectors, unit_quaternions};
 use super::State;
 use crate::error::{Error, Result};
 use crate::geometry::{MassProperties, Material, Plane, Shape, Solid};
-use crate::snapshot::{check, finite};
+use crate::snapshot::{check, finite, Stamped};
 use glam::{DMat3, DQuat, DVec3};
 use nalgebra::{Matrix3, SymmetricEigen};
 

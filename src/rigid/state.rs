@@ -7,7 +7,7 @@ use super::contact::Contact;
 use super::joint::SLOTS;
 use super::Model;
 use crate::error::{Error, Result};
-use crate::snapshot::{check, finite, from_stamped, to_stamped, Stamped};
+use crate::snapshot::{check, finite, Stamped};
 use glam::{DQuat, DVec3};
 
 /// The time-varying part of a rigid world of `N` bodies (index = body id), all in the world
@@ -120,37 +120,19 @@ impl State {
 
 impl Stamped for State {
     const TAG: &'static str = "RigidState";
-}
-
-impl State {
-    /// The state as bytes, with the fingerprint of `model` ([`crate::snapshot::to_stamped`]),
-    /// for [`State::from_snapshot`] onto the same model.
-    ///
-    /// # Errors
-    /// None in practice (a state holds nothing that cannot be stored).
-    pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        to_stamped(self, model.fingerprint())
-    }
-
-    /// The state stored by [`State::to_snapshot`], for `model`.
-    ///
-    /// # Errors
-    /// Bytes that are not a rigid state's snapshot of this version or are damaged (argument
-    /// `data`); a snapshot taken of a model with another fingerprint (argument `model`); a
-    /// state that does not fit `model` (argument `data`).
-    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
-        from_stamped(data, model.fingerprint(), |state: &State| state.validate(model))
-    }
+    type Model = Model;
 
     /// Check a decoded state against `model`: its sizes, then its values.
     ///
     /// # Errors
     /// [`Error::InvalidInput`] naming the first inconsistent field.
-    pub(super) fn validate(&self, model: &Model) -> Result<()> {
+    fn validate(&self, model: &Model) -> Result<()> {
         self.check_sizes(model)?;
         self.validate_values()
     }
+}
 
+impl State {
     /// The values of a decoded state: finite, unit orientations, warm-start contacts within
     /// the bodies with finite impulses.
     fn validate_values(&self) -> Result<()> {

@@ -1,31 +1,47 @@
 //! Rod snapshots: the rod's (model and state), and a state's alone, which records the
 //! fingerprint of its model ([`Model::fingerprint`]) so that it is restored only onto it.
 
-use super::{Model, Rod, State};
+use super::{Frames, Model, Rod, State};
 use crate::error::Result;
-use crate::snapshot::{from_stamped, to_stamped, Snapshot, Stamped};
+use crate::snapshot::{Snapshot, Stamped};
 
-impl State {
-    /// The state as bytes, with the fingerprint of `model` (see [`crate::snapshot`]).
-    ///
-    /// # Errors
-    /// None in practice (every part of a state can be encoded).
-    pub fn to_snapshot(&self, model: &Model) -> Result<Vec<u8>> {
-        to_stamped(self, model.fingerprint())
-    }
-
-    /// The state stored by [`State::to_snapshot`], for `model`.
-    ///
-    /// # Errors
-    /// Bytes that are not a rod state snapshot of this version, are damaged or inconsistent
-    /// with `model` (argument `data`); a state of a model of another fingerprint (`model`).
-    pub fn from_snapshot(model: &Model, data: &[u8]) -> Result<State> {
-        from_stamped(data, model.fingerprint(), |s: &State| s.validate(model))
-    }
-}
+impl State {}
 
 impl Stamped for State {
     const TAG: &'static str = "RodState";
+    type Model = Model;
+
+    /// Check a decoded state against its model: lengths, finite values, unit directors.
+    fn validate(&self, model: &Model) -> Result<()> {
+        use crate::snapshot::{check, finite};
+        let n = model.edges();
+        for (field, len, want) in [
+            ("positions", self.positions.len(), n + 1),
+            ("velocities", self.velocities.len(), n + 1),
+            ("forces", self.forces.len(), n + 1),
+            ("twists", self.twists.len(), n),
+            ("twist_rates", self.twist_rates.len(), n),
+            ("reference", self.reference.len(), n),
+            ("reference_twist", self.reference_twist.len(), n - 1),
+        ] {
+            check(len == want, field, || format!("{len} entries, expected {want}"))?;
+        }
+        let vectors = [&self.positions, &self.velocities, &self.forces, &self.reference];
+        check(
+            finite(vectors.iter().flat_map(|v| v.iter().flat_map(|p| p.to_array()))),
+            "positions",
+            || "non-finite".into(),
+        )?;
+        let scalars = self.twists.iter().chain(&self.twist_rates).chain(&self.reference_twist);
+        check(finite(scalars.copied()) && self.time.is_finite(), "twists", || "non-finite".into())?;
+        check(self.reference.iter().all(|d| (d.length() - 1.0).abs() < 1e-9), "reference", || {
+            "reference directors must be unit".into()
+        })?;
+        let mut frames = Frames::default();
+        check(self.frames_into(&mut frames, &mut Vec::new()), "positions", || {
+            "an edge has zero length".into()
+        })
+    }
 }
 
 impl Snapshot for Rod {

@@ -159,36 +159,4 @@ impl State {
             &self.reference_twist,
         )
     }
-
-    /// Check a decoded state against its model: lengths, finite values, unit directors.
-    pub(super) fn validate(&self, model: &Model) -> Result<()> {
-        use crate::snapshot::{check, finite};
-        let n = model.edges();
-        for (field, len, want) in [
-            ("positions", self.positions.len(), n + 1),
-            ("velocities", self.velocities.len(), n + 1),
-            ("forces", self.forces.len(), n + 1),
-            ("twists", self.twists.len(), n),
-            ("twist_rates", self.twist_rates.len(), n),
-            ("reference", self.reference.len(), n),
-            ("reference_twist", self.reference_twist.len(), n - 1),
-        ] {
-            check(len == want, field, || format!("{len} entries, expected {want}"))?;
-        }
-        let vectors = [&self.positions, &self.velocities, &self.forces, &self.reference];
-        check(
-            finite(vectors.iter().flat_map(|v| v.iter().flat_map(|p| p.to_array()))),
-            "positions",
-            || "non-finite".into(),
-        )?;
-        let scalars = self.twists.iter().chain(&self.twist_rates).chain(&self.reference_twist);
-        check(finite(scalars.copied()) && self.time.is_finite(), "twists", || "non-finite".into())?;
-        check(self.reference.iter().all(|d| (d.length() - 1.0).abs() < 1e-9), "reference", || {
-            "reference directors must be unit".into()
-        })?;
-        let mut frames = Frames::default();
-        check(self.frames_into(&mut frames, &mut Vec::new()), "positions", || {
-            "an edge has zero length".into()
-        })
-    }
 }

@@ -3,7 +3,7 @@
 
 use super::World;
 use crate::error::Result;
-use crate::snapshot::Snapshot;
+use crate::snapshot::{Snapshot, Stamped};
 
 impl Snapshot for World {
     const TAG: &'static str = "World";
