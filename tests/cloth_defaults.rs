@@ -1,6 +1,6 @@
-//! Strain limiting (issue #21): hanging cotton-like cloth with the default solver and
-//! tolerance and a 3% strain limit stretches by 3% at most, and strain limiting is what holds
-//! it.
+//! The defaults (issue #21): the default material is cotton-like, and hung from two corners
+//! with the default step options (3% strain limit) it stretches by 3% at most; strain limiting
+//! is what holds it.
 
 use glam::DVec3;
 use kinema::cloth::{Cloth, Elasticity, Material, Mesh, SolveOptions, Triangulation};
@@ -24,20 +24,11 @@ fn max_edge_strain(cloth: &Cloth, n: usize) -> f64 {
     worst
 }
 
-/// A 32² sheet of 1 kg/m² of cotton-like cloth, pinned at two corners, after 2 s of
-/// hanging at dt = 1/60 with `options`: its largest edge strain.
-fn hang(options: SolveOptions) -> f64 {
-    let n = 32;
+/// An `n`² sheet of the default material, pinned at two corners, after 2 s of hanging at
+/// dt = 1/60 with `options`: its largest edge strain.
+fn hang(n: usize, options: SolveOptions) -> f64 {
     let mesh = Mesh::grid(n, n, 1.0, 1.0, Triangulation::Alternating).unwrap();
-    let material = Material {
-        density: 1.0,
-        stretch: 1e4,
-        shear: 1e3,
-        bend: 1e-3,
-        damping: 0.1,
-        air_damping: 0.0,
-    };
-    let mut cloth = Cloth::new(mesh, Elasticity::BaraffWitkin, material, G).unwrap();
+    let mut cloth = Cloth::new(mesh, Elasticity::BaraffWitkin, Material::default(), G).unwrap();
     cloth.pin(&[0, n - 1], None).unwrap();
     cloth.step(1.0 / 60.0, 120, Method::ImplicitEuler, options).unwrap();
     assert!(cloth.stats().converged);
@@ -45,12 +36,26 @@ fn hang(options: SolveOptions) -> f64 {
 }
 
 #[test]
-fn hanging_cotton_with_a_3_percent_limit_stretches_by_3_percent() {
-    let limited = hang(SolveOptions { max_strain: 0.03, ..SolveOptions::default() });
-    let free = hang(SolveOptions::default());
-    println!("largest edge strain: {limited:.4} limited, {free:.4} without the limit");
-    assert!(limited <= 0.03 + 2e-3, "{limited}");
-    assert!(free > limited + 5e-3, "the material alone holds it: {free}");
+fn the_default_material_is_cotton_like() {
+    let m = Material::default();
+    assert_eq!(
+        [m.density, m.stretch, m.shear, m.bend, m.damping, m.air_damping],
+        [1.0, 1e4, 1e3, 1e-3, 0.1, 0.0]
+    );
+    assert_eq!(SolveOptions::default().max_strain, 0.03);
+}
+
+#[test]
+fn hanging_cloth_at_the_defaults_stretches_by_3_percent() {
+    for n in [32, 64] {
+        let limited = hang(n, SolveOptions::default());
+        let free = hang(n, SolveOptions { max_strain: f64::INFINITY, ..SolveOptions::default() });
+        println!(
+            "{n}²: largest edge strain {limited:.4} at the defaults, {free:.4} without the limit"
+        );
+        assert!(limited <= 0.03 + 2e-3, "{n}²: {limited}");
+        assert!(free > limited + 5e-3, "{n}²: the material alone holds it: {free}");
+    }
 }
 
 #[test]
