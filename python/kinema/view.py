@@ -89,7 +89,8 @@ class Viewer:
         dt = float(np.mean(np.diff(self.times))) if len(self.times) > 1 else 0.1
         while not self._stop.wait(dt):
             if self.playing.value:
-                self.slider.value = (int(self.slider.value) + 1) % len(self.times)
+                # viser's value setter sends the new frame to the page and runs on_update.
+                self.slider.value = (int(self.slider.value) + 1) % len(self.times)  # type: ignore[misc]
 
     def close(self) -> None:
         """Stop playing and stop the server."""

@@ -50,7 +50,7 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
     fig = plt.figure(figsize=(6, 4))
     ax = fig.add_subplot(projection="3d")
 
-    def draw(f: int) -> list[object]:
+    def draw(f: int) -> None:
         ax.cla()
         v = frames[f]
         ax.plot_trisurf(
@@ -62,7 +62,6 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
         ax.set_box_aspect(np.maximum(hi - lo, 1e-3)[[0, 2, 1]])
         ax.set_axis_off()
         ax.set_title(f"CMU 07_05 walk, DQS on a procedural body: t = {f / motion.frame_rate:.2f} s")
-        return []
 
     gif = out_dir / "skin.gif"
     FuncAnimation(fig, draw, frames=list(shown)).save(gif, writer=PillowWriter(fps=15))

@@ -30,7 +30,7 @@ def _parts(scene: Any) -> list[tuple[Any, int]]:
     from kinema import cloth, rigid
     from kinema.scene import AnimatedSphere
 
-    out = []
+    out: list[tuple[Any, int]] = []
     for s in scene.systems:
         if isinstance(s, cloth.Cloth):
             out.append((s, 3 * len(s.positions)))
