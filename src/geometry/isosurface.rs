@@ -29,11 +29,17 @@ pub type Mesh = (Vec<[f64; 3]>, Vec<[u32; 3]>);
 /// The surface `f = 0` of samples `values` on the grid of `counts = [nx, ny, nz]` points
 /// `origin + cell (i, j, k)` (x fastest: `values[i + nx (j + ny k)]`), inside where `f < 0`.
 ///
-/// The caller makes `values` non-negative on the grid's border for a closed surface, and
-/// finite (a non-finite sample counts as outside).
+/// The caller makes `values` finite, and non-negative on the grid's border for a closed
+/// surface. A grid less than two samples wide has no cube: no surface.
+///
+/// # Panics
+/// If `values` does not hold `nx ny nz` samples.
 pub fn polygonise(values: &[f64], counts: [usize; 3], origin: DVec3, cell: f64) -> Mesh {
     let [nx, ny, nz] = counts;
-    debug_assert_eq!(values.len(), nx * ny * nz);
+    assert_eq!(values.len(), nx * ny * nz, "polygonise: values do not fill the grid");
+    if counts.iter().any(|&n| n < 2) {
+        return (Vec::new(), Vec::new());
+    }
     let index = |i: usize, j: usize, k: usize| i + nx * (j + ny * k);
     // Crossing edges per slab of cubes (parallel), then shared vertices (serial, in order).
     let slabs: Vec<Vec<[Edge; 3]>> = (0..nz.saturating_sub(1))
