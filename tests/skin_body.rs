@@ -4,8 +4,11 @@ use kinema::skin::capsule_union;
 use std::collections::HashMap;
 use std::f64::consts::PI;
 
+/// How many triangles hold each edge `(a, b)`.
+type EdgeCounts = HashMap<(u32, u32), usize>;
+
 /// Each undirected edge's count of triangles, and each directed edge's.
-fn edge_counts(triangles: &[[u32; 3]]) -> (HashMap<(u32, u32), usize>, HashMap<(u32, u32), usize>) {
+fn edge_counts(triangles: &[[u32; 3]]) -> (EdgeCounts, EdgeCounts) {
     let (mut undirected, mut directed) = (HashMap::new(), HashMap::new());
     for t in triangles {
         for i in 0..3 {
