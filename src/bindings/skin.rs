@@ -112,6 +112,9 @@ fn skin_proximity_weights<'py>(
     Ok((PyArray1::from_vec(py, b), PyArray1::from_vec(py, w)))
 }
 
+/// Vertices (V, 3) and triangles (M, 3) of a surface.
+type SurfaceMesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>);
+
 /// Vertices (V, 3) and outward triangles (M, 3) of the smooth union of capsules around
 /// `segments` (S, 2, 3) of `radii` (S values), filleted over `blend`, sampled every `cell`.
 #[pyfunction]
@@ -121,7 +124,7 @@ fn skin_capsule_union<'py>(
     radii: Vec<f64>,
     blend: f64,
     cell: f64,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>)> {
+) -> PyResult<SurfaceMesh<'py>> {
     let s = rows::<6>(&segments, "segments", &[2, 3])?;
     let pairs: Vec<([f64; 3], [f64; 3])> =
         s.iter().map(|r| ([r[0], r[1], r[2]], [r[3], r[4], r[5]])).collect();
