@@ -73,7 +73,9 @@ fn crossing_capsules_merge_into_one_surface_and_the_blend_only_adds() {
     let (v, t) = capsule_union(&segments, &[0.2, 0.2], 0.1, 0.04).unwrap();
     assert_closed_manifold(&t, v.len());
     let blended = volume(&v, &t);
-    assert!(blended > sharp && blended < 1.05 * sharp, "{blended} against {sharp}");
+    // The fillets add 0.85 % here (0.5378 against 0.5332); without them the two differ only
+    // by the grid's shift, far less.
+    assert!(blended > 1.004 * sharp && blended < 1.05 * sharp, "{blended} against {sharp}");
 }
 
 #[test]
