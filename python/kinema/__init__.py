@@ -9,7 +9,8 @@ emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`k
 (SPH fluids), :mod:`kinema.crowd` (crowds: ORCA and social forces), :mod:`kinema.anim`
 (SPH fluids), :mod:`kinema.rods` (discrete elastic rods), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
-editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.skin` (skinning), :mod:`kinema.scene` (scenes coupling them,
+editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.skin` (skinning, a body mesh for any skeleton), :mod:`kinema.io` (export to glTF and
+USD), :mod:`kinema.view` (a viewer in the browser), :mod:`kinema.scene` (scenes coupling them,
 checkpoints), :mod:`kinema.scenefile` (scenes from TOML), :mod:`kinema.sweep` (parameter sweeps on
 Dask), :mod:`kinema.plot` (pictures and animations), :mod:`kinema.demos` and the ``kinema`` command line (:mod:`kinema.cli`).
 
@@ -82,6 +83,7 @@ _SUBMODULES = frozenset(
         "fluid",
         "geometry",
         "ik",
+        "io",
         "mocap",
         "ode",
         "particles",
@@ -94,6 +96,7 @@ _SUBMODULES = frozenset(
         "skin",
         "sweep",
         "transform",
+        "view",
     }
 )
 

@@ -632,6 +632,9 @@ def skin_proximity_weights(
     k: int,
     falloff: float,
 ) -> tuple[npt.NDArray[np.uint32], _F64]: ...
+def skin_capsule_union(
+    segments: npt.ArrayLike, radii: list[float], blend: float, cell: float
+) -> tuple[_F64, npt.NDArray[np.uint32]]: ...
 
 # --- ik ---
 @final

@@ -12,6 +12,8 @@
   config that cannot be used.
 - ``kinema bench``: the peer comparisons of ``bench/`` (quick sizes unless ``--full``).
 - ``kinema info``: versions, threads, build flags.
+- ``kinema view CHECKPOINT``: play a scene's recorded animation in the browser
+  (:mod:`kinema.view`, needs the ``viewer`` extra).
 
 Each demo is a module ``kinema.demos.<name>`` with a function
 ``run(out_dir: pathlib.Path, quick: bool) -> dict[str, object]`` that writes its pictures into
@@ -201,6 +203,9 @@ def main(argv: list[str] | None = None) -> int:
     bench.add_argument("--full", action="store_true", help="full sizes (default: quick)")
     bench.add_argument("--dir", type=Path, help="the bench/ folder of a source checkout")
     sub.add_parser("info", help="versions, threads, build flags and available demos")
+    vw = sub.add_parser("view", help="play a scene checkpoint's recorded animation in a browser")
+    vw.add_argument("checkpoint", type=Path, help='a Scene.save file that recorded "animation"')
+    vw.add_argument("--port", type=int, default=8080, help="the port to serve on")
     args = parser.parse_args(argv)
 
     if args.command == "info":
@@ -224,6 +229,15 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     if args.command == "bench":
         return _bench(args)
+    if args.command == "view":
+        from kinema.view import view
+
+        try:
+            view(args.checkpoint, port=args.port)
+        except (ValueError, OSError, ImportError) as e:
+            print(f"kinema view: {_line(e)}", file=sys.stderr)
+            return 2
+        return 0
     args.out.mkdir(parents=True, exist_ok=True)
     for name in list(DEMOS) if args.name == "all" else [args.name]:
         _run_demo(name, args.out, args.quick)

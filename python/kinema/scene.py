@@ -495,10 +495,14 @@ class Scene:
 
     def record(self, name: str, quantity: Callable[[], Any] | None = None) -> None:
         """Collect ``quantity()`` (any array-like) after every frame under ``name``; without
-        ``quantity``, ``name`` is a key of :meth:`diagnostics`. Read them from
-        :attr:`records`."""
+        ``quantity``, ``name`` is a key of :meth:`diagnostics`, or ``"animation"``: the state of
+        the systems :meth:`export` writes. Read them from :attr:`records`."""
         if quantity is not None and not callable(quantity):
             raise ValueError("quantity: expected a callable returning an array-like")
+        if name == "animation" and quantity is None:  # what export() writes
+            from kinema.io.scene import frame_state
+
+            quantity = lambda: frame_state(self)  # noqa: E731
         if quantity is None and name not in self.diagnostics():
             raise ValueError(f"name: {name!r} is not one of {sorted(self.diagnostics())}")
         self._recorders[name] = quantity
@@ -531,6 +535,21 @@ class Scene:
         path = folder / f"{prefix}_{self.frame:05d}.obj"
         _geometry.write_obj(path, _geometry.of_scene(self).meshes)
         return path
+
+    def export(self, path: str | os.PathLike[str]) -> None:
+        """Write the animation this scene recorded (``record("animation")`` before running) as
+        glTF (``.glb``) or USD (``.usd``, ``.usdc``, ``.usda``): cloth as deforming meshes, rigid
+        bodies and animated spheres as moving meshes (:mod:`kinema.io.scene`). Needs the
+        ``export`` extra."""
+        from kinema.io.scene import export_scene
+
+        export_scene(self, path)
+
+    def view(self, port: int = 8080, block: bool = True) -> Any:
+        """Play the animation this scene recorded in the browser (:mod:`kinema.view`)."""
+        from kinema.view import view
+
+        return view(self, port=port, block=block)
 
     # ------------------------------------------------------------------ checkpoints
     def __getstate__(self) -> dict[str, Any]:

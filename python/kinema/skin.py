@@ -12,6 +12,10 @@ Two blends (``method=``): ``"dqs"``, dual quaternion skinning (Kavan, Collins, Å
 O'Sullivan 2008), the default, which keeps the volume of twisted joints; ``"lbs"``, linear
 blend skinning, which collapses a joint twisted by 180Â° (the "candy wrapper"). Both are exact
 for a vertex that follows one bone. Conventions and sources in docs/skin.md.
+
+``body_mesh(skeleton)`` gives any skeleton a body: capsules around its bones merged into one
+closed surface (the smooth union of their signed distances, polygonised in Rust), returned as a
+``Skin`` with proximity weights.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from kinema import _kinema
 from kinema._array import as_batch, real
 from kinema.mocap import BvhSkeleton, Skeleton
 
-__all__ = ["Skin", "bone_segments"]
+__all__ = ["Skin", "body_mesh", "bone_segments"]
 
 _METHODS = ("dqs", "lbs")
 
@@ -123,6 +127,7 @@ class Skin:
             bones, w, k = _influences(weights, len(rest), joints)
         self._skin = _kinema.Skin(rest, k, bones, w, _origins(skeleton), bind_p, bind_q)
         self.skeleton = skeleton
+        self.bind_pose = np.asarray(pose, dtype=np.float64)
         self.method = method
         self.vertices = rest
         self.vertices.flags.writeable = False
@@ -154,3 +159,50 @@ def _influences(weights: Any, n: int, joints: int) -> tuple[np.ndarray, np.ndarr
         raise ValueError(f"weights: bones must be joint indices in [0, {joints})")
     flat = np.ascontiguousarray(bones, dtype=np.uint32).ravel()
     return flat, np.ascontiguousarray(w).ravel(), bones.shape[1]
+
+
+def body_mesh(
+    skeleton: Any,
+    radius: Any = None,
+    *,
+    blend: float | None = None,
+    cell: float | None = None,
+    method: str = "dqs",
+    influences: int = 4,
+    falloff: float = 4.0,
+    bind_pose: Any = None,
+) -> Skin:
+    """A body for ``skeleton``: capsules of ``radius`` around its bones (``bone_segments`` at
+    the bind pose) merged into one closed, manifold, outward-facing surface, bound to the bones
+    with proximity weights (``influences``, ``falloff``) and blended by ``method``.
+
+    Lengths are in the skeleton's units. ``radius``: one for every bone or one per segment of
+    ``bone_segments`` (default: 4 % of the bind pose's largest extent). The surface is the zero
+    level set of the capsules' signed distances merged by a polynomial smooth minimum of width
+    ``blend`` (default ``radius / 2``: joints are filleted and swell by at most ``blend / 4``;
+    0 gives the plain union), sampled on a grid of spacing ``cell`` (default ``radius / 4``) and
+    polygonised by marching tetrahedra (docs/skin.md)."""
+    _check_skeleton(skeleton)
+    pose = np.zeros(skeleton.stride) if bind_pose is None else bind_pose
+    segments, _ = bone_segments(skeleton, *skeleton.forward_kinematics(pose))
+    if len(segments) == 0:
+        raise ValueError("skeleton: has no bone of non-zero length")
+    if radius is None:
+        extent = segments.reshape(-1, 3).max(axis=0) - segments.reshape(-1, 3).min(axis=0)
+        radius = 0.04 * float(extent.max())
+    radii = np.asarray(radius, dtype=np.float64).ravel()
+    if radii.size == 1:
+        radii = np.full(len(segments), radii[0])
+    typical = float(np.min(radii)) if radii.size else 1.0
+    blend = 0.5 * typical if blend is None else real(blend, "blend")
+    cell = 0.25 * typical if cell is None else real(cell, "cell")
+    vertices, triangles = _kinema.skin_capsule_union(segments, radii.tolist(), blend, cell)
+    return Skin(
+        vertices,
+        skeleton,
+        triangles=triangles.astype(np.int64),
+        method=method,
+        influences=influences,
+        falloff=falloff,
+        bind_pose=bind_pose,
+    )

@@ -5,9 +5,9 @@ use super::array::{compute, rows};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use crate::error::Error;
-use crate::skin::{proximity_weights, Method, Skin};
+use crate::skin::{capsule_union, proximity_weights, Method, Skin};
 use crate::snapshot::Snapshot;
-use numpy::{PyArray1, PyArrayDyn, PyReadonlyArray1, PyReadonlyArrayDyn};
+use numpy::{PyArray1, PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArray1, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
 
 /// Vertices in a bind pose bound to a skeleton's bones; see `kinema.skin.Skin`.
@@ -112,8 +112,32 @@ fn skin_proximity_weights<'py>(
     Ok((PyArray1::from_vec(py, b), PyArray1::from_vec(py, w)))
 }
 
+/// Vertices (V, 3) and triangles (M, 3) of a surface.
+type SurfaceMesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>);
+
+/// Vertices (V, 3) and outward triangles (M, 3) of the smooth union of capsules around
+/// `segments` (S, 2, 3) of `radii` (S values), filleted over `blend`, sampled every `cell`.
+#[pyfunction]
+fn skin_capsule_union<'py>(
+    py: Python<'py>,
+    segments: PyReadonlyArrayDyn<'py, f64>,
+    radii: Vec<f64>,
+    blend: f64,
+    cell: f64,
+) -> PyResult<SurfaceMesh<'py>> {
+    let s = rows::<6>(&segments, "segments", &[2, 3])?;
+    let pairs: Vec<([f64; 3], [f64; 3])> =
+        s.iter().map(|r| ([r[0], r[1], r[2]], [r[3], r[4], r[5]])).collect();
+    let (v, t) = detached(py, || capsule_union(&pairs, &radii, blend, cell))?;
+    let (nv, nt) = (v.len(), t.len());
+    let v = PyArray1::from_vec(py, v.into_flattened()).reshape([nv, 3])?;
+    let t = PyArray1::from_vec(py, t.into_flattened()).reshape([nt, 3])?;
+    Ok((v, t))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySkin>()?;
     m.add_function(wrap_pyfunction!(skin_proximity_weights, m)?)?;
+    m.add_function(wrap_pyfunction!(skin_capsule_union, m)?)?;
     Ok(())
 }

@@ -15,6 +15,8 @@
 //!   a mesh;
 //! - [`ccd`]: continuous collision detection of a moving vertex and triangle, or two edges
 //!   (the coplanarity cubic of Provot 1997);
+//! - [`isosurface`]: the zero level set of a sampled function as a closed triangle mesh
+//!   (marching tetrahedra);
 //! - [`solid`]: the body-frame [`Solid`]s of rigid bodies (sphere, box, capsule, cylinder,
 //!   closed mesh) with their mass properties.
 //!
@@ -23,6 +25,7 @@
 pub mod ccd;
 pub mod exact;
 pub(crate) mod grid;
+pub mod isosurface;
 pub mod material;
 pub mod query;
 pub mod segment;

@@ -14,14 +14,19 @@
 //!   hemisphere of the most weighted one (antipodality, section 4.1), normalised, applied as
 //!   one rigid transform; it keeps the cross-section of a twisted joint.
 //!
+//! [`capsule_union`] makes a body for any skeleton: capsules around its bones merged into one
+//! closed surface.
+//!
 //! Both are exact for a vertex with one bone (a rigid transform), and are computed in
 //! parallel over blocks of vertices, the same bits for any thread count. Units are those of
 //! the positions given (metres in kinema, file units for motion capture).
 
 mod blend;
+mod body;
 mod snapshot;
 mod weights;
 
+pub use body::capsule_union;
 pub use weights::proximity_weights;
 
 use crate::error::{Error, Result};

@@ -15,4 +15,5 @@ DEMOS: dict[str, str] = {
     "cloth": "Baraff–Witkin cloth draping over a sphere onto the ground (GIF)",
     "mocap": "a CMU walk on its skeleton, edited by IK to step over an obstacle (GIF)",
     "fluid": "an SPH dam break (DFSPH), particles coloured by speed (GIF)",
+    "skin": "a CMU walk skinned on a procedural body, written as glTF (.glb) and a GIF",
 }
