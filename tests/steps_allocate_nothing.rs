@@ -234,7 +234,14 @@ fn crowd_scenes() -> Vec<(String, usize)> {
     crowd.add_agents(&p, &g).unwrap();
     // An obstacle far aside: its edges are visited each step, never in range.
     crowd.add_obstacle(&[DVec2::new(0.0, -500.0), DVec2::new(2000.0, -500.0)]).unwrap();
-    vec![("crowd, ORCA".into(), allocations(3, || crowd.step(0.1, 1).unwrap()))]
+    let boids: Vec<DVec3> =
+        (0..5000).map(|i| DVec3::new((i % 70) as f64, (i / 70) as f64, 0.0)).collect();
+    let mut flock =
+        kinema::flock::Flock::new(Default::default(), &boids, &vec![DVec3::X; 5000]).unwrap();
+    vec![
+        ("crowd, ORCA".into(), allocations(3, || crowd.step(0.1, 1).unwrap())),
+        ("flock".into(), allocations(3, || flock.step(0.1, 1).unwrap())),
+    ]
 }
 
 #[test]
