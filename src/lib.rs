@@ -11,6 +11,7 @@ pub mod cloth;
 pub mod constraints;
 pub mod crowd;
 pub mod error;
+pub mod flock;
 pub mod fluid;
 pub mod geometry;
 pub mod ik;

@@ -229,7 +229,7 @@ fn constrained_scenes() -> Vec<(String, usize)> {
 }
 
 /// 2000 agents in a block walking together (neighbour lists that do not grow), by ORCA and
-/// by social forces.
+/// by social forces; 5000 boids flying together.
 fn crowd_scenes() -> Vec<(String, usize)> {
     use glam::DVec2;
     use kinema::crowd::{Crowd, Kind, Settings, SocialForce};
@@ -246,6 +246,11 @@ fn crowd_scenes() -> Vec<(String, usize)> {
         crowd.add_obstacle(&[DVec2::new(0.0, -500.0), DVec2::new(2000.0, -500.0)]).unwrap();
         found.push((name.into(), allocations(3, || crowd.step(0.1, 1).unwrap())));
     }
+    let boids: Vec<DVec3> =
+        (0..5000).map(|i| DVec3::new((i % 70) as f64, (i / 70) as f64, 0.0)).collect();
+    let mut flock =
+        kinema::flock::Flock::new(Default::default(), &boids, &vec![DVec3::X; 5000]).unwrap();
+    found.push(("flock".into(), allocations(3, || flock.step(0.1, 1).unwrap())));
     found
 }
 

@@ -6,7 +6,7 @@ transforms), :mod:`kinema.ode` (integrators and stability), :mod:`kinema.geometr
 shapes), :mod:`kinema.particles` (forces, colliders,
 emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`kinema.rigid`
 (rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.fluid`
-(SPH fluids), :mod:`kinema.crowd` (crowds: ORCA and social forces), :mod:`kinema.anim`
+(SPH fluids), :mod:`kinema.crowd` (crowds: ORCA and social forces), :mod:`kinema.flock` (boids), :mod:`kinema.anim`
 (SPH fluids), :mod:`kinema.rods` (discrete elastic rods), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
 editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.skin` (skinning, a body mesh for any skeleton), :mod:`kinema.io` (export to glTF and
@@ -80,6 +80,7 @@ _SUBMODULES = frozenset(
         "constraints",
         "crowd",
         "demos",
+        "flock",
         "fluid",
         "geometry",
         "ik",

@@ -38,7 +38,9 @@ class Crowd:
     ``relaxation_time`` s, ``strength`` N, ``range`` m, ``body`` kg/s², ``friction``
     kg/(m s); substeps of at most ``max_substep`` s; agents within ``neighbour_distance``
     interact). Agents walk at ``preferred_speed`` m/s, never faster than ``max_speed``, and
-    have arrived within ``goal_tolerance`` m of their goal.
+    have arrived within ``goal_tolerance`` m of their goal. ORCA adds to every preferred
+    velocity a ``perturbation`` (m/s) in a direction hashed from ``seed``, the step and the
+    agent, which breaks exactly symmetric deadlocks (0 turns it off).
     """
 
     def __init__(
@@ -60,6 +62,8 @@ class Crowd:
         body: float = 1.2e5,
         friction: float = 2.4e5,
         max_substep: float = 0.005,
+        perturbation: float = 0.0,
+        seed: int = 0,
     ) -> None:
         if not isinstance(model, str):
             raise TypeError("model: expected 'orca' or 'social_force'")
@@ -80,6 +84,8 @@ class Crowd:
             real(body, "body"),
             real(friction, "friction"),
             real(max_substep, "max_substep"),
+            real(perturbation, "perturbation"),
+            seed,
         )
 
     def add_agents(self, positions: Any, goals: Any) -> None:

@@ -51,7 +51,8 @@ impl Crowd {
     /// and `preferred_speed` (m/s), `neighbour_distance` (m), `max_neighbours`, ORCA's
     /// `time_horizon` and `obstacle_time_horizon` (s), `goal_tolerance` (m), and the social
     /// forces' `mass` (kg), `relaxation_time` (s), `strength` (N), `range` (m), `body`
-    /// (kg/s²), `friction` (kg/(m s)), `max_substep` (s).
+    /// (kg/s²), `friction` (kg/(m s)), `max_substep` (s); ORCA's preferred-velocity
+    /// `perturbation` (m/s) and its `seed`.
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -71,6 +72,8 @@ impl Crowd {
         body: f64,
         friction: f64,
         max_substep: f64,
+        perturbation: f64,
+        seed: Int,
     ) -> PyResult<Self> {
         let kind = match model {
             "orca" => Kind::Orca,
@@ -94,6 +97,8 @@ impl Crowd {
             time_horizon,
             obstacle_time_horizon,
             goal_tolerance,
+            perturbation,
+            seed: seed.count("seed")? as u64,
             kind,
         };
         Ok(Crowd { crowd: Core::new(settings)?, viewed: false })

@@ -12,6 +12,7 @@ mod cloth;
 mod constraints;
 mod crowd;
 mod error;
+mod flock;
 mod fluid;
 mod geometry;
 mod ik;
@@ -79,6 +80,7 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     cloth::register(m)?;
     fluid::register(m)?;
     crowd::register(m)?;
+    flock::register(m)?;
     rods::register(m)?;
     anim::register(m)?;
     mocap::register(m)?;

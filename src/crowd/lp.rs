@@ -3,10 +3,10 @@
 //! inside the disc `|v| ≤ max_speed` and on the permitted side of every half-plane, found
 //! incrementally (Seidel 1991: each violated constraint re-solves a 1-D program on its
 //! line); and, when that is infeasible, the 3-D program of §5.3, the velocity that minimises
-//! the largest distance by which it violates an agent half-plane, obstacle half-planes kept
-//! hard.
+//! the largest distance by which it violates an agent half-plane, the hard (obstacle)
+//! half-planes kept.
 //!
-//! Constraints are taken in the fixed order given (obstacle half-planes first, then agents by
+//! Constraints are taken in the fixed order given (hard half-planes first, then agents by
 //! distance), so the result is deterministic.
 
 use glam::DVec2;
@@ -112,7 +112,7 @@ pub fn program2(
 
 /// The 3-D program (§5.3) for when [`program2`] failed at line `first`: starting from its
 /// partial `result`, minimise the largest violation of the agent lines `hard..` while the
-/// obstacle lines `..hard` stay satisfied. For each line `i` still violated by more than the
+/// hard (obstacle) lines `..hard` stay satisfied. For each line `i` still violated by more than the
 /// current worst, the optimum lies on the bisectors of `i` with the lines before it, found as
 /// a 2-D program in the direction normal to `i`. `projected` is scratch.
 pub fn program3(
@@ -131,7 +131,8 @@ pub fn program3(
         }
         projected.clear();
         projected.extend_from_slice(&lines[..hard]);
-        for lj in &lines[hard..i] {
+        // When a hard line itself failed (`i < hard`) there is nothing to bisect.
+        for lj in &lines[hard.min(i)..i] {
             let determinant = det(li.direction, lj.direction);
             let point = if determinant.abs() <= PARALLEL {
                 if li.direction.dot(lj.direction) > 0.0 {
@@ -156,7 +157,7 @@ pub fn program3(
 
 /// ORCA's velocity: the permitted velocity of speed at most `max_speed` closest to
 /// `preferred`, or, if there is none, the one of least largest violation of the agent lines
-/// (`lines[hard..]`; the obstacle lines `lines[..hard]` are kept). Returns it and whether the
+/// (`lines[hard..]`; the hard lines `lines[..hard]` are kept). Returns it and whether the
 /// fallback was needed.
 pub fn solve(
     lines: &[Line],
@@ -289,6 +290,16 @@ mod tests {
         let (v, fell) = solve(&lines, 1, 5.0, DVec2::new(-3.0, 0.0), &mut scratch);
         assert!(fell);
         assert!((v.x - 0.5).abs() < 1e-12, "{v}");
+    }
+
+    #[test]
+    fn infeasible_hard_lines_fall_back_without_panicking() {
+        // Two contradictory hard lines (v.x ≥ 1 and v.x ≤ -1) and one agent line: the 2-D
+        // program fails inside the hard prefix, and the fallback keeps a finite velocity.
+        let lines = [half(DVec2::X, 1.0), half(-DVec2::X, 1.0), half(DVec2::Y, 0.5)];
+        let mut scratch = Vec::new();
+        let (v, fell) = solve(&lines, 2, 5.0, DVec2::new(0.0, 3.0), &mut scratch);
+        assert!(fell && v.is_finite() && v.length() <= 5.0 + 1e-12, "{v}");
     }
 
     #[test]

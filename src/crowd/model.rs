@@ -71,6 +71,13 @@ pub struct Settings {
     pub obstacle_time_horizon: f64,
     /// An agent has arrived when it is closer than this to its goal (m).
     pub goal_tolerance: f64,
+    /// ORCA: length of the deterministic perturbation added to every preferred velocity
+    /// each step (m/s; 0 turns it off), in a direction hashed from `seed`, the step count and
+    /// the agent's index. Exactly symmetric starts (agents evenly on a circle) otherwise
+    /// deadlock; RVO2's examples perturb the preferred velocity by up to 10⁻⁴ for this.
+    pub perturbation: f64,
+    /// ORCA: seed of the perturbation's directions.
+    pub seed: u64,
     /// The behaviour model.
     pub kind: Kind,
 }
@@ -78,7 +85,7 @@ pub struct Settings {
 impl Settings {
     /// RVO2's circle-crossing set-up (its example): radius 1.5 m, max speed 2 m/s, neighbour
     /// distance 15 m, 10 neighbours, horizons 10 s / 10 s; preferred speed 1 m/s (the example
-    /// clips the goal vector to 1) and goal tolerance one radius.
+    /// clips the goal vector to 1), goal tolerance one radius, no perturbation (seed 0).
     pub fn rvo2_circle() -> Self {
         Settings {
             radius: 1.5,
@@ -89,6 +96,8 @@ impl Settings {
             time_horizon: 10.0,
             obstacle_time_horizon: 10.0,
             goal_tolerance: 1.5,
+            perturbation: 0.0,
+            seed: 0,
             kind: Kind::Orca,
         }
     }
@@ -108,6 +117,9 @@ impl Settings {
             if !ok {
                 return Err(Error::invalid(arg, "must be finite and > 0"));
             }
+        }
+        if !(self.perturbation.is_finite() && self.perturbation >= 0.0) {
+            return Err(Error::invalid("perturbation", "must be finite and >= 0"));
         }
         if self.max_neighbours > 1024 {
             return Err(Error::invalid("max_neighbours", "must be at most 1024"));

@@ -39,6 +39,20 @@ pub(super) fn apart(i: usize, j: usize) -> DVec2 {
     }
 }
 
+/// The unit direction of agent `i`'s preferred-velocity perturbation at step `step` (the
+/// steps counted so far), hashed with `seed` (splitmix64, Steele, Lea & Flood 2014), so that
+/// it is the same on any number of threads.
+pub(super) fn jitter(seed: u64, step: u64, i: usize) -> DVec2 {
+    let mut z = seed
+        ^ step.wrapping_mul(0x9e37_79b9_7f4a_7c15)
+        ^ (i as u64).wrapping_mul(0xd1b5_4a32_d192_ed03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    let angle = (z >> 11) as f64 / (1u64 << 53) as f64 * std::f64::consts::TAU;
+    DVec2::new(angle.cos(), angle.sin())
+}
+
 /// Insert `(d2, k)` into `list`, kept sorted by distance (stable: equal distances keep the
 /// order of arrival), at most `max` long.
 fn insert(list: &mut Vec<(f64, u32)>, max: usize, d2: f64, k: u32) {

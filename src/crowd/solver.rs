@@ -107,16 +107,24 @@ impl Solver {
     }
 
     /// Preferred velocities: towards the goal at the preferred speed, or `(goal - p) /
-    /// horizon` when that is slower.
-    fn prefer(model: &Model, state: &mut State, horizon: f64) {
-        let speed = model.settings.preferred_speed;
-        state.preferred.par_iter_mut().zip(&state.positions).zip(&state.goals).for_each(
-            |((pref, &p), &g)| {
+    /// horizon` when that is slower; plus `jitter` (m/s) times [`orca::jitter`] if positive.
+    fn prefer(model: &Model, state: &mut State, horizon: f64, jitter: f64) {
+        let (speed, seed, step) =
+            (model.settings.preferred_speed, model.settings.seed, state.tally.steps);
+        state
+            .preferred
+            .par_iter_mut()
+            .zip(&state.positions)
+            .zip(&state.goals)
+            .enumerate()
+            .for_each(|(i, ((pref, &p), &g))| {
                 let to = (g - p) / horizon;
                 let l = to.length();
                 *pref = if l > speed { to * (speed / l) } else { to };
-            },
-        );
+                if jitter > 0.0 {
+                    *pref += jitter * orca::jitter(seed, step, i);
+                }
+            });
     }
 
     /// Size the per-agent buffers for `n` agents.
@@ -132,7 +140,7 @@ impl Solver {
     /// number of agents that needed the fallback program.
     fn orca(&mut self, model: &Model, state: &mut State, dt: f64) -> usize {
         let n = state.len();
-        Self::prefer(model, state, dt);
+        Self::prefer(model, state, dt, model.settings.perturbation);
         if n == 0 {
             return 0;
         }
@@ -164,7 +172,7 @@ impl Solver {
     /// Euler `v += a h` (speed capped at the maximum), `p += v h`.
     fn social(&mut self, model: &Model, sf: &SocialForce, state: &mut State, h: f64) {
         let n = state.len();
-        Self::prefer(model, state, sf.relaxation_time);
+        Self::prefer(model, state, sf.relaxation_time, 0.0);
         if n == 0 {
             return;
         }

@@ -63,6 +63,8 @@ def test_door_flow_from_crossings() -> None:
         ({"max_neighbours": -1}, "max_neighbours"),
         ({"time_horizon": 0.0}, "time_horizon"),
         ({"model": "social_force", "mass": 0.0}, "mass"),
+        ({"perturbation": -1e-4}, "perturbation"),
+        ({"seed": -1}, "seed"),
     ],
 )
 def test_bad_settings_name_the_argument(kwargs: dict, arg: str) -> None:

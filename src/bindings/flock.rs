@@ -1,0 +1,111 @@
+//! `kinema.flock`: a compiled flock of boids whose positions and velocities numpy views
+//! without a copy.
+
+use super::args::Int;
+use super::array::rows;
+use super::error::detached;
+use super::pickle::{reduce, Reduced};
+use super::view::view;
+use crate::flock::{Flock as Core, Settings};
+use crate::snapshot::Snapshot;
+use glam::DVec3;
+use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
+use pyo3::prelude::*;
+
+/// A flock; see `kinema.flock.Flock` for the API.
+#[pyclass(module = "kinema._kinema")]
+pub struct Flock {
+    flock: Core,
+}
+
+fn points(arr: &PyReadonlyArrayDyn<'_, f64>, arg: &str) -> PyResult<Vec<DVec3>> {
+    Ok(rows::<3>(arr, arg, &[3])?.iter().map(|x| DVec3::from_array(*x)).collect())
+}
+
+#[pymethods]
+impl Flock {
+    /// Pickle support: the flock as a snapshot (model and state).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        reduce(slf, |s| &s.flock, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { flock: Core::from_snapshot(data)? })
+    }
+
+    /// A flock of boids at `positions` (N, 3) in m with `velocities` (N, 3) in m/s; the
+    /// weights `separation`, `alignment`, `cohesion`, `neighbour_radius` and
+    /// `separation_distance` (m), `field_of_view` (rad), `max_speed` (m/s), `max_force`
+    /// (m/s²).
+    #[new]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        positions: PyReadonlyArrayDyn<'_, f64>,
+        velocities: PyReadonlyArrayDyn<'_, f64>,
+        separation: f64,
+        alignment: f64,
+        cohesion: f64,
+        neighbour_radius: f64,
+        separation_distance: f64,
+        field_of_view: f64,
+        max_speed: f64,
+        max_force: f64,
+    ) -> PyResult<Self> {
+        let settings = Settings {
+            separation,
+            alignment,
+            cohesion,
+            neighbour_radius,
+            separation_distance,
+            field_of_view,
+            max_speed,
+            max_force,
+        };
+        let (p, v) = (points(&positions, "positions")?, points(&velocities, "velocities")?);
+        Ok(Flock { flock: Core::new(settings, &p, &v)? })
+    }
+
+    /// Advance `steps` steps of `dt` seconds (GIL released).
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: Int) -> PyResult<()> {
+        let steps = steps.count("steps")?;
+        let flock = &mut self.flock;
+        detached(py, || flock.step(dt, steps))
+    }
+
+    /// Number of boids.
+    fn __len__(&self) -> usize {
+        self.flock.state().len()
+    }
+
+    /// Read-only view (N, 3) of the positions (m), updated in place by `step`.
+    #[getter]
+    fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().flock.state().len();
+        view(slf, &[n, 3], |c| bytemuck::cast_slice(c.flock.state().positions()))
+    }
+
+    /// Read-only view (N, 3) of the velocities (m/s), updated in place by `step`.
+    #[getter]
+    fn velocities<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().flock.state().len();
+        view(slf, &[n, 3], |c| bytemuck::cast_slice(c.flock.state().velocities()))
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.flock.state().time()
+    }
+
+    /// The polarisation order parameter of the velocities (Vicsek et al. 1995), in [0, 1].
+    fn polarisation(&self) -> f64 {
+        crate::flock::polarisation(self.flock.state().velocities())
+    }
+}
+
+/// Register the class.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Flock>()
+}
