@@ -156,7 +156,9 @@ class Rod:
             raise ValueError("inside: rods collide with the outside of a sphere only")
         if any(v != 0.0 for v in as_vector3(collider.velocity, "velocity")):
             raise ValueError("velocity: rod colliders are static")
-        self._r.add_collider(kind, [*p, 0.0 if collider.friction is None else float(collider.friction)])
+        self._r.add_collider(
+            kind, [*p, 0.0 if collider.friction is None else float(collider.friction)]
+        )
 
     def pin(self, index: int) -> None:
         """Hold vertex ``index`` (negative counts from the end) where it is."""
