@@ -17,7 +17,8 @@ from typing import Any, SupportsIndex
 import numpy as np
 
 from kinema import _kinema
-from kinema._array import as_vector3, real
+from kinema._array import as_orientation, as_vector3, real
+from kinema.geometry import Box, Capsule, Plane, Sphere, shape_params
 
 __all__ = ["Rod"]
 
@@ -42,6 +43,9 @@ class Rod:
     a step moves no vertex more than ``tolerance`` times the rod's length and no angle more
     than ``tolerance`` rad (or at the rounding level), and fails with
     :class:`kinema.SimulationError` after ``max_iterations`` (the rod unchanged).
+    ``contact_stiffness`` (N/m) is the stiffness of the contact penalty against colliders (a
+    resting vertex sinks by its load over it); ``friction_velocity`` (m/s) the sliding speed
+    below which friction acts as a stiff spring (static friction creeps slower than it).
     """
 
     def __init__(
@@ -57,6 +61,8 @@ class Rod:
         integrator: str = "implicit",
         tolerance: float = 1e-10,
         max_iterations: int = 100,
+        contact_stiffness: float = 1e4,
+        friction_velocity: float = 1e-3,
     ) -> None:
         pts = _floats(points, "points")
         if pts.ndim != 2 or pts.shape[1] != 3:
@@ -86,6 +92,8 @@ class Rod:
             integrator,
             real(tolerance, "tolerance"),
             max_iterations,
+            real(contact_stiffness, "contact_stiffness"),
+            real(friction_velocity, "friction_velocity"),
         )
 
     @classmethod
@@ -120,6 +128,37 @@ class Rod:
         if e not in (0, -1):
             raise ValueError("end: expected 0 (the first end) or -1 (the last)")
         self._r.clamp(e == -1)
+
+    def move_clamp(
+        self, end: int, rotation: Any = None, translation: Any = (0.0, 0.0, 0.0)
+    ) -> None:
+        """Move the clamped ``end`` (``0`` or ``-1``) by the end of the next ``step`` call
+        (reached linearly over its steps) or ``solve_static``: its edge goes to its rest pose
+        rotated by ``rotation`` (a single :class:`kinema.Rotation` about the origin, ``None``
+        for none) and
+        shifted by ``translation`` (m), its material frame turned by the same rotation (so
+        turning the end by an angle about its axis twists the rod by it). One call turns the
+        end by less than half a turn about its own axis."""
+        e = _index(end, "end")
+        if e not in (0, -1):
+            raise ValueError("end: expected 0 (the first end) or -1 (the last)")
+        q = as_orientation(rotation, "rotation")
+        self._r.move_clamp(e == -1, q, as_vector3(translation, "translation"))
+
+    def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> None:
+        """Add a static collision shape (:mod:`kinema.geometry`): the vertices keep out of
+        it by the rod's radius, with Coulomb friction ``collider.friction`` (default 0;
+        restitution and velocity are not used: rod contacts are inelastic, the shape static)."""
+        kind, p = shape_params(collider)
+        if collider.restitution is not None:
+            raise ValueError("restitution: rod contacts are inelastic; leave it None for rods")
+        if isinstance(collider, Sphere) and collider.inside:
+            raise ValueError("inside: rods collide with the outside of a sphere only")
+        if any(v != 0.0 for v in as_vector3(collider.velocity, "velocity")):
+            raise ValueError("velocity: rod colliders are static")
+        self._r.add_collider(
+            kind, [*p, 0.0 if collider.friction is None else float(collider.friction)]
+        )
 
     def pin(self, index: int) -> None:
         """Hold vertex ``index`` (negative counts from the end) where it is."""

@@ -7,9 +7,9 @@ use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::error::Error;
-use crate::rods::{End, Integrator, Material, Rod as Core, Settings};
+use crate::rods::{Collider, End, Integrator, Material, Rod as Core, Settings};
 use crate::snapshot::Snapshot;
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -36,7 +36,8 @@ impl Rod {
     /// A rod at rest in the shape of `points` (N, 3) in m: semi-axes `radius` (m, along
     /// `m1` and `m2`), `youngs_modulus` and `shear_modulus` (Pa), `density` (kg/m³), twist
     /// angles `twist` (N - 1, rad) or none, `gravity` (m/s²), `integrator` ("implicit" or
-    /// "symplectic"), Newton `tolerance` and `max_iterations`.
+    /// "symplectic"), Newton `tolerance` and `max_iterations`, the contact penalty's
+    /// `contact_stiffness` (N/m) and friction's `friction_velocity` (m/s).
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -50,6 +51,8 @@ impl Rod {
         integrator: &str,
         tolerance: f64,
         max_iterations: Int,
+        contact_stiffness: f64,
+        friction_velocity: f64,
     ) -> PyResult<Self> {
         let points: Vec<DVec3> =
             rows::<3>(&points, "points", &[3])?.iter().map(|p| DVec3::from_array(*p)).collect();
@@ -68,6 +71,8 @@ impl Rod {
             integrator,
             tolerance,
             max_iterations: max_iterations.range("max_iterations", 1, MAX_ITERATIONS)?,
+            contact_stiffness,
+            friction_velocity,
         };
         Ok(Rod { rod: Core::new(&points, material, settings, twist.as_deref())? })
     }
@@ -75,6 +80,28 @@ impl Rod {
     /// Clamp the first (`last` false) or last end: its edge keeps position and frame.
     fn clamp(&mut self, last: bool) {
         self.rod.model_mut().clamp(if last { End::Last } else { End::First });
+    }
+
+    /// Move the first (`last` false) or last clamped end to its rest pose rotated by
+    /// `rotation` (w, x, y, z) and shifted by `translation` (m) by the end of the next step
+    /// or static solve.
+    fn move_clamp(
+        &mut self,
+        last: bool,
+        rotation: [f64; 4],
+        translation: [f64; 3],
+    ) -> PyResult<()> {
+        let [w, x, y, z] = rotation;
+        let end = if last { End::Last } else { End::First };
+        let q = DQuat::from_xyzw(x, y, z, w);
+        Ok(self.rod.move_clamp(end, q, DVec3::from_array(translation))?)
+    }
+
+    /// Add a static collider: its kind and parameters ([`super::geometry::shape`]), then
+    /// Coulomb's friction coefficient.
+    fn add_collider(&mut self, kind: &str, p: Vec<f64>) -> PyResult<()> {
+        let (shape, t) = super::geometry::shape(kind, &p, 1)?;
+        Ok(self.rod.model_mut().add_collider(Collider { shape, friction: t[0] })?)
     }
 
     /// Hold vertex `index` where it is.

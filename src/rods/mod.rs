@@ -7,6 +7,8 @@
 //!   transport), reference twist, material frames, curvature binormals.
 //! - `energy.rs`: stretching, bending (with natural curvature, anisotropic cross-sections)
 //!   and twisting energies with analytic gradients and Hessians (Kaufman et al. 2014).
+//! - `contact.rs`: contacts with the shared collision shapes: a normal penalty and lagged
+//!   Coulomb friction as potentials of the implicit step (Li et al. 2020).
 //! - `band.rs`: the banded `L D Lᵀ` solve of the Newton system, linear in `n`.
 //! - `solver.rs`: implicit Euler by Newton with a line search on the incremental potential,
 //!   symplectic Euler, and the static equilibrium.
@@ -17,6 +19,7 @@
 //! one solver can advance several states. [`Rod`] is the three together.
 
 mod band;
+mod contact;
 mod energy;
 mod frames;
 mod model;
@@ -25,6 +28,7 @@ mod solver;
 mod state;
 
 pub use band::Band;
+pub use contact::Collider;
 pub use energy::{curvature, elastic, stretch, twist, Local, Stencil, STENCIL};
 pub use frames::{curvature_binormal, directors, reference_twist, transport, Frames};
 pub use model::{End, Integrator, Material, Model, Settings};
@@ -32,7 +36,7 @@ pub use solver::Solver;
 pub use state::State;
 
 use crate::error::Result;
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 
 /// What the last call to [`Solver::step`] or [`Solver::solve_static`] did.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -96,6 +100,16 @@ impl Rod {
     /// The state, to change it (forces, velocities, twists).
     pub fn state_mut(&mut self) -> &mut State {
         &mut self.state
+    }
+
+    /// Move a clamped end to its rest pose rotated by `rotation` and shifted by
+    /// `translation` (m) by the end of the next step or static solve
+    /// ([`State::move_clamp`]).
+    ///
+    /// # Errors
+    /// Those of [`State::move_clamp`].
+    pub fn move_clamp(&mut self, end: End, rotation: DQuat, translation: DVec3) -> Result<()> {
+        self.state.move_clamp(&self.model, end, rotation, translation)
     }
 
     /// Advance `steps` steps of `dt` seconds ([`Solver::step`]).

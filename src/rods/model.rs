@@ -3,6 +3,7 @@
 //! frames), the cross-section and material, the lumped masses and twist inertias, gravity,
 //! the solver settings and the boundary conditions (pinned vertices, locked twist angles).
 
+use super::contact::{validate_settings, Collider};
 use super::frames::{curvature_binormal, directors, perpendicular, reference_twist, transport};
 use crate::error::{Error, Result};
 use glam::DVec3;
@@ -46,6 +47,12 @@ pub struct Settings {
     pub tolerance: f64,
     /// The most Newton iterations of one step or static solve (default 100).
     pub max_iterations: usize,
+    /// Stiffness `k` of the contact penalty (N/m, default 1e4): a resting vertex sinks by
+    /// its load over `k` (see `contact.rs`).
+    pub contact_stiffness: f64,
+    /// Friction's sliding-speed threshold `ε_v` (m/s, default 1e-3): below it friction is a
+    /// stiff spring (a held contact creeps slower than `ε_v`), above it Coulomb's `μ λ`.
+    pub friction_velocity: f64,
 }
 
 impl Default for Settings {
@@ -55,6 +62,8 @@ impl Default for Settings {
             integrator: Integrator::ImplicitEuler,
             tolerance: 1e-10,
             max_iterations: 100,
+            contact_stiffness: 1e4,
+            friction_velocity: 1e-3,
         }
     }
 }
@@ -88,6 +97,8 @@ pub struct Model {
     pub(super) pinned: Vec<bool>,
     /// Edges whose twist angle is held, `n`.
     pub(super) locked: Vec<bool>,
+    /// Static collision shapes with their friction.
+    pub(super) colliders: Vec<Collider>,
 }
 
 /// An end of a rod.
@@ -146,7 +157,7 @@ impl Settings {
         if self.max_iterations == 0 {
             return Err(Error::invalid("max_iterations", "must be at least 1"));
         }
-        Ok(())
+        validate_settings(self.contact_stiffness, self.friction_velocity)
     }
 }
 
@@ -218,6 +229,7 @@ impl Model {
             inertias,
             pinned: vec![false; n + 1],
             locked: vec![false; n],
+            colliders: Vec::new(),
         })
     }
 
@@ -301,6 +313,20 @@ impl Model {
         self.locked[j] = true;
     }
 
+    /// The static collision shapes.
+    pub fn colliders(&self) -> &[Collider] {
+        &self.colliders
+    }
+
+    /// Add a static collision shape with its friction (see `contact.rs`).
+    ///
+    /// # Errors
+    /// Those of [`Collider::checked`].
+    pub fn add_collider(&mut self, collider: Collider) -> Result<()> {
+        self.colliders.push(collider.checked()?);
+        Ok(())
+    }
+
     /// Change the settings (gravity, integrator, tolerances).
     ///
     /// # Errors
@@ -336,6 +362,10 @@ impl Model {
             self.pinned.len() == self.masses.len() && self.locked.len() == self.rest_lengths.len(),
             "pinned",
             || "one flag per vertex and per edge".into(),
-        )
+        )?;
+        for c in &self.colliders {
+            c.checked()?;
+        }
+        Ok(())
     }
 }

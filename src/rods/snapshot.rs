@@ -5,8 +5,6 @@ use super::{Frames, Model, Rod, State};
 use crate::error::Result;
 use crate::snapshot::{Snapshot, Stamped};
 
-impl State {}
-
 impl Stamped for State {
     const TAG: &'static str = "RodState";
     type Model = Model;
@@ -34,6 +32,15 @@ impl Stamped for State {
         )?;
         let scalars = self.twists.iter().chain(&self.twist_rates).chain(&self.reference_twist);
         check(finite(scalars.copied()) && self.time.is_finite(), "twists", || "non-finite".into())?;
+        check(
+            self.clamp_goals.iter().flatten().all(|g| {
+                g.edge < n
+                    && g.positions.iter().all(|p| p.is_finite())
+                    && (g.director.length() - 1.0).abs() < 1e-9
+            }),
+            "clamp_goals",
+            || "an edge beyond the last, or non-finite or non-unit values".into(),
+        )?;
         check(self.reference.iter().all(|d| (d.length() - 1.0).abs() < 1e-9), "reference", || {
             "reference directors must be unit".into()
         })?;

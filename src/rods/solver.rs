@@ -23,11 +23,16 @@
 //! - **Symplectic Euler**: `v += h M⁻¹ (f − ∇E)`, `q += h v`.
 //!
 //! Pinned vertices and locked twist angles keep their values: their rows and columns are
-//! replaced by the identity and their gradient entries by zero.
+//! replaced by the identity and their gradient entries by zero. A clamped end the state
+//! moves ([`State::move_clamp`]) has its held values set to the goal's for the step (the
+//! `k`-th of `m` remaining steps of a call covers `1/(m−k)` of what remains), so its
+//! velocity is that of the motion; its twist angle is the angle about the edge's new
+//! tangent from its reference director, parallel-transported there, to the goal's `m1`.
 
 use super::band::Band;
+use super::contact::{friction, lag, penalty, Lagged};
 use super::energy::elastic;
-use super::frames::Frames;
+use super::frames::{signed_angle, transport, Frames};
 use super::model::Integrator;
 use super::{Model, State, Stats};
 use crate::error::{Error, Result};
@@ -76,6 +81,9 @@ pub struct Solver {
     /// The Newton matrix, and its copy before a failed factorisation.
     band: Band,
     copy: Band,
+    /// The contacts at the start of the step and the positions there (for friction).
+    lagged: Vec<Lagged>,
+    start: Vec<DVec3>,
     /// `|diag H|`, the scale of the positive-definiteness shift.
     diag: Vec<f64>,
     /// The sum of the magnitudes of the terms of the last `Φ` evaluated (J): its rounding
@@ -122,9 +130,9 @@ impl Solver {
         for s in 0..steps {
             result = match model.settings.integrator {
                 Integrator::ImplicitEuler => {
-                    self.newton(model, &mut work, Goal::Step(dt), &mut stats)
+                    self.newton(model, &mut work, Goal::Step(dt), steps - s, &mut stats)
                 }
-                Integrator::SymplecticEuler => self.explicit(model, &mut work, dt),
+                Integrator::SymplecticEuler => self.explicit(model, &mut work, dt, steps - s),
             }
             .map_err(|e| at_step(e, s));
             if result.is_err() {
@@ -134,6 +142,9 @@ impl Solver {
             stats.steps += 1;
         }
         if result.is_ok() {
+            if steps > 0 {
+                work.clamp_goals = [None; 2];
+            }
             state.clone_from(&work);
         }
         self.work = Some(work);
@@ -149,8 +160,9 @@ impl Solver {
         let mut work = self.work.take().unwrap_or_else(|| state.clone());
         work.clone_from(state);
         let mut stats = Stats::default();
-        let result = self.newton(model, &mut work, Goal::Static, &mut stats);
+        let result = self.newton(model, &mut work, Goal::Static, 1, &mut stats);
         if result.is_ok() {
+            work.clamp_goals = [None; 2];
             work.velocities.fill(DVec3::ZERO);
             work.twist_rates.fill(0.0);
             state.clone_from(&work);
@@ -187,8 +199,9 @@ impl Solver {
     }
 
     /// Size the workspaces and load `work` into them: masses, forces, `q0`, the inertial
-    /// target (for a step of `h`), the base tangents.
-    fn load(&mut self, model: &Model, work: &State, h: Option<f64>) {
+    /// target (for a step of `h`; for held degrees of freedom the value they hold, moved
+    /// towards the clamp goals over `remaining` steps), the base tangents.
+    fn load(&mut self, model: &Model, work: &State, h: Option<f64>, remaining: usize) {
         let n = model.edges();
         let dofs = 4 * n + 3;
         for v in [
@@ -230,6 +243,34 @@ impl Solver {
         self.base.extend(work.positions.windows(2).map(|w| (w[1] - w[0]).normalize()));
         self.base_reference.clone_from(&work.reference);
         self.base_twist.clone_from(&work.reference_twist);
+        for goal in work.clamp_goals.iter().flatten() {
+            self.move_held(goal, remaining as f64);
+        }
+        if !model.colliders.is_empty() {
+            lag(model, &work.positions, &mut self.lagged);
+            self.start.clone_from(&work.positions);
+        }
+    }
+
+    /// Set the held values of a clamped edge `1/remaining` of the way to `goal`: its two
+    /// vertices, and its twist angle towards the one that turns its reference director,
+    /// transported to the new tangent as [`Frames::update`] does, onto the goal's `m1`.
+    fn move_held(&mut self, goal: &super::state::ClampGoal, remaining: f64) {
+        let j = goal.edge;
+        for (v, p) in goal.positions.iter().enumerate() {
+            let k = 4 * (j + v);
+            for r in 0..3 {
+                self.target[k + r] += (p[r] - self.q0[k + r]) / remaining;
+            }
+        }
+        let x = |v: usize| DVec3::from_slice(&self.target[4 * (j + v)..4 * (j + v) + 3]);
+        let t = (x(1) - x(0)).normalize();
+        let d1 = transport(self.base_reference[j], self.base[j], t);
+        let d1 = (d1 - d1.dot(t) * t).normalize();
+        let theta = self.q0[4 * j + 3];
+        let full = signed_angle(d1, goal.director - goal.director.dot(t) * t, t);
+        let full = full + std::f64::consts::TAU * ((theta - full) / std::f64::consts::TAU).round();
+        self.target[4 * j + 3] += (full - theta) / remaining;
     }
 
     /// Transport later configurations from the frames last evaluated.
@@ -267,11 +308,25 @@ impl Solver {
         }
         let band = if hess { Some(&mut self.band) } else { None };
         let mut phi = elastic(model, &self.frames, &self.theta, &mut self.grad, band);
+        self.scale = phi.abs();
+        if !model.colliders.is_empty() {
+            let band = if hess { Some(&mut self.band) } else { None };
+            let contact = penalty(model, &self.x, &mut self.grad, band);
+            let sliding = match goal {
+                Goal::Step(h) => {
+                    let (eps, band) =
+                        (model.settings.friction_velocity * h, hess.then_some(&mut self.band));
+                    friction(&self.lagged, &self.x, &self.start, eps, &mut self.grad, band)
+                }
+                _ => 0.0,
+            };
+            phi += contact + sliding;
+            self.scale += contact + sliding;
+        }
         let inv_h2 = match goal {
             Goal::Step(h) => 1.0 / (h * h),
             Goal::Static => 0.0,
         };
-        self.scale = phi.abs();
         #[allow(clippy::needless_range_loop)] // six arrays indexed alike
         for k in 0..q.len() {
             let d = q[k] - self.target[k];
@@ -331,14 +386,20 @@ impl Solver {
         model: &Model,
         work: &mut State,
         goal: Goal,
+        remaining: usize,
         stats: &mut Stats,
     ) -> Result<()> {
         let h = match goal {
             Goal::Step(h) => Some(h),
             Goal::Static => None,
         };
-        self.load(model, work, h);
+        self.load(model, work, h, remaining);
         self.q.copy_from_slice(&self.q0);
+        for (k, fixed) in fixed_dofs(model).enumerate() {
+            if fixed {
+                self.q[k] = self.target[k];
+            }
+        }
         let length: f64 = model.rest_lengths.iter().sum();
         let tol = model.settings.tolerance;
         for _ in 0..model.settings.max_iterations {
@@ -427,23 +488,27 @@ impl Solver {
         Ok(())
     }
 
-    /// One symplectic Euler step of `h` on `work`.
-    fn explicit(&mut self, model: &Model, work: &mut State, h: f64) -> Result<()> {
-        self.load(model, work, None);
+    /// One symplectic Euler step of `h` on `work`, the `remaining`-th last of its call;
+    /// held degrees of freedom move to their held values at the rate that takes them there.
+    fn explicit(
+        &mut self,
+        model: &Model,
+        work: &mut State,
+        h: f64,
+        remaining: usize,
+    ) -> Result<()> {
+        self.load(model, work, Some(0.0), remaining);
         self.q.copy_from_slice(&self.q0);
-        self.target.copy_from_slice(&self.q0);
         self.evaluate(model, false, Goal::Static, false).ok_or_else(|| diverged(&self.q))?;
         for (k, pinned) in fixed_dofs(model).enumerate() {
             let (i, r) = (k / 4, k % 4);
-            let accel = if pinned { None } else { Some(-self.grad[k] / self.mass[k]) };
-            if r < 3 {
-                let v = &mut work.velocities[i][r];
-                *v = accel.map_or(0.0, |a| *v + h * a);
-                self.q[k] += h * *v;
+            let rate = if r < 3 { &mut work.velocities[i][r] } else { &mut work.twist_rates[i] };
+            if pinned {
+                *rate = (self.target[k] - self.q0[k]) / h;
+                self.q[k] = self.target[k];
             } else {
-                let w = &mut work.twist_rates[i];
-                *w = accel.map_or(0.0, |a| *w + h * a);
-                self.q[k] += h * *w;
+                *rate += h * (-self.grad[k] / self.mass[k]);
+                self.q[k] += h * *rate;
             }
         }
         self.commit(model, work, Goal::Static)

@@ -2,12 +2,24 @@
 //! velocities, edge twist angles and their rates, the reference frames carried in time (the
 //! time-parallel transport of Bergou et al. 2010 starts each step from the last step's
 //! frames, so they are state, as is the reference twist whose branch they continue), the
-//! external forces applied during the next steps, and the time.
+//! external forces and clamp motions applied during the next steps, and the time.
 
-use super::frames::Frames;
-use super::Model;
+use super::frames::{directors, Frames};
+use super::{End, Model};
 use crate::error::{Error, Result};
-use glam::DVec3;
+use glam::{DQuat, DVec3};
+
+/// Where a clamped end goes by the end of the next call to [`super::Solver::step`] or
+/// [`super::Solver::solve_static`] (prescribed motion, an input like the forces).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub(super) struct ClampGoal {
+    /// The end's clamped edge.
+    pub(super) edge: usize,
+    /// The positions of its two vertices (m).
+    pub(super) positions: [DVec3; 2],
+    /// Its material director `m1` (unit, perpendicular to the edge).
+    pub(super) director: DVec3,
+}
 
 /// The state of a rod of a [`Model`] of `n` edges. `clone_from` reuses every buffer.
 #[derive(serde::Serialize, serde::Deserialize, Debug, PartialEq)]
@@ -27,6 +39,9 @@ pub struct State {
     /// External forces on the vertices (N), `n + 1`, applied during every later step until
     /// changed (gravity comes from the model).
     pub(super) forces: Vec<DVec3>,
+    /// The prescribed motions of the first and last clamped ends, reached at the end of the
+    /// next call and then cleared (the end stays there).
+    pub(super) clamp_goals: [Option<ClampGoal>; 2],
     /// Simulated time (s).
     pub(super) time: f64,
 }
@@ -41,6 +56,7 @@ impl Clone for State {
             reference: Vec::new(),
             reference_twist: Vec::new(),
             forces: Vec::new(),
+            clamp_goals: [None; 2],
             time: 0.0,
         };
         s.clone_from(self);
@@ -56,6 +72,7 @@ impl Clone for State {
         self.reference.clone_from(&source.reference);
         self.reference_twist.clone_from(&source.reference_twist);
         self.forces.clone_from(&source.forces);
+        self.clamp_goals = source.clamp_goals;
         self.time = source.time;
     }
 }
@@ -72,6 +89,7 @@ impl State {
             reference: model.rest_reference.clone(),
             reference_twist: model.rest_twists.clone(),
             forces: vec![DVec3::ZERO; n + 1],
+            clamp_goals: [None; 2],
             time: 0.0,
         }
     }
@@ -143,6 +161,49 @@ impl State {
             return Err(Error::invalid("index", "beyond the last vertex"));
         };
         *f = force;
+        Ok(())
+    }
+
+    /// Move a clamped end (prescribed motion, e.g. a hair root on a moving head): by the end
+    /// of the next call to [`super::Solver::step`] (reached linearly over its steps) or
+    /// [`super::Solver::solve_static`], the end's edge is its rest pose moved rigidly,
+    /// `x = R x̄ + translation` for its two vertices (m), and its material director `m1` is
+    /// `R` times the rest shape's untwisted one (so twisting the end by `φ` about its tangent
+    /// twists the rod by `φ`). The twist angle goes to the branch nearest its current value,
+    /// so one call turns the end by less than half a turn about its tangent.
+    ///
+    /// # Errors
+    /// `end` not clamped (`end`); `rotation` not a finite unit quaternion (`rotation`);
+    /// `translation` not finite (`translation`).
+    pub fn move_clamp(
+        &mut self,
+        model: &Model,
+        end: End,
+        rotation: DQuat,
+        translation: DVec3,
+    ) -> Result<()> {
+        let n = model.edges();
+        let (slot, j) = match end {
+            End::First => (0, 0),
+            End::Last => (1, n - 1),
+        };
+        if !(model.locked[j] && model.pinned[j] && model.pinned[j + 1]) {
+            return Err(Error::invalid("end", "is not clamped"));
+        }
+        if !(rotation.is_finite() && (rotation.length() - 1.0).abs() < 1e-9) {
+            return Err(Error::invalid("rotation", "must be a finite unit quaternion"));
+        }
+        if !translation.is_finite() {
+            return Err(Error::invalid("translation", "must be finite"));
+        }
+        let rest = &model.rest_positions;
+        let tangent = (rest[j + 1] - rest[j]).normalize();
+        let (m1, _) = directors(tangent, model.rest_reference[j], 0.0);
+        self.clamp_goals[slot] = Some(ClampGoal {
+            edge: j,
+            positions: [rotation * rest[j] + translation, rotation * rest[j + 1] + translation],
+            director: rotation * m1,
+        });
         Ok(())
     }
 

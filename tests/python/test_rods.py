@@ -172,3 +172,80 @@ def test_bad_method_arguments_name_the_argument() -> None:
     for bad in [(lambda: Rod.straight(1, 1.0), "n"), (lambda: Rod.straight(3, -1.0), "length")]:
         with pytest.raises(ValueError, match=f"^{bad[1]}"):
             bad[0]()
+
+
+def both_clamped(edges: int = 20) -> Rod:
+    """A straight rod along +x of ``edges`` edges clamped at both ends, the clamped edges'
+    middles 1 m apart, no gravity."""
+    h = 1.0 / (edges - 1)
+    points = np.zeros((edges + 1, 3))
+    points[:, 0] = (np.arange(edges + 1) - 0.5) * h
+    rod = Rod(points, **{**SOFT, "gravity": (0.0, 0.0, 0.0)})  # type: ignore[arg-type]
+    rod.clamp(0)
+    rod.clamp(-1)
+    return rod
+
+
+def test_turning_a_clamp_twists_the_rod_by_the_turn() -> None:
+    """Turning the far clamp by φ about the axis (in turns under half a turn, each to static
+    equilibrium) stores the twist energy ``GJ φ² / (2L)`` of a uniformly twisted rod, φ up
+    to 5 rad (beyond ±π: twist is counted continuously), and the rod stays straight (below
+    Greenhill's 8.99 B/GJ = 11.2 rad here)."""
+    rod = both_clamped()
+    gj = rod.stiffness["twisting"]
+    for k in range(1, 11):
+        phi = 0.5 * k
+        rod.move_clamp(-1, kinema.Rotation.from_rotvec([phi, 0.0, 0.0]))
+        rod.solve_static()
+        assert rod.energy() == pytest.approx(gj * phi**2 / 2.0, rel=1e-9)
+    assert np.abs(rod.positions[:, 1:]).max() < 1e-12
+    frames = rod.material_frames
+    assert frames[-1, 1] == pytest.approx([0.0, -np.sin(5.0), np.cos(5.0)], abs=1e-12)
+
+
+def test_moving_a_clamp_carries_the_end_with_the_motions_velocity() -> None:
+    rod = both_clamped()
+    rest = rod.positions.copy()
+    rod.move_clamp(0, None, (0.0, 0.1, 0.0))
+    rod.step(0.01, 4)
+    assert rod.positions[:2] == pytest.approx(rest[:2] + np.array([0.0, 0.1, 0.0]), abs=1e-15)
+    assert rod.velocities[:2] == pytest.approx(np.tile([0.0, 2.5, 0.0], (2, 1)), abs=1e-12)
+    rod.step(0.01, 2)  # the motion is done: the end stays
+    assert rod.positions[:2] == pytest.approx(rest[:2] + np.array([0.0, 0.1, 0.0]), abs=1e-15)
+    assert np.abs(rod.velocities[:2]).max() == 0.0
+
+
+def test_rod_rests_on_a_plane_collider() -> None:
+    from kinema.geometry import Plane
+
+    rod = Rod.straight(11, 0.2, origin=(0.0, 0.02, 0.0), radius=2e-3, youngs_modulus=1e9)
+    rod.add_collider(Plane(friction=0.3))
+    rod.step(1.0 / 60.0, 120)
+    sunk = 2e-3 - rod.positions[:, 1]
+    assert (sunk > 0.0).all()
+    weight = rod.masses.sum() * 9.81
+    assert (1e4 * sunk).sum() == pytest.approx(weight, rel=1e-3)
+
+
+def test_bad_clamp_and_collider_arguments_name_the_argument() -> None:
+    from kinema.geometry import Plane, Sphere
+
+    rod = Rod.straight(5, 1.0)
+    rod.clamp(0)
+    bad = [
+        (lambda: rod.move_clamp(-1), "end"),
+        (lambda: rod.move_clamp(2), "end"),
+        (lambda: rod.move_clamp(0, None, (np.nan, 0.0, 0.0)), "translation"),
+        (lambda: rod.add_collider(Plane(restitution=0.5)), "restitution"),
+        (lambda: rod.add_collider(Sphere((0, 0, 0), 1.0, inside=True)), "inside"),
+        (lambda: rod.add_collider(Sphere((0, 0, 0), -1.0)), "radius"),
+        (lambda: rod.add_collider(Plane(friction=-1.0)), "friction"),
+        (lambda: rod.add_collider(Plane(velocity=(1.0, 0.0, 0.0))), "velocity"),
+        (lambda: Rod.straight(5, 1.0, contact_stiffness=0.0), "contact_stiffness"),
+        (lambda: Rod.straight(5, 1.0, friction_velocity=-1.0), "friction_velocity"),
+    ]
+    for call, name in bad:
+        with pytest.raises(ValueError, match=f"^{name}"):
+            call()
+    with pytest.raises(TypeError, match=r"^collider"):
+        rod.add_collider(SECRET)  # type: ignore[arg-type]
