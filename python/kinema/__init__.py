@@ -7,7 +7,8 @@ shapes), :mod:`kinema.particles` (forces, colliders,
 emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`kinema.rigid`
 (rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.fluid`
 (SPH fluids), :mod:`kinema.crowd` (crowds: ORCA and social forces), :mod:`kinema.anim`
-(SPH fluids), :mod:`kinema.rods` (discrete elastic rods), :mod:`kinema.anim`
+(SPH fluids), :mod:`kinema.rods` (discrete elastic rods), :mod:`kinema.character` (articulated
+characters, ragdolls), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
 editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.skin` (skinning), :mod:`kinema.scene` (scenes coupling them,
 checkpoints), :mod:`kinema.scenefile` (scenes from TOML), :mod:`kinema.sweep` (parameter sweeps on
@@ -74,6 +75,7 @@ __all__ = [
 _SUBMODULES = frozenset(
     {
         "anim",
+        "character",
         "cli",
         "cloth",
         "constraints",
