@@ -7,6 +7,7 @@
 
 pub mod anim;
 pub mod batch;
+pub mod character;
 pub mod cloth;
 pub mod constraints;
 pub mod crowd;

@@ -6,8 +6,9 @@ transforms), :mod:`kinema.ode` (integrators and stability), :mod:`kinema.geometr
 shapes), :mod:`kinema.particles` (forces, colliders,
 emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`kinema.rigid`
 (rigid bodies, contacts, joints), :mod:`kinema.cloth` (implicit cloth), :mod:`kinema.fluid`
-(SPH fluids), :mod:`kinema.crowd` (crowds: ORCA and social forces), :mod:`kinema.flock` (boids), :mod:`kinema.anim`
-(SPH fluids), :mod:`kinema.rods` (discrete elastic rods), :mod:`kinema.anim`
+(SPH fluids), :mod:`kinema.crowd` (crowds: ORCA and social forces), :mod:`kinema.flock`
+(boids), :mod:`kinema.rods` (discrete elastic rods), :mod:`kinema.character` (articulated
+characters, ragdolls), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
 editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.skin` (skinning, a body mesh for any skeleton), :mod:`kinema.io` (export to glTF and
 USD), :mod:`kinema.view` (a viewer in the browser), :mod:`kinema.scene` (scenes coupling them,
@@ -75,6 +76,7 @@ __all__ = [
 _SUBMODULES = frozenset(
     {
         "anim",
+        "character",
         "cli",
         "cloth",
         "constraints",

@@ -8,6 +8,7 @@ use pyo3::prelude::*;
 mod anim;
 mod args;
 mod array;
+mod character;
 mod cloth;
 mod constraints;
 mod crowd;
@@ -82,6 +83,7 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     crowd::register(m)?;
     flock::register(m)?;
     rods::register(m)?;
+    character::register(m)?;
     anim::register(m)?;
     mocap::register(m)?;
     ik::register(m)?;

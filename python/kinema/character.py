@@ -1,0 +1,328 @@
+"""Articulated characters in reduced coordinates (issue #27, first slice).
+
+A :class:`Model` is a kinematic tree of rigid bodies joined by revolute (hinge), ball,
+free (6 DOF) and fixed joints, built body by body (parents first). An
+:class:`ArticulatedBody` steps it with Featherstone's articulated-body algorithm (forward
+dynamics in O(n); the CRBA and RNEA for stable PD), semi-implicit Euler or RK4, joint limits
+as stiff one-sided springs, penalty ground contact on the plane y = 0 with friction, PD or
+stable PD servos (Tan, Liu & Turk 2011) and timed pushes. :meth:`Ragdoll.from_skeleton`
+builds a limp ragdoll from an ASF skeleton.
+
+Coordinates ``q``: per joint, a hinge angle (rad), a ball joint's quaternion ``(w, x, y,
+z)``, a free joint's position (m) and quaternion; rates ``qd``: hinge rate, a ball joint's
+angular velocity in body axes, a free joint's ``[ω (body axes); v (parent axes)]``. SI
+units, +Y up. See docs/character.md.
+"""
+
+from __future__ import annotations
+
+import operator
+from typing import Any, SupportsIndex
+
+import numpy as np
+
+from kinema import _kinema
+from kinema._array import as_vector3, real
+
+__all__ = ["ArticulatedBody", "Model", "Ragdoll"]
+
+_JOINTS = ("revolute", "ball", "free", "fixed")
+
+
+def _index(value: object, name: str) -> int:
+    """An integer argument as an ``int`` (``TypeError`` naming ``name`` otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, SupportsIndex):
+        raise TypeError(f"{name}: expected an integer, got {type(value).__name__}")
+    return operator.index(value)
+
+
+def _floats(value: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a float64 array of ``shape`` (``ValueError`` naming ``name``)."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected numbers of shape {shape}") from None
+    if arr.shape != shape:
+        raise ValueError(f"{name}: expected shape {shape}, got {arr.shape}")
+    return arr
+
+
+class Model:
+    """An articulated model being built: add bodies with :meth:`add_body`, parents first,
+    then make an :class:`ArticulatedBody` of it."""
+
+    def __init__(self) -> None:
+        self._m = _kinema.ArticulatedModel()
+
+    def add_body(
+        self,
+        parent: int | None,
+        joint: str,
+        *,
+        mass: float,
+        inertia: Any,
+        offset: Any = (0.0, 0.0, 0.0),
+        com: Any = (0.0, 0.0, 0.0),
+        axis: Any = (0.0, 0.0, 1.0),
+        shape: tuple[Any, Any, float] | None = None,
+        limits: Any = None,
+        limit_frame: Any = (1.0, 0.0, 0.0, 0.0),
+        damping: float = 0.0,
+        name: str = "",
+    ) -> int:
+        """Append a body and return its index.
+
+        ``parent``: index of a body added before, or ``None`` (the world). ``joint``:
+        ``"revolute"`` (about ``axis``), ``"ball"``, ``"free"`` or ``"fixed"``. ``offset``
+        (m): the joint's position in the parent's frame (the world's for a root); the body's
+        frame has its origin at the joint and the parent's axes at the zero pose. ``mass``
+        (kg), ``com`` (m, body frame), ``inertia`` (3x3, kg m², about the centre of mass).
+        ``shape``: a capsule ``(a, b, radius)`` (ends in m, body frame) colliding with the
+        ground, or ``None``. ``limits``: for a hinge one ``(lower, upper)`` (rad), for a ball
+        joint three, on the rotation vector's components about the axes of ``limit_frame``
+        (a quaternion ``(w, x, y, z)`` from limit axes to body axes). ``damping``: joint
+        damping (N m s/rad).
+        """
+        if joint not in _JOINTS:
+            raise ValueError("joint: expected 'revolute', 'ball', 'free' or 'fixed'")
+        p = None if parent is None else _index(parent, "parent")
+        if p is not None and p < 0:
+            raise ValueError("parent: expected a body index >= 0 or None")
+        shp = None
+        if shape is not None:
+            if len(shape) != 3:
+                raise ValueError("shape: expected (a, b, radius)")
+            shp = (
+                as_vector3(shape[0], "shape"),
+                as_vector3(shape[1], "shape"),
+                real(shape[2], "shape"),
+            )
+        lims = None
+        if limits is not None:
+            arr = np.asarray(limits, dtype=np.float64)
+            if arr.ndim == 1:
+                arr = arr[None, :]
+            if arr.ndim != 2 or arr.shape[1] != 2 or not 1 <= arr.shape[0] <= 3:
+                raise ValueError(f"limits: expected 1 to 3 (lower, upper) pairs, got {arr.shape}")
+            lims = [(float(lo), float(hi)) for lo, hi in arr]
+        return self._m.add_body(
+            str(name),
+            p,
+            joint,
+            as_vector3(axis, "axis"),
+            as_vector3(offset, "offset"),
+            real(mass, "mass"),
+            as_vector3(com, "com"),
+            _floats(inertia, "inertia", (3, 3)).tolist(),
+            shp,
+            lims,
+            _floats(limit_frame, "limit_frame", (4,)).tolist(),
+            real(damping, "damping"),
+        )
+
+    def __len__(self) -> int:
+        return len(self._m)
+
+
+class ArticulatedBody:
+    """A :class:`Model` (copied) with its state, in the zero pose at time 0.
+
+    Settings (keywords, changeable later with :meth:`configure`): ``gravity`` (m/s²);
+    ``integrator`` ``"symplectic"`` (semi-implicit Euler, order 1) or ``"rk4"`` (order 4);
+    ``servo_mode`` ``"stable"`` (stable PD) or ``"explicit"``; ``ground`` (collide the
+    capsules with y = 0); ``contact_frequency`` ω (rad/s: contact stiffness ``m ω²`` per
+    body, resting penetration ``g / ω²``), ``contact_damping`` (ratio ζ), ``friction`` (μ),
+    ``slip_speed`` (m/s, below which friction is viscous), ``limit_frequency`` (rad/s) and
+    ``limit_damping`` (ratio) of the joint-limit springs.
+    """
+
+    _b: Any
+
+    def __init__(self, model: Model, **settings: Any) -> None:
+        if not isinstance(model, Model):
+            raise TypeError(f"model: expected a kinema.character.Model, got {type(model).__name__}")
+        self._b = _kinema.ArticulatedBody(model._m)
+        if settings:
+            self.configure(**settings)
+
+    def configure(self, **settings: Any) -> None:
+        """Change settings (the keywords of :class:`ArticulatedBody`); the others keep
+        their values."""
+        current = self._b.settings()
+        unknown = set(settings) - set(current)
+        if unknown:
+            raise TypeError(f"configure: unknown setting(s) {sorted(unknown)}")
+        current.update(settings)
+        for key in ("integrator", "servo_mode"):
+            if not isinstance(current[key], str):
+                raise TypeError(f"{key}: expected a string")
+        numbers = [
+            real(current[k], k)
+            for k in (
+                "contact_frequency",
+                "contact_damping",
+                "friction",
+                "slip_speed",
+                "limit_frequency",
+                "limit_damping",
+            )
+        ]
+        self._b.configure(
+            as_vector3(current["gravity"], "gravity"),
+            current["integrator"],
+            current["servo_mode"],
+            bool(current["ground"]),
+            *numbers,
+        )
+
+    @property
+    def settings(self) -> dict[str, Any]:
+        """The current settings."""
+        return dict(self._b.settings())
+
+    def step(self, dt: float, steps: int = 1) -> None:
+        """Advance ``steps`` steps of ``dt`` seconds. A step that diverges raises
+        :class:`kinema.SimulationError` and leaves the body as it was."""
+        self._b.step(real(dt, "dt"), steps)
+
+    @property
+    def q(self) -> np.ndarray:
+        """Joint coordinates ``(nq,)`` (read-only view, updated in place)."""
+        return self._b.q
+
+    @q.setter
+    def q(self, value: Any) -> None:
+        self._b.set_q(_floats(value, "q", (self.nq,)).tolist())
+
+    @property
+    def qd(self) -> np.ndarray:
+        """Joint rates ``(nv,)`` (read-only view, updated in place)."""
+        return self._b.qd
+
+    @qd.setter
+    def qd(self, value: Any) -> None:
+        self._b.set_qd(_floats(value, "qd", (self.nv,)).tolist())
+
+    @property
+    def targets(self) -> np.ndarray:
+        """Servo targets ``(nq,)``, laid out as ``q`` (read-only view)."""
+        return self._b.targets
+
+    @targets.setter
+    def targets(self, value: Any) -> None:
+        self._b.set_targets(_floats(value, "targets", (self.nq,)).tolist())
+
+    def set_torques(self, torques: Any) -> None:
+        """Apply joint torques ``(nv,)`` (N m; N on free joints' linear rows) during the
+        later steps, until changed."""
+        self._b.set_torques(_floats(torques, "torques", (self.nv,)).tolist())
+
+    def set_servo(
+        self, body: int, kp: float | None, kd: float = 0.0, max_torque: float = np.inf
+    ) -> None:
+        """Drive body ``body``'s joint (hinge or ball) towards ``targets`` with a PD servo
+        ``τ = kp (q̄ ⊖ q) − kd q̇`` (N m/rad, N m s/rad), clamped to ``±max_torque`` (N m);
+        ``kp=None`` removes it."""
+        gain = None if kp is None else real(kp, "kp")
+        self._b.set_servo(
+            _index(body, "body"), gain, real(kd, "kd"), real(max_torque, "max_torque")
+        )
+
+    def push(self, body: int, force: Any, duration: float) -> None:
+        """Apply ``force`` (N, world axes) at body ``body``'s centre of mass during the next
+        ``duration`` seconds."""
+        self._b.push(_index(body, "body"), as_vector3(force, "force"), real(duration, "duration"))
+
+    @property
+    def com(self) -> np.ndarray:
+        """Centre of mass of the whole body (m, world)."""
+        return np.array(self._b.com)
+
+    def energy(self) -> tuple[float, float]:
+        """Kinetic and gravitational potential energy (J); springs of contacts and limits
+        are not counted."""
+        return self._b.energy()
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._b.time
+
+    @property
+    def nq(self) -> int:
+        """Number of joint coordinates."""
+        return int(self._b.sizes()[0])
+
+    @property
+    def nv(self) -> int:
+        """Number of degrees of freedom."""
+        return int(self._b.sizes()[1])
+
+    @property
+    def names(self) -> list[str]:
+        """Body names, in order."""
+        return list(self._b.names())
+
+    @property
+    def masses(self) -> np.ndarray:
+        """Body masses (kg), in order."""
+        return np.array(self._b.masses())
+
+    def positions(self) -> np.ndarray:
+        """World positions of the body frames ``(n, 3)`` (m)."""
+        return self._b.positions()
+
+    def orientations(self) -> np.ndarray:
+        """World orientations of the body frames ``(n, 4)`` as ``(w, x, y, z)``."""
+        return self._b.orientations()
+
+    def __len__(self) -> int:
+        return len(self._b)
+
+
+class Ragdoll(ArticulatedBody):
+    """A limp ragdoll: one capsule body per bone of a skeleton (see :meth:`from_skeleton`)."""
+
+    def __init__(self, body: Any) -> None:
+        self._b = body
+
+    @classmethod
+    def from_skeleton(
+        cls,
+        skeleton: Any,
+        density: float = 1000.0,
+        *,
+        scale: float | None = None,
+        radius_ratio: float = 0.15,
+        min_radius: float = 0.02,
+        damping: float = 2.0,
+        clearance: float = 0.0,
+        **settings: Any,
+    ) -> Ragdoll:
+        """The ragdoll of an ASF ``skeleton`` (:func:`kinema.mocap.read_asf`).
+
+        The root is a free sphere; every bone a capsule from its base to its tip of radius
+        ``max(min_radius, radius_ratio × length)`` (m) and ``density`` (kg/m³), hinged
+        where its ASF ``dof`` line has one rotation, a ball joint where it has two or three
+        (fixed with none), with the ASF limits. ``scale``: metres per file unit (``None``:
+        the CMU reading, ``skeleton.metres_per_unit()``). ``damping``: joint damping rate (1/s; a
+        bone's damping is this times its moment of inertia about its own axis). The ragdoll is lifted so that its lowest point is ``clearance`` (m) above
+        the ground. ``settings`` as for :class:`ArticulatedBody`.
+        """
+        if not isinstance(skeleton, _kinema.AsfSkeleton):
+            raise TypeError(
+                f"skeleton: expected an ASF skeleton (kinema.mocap.read_asf), got {type(skeleton).__name__}"
+            )
+        body = _kinema.ArticulatedBody.ragdoll(
+            skeleton,
+            real(density, "density"),
+            None if scale is None else real(scale, "scale"),
+            real(radius_ratio, "radius_ratio"),
+            real(min_radius, "min_radius"),
+            real(damping, "damping"),
+            real(clearance, "clearance"),
+        )
+        out = cls(body)
+        if settings:
+            out.configure(**settings)
+        return out

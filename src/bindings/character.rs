@@ -1,0 +1,349 @@
+//! `kinema.character`: a compiled articulated model (built body by body) and articulated
+//! body (a model with its state and solver), ragdolls from ASF skeletons.
+
+use super::args::Int;
+use super::array::compute;
+use super::error::detached;
+use super::mocap::PySkeleton;
+use super::pickle::{reduce, Reduced};
+use super::view::view;
+use crate::character::{
+    ragdoll, ArticulatedBody as Core, Body, Capsule, Integrator, Joint, Limits, Model,
+    RagdollOptions, Servo, ServoMode, Settings,
+};
+use crate::error::Error;
+use crate::snapshot::Snapshot;
+use glam::{DMat3, DQuat, DVec3};
+use numpy::PyArrayDyn;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// An articulated model being built; see `kinema.character.Model`.
+#[pyclass(module = "kinema._kinema", name = "ArticulatedModel")]
+pub struct ArticulatedModel {
+    model: Model,
+}
+
+fn quat(q: [f64; 4]) -> PyResult<DQuat> {
+    let q = DQuat::from_xyzw(q[1], q[2], q[3], q[0]);
+    if !(q.is_finite() && q.length() > 1e-12) {
+        return Err(Error::invalid("limit_frame", "must be a finite non-zero quaternion").into());
+    }
+    Ok(q.normalize())
+}
+
+#[pymethods]
+impl ArticulatedModel {
+    /// An empty model with default settings.
+    #[new]
+    fn new() -> Self {
+        ArticulatedModel { model: Model::new(Settings::default()) }
+    }
+
+    /// Append a body; returns its index. `joint` is "revolute", "ball", "free" or "fixed";
+    /// `inertia` the 3x3 inertia about the centre of mass (kg m², rows); `shape` a capsule
+    /// `(a, b, radius)` or None; `limits` up to three `(lower, upper)` (rad) or None.
+    #[allow(clippy::too_many_arguments)]
+    fn add_body(
+        &mut self,
+        name: String,
+        parent: Option<Int>,
+        joint: &str,
+        axis: [f64; 3],
+        offset: [f64; 3],
+        mass: f64,
+        com: [f64; 3],
+        inertia: [[f64; 3]; 3],
+        shape: Option<([f64; 3], [f64; 3], f64)>,
+        limits: Option<Vec<(f64, f64)>>,
+        limit_frame: [f64; 4],
+        damping: f64,
+    ) -> PyResult<usize> {
+        let joint = match joint {
+            "revolute" => Joint::Revolute { axis: DVec3::from_array(axis) },
+            "ball" => Joint::Ball,
+            "free" => Joint::Free,
+            "fixed" => Joint::Fixed,
+            _ => {
+                return Err(Error::invalid(
+                    "joint",
+                    "expected 'revolute', 'ball', 'free' or 'fixed'",
+                )
+                .into())
+            }
+        };
+        let limits = match limits {
+            None => None,
+            Some(l) if (1..=3).contains(&l.len()) => {
+                let mut ranges = [(0.0, 0.0); 3];
+                ranges[..l.len()].copy_from_slice(&l);
+                Some(Limits { ranges, frame: quat(limit_frame)? })
+            }
+            Some(_) => {
+                return Err(Error::invalid("limits", "expected 1 to 3 (lower, upper) pairs").into())
+            }
+        };
+        let body = Body {
+            name,
+            parent: parent.map(|p| p.count("parent")).transpose()?,
+            joint,
+            offset: DVec3::from_array(offset),
+            mass,
+            com: DVec3::from_array(com),
+            inertia: DMat3::from_cols_array_2d(&inertia).transpose(),
+            shape: shape.map(|(a, b, radius)| Capsule {
+                a: DVec3::from_array(a),
+                b: DVec3::from_array(b),
+                radius,
+            }),
+            limits,
+            damping,
+            servo: None,
+        };
+        Ok(self.model.add_body(body)?)
+    }
+
+    /// Number of bodies.
+    fn __len__(&self) -> usize {
+        self.model.bodies().len()
+    }
+}
+
+/// An articulated body; see `kinema.character.ArticulatedBody` for the API.
+#[pyclass(module = "kinema._kinema")]
+pub struct ArticulatedBody {
+    body: Core,
+}
+
+#[pymethods]
+impl ArticulatedBody {
+    /// Pickle support: the body as a snapshot (model and state).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        reduce(slf, |s| &s.body, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { body: Core::from_snapshot(data)? })
+    }
+
+    /// The body of `model` (copied) in its zero pose.
+    #[new]
+    fn new(model: PyRef<'_, ArticulatedModel>) -> PyResult<Self> {
+        if model.model.bodies().is_empty() {
+            return Err(Error::invalid("model", "has no bodies").into());
+        }
+        Ok(ArticulatedBody { body: Core::new(model.model.clone()) })
+    }
+
+    /// The ragdoll of an ASF `skeleton` (see `kinema.character.Ragdoll.from_skeleton`).
+    #[staticmethod]
+    #[allow(clippy::too_many_arguments)]
+    fn ragdoll(
+        skeleton: PyRef<'_, PySkeleton>,
+        density: f64,
+        scale: Option<f64>,
+        radius_ratio: f64,
+        min_radius: f64,
+        damping: f64,
+        clearance: f64,
+    ) -> PyResult<Self> {
+        let sk = &skeleton.skeleton;
+        let scale = scale.unwrap_or_else(|| sk.metres_per_unit());
+        let options =
+            RagdollOptions { density, scale, radius_ratio, min_radius, damping, clearance };
+        Ok(ArticulatedBody { body: Core::new(ragdoll(sk, &options, Settings::default())?) })
+    }
+
+    /// Change the settings (every argument as in `kinema.character.ArticulatedBody`).
+    #[allow(clippy::too_many_arguments)]
+    fn configure(
+        &mut self,
+        gravity: [f64; 3],
+        integrator: &str,
+        servo_mode: &str,
+        ground: bool,
+        contact_frequency: f64,
+        contact_damping: f64,
+        friction: f64,
+        slip_speed: f64,
+        limit_frequency: f64,
+        limit_damping: f64,
+    ) -> PyResult<()> {
+        let integrator = match integrator {
+            "symplectic" => Integrator::SymplecticEuler,
+            "rk4" => Integrator::Rk4,
+            _ => return Err(Error::invalid("integrator", "expected 'symplectic' or 'rk4'").into()),
+        };
+        let servo_mode = match servo_mode {
+            "stable" => ServoMode::Stable,
+            "explicit" => ServoMode::Explicit,
+            _ => return Err(Error::invalid("servo_mode", "expected 'stable' or 'explicit'").into()),
+        };
+        let settings = Settings {
+            gravity: DVec3::from_array(gravity),
+            integrator,
+            servo_mode,
+            ground,
+            contact_frequency,
+            contact_damping,
+            friction,
+            slip_speed,
+            limit_frequency,
+            limit_damping,
+        };
+        let old = std::mem::replace(&mut self.body.model_mut().settings, settings);
+        if let Err(e) = self.body.model().check_settings() {
+            self.body.model_mut().settings = old;
+            return Err(e.into());
+        }
+        Ok(())
+    }
+
+    /// Set (or with `kp` None remove) the PD servo of body `body`'s joint.
+    fn set_servo(&mut self, body: Int, kp: Option<f64>, kd: f64, max_torque: f64) -> PyResult<()> {
+        let servo = kp.map(|kp| Servo { kp, kd, max_torque });
+        Ok(self.body.model_mut().set_servo(body.count("body")?, servo)?)
+    }
+
+    /// Advance `steps` steps of `dt` seconds (GIL released).
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: Int) -> PyResult<()> {
+        let steps = steps.count("steps")?;
+        let body = &mut self.body;
+        detached(py, || body.step(dt, steps))
+    }
+
+    /// Read-only view of the joint coordinates (nq,), updated in place by `step`.
+    #[getter]
+    fn q<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().body.model().nq();
+        view(slf, &[n], |r| r.body.state().q())
+    }
+
+    /// Read-only view of the joint rates (nv,), updated in place by `step`.
+    #[getter]
+    fn qd<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().body.model().nv();
+        view(slf, &[n], |r| r.body.state().qd())
+    }
+
+    /// Read-only view of the servo targets (nq,).
+    #[getter]
+    fn targets<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let n = slf.borrow().body.model().nq();
+        view(slf, &[n], |r| r.body.state().targets())
+    }
+
+    /// Set the joint coordinates (nq,).
+    fn set_q(&mut self, q: Vec<f64>) -> PyResult<()> {
+        let (model, state) = self.body.parts_mut();
+        Ok(state.set_q(model, &q)?)
+    }
+
+    /// Set the joint rates (nv,).
+    fn set_qd(&mut self, qd: Vec<f64>) -> PyResult<()> {
+        Ok(self.body.state_mut().set_qd(&qd)?)
+    }
+
+    /// Set the servo targets (nq,).
+    fn set_targets(&mut self, targets: Vec<f64>) -> PyResult<()> {
+        let (model, state) = self.body.parts_mut();
+        Ok(state.set_targets(model, &targets)?)
+    }
+
+    /// Set the applied joint torques (nv,).
+    fn set_torques(&mut self, torques: Vec<f64>) -> PyResult<()> {
+        Ok(self.body.state_mut().set_torques(&torques)?)
+    }
+
+    /// Push body `body` with `force` (N, world) at its centre of mass for `duration` s.
+    fn push(&mut self, body: Int, force: [f64; 3], duration: f64) -> PyResult<()> {
+        let body = body.count("body")?;
+        let (model, state) = self.body.parts_mut();
+        Ok(state.push(model, body, DVec3::from_array(force), duration)?)
+    }
+
+    /// Centre of mass (m, world).
+    #[getter]
+    fn com(&mut self) -> [f64; 3] {
+        self.body.com().to_array()
+    }
+
+    /// Kinetic and gravitational potential energy (J).
+    fn energy(&mut self) -> (f64, f64) {
+        self.body.energy()
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.body.state().time()
+    }
+
+    /// Number of position coordinates and of degrees of freedom.
+    fn sizes(&self) -> (usize, usize) {
+        (self.body.model().nq(), self.body.model().nv())
+    }
+
+    /// Number of bodies.
+    fn __len__(&self) -> usize {
+        self.body.model().bodies().len()
+    }
+
+    /// Body names, in order.
+    fn names(&self) -> Vec<String> {
+        self.body.model().bodies().iter().map(|b| b.name.clone()).collect()
+    }
+
+    /// Body masses (kg), in order.
+    fn masses(&self) -> Vec<f64> {
+        self.body.model().bodies().iter().map(|b| b.mass).collect()
+    }
+
+    /// World positions of the body frames (n, 3) in m (a new array).
+    fn positions<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let p: Vec<DVec3> = self.body.kinematics().positions().to_vec();
+        compute::<3>(py, p.len(), &[3], |out| {
+            out.iter_mut().zip(&p).for_each(|(o, v)| *o = v.to_array());
+            Ok(())
+        })
+    }
+
+    /// World orientations of the body frames (n, 4) as (w, x, y, z) (a new array).
+    fn orientations<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let r: Vec<DQuat> = self.body.kinematics().orientations().to_vec();
+        compute::<4>(py, r.len(), &[4], |out| {
+            out.iter_mut().zip(&r).for_each(|(o, q)| *o = [q.w, q.x, q.y, q.z]);
+            Ok(())
+        })
+    }
+
+    /// The settings as a dict.
+    fn settings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.body.model().settings;
+        let d = PyDict::new(py);
+        d.set_item("gravity", s.gravity.to_array())?;
+        d.set_item(
+            "integrator",
+            if s.integrator == Integrator::Rk4 { "rk4" } else { "symplectic" },
+        )?;
+        d.set_item(
+            "servo_mode",
+            if s.servo_mode == ServoMode::Stable { "stable" } else { "explicit" },
+        )?;
+        d.set_item("ground", s.ground)?;
+        d.set_item("contact_frequency", s.contact_frequency)?;
+        d.set_item("contact_damping", s.contact_damping)?;
+        d.set_item("friction", s.friction)?;
+        d.set_item("slip_speed", s.slip_speed)?;
+        d.set_item("limit_frequency", s.limit_frequency)?;
+        d.set_item("limit_damping", s.limit_damping)?;
+        Ok(d)
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<ArticulatedModel>()?;
+    m.add_class::<ArticulatedBody>()
+}

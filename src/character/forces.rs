@@ -1,0 +1,170 @@
+//! The forces of a step other than servos: applied joint torques, viscous joint damping,
+//! joint limits as stiff one-sided spring-dampers, pushes, and ground contact as penalty
+//! spring-dampers with regularised Coulomb friction.
+//!
+//! - **Limits** (one-sided springs, not constraints): a degree of freedom past its range by
+//!   `e` gets `τ = −(k e + c ė)`, kept from pulling towards the violation, with `k = m ω²`,
+//!   `c = 2 ζ m ω` (`m = 1 / (M⁻¹)_jj` the effective inertia of the degree of freedom at the
+//!   current pose, the rest of the tree free, [`super::Settings::limit_frequency`],
+//!   [`super::Settings::limit_damping`]): a mode of frequency ω, whatever the limb. Ball joints limit the
+//!   components of the rotation vector `log(q)` about the limit axes, with rates `ω`.
+//! - **Contact** with the plane `y = 0`: every capsule end is a sphere; one of depth
+//!   `d = r − y > 0` gets at its lowest point the normal force `f_n = max(0, k d − c ẏ)`,
+//!   `k = m ω²`, `c = 2 ζ m ω` (`m` the body's mass, ω
+//!   [`super::Settings::contact_frequency`]): a body resting on one point sinks `g / ω²`.
+//!   Friction `f_t = −μ f_n v_t / max(|v_t|, v_s)` (Coulomb above the slip speed `v_s`,
+//!   viscous below). Both viscous coefficients are capped at `m / (4 dt)`, above which an
+//!   explicit step would overshoot (a capsule end's effective mass can be `m / 4`).
+
+use super::dynamics::Tree;
+use super::joints::quat;
+use super::model::{Joint, Model};
+use super::spatial::spatial;
+use super::state::Push;
+use crate::rotation::quat_to_rotvec;
+use glam::DVec3;
+
+/// Add the body forces (contacts, pushes) to `tree.f_ext` and the joint forces (applied
+/// torques, damping, limits) to `tau`, at the state of the last [`Tree::kinematics`].
+/// Pushes act with weight `min(remaining, dt) / dt` (the impulse of a push ending inside
+/// the step).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn passive(
+    model: &Model,
+    q: &[f64],
+    qd: &[f64],
+    torques: &[f64],
+    pushes: &[Push],
+    dt: f64,
+    tree: &mut Tree,
+    tau: &mut [f64],
+) {
+    tau.copy_from_slice(torques);
+    for p in pushes {
+        let w = p.remaining.min(dt) / dt;
+        let com = model.bodies()[p.body].com;
+        apply(tree, p.body, com, w * p.force);
+    }
+    if model.settings.ground {
+        contacts(model, tree, dt);
+    }
+    for (i, b) in model.bodies().iter().enumerate() {
+        let (_, iv) = model.starts(i);
+        if b.joint != Joint::Free {
+            for k in 0..b.joint.nv() {
+                tau[iv + k] -= b.damping * qd[iv + k];
+            }
+        }
+    }
+    limits(model, q, qd, tree, tau);
+}
+
+/// Add the world force `force` (N) acting at `point` (m, body frame) of body `i`.
+fn apply(tree: &mut Tree, i: usize, point: DVec3, force: DVec3) {
+    let f = tree.rot[i].conjugate() * force;
+    tree.f_ext[i] += spatial(point.cross(f), f);
+}
+
+fn contacts(model: &Model, tree: &mut Tree, dt: f64) {
+    let s = &model.settings;
+    for (i, b) in model.bodies().iter().enumerate() {
+        let Some(shape) = b.shape else { continue };
+        // Viscous coefficients above m / (4 dt) would overshoot in an explicit step.
+        let cap = b.mass / (4.0 * dt);
+        let k = b.mass * s.contact_frequency.powi(2);
+        let c = (2.0 * s.contact_damping * b.mass * s.contact_frequency).min(cap);
+        let ends: &[DVec3] =
+            if shape.a == shape.b { &[shape.a][..] } else { &[shape.a, shape.b][..] };
+        for &end in ends {
+            let centre = tree.pos[i] + tree.rot[i] * end;
+            let depth = shape.radius - centre.y;
+            if depth <= 0.0 {
+                continue;
+            }
+            let point = end + tree.rot[i].conjugate() * (-shape.radius * DVec3::Y);
+            let v = &tree.v[i];
+            let local = DVec3::new(v[3], v[4], v[5]) + DVec3::new(v[0], v[1], v[2]).cross(point);
+            let vel = tree.rot[i] * local;
+            let normal = (k * depth - c * vel.y).max(0.0);
+            let slip = DVec3::new(vel.x, 0.0, vel.z);
+            let friction = -(s.friction * normal / slip.length().max(s.slip_speed)).min(cap) * slip;
+            apply(tree, i, point, DVec3::new(friction.x, normal, friction.z));
+        }
+    }
+}
+
+/// The joint-limit torques into `tau`; the joint-space inertia and its inverse are computed
+/// (CRBA, Cholesky) only when a limit is passed.
+fn limits(model: &Model, q: &[f64], qd: &[f64], tree: &mut Tree, tau: &mut [f64]) {
+    let mut inverse: Option<nalgebra::DMatrix<f64>> = None;
+    let (w, zeta) = (model.settings.limit_frequency, model.settings.limit_damping);
+    for (i, b) in model.bodies().iter().enumerate() {
+        let Some(lim) = b.limits else { continue };
+        let (iq, iv) = model.starts(i);
+        let (axes, angles, rates): ([DVec3; 3], DVec3, DVec3) = match b.joint {
+            Joint::Revolute { .. } => (
+                [DVec3::X, DVec3::ZERO, DVec3::ZERO],
+                DVec3::new(q[iq], 0.0, 0.0),
+                DVec3::new(qd[iv], 0.0, 0.0),
+            ),
+            Joint::Ball => {
+                let f = lim.frame;
+                let r = f.conjugate() * DVec3::from_array(quat_to_rotvec(quat(&q[iq..])));
+                let om = f.conjugate() * DVec3::new(qd[iv], qd[iv + 1], qd[iv + 2]);
+                ([f * DVec3::X, f * DVec3::Y, f * DVec3::Z], r, om)
+            }
+            _ => continue,
+        };
+        let count = if b.joint == Joint::Ball { 3 } else { 1 };
+        for k in 0..count {
+            let (lo, hi) = lim.ranges[k];
+            let e = if angles[k] > hi {
+                angles[k] - hi
+            } else if angles[k] < lo {
+                angles[k] - lo
+            } else {
+                continue;
+            };
+            let minv = inverse.get_or_insert_with(|| {
+                tree.crba(model);
+                let n = tree.mass_matrix.nrows();
+                tree.mass_matrix.clone().cholesky().map_or_else(
+                    || nalgebra::DMatrix::from_element(n, n, f64::NAN),
+                    |c| c.inverse(),
+                )
+            });
+            let inertia = 1.0 / axis_inverse_inertia(minv, iv, count, axes[k]);
+            let t = -(inertia * w * w * e + 2.0 * zeta * inertia * w * rates[k]);
+            let t = if e > 0.0 { t.min(0.0) } else { t.max(0.0) };
+            if count == 1 {
+                tau[iv] += t;
+            } else {
+                for (r, a) in axes[k].to_array().iter().enumerate() {
+                    tau[iv + r] += t * a;
+                }
+            }
+        }
+    }
+}
+
+/// `aᵀ (M⁻¹)_jj a`: the inverse effective inertia of a joint's `count` degrees of freedom at
+/// `iv` about the unit direction `axis` (a revolute joint: its own), the whole tree free to
+/// respond.
+fn axis_inverse_inertia(
+    minv: &nalgebra::DMatrix<f64>,
+    iv: usize,
+    count: usize,
+    axis: DVec3,
+) -> f64 {
+    if count == 1 {
+        return minv[(iv, iv)];
+    }
+    let a = axis.to_array();
+    let mut s = 0.0;
+    for r in 0..3 {
+        for c in 0..3 {
+            s += a[r] * minv[(iv + r, iv + c)] * a[c];
+        }
+    }
+    s
+}

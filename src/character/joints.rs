@@ -1,0 +1,113 @@
+//! Joint kinematics (Featherstone 2008, §4.4, Table 4.1): each joint's transform `X_J(q)`,
+//! motion subspace `S(q)` and velocity-product term `c_J = Ṡ q̇`, and the group operations on
+//! the coordinates: `q ⊕ h q̇` (a step along the rates; quaternions by the exponential map)
+//! and `q̄ ⊖ q` (the rates that move `q` to `q̄` in unit time; quaternions by the log map).
+
+use super::model::{Joint, Model};
+use super::spatial::{spatial, SMat, SVec, Transform};
+use crate::rotation::quat_to_rotvec;
+use glam::{DQuat, DVec3};
+use nalgebra::Matrix3;
+
+/// The quaternion stored at `q[0..4]` as `(w, x, y, z)`.
+pub(super) fn quat(q: &[f64]) -> DQuat {
+    DQuat::from_xyzw(q[1], q[2], q[3], q[0])
+}
+
+fn store(q: DQuat, out: &mut [f64]) {
+    out.copy_from_slice(&[q.w, q.x, q.y, q.z]);
+}
+
+/// The body's orientation relative to its parent and the joint's translation (parent axes),
+/// from the joint's coordinates `q`.
+pub(super) fn relative(joint: Joint, q: &[f64]) -> (DQuat, DVec3) {
+    match joint {
+        Joint::Fixed => (DQuat::IDENTITY, DVec3::ZERO),
+        Joint::Revolute { axis } => (DQuat::from_axis_angle(axis, q[0]), DVec3::ZERO),
+        Joint::Ball => (quat(q), DVec3::ZERO),
+        Joint::Free => (quat(&q[3..7]), DVec3::new(q[0], q[1], q[2])),
+    }
+}
+
+/// `X_J` of the joint, from the parent's joint frame to the body frame.
+pub(super) fn transform(joint: Joint, q: &[f64]) -> Transform {
+    let (r, p) = relative(joint, q);
+    Transform::new(r, p)
+}
+
+/// The motion subspace `S` (body coordinates, its `nv` columns padded with zeros to 6) of the
+/// joint, given its transform `x_j` (a free joint's linear rate is in parent axes, so its `S`
+/// turns it by `E`).
+pub(super) fn subspace(joint: Joint, x_j: &Transform) -> SMat {
+    let mut s = SMat::zeros();
+    match joint {
+        Joint::Fixed => {}
+        Joint::Revolute { axis } => s.set_column(0, &spatial(axis, DVec3::ZERO)),
+        Joint::Ball => s.fixed_view_mut::<3, 3>(0, 0).copy_from(&Matrix3::identity()),
+        Joint::Free => {
+            s.fixed_view_mut::<3, 3>(0, 0).copy_from(&Matrix3::identity());
+            let e = Matrix3::from_column_slice(&x_j.rot.to_cols_array());
+            s.fixed_view_mut::<3, 3>(3, 3).copy_from(&e);
+        }
+    }
+    s
+}
+
+/// `c_J = Ṡ q̇` (body coordinates): zero but for a free joint, whose linear rate `v` (parent
+/// axes) seen in the turning body axes gives `[0; −ω × E v]`.
+pub(super) fn bias(joint: Joint, x_j: &Transform, qd: &[f64]) -> SVec {
+    match joint {
+        Joint::Free => {
+            let w = DVec3::new(qd[0], qd[1], qd[2]);
+            let v = x_j.rot * DVec3::new(qd[3], qd[4], qd[5]);
+            spatial(DVec3::ZERO, -w.cross(v))
+        }
+        _ => SVec::zeros(),
+    }
+}
+
+/// `out = q ⊕ h q̇` for every joint of `model`: angles and free-joint positions by `h q̇`,
+/// quaternions by `q exp(h ω / 2)` (ω in body axes), renormalised.
+pub fn integrate(model: &Model, q: &[f64], qd: &[f64], h: f64, out: &mut [f64]) {
+    for (i, b) in model.bodies().iter().enumerate() {
+        let (iq, iv) = model.starts(i);
+        let (q, qd, out) = (&q[iq..], &qd[iv..], &mut out[iq..]);
+        match b.joint {
+            Joint::Fixed => {}
+            Joint::Revolute { .. } => out[0] = q[0] + h * qd[0],
+            Joint::Ball => store(turn(quat(q), qd, h), &mut out[..4]),
+            Joint::Free => {
+                for k in 0..3 {
+                    out[k] = q[k] + h * qd[3 + k];
+                }
+                store(turn(quat(&q[3..]), qd, h), &mut out[3..7]);
+            }
+        }
+    }
+}
+
+fn turn(q: DQuat, w: &[f64], h: f64) -> DQuat {
+    (q * DQuat::from_scaled_axis(h * DVec3::new(w[0], w[1], w[2]))).normalize()
+}
+
+/// `out = target ⊖ q` per degree of freedom: angle differences, and for quaternions the
+/// rotation vector of `q⁻¹ q̄` (body axes, angle in `[0, π]`); free joints get the position
+/// difference and rotation vector.
+pub fn difference(model: &Model, target: &[f64], q: &[f64], out: &mut [f64]) {
+    for (i, b) in model.bodies().iter().enumerate() {
+        let (iq, iv) = model.starts(i);
+        let (t, q, out) = (&target[iq..], &q[iq..], &mut out[iv..]);
+        match b.joint {
+            Joint::Fixed => {}
+            Joint::Revolute { .. } => out[0] = t[0] - q[0],
+            Joint::Ball => out[..3].copy_from_slice(&quat_to_rotvec(quat(q).conjugate() * quat(t))),
+            Joint::Free => {
+                out[..3]
+                    .copy_from_slice(&quat_to_rotvec(quat(&q[3..]).conjugate() * quat(&t[3..])));
+                for k in 0..3 {
+                    out[3 + k] = t[k] - q[k];
+                }
+            }
+        }
+    }
+}

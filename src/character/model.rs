@@ -1,0 +1,385 @@
+//! The articulated model: a kinematic tree of rigid bodies joined by revolute, ball, free
+//! and fixed joints, with masses, capsule shapes, joint limits, damping, PD servos and the
+//! settings of ground contact and integration. Built body by body ([`Model::add_body`],
+//! parents first), read-only during a step.
+
+use super::spatial::{rigid_inertia, SMat, Transform};
+use crate::error::{Error, Result};
+use glam::{DMat3, DQuat, DVec3};
+
+/// The joint between a body and its parent (or the world).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub enum Joint {
+    /// No motion: the body is welded to its parent (0 coordinates).
+    Fixed,
+    /// A hinge about `axis` (unit, body and parent frames coincide at angle 0): one angle
+    /// (rad) and its rate (rad/s).
+    Revolute {
+        /// Hinge axis (unit vector, parent = body axes at angle 0).
+        axis: DVec3,
+    },
+    /// A ball joint: the body's orientation relative to its parent as a unit quaternion
+    /// `(w, x, y, z)` (4 coordinates) and its angular velocity in body axes (3 rates, rad/s).
+    Ball,
+    /// A free joint (6 DOF): the body's position (m, parent axes) and orientation `(w, x, y,
+    /// z)` relative to the parent frame (7 coordinates), and its spatial velocity in body
+    /// axes `[ω; v]` (6 rates: rad/s; m/s of the body frame's origin).
+    Free,
+}
+
+impl Joint {
+    /// Number of position coordinates.
+    pub fn nq(&self) -> usize {
+        match self {
+            Joint::Fixed => 0,
+            Joint::Revolute { .. } => 1,
+            Joint::Ball => 4,
+            Joint::Free => 7,
+        }
+    }
+
+    /// Number of velocity coordinates (degrees of freedom).
+    pub fn nv(&self) -> usize {
+        match self {
+            Joint::Fixed => 0,
+            Joint::Revolute { .. } => 1,
+            Joint::Ball => 3,
+            Joint::Free => 6,
+        }
+    }
+}
+
+/// A capsule in body coordinates: the points within `radius` (m) of the segment `a`–`b` (m).
+/// `a == b` is a sphere.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Capsule {
+    /// One end of the axis segment (m, body frame).
+    pub a: DVec3,
+    /// The other end (m, body frame).
+    pub b: DVec3,
+    /// Radius (m).
+    pub radius: f64,
+}
+
+impl Capsule {
+    /// Mass (kg), centre of mass (m, body frame) and inertia about it (kg m², body axes) of
+    /// the solid capsule of `density` (kg/m³): a cylinder of length `h` plus two hemispheres,
+    /// `I_axis = m_c r²/2 + m_s 2r²/5`, `I_⊥ = m_c (r²/4 + h²/12) + m_s (2r²/5 + h²/4 +
+    /// 3hr/8)` with `m_c = ρπr²h`, `m_s = ρ 4/3 π r³`.
+    pub fn mass_properties(&self, density: f64) -> (f64, DVec3, DMat3) {
+        let (r, axis) = (self.radius, self.b - self.a);
+        let h = axis.length();
+        let mc = density * std::f64::consts::PI * r * r * h;
+        let ms = density * 4.0 / 3.0 * std::f64::consts::PI * r * r * r;
+        let along = mc * r * r / 2.0 + ms * 2.0 * r * r / 5.0;
+        let across = mc * (r * r / 4.0 + h * h / 12.0)
+            + ms * (2.0 * r * r / 5.0 + h * h / 4.0 + 3.0 * h * r / 8.0);
+        let turn =
+            if h > 0.0 { DQuat::from_rotation_arc(DVec3::Z, axis / h) } else { DQuat::IDENTITY };
+        let m = DMat3::from_quat(turn);
+        let local = DMat3::from_diagonal(DVec3::new(across, across, along));
+        (mc + ms, 0.5 * (self.a + self.b), m * local * m.transpose())
+    }
+}
+
+/// Joint limits: for a revolute joint one `(lower, upper)` angle range (rad); for a ball
+/// joint three ranges for the components of the rotation vector `log(q)` (rad) about the
+/// axes of `frame` (its columns in body axes; ASF limits on `rx ry rz` read this way).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// `(lower, upper)` per axis (rad); a revolute joint uses the first.
+    pub ranges: [(f64, f64); 3],
+    /// Axes the ranges refer to (ball joints), as a rotation from limit axes to body axes.
+    pub frame: DQuat,
+}
+
+/// A PD servo on every degree of freedom of a joint: `τ = k_p (q̄ ⊖ q) − k_d q̇`, clamped to
+/// `±max_torque` (N m; infinite for no limit).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Servo {
+    /// Proportional gain (N m/rad).
+    pub kp: f64,
+    /// Derivative gain (N m s/rad).
+    pub kd: f64,
+    /// Torque limit per degree of freedom (N m).
+    pub max_torque: f64,
+}
+
+/// One body of the tree and the joint to its parent.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
+pub struct Body {
+    /// Name (for users; bodies are addressed by index).
+    pub name: String,
+    /// Parent body index (`None`: the world).
+    pub parent: Option<usize>,
+    /// The joint to the parent.
+    pub joint: Joint,
+    /// The joint's position in the parent's frame (m; world frame for a root). The body's
+    /// frame has its origin at the joint and the parent's axes at the joint's zero position.
+    pub offset: DVec3,
+    /// Mass (kg, > 0).
+    pub mass: f64,
+    /// Centre of mass (m, body frame).
+    pub com: DVec3,
+    /// Rotational inertia about the centre of mass (kg m², body axes; symmetric positive
+    /// definite).
+    pub inertia: DMat3,
+    /// Collision shape against the ground plane, if any.
+    pub shape: Option<Capsule>,
+    /// Joint limits, if any (revolute and ball joints).
+    pub limits: Option<Limits>,
+    /// Viscous joint damping (N m s/rad) on every rotational degree of freedom (not on free
+    /// joints).
+    pub damping: f64,
+    /// PD servo on the joint, if any (revolute and ball joints).
+    pub servo: Option<Servo>,
+}
+
+/// Time integrator of [`super::Solver::step`].
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Integrator {
+    /// Semi-implicit (symplectic) Euler: `q̇ += dt q̈(q, q̇)`, then `q ← q ⊕ dt q̇` (order 1,
+    /// symplectic for conservative forces).
+    SymplecticEuler,
+    /// Classical Runge–Kutta 4 on `(q, q̇)`, positions moved by `⊕` (quaternions by the
+    /// exponential map) from the step's start with the stages' weighted velocity (order 4).
+    Rk4,
+}
+
+/// How the PD servos are applied.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ServoMode {
+    /// `τ = k_p (q̄ ⊖ q) − k_d q̇` from the current state (stable only for small gains).
+    Explicit,
+    /// Stable PD (Tan, Liu & Turk 2011, eq. 5–8): the next step's position and velocity,
+    /// `τ = −k_p (q + dt q̇ ⊖ q̄) − k_d (q̇ + dt q̈)`, with `q̈` solved together with `τ`.
+    Stable,
+}
+
+/// Settings read by every step.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Gravity (m/s²), default `(0, −9.81, 0)`.
+    pub gravity: DVec3,
+    /// Time integrator (default symplectic Euler).
+    pub integrator: Integrator,
+    /// Servo mode (default stable PD).
+    pub servo_mode: ServoMode,
+    /// Whether the capsules collide with the ground plane `y = 0` (default true).
+    pub ground: bool,
+    /// Natural frequency (rad/s) of a body resting on a ground contact: the penalty stiffness
+    /// of a contact point is `m ω²` for a body of mass `m` (resting penetration `g/ω²`).
+    pub contact_frequency: f64,
+    /// Damping ratio ζ of the contact: damping `2 ζ m ω`.
+    pub contact_damping: f64,
+    /// Coulomb friction coefficient μ of the ground.
+    pub friction: f64,
+    /// Slip speed (m/s) below which friction is viscous (regularised Coulomb).
+    pub slip_speed: f64,
+    /// Natural frequency (rad/s) of a joint pressed against its limit: stiffness `m ω²` with
+    /// `m = 1 / (M⁻¹)_jj` the effective inertia of the degree of freedom at the current pose.
+    pub limit_frequency: f64,
+    /// Damping ratio ζ of the limit springs: damping `2 ζ m ω`.
+    pub limit_damping: f64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            gravity: DVec3::new(0.0, -9.81, 0.0),
+            integrator: Integrator::SymplecticEuler,
+            servo_mode: ServoMode::Stable,
+            ground: true,
+            contact_frequency: 60.0,
+            contact_damping: 1.0,
+            friction: 1.0,
+            slip_speed: 0.05,
+            limit_frequency: 40.0,
+            limit_damping: 1.0,
+        }
+    }
+}
+
+/// The articulated model: bodies in parent-first order, the settings and the layout of the
+/// coordinates (`q`: `nq` numbers, `q̇`: `nv` numbers, each body's joint in order).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq, Default)]
+pub struct Model {
+    pub(super) bodies: Vec<Body>,
+    /// Settings read by every step (free to change between steps).
+    pub settings: Settings,
+    /// Start of each body's joint in `q`.
+    pub(super) q_start: Vec<usize>,
+    /// Start of each body's joint in `q̇`.
+    pub(super) v_start: Vec<usize>,
+    /// Spatial inertia of each body at its frame's origin.
+    pub(super) inertias: Vec<SMat>,
+    /// The fixed part of each body's transform from its parent, `xlt(offset)`.
+    pub(super) tree: Vec<Transform>,
+}
+
+impl Model {
+    /// An empty model with `settings`.
+    pub fn new(settings: Settings) -> Self {
+        Model { settings, ..Model::default() }
+    }
+
+    /// Append `body` (its parent must already be in the model) and return its index.
+    ///
+    /// # Errors
+    /// A parent not yet added (`parent`), a non-finite or non-positive mass (`mass`), an
+    /// inertia that is not symmetric positive definite or non-finite values (`inertia`,
+    /// `com`, `offset`), a zero hinge axis (`axis`), limits on a joint without angles or
+    /// with lower > upper (`limits`), a negative damping (`damping`), a shape of negative
+    /// radius (`shape`), a servo on a free or fixed joint or with negative gains (`servo`).
+    pub fn add_body(&mut self, mut body: Body) -> Result<usize> {
+        check_body(&body, self.bodies.len())?;
+        if let Joint::Revolute { axis } = &mut body.joint {
+            *axis = axis.normalize();
+        }
+        self.q_start.push(self.nq());
+        self.v_start.push(self.nv());
+        self.inertias.push(rigid_inertia(body.mass, body.com, body.inertia));
+        self.tree.push(Transform { rot: DMat3::IDENTITY, pos: body.offset });
+        self.bodies.push(body);
+        Ok(self.bodies.len() - 1)
+    }
+
+    /// The bodies, parents first.
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+
+    /// Number of position coordinates.
+    pub fn nq(&self) -> usize {
+        self.bodies.iter().map(|b| b.joint.nq()).sum()
+    }
+
+    /// Number of degrees of freedom.
+    pub fn nv(&self) -> usize {
+        self.bodies.iter().map(|b| b.joint.nv()).sum()
+    }
+
+    /// Total mass (kg).
+    pub fn mass(&self) -> f64 {
+        self.bodies.iter().map(|b| b.mass).sum()
+    }
+
+    /// The start of body `i`'s joint in `q` and in `q̇`.
+    pub fn starts(&self, i: usize) -> (usize, usize) {
+        (self.q_start[i], self.v_start[i])
+    }
+
+    /// The coordinates of the zero pose: angles 0, identity quaternions, free joints at the
+    /// origin of their parent frame.
+    pub fn neutral(&self) -> Vec<f64> {
+        let mut q = Vec::with_capacity(self.nq());
+        for b in &self.bodies {
+            match b.joint {
+                Joint::Fixed => {}
+                Joint::Revolute { .. } => q.push(0.0),
+                Joint::Ball => q.extend([1.0, 0.0, 0.0, 0.0]),
+                Joint::Free => q.extend([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]),
+            }
+        }
+        q
+    }
+
+    /// Set a PD servo on body `body`'s joint (or remove it with `None`).
+    ///
+    /// # Errors
+    /// `body` out of range (`body`); a servo that [`Model::add_body`] would refuse.
+    pub fn set_servo(&mut self, body: usize, servo: Option<Servo>) -> Result<()> {
+        let Some(b) = self.bodies.get(body) else {
+            return Err(Error::invalid("body", "beyond the last body"));
+        };
+        check_servo(b.joint, servo.as_ref())?;
+        self.bodies[body].servo = servo;
+        Ok(())
+    }
+
+    /// Check the settings (called by every step).
+    ///
+    /// # Errors
+    /// A non-finite gravity or a negative or non-finite contact or limit parameter (named).
+    pub fn check_settings(&self) -> Result<()> {
+        let s = &self.settings;
+        if !s.gravity.is_finite() {
+            return Err(Error::invalid("gravity", "must be finite"));
+        }
+        for (name, v) in [
+            ("contact_frequency", s.contact_frequency),
+            ("contact_damping", s.contact_damping),
+            ("friction", s.friction),
+            ("limit_frequency", s.limit_frequency),
+            ("limit_damping", s.limit_damping),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::invalid(name, "must be finite and >= 0"));
+            }
+        }
+        if !(s.slip_speed.is_finite() && s.slip_speed > 0.0) {
+            return Err(Error::invalid("slip_speed", "must be finite and > 0"));
+        }
+        Ok(())
+    }
+}
+
+/// The checks of [`Model::add_body`] for a body that would get index `index`.
+fn check_body(body: &Body, index: usize) -> Result<()> {
+    if body.parent.is_some_and(|p| p >= index) {
+        return Err(Error::invalid("parent", "must be a body added before"));
+    }
+    if !(body.mass.is_finite() && body.mass > 0.0) {
+        return Err(Error::invalid("mass", "must be finite and > 0"));
+    }
+    if !body.com.is_finite() {
+        return Err(Error::invalid("com", "must be finite"));
+    }
+    if !body.offset.is_finite() {
+        return Err(Error::invalid("offset", "must be finite"));
+    }
+    let i = body.inertia;
+    let size = i.to_cols_array().iter().fold(0.0_f64, |a, b| a.max(b.abs()));
+    let asymmetry = (i - i.transpose()).to_cols_array().iter().fold(0.0_f64, |a, b| a.max(b.abs()));
+    let symmetric = asymmetry <= 1e-12 * size;
+    let minors = [i.x_axis.x, i.x_axis.x * i.y_axis.y - i.x_axis.y * i.y_axis.x, i.determinant()];
+    if !(i.is_finite() && symmetric && minors.iter().all(|&m| m > 0.0)) {
+        return Err(Error::invalid("inertia", "must be finite, symmetric and positive definite"));
+    }
+    if let Joint::Revolute { axis } = body.joint {
+        if !(axis.is_finite() && axis.length() > 1e-12) {
+            return Err(Error::invalid("axis", "must be a finite non-zero vector"));
+        }
+    }
+    if let Some(l) = &body.limits {
+        let angular = matches!(body.joint, Joint::Revolute { .. } | Joint::Ball);
+        let ordered = l.ranges.iter().all(|(lo, hi)| !lo.is_nan() && !hi.is_nan() && lo <= hi);
+        if !(angular && ordered && l.frame.is_finite() && l.frame.length() > 1e-12) {
+            return Err(Error::invalid(
+                "limits",
+                "need a revolute or ball joint and lower <= upper",
+            ));
+        }
+    }
+    if !(body.damping.is_finite() && body.damping >= 0.0) {
+        return Err(Error::invalid("damping", "must be finite and >= 0"));
+    }
+    if let Some(c) = &body.shape {
+        if !(c.a.is_finite() && c.b.is_finite() && c.radius.is_finite() && c.radius >= 0.0) {
+            return Err(Error::invalid("shape", "needs finite ends and a radius >= 0"));
+        }
+    }
+    check_servo(body.joint, body.servo.as_ref())
+}
+
+fn check_servo(joint: Joint, servo: Option<&Servo>) -> Result<()> {
+    let Some(s) = servo else { return Ok(()) };
+    if !matches!(joint, Joint::Revolute { .. } | Joint::Ball) {
+        return Err(Error::invalid("servo", "only revolute and ball joints have servos"));
+    }
+    let ok = [s.kp, s.kd].iter().all(|v| v.is_finite() && *v >= 0.0) && s.max_torque >= 0.0;
+    if !ok {
+        return Err(Error::invalid("servo", "gains must be finite and >= 0, max_torque >= 0"));
+    }
+    Ok(())
+}

@@ -1,0 +1,175 @@
+//! Time stepping of an articulated [`State`]: the forward dynamics of a step's forces
+//! ([`Solver::accelerations`]: passive forces, servos, then the ABA or the stable-PD solve)
+//! and the two integrators of [`Integrator`].
+//!
+//! Runge–Kutta 4 follows MuJoCo's `mj_RungeKutta`: the stages are
+//! `(q ⊕ cᵢ dt vᵢ₋₁, q̇ + cᵢ dt aᵢ₋₁)`, and the step moves `q` once from its start by the
+//! weighted stage velocities, `q ⊕ dt Σ bᵢ vᵢ`, and `q̇` by `dt Σ bᵢ aᵢ`.
+
+use super::dynamics::Tree;
+use super::forces::passive;
+use super::joints::integrate;
+use super::model::{Integrator, Model, ServoMode};
+use super::servo::{self, ServoWork};
+use super::state::State;
+use crate::error::{Error, Result};
+
+/// Workspaces of the steps. It carries nothing a later step reads: one solver advances any
+/// number of states of one model, bitwise as if each had its own.
+#[derive(Clone, Debug, Default)]
+pub struct Solver {
+    tree: Tree,
+    servo: ServoWork,
+    tau: Vec<f64>,
+    /// RK4: stage positions and rates, and the four stages' rates and accelerations.
+    stage_q: Vec<f64>,
+    stage_qd: Vec<f64>,
+    vel: [Vec<f64>; 4],
+    acc: [Vec<f64>; 4],
+    start: Option<State>,
+}
+
+impl Solver {
+    /// A solver for `model` (workspaces are sized on first use).
+    pub fn new(model: &Model) -> Self {
+        let mut s = Solver::default();
+        s.tree.resize(model);
+        s
+    }
+
+    /// The workspace of the recursive algorithms, for [`Solver::kinematics`] results.
+    pub fn tree(&self) -> &Tree {
+        &self.tree
+    }
+
+    /// Run the kinematics of `state` (positions, velocities of every body) into
+    /// [`Solver::tree`] and return it.
+    pub fn kinematics(&mut self, model: &Model, state: &State) -> &mut Tree {
+        self.tree.kinematics(model, &state.q, &state.qd);
+        &mut self.tree
+    }
+
+    /// The accelerations `qdd` (`nv`) of `state`'s inputs at `(q, q̇)` for a step `dt`
+    /// (pushes, contacts, damping, limits, applied torques, servos, gravity).
+    pub fn accelerations(
+        &mut self,
+        model: &Model,
+        state: &State,
+        q: &[f64],
+        qd: &[f64],
+        dt: f64,
+        qdd: &mut [f64],
+    ) {
+        let tree = &mut self.tree;
+        tree.kinematics(model, q, qd);
+        self.tau.resize(model.nv(), 0.0);
+        passive(model, q, qd, &state.torques, &state.pushes, dt, tree, &mut self.tau);
+        if servo::any(model) && model.settings.servo_mode == ServoMode::Stable {
+            servo::stable(
+                model,
+                q,
+                qd,
+                &state.targets,
+                dt,
+                tree,
+                &mut self.servo,
+                &mut self.tau,
+                qdd,
+            );
+        } else {
+            servo::explicit(model, q, qd, &state.targets, &mut self.servo, &mut self.tau);
+            tree.aba(model, &self.tau, qdd);
+        }
+    }
+
+    /// Advance `state` by `steps` steps of `dt` seconds with the model's integrator.
+    ///
+    /// # Errors
+    /// `dt` not finite and > 0 (`dt`); settings out of range (named); a state of another
+    /// model (`state`); a non-finite or exploding state (`Diverged`, with the step and the
+    /// first bad rate) — the state is then exactly as before the call.
+    pub fn step(&mut self, model: &Model, state: &mut State, dt: f64, steps: usize) -> Result<()> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Error::invalid("dt", "must be finite and > 0"));
+        }
+        model.check_settings()?;
+        if state.q.len() != model.nq() || state.qd.len() != model.nv() {
+            return Err(Error::invalid("state", "is not a state of this model"));
+        }
+        let mut start = self.start.take().unwrap_or_else(|| state.clone());
+        start.clone_from(state);
+        let mut result = Ok(());
+        for n in 0..steps {
+            match model.settings.integrator {
+                Integrator::SymplecticEuler => self.euler(model, state, dt),
+                Integrator::Rk4 => self.rk4(model, state, dt),
+            }
+            state.time += dt;
+            for p in &mut state.pushes {
+                p.remaining -= dt;
+            }
+            state.pushes.retain(|p| p.remaining > 0.0);
+            let bad = state.q.iter().chain(&state.qd).position(|v| !(v.abs() < 1e8));
+            if let Some(index) = bad {
+                result = Err(Error::Diverged {
+                    step: n,
+                    index,
+                    reason: "non-finite or exploding joint state".into(),
+                });
+                state.clone_from(&start);
+                break;
+            }
+        }
+        self.start = Some(start);
+        result
+    }
+
+    fn euler(&mut self, model: &Model, state: &mut State, dt: f64) {
+        let mut acc = std::mem::take(&mut self.acc[0]);
+        let (mut sq, mut sqd) =
+            (std::mem::take(&mut self.stage_q), std::mem::take(&mut self.stage_qd));
+        acc.resize(model.nv(), 0.0);
+        sq.clone_from(&state.q);
+        sqd.clone_from(&state.qd);
+        self.accelerations(model, state, &sq, &sqd, dt, &mut acc);
+        for (v, a) in state.qd.iter_mut().zip(&acc) {
+            *v += dt * a;
+        }
+        integrate(model, &sq, &state.qd, dt, &mut state.q);
+        (self.acc[0], self.stage_q, self.stage_qd) = (acc, sq, sqd);
+    }
+
+    fn rk4(&mut self, model: &Model, state: &mut State, dt: f64) {
+        const C: [f64; 4] = [0.0, 0.5, 0.5, 1.0];
+        const B: [f64; 4] = [1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0];
+        let (nq, nv) = (model.nq(), model.nv());
+        let mut vel = std::mem::take(&mut self.vel);
+        let mut acc = std::mem::take(&mut self.acc);
+        let (mut sq, mut sqd) =
+            (std::mem::take(&mut self.stage_q), std::mem::take(&mut self.stage_qd));
+        sq.resize(nq, 0.0);
+        sqd.resize(nv, 0.0);
+        for k in 0..4 {
+            vel[k].resize(nv, 0.0);
+            acc[k].resize(nv, 0.0);
+            if k == 0 {
+                sq.copy_from_slice(&state.q);
+                sqd.copy_from_slice(&state.qd);
+            } else {
+                integrate(model, &state.q, &vel[k - 1], C[k] * dt, &mut sq);
+                for j in 0..nv {
+                    sqd[j] = state.qd[j] + C[k] * dt * acc[k - 1][j];
+                }
+            }
+            vel[k].copy_from_slice(&sqd);
+            self.accelerations(model, state, &sq, &sqd, dt, &mut acc[k]);
+        }
+        for j in 0..nv {
+            sqd[j] = (0..4).map(|k| B[k] * vel[k][j]).sum();
+            state.qd[j] += dt * (0..4).map(|k| B[k] * acc[k][j]).sum::<f64>();
+        }
+        sq.copy_from_slice(&state.q);
+        integrate(model, &sq, &sqd, dt, &mut state.q);
+        (self.vel, self.acc, self.stage_q, self.stage_qd) = (vel, acc, sq, sqd);
+    }
+}
