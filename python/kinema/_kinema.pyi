@@ -136,6 +136,7 @@ def ode_solve_fixed(
 ) -> tuple[_F64, int, int]: ...
 def ode_solve_adaptive(
     f: Callable[[float, _F64], Any],
+    method: str,
     y0: _F64,
     t0: float,
     t1: float,

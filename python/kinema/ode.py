@@ -1,4 +1,5 @@
-"""Time integration: fixed-step methods, Dormand–Prince 5(4), and their stability analysis.
+"""Time integration: fixed-step methods, adaptive Dormand–Prince pairs, and their stability
+analysis.
 
 Methods (``method=``), each with its order and stability function ``R(z)`` on ``y' = λy``:
 
@@ -14,9 +15,11 @@ name                          order  notes
 ``trapezoidal``               2      A-stable (Crank–Nicolson)
 ``bdf2``                      2      A-stable two-step BDF (variable step)
 ``dopri5``                    5(4)   adaptive, ``rtol``/``atol`` instead of ``dt``
+``dop853``                    8(5,3) adaptive (Hairer's DOP853), for tight tolerances
 ============================  =====  =============================================
 
-Sources: Hairer, Nørsett & Wanner, *Solving ODEs I* (explicit RK, Dormand & Prince 1980);
+Sources: Hairer, Nørsett & Wanner, *Solving ODEs I* (explicit RK, Dormand & Prince 1980,
+Prince & Dormand 1981, §II.10 for DOP853);
 Hairer & Wanner, *Solving ODEs II* (implicit methods); Hairer, Lubich & Wanner, *Geometric
 Numerical Integration* (symplectic methods). The integrators run in Rust; ``f`` is called from
 Rust once per stage, so for small systems the cost is dominated by the Python call.
@@ -36,6 +39,7 @@ from kinema import _kinema
 from kinema._array import real
 
 __all__ = [
+    "ADAPTIVE",
     "METHODS",
     "PROBLEMS",
     "Problem",
@@ -49,7 +53,9 @@ __all__ = [
 ]
 
 METHODS: dict[str, int] = {name: order for name, order, _, _ in _kinema.ode_methods()}
-"""Fixed-step method names and their orders (``dopri5`` is the adaptive one)."""
+"""Fixed-step method names and their orders (see :data:`ADAPTIVE` for the adaptive ones)."""
+ADAPTIVE: dict[str, int] = {"dopri5": 5, "dop853": 8}
+"""Adaptive method names (embedded Runge–Kutta pairs) and the orders of their solutions."""
 METHODS_SECOND_ORDER = {name for name, _, _, second in _kinema.ode_methods() if second}
 
 
@@ -88,9 +94,9 @@ def solve(
 
     Fixed-step methods need ``dt`` (s): ``ceil((t1 - t0) / dt)`` equal steps are taken so
     that the last lands on ``t1``; ``t`` is ``(M,)`` and ``y`` is ``(M, n)``. ``method="dopri5"``
-    adapts the step to keep the local error below ``atol + rtol |y|`` and returns the accepted
+    (scipy's ``RK45``) and ``method="dop853"`` (scipy's ``DOP853``) adapt the step to keep the local error below ``atol + rtol |y|`` and returns the accepted
     steps. Either way at most ``max_steps`` steps are taken: a ``dt`` that needs more raises
-    ValueError naming ``dt`` before anything is allocated, dopri5 raises
+    ValueError naming ``dt`` before anything is allocated, the adaptive methods raise
     ``kinema.SimulationError`` when it runs out. Implicit methods use ``jac(t, y) -> (n, n)`` when given, else finite differences.
 
     Raises ValueError for bad arguments, ``kinema.SimulationError`` when the state diverges
@@ -102,13 +108,13 @@ def solve(
         raise ValueError("f: expected a callable f(t, y)")
     if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
         raise ValueError(f"max_steps: expected a positive integer, got {max_steps!r}")
-    if method == "dopri5":
+    if method in ADAPTIVE:
         t, states, _, _ = _kinema.ode_solve_adaptive(
-            f, y, t0, t1, real(rtol, "rtol"), real(atol, "atol"), max_steps
+            f, method, y, t0, t1, real(rtol, "rtol"), real(atol, "atol"), max_steps
         )
         return t, states
     if method not in METHODS:
-        raise ValueError(f"method: {method!r} is not one of {', '.join([*METHODS, 'dopri5'])}")
+        raise ValueError(f"method: {method!r} is not one of {', '.join([*METHODS, *ADAPTIVE])}")
     if dt is None or not (real(dt, "dt") > 0 and math.isfinite(real(dt, "dt"))):
         raise ValueError(f"dt: fixed-step method {method!r} needs a positive finite dt, got {dt!r}")
     count = (t1 - t0) / real(dt, "dt")
@@ -301,8 +307,8 @@ def work_precision(
 ) -> list[WorkPrecisionRow]:
     """Error against cost for each method and step on a problem with a known solution.
 
-    The error is the max-norm of the difference from the exact final state; for ``dopri5`` the
-    ``dts`` are read as tolerances (``rtol = dt``, ``atol = dt * 1e-3``). Second-order methods
+    The error is the max-norm of the difference from the exact final state; for the adaptive
+    methods (:data:`ADAPTIVE`) the ``dts`` are read as tolerances (``rtol = dt``, ``atol = dt * 1e-3``). Second-order methods
     are skipped on first-order problems. Wall time includes the Python callback of ``f``;
     ``nfev`` is the cost measure that does not depend on the machine.
     """
@@ -328,8 +334,8 @@ def work_precision(
         for dt in dts:
             calls[0] = 0
             start = time.perf_counter()
-            if method == "dopri5":
-                _, y = solve(f, prob.y0, prob.t_span, method="dopri5", rtol=dt, atol=dt * 1e-3)
+            if method in ADAPTIVE:
+                _, y = solve(f, prob.y0, prob.t_span, method=method, rtol=dt, atol=dt * 1e-3)
             else:
                 _, y = solve(f, prob.y0, prob.t_span, dt=dt, method=method, jac=prob.jac)
             elapsed = time.perf_counter() - start

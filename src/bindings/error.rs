@@ -111,7 +111,18 @@ where
     T: Send,
     F: FnOnce() -> Result<T, Error> + Send,
 {
-    let pool = POOL.read().unwrap_or_else(|e| e.into_inner()).clone();
+    detached_on(py, true, f)
+}
+
+/// [`detached`], on the chosen thread pool only when `parallel`: work too small to be shared
+/// out runs on the calling thread, since handing it to a pool wakes a pool thread and waits
+/// for it on every call.
+pub fn detached_on<T, F>(py: Python<'_>, parallel: bool, f: F) -> PyResult<T>
+where
+    T: Send,
+    F: FnOnce() -> Result<T, Error> + Send,
+{
+    let pool = if parallel { POOL.read().unwrap_or_else(|e| e.into_inner()).clone() } else { None };
     py.detach(move || match pool {
         Some(pool) => pool.install(f),
         None => f(),

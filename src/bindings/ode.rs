@@ -4,11 +4,11 @@ use super::args::Int;
 use super::array::{compute, rows};
 use crate::error::{filled, too_large, Error};
 use crate::ode::{
-    max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function, Method, OdeSystem,
-    Stepper,
+    max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function, Adaptive, Method,
+    OdeSystem, Stepper,
 };
 use nalgebra::{Complex, DMatrix};
-use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn};
+use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 type Array<'py> = Bound<'py, PyArrayDyn<f64>>;
@@ -21,27 +21,45 @@ struct PySystem<'py> {
     jac: Option<Bound<'py, PyAny>>,
     n: usize,
     error: Option<PyErr>,
+    /// The Jacobian as `jac` returned it, row-major (kept between calls).
+    jac_rows: Vec<f64>,
 }
 
 impl PySystem<'_> {
+    /// Call `func(t, y)` and write its result, raveled, into `out`. A C-contiguous float64
+    /// array (what a numpy right-hand side returns) is copied straight from its buffer; anything
+    /// else goes through `numpy.asarray(r, "float64").ravel()` first.
     fn call(
         &mut self,
         func: &Bound<'_, PyAny>,
         t: f64,
         y: &[f64],
-        expect: usize,
+        out: &mut [f64],
         what: &str,
-    ) -> crate::Result<Vec<f64>> {
-        let arr = PyArray1::from_slice(self.py, y);
+    ) -> crate::Result<()> {
+        let py = self.py;
+        let arr = PyArray1::from_slice(py, y);
         let result = func.call1((t, arr)).and_then(|r| {
-            let np = self.py.import("numpy")?;
-            np.call_method1("ravel", (np.call_method1("asarray", (r, "float64"))?,))?
-                .extract::<Vec<f64>>()
+            let r = match r.cast_into::<PyArrayDyn<f64>>() {
+                Ok(a) if a.is_c_contiguous() => a,
+                Ok(a) => as_float_array(py, a.into_any())?,
+                Err(e) => as_float_array(py, e.into_inner())?,
+            };
+            let values = r.try_readonly()?;
+            Ok(values.as_slice().map(|v| {
+                if v.len() == out.len() {
+                    out.copy_from_slice(v);
+                }
+                v.len()
+            }))
         });
         match result {
-            Ok(v) if v.len() == expect => Ok(v),
-            Ok(v) => {
-                Err(Error::invalid(what, format!("returned {} values, expected {expect}", v.len())))
+            Ok(Ok(len)) if len == out.len() => Ok(()),
+            Ok(Ok(len)) => {
+                Err(Error::invalid(what, format!("returned {len} values, expected {}", out.len())))
+            }
+            Ok(Err(_)) => {
+                Err(Error::invalid(what, "returned an array numpy cannot make contiguous"))
             }
             Err(e) => {
                 self.error = Some(e);
@@ -51,25 +69,36 @@ impl PySystem<'_> {
     }
 }
 
+/// `numpy.ascontiguousarray(r, "float64").ravel()`.
+fn as_float_array<'py>(
+    py: Python<'py>,
+    r: Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let np = py.import("numpy")?;
+    let a = np.call_method1("ascontiguousarray", (r, "float64"))?;
+    Ok(a.call_method0("ravel")?.cast_into::<PyArrayDyn<f64>>()?)
+}
+
 impl OdeSystem for PySystem<'_> {
     fn dim(&self) -> usize {
         self.n
     }
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> crate::Result<()> {
         let f = self.f.clone();
-        let v = self.call(&f, t, y, self.n, "f")?;
-        dydt.copy_from_slice(&v);
-        Ok(())
+        self.call(&f, t, y, dydt, "f")
     }
     fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut DMatrix<f64>) -> crate::Result<bool> {
         let Some(j) = self.jac.clone() else { return Ok(false) };
-        let v = self.call(&j, t, y, self.n * self.n, "jac")?;
+        let mut rows = std::mem::take(&mut self.jac_rows);
+        rows.resize(self.n * self.n, 0.0);
+        let result = self.call(&j, t, y, &mut rows, "jac");
         for r in 0..self.n {
             for c in 0..self.n {
-                jac[(r, c)] = v[r * self.n + c];
+                jac[(r, c)] = rows[r * self.n + c];
             }
         }
-        Ok(true)
+        self.jac_rows = rows;
+        result.map(|()| true)
     }
 }
 
@@ -109,7 +138,7 @@ fn ode_solve_fixed<'py>(
         )
         .into());
     }
-    let mut system = PySystem { py, f, jac, n, error: None };
+    let mut system = PySystem { py, f, jac, n, error: None, jac_rows: Vec::new() };
     let mut stepper = Stepper::new(method, n)?;
     let h = (t1 - t0) / steps as f64;
     let len = steps.checked_add(1).and_then(|m| m.checked_mul(n));
@@ -128,12 +157,14 @@ fn ode_solve_fixed<'py>(
     Ok((states, stepper.history.nfev, stepper.history.njev))
 }
 
-/// Dormand–Prince 5(4) solve; returns (times (M,), states (M, n), nfev, rejected).
+/// Adaptive solve with the embedded pair `method` ("dopri5", "dop853"); returns (times (M,),
+/// states (M, n), nfev, rejected).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 fn ode_solve_adaptive<'py>(
     py: Python<'py>,
     f: Bound<'py, PyAny>,
+    method: &str,
     y0: PyReadonlyArrayDyn<'py, f64>,
     t0: f64,
     t1: f64,
@@ -142,13 +173,14 @@ fn ode_solve_adaptive<'py>(
     max_steps: Int,
 ) -> PyResult<(Array<'py>, Array<'py>, usize, usize)> {
     let max_steps = max_steps.count("max_steps")?;
+    let method = Adaptive::parse(method)?;
     let y0 = y0
         .as_slice()
         .map_err(|_| PyErr::from(Error::invalid("y0", "must be contiguous")))?
         .to_vec();
     let n = y0.len();
-    let mut system = PySystem { py, f, jac: None, n, error: None };
-    let r = solve_adaptive(&mut system, &y0, t0, t1, rtol, atol, max_steps);
+    let mut system = PySystem { py, f, jac: None, n, error: None, jac_rows: Vec::new() };
+    let r = solve_adaptive(&mut system, method, &y0, t0, t1, rtol, atol, max_steps);
     let sol = finish(&mut system, r)?;
     let m = sol.t.len();
     let t = numpy::PyArray1::from_vec(py, sol.t).to_dyn().clone();

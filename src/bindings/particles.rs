@@ -2,13 +2,15 @@
 
 use super::args::Int;
 use super::array::{compute, rows};
-use super::error::detached;
+use super::error::detached_on;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::error::Error;
 use crate::geometry::Material;
 use crate::ode::Method;
-use crate::particles::{Appearance, Collider, Emitter, Force, ParticleSystem, State, StepStats};
+use crate::particles::{
+    Appearance, Collider, Emitter, Force, ParticleSystem, State, StepStats, SERIAL_CAPACITY,
+};
 use crate::snapshot::Snapshot;
 use glam::DVec3;
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
@@ -226,7 +228,8 @@ impl Particles {
         let steps = steps.count("steps")?;
         let method = Method::parse(method)?;
         let system = &mut self.system;
-        detached(py, || system.step_with_jacobian(dt, steps, method, sparse_jacobian))
+        let parallel = system.capacity() > SERIAL_CAPACITY;
+        detached_on(py, parallel, || system.step_with_jacobian(dt, steps, method, sparse_jacobian))
     }
 
     /// Read-only view (capacity, 3) of the positions (m), updated in place by `step`.
@@ -356,6 +359,7 @@ impl Particles {
         d.set_item("dropped", s.dropped)?;
         d.set_item("expired", s.expired)?;
         d.set_item("contacts", s.contacts)?;
+        d.set_item("factorizations", s.factorizations)?;
         Ok(d)
     }
 }

@@ -1,33 +1,83 @@
-//! Dormand–Prince 5(4) with error control (Dormand & Prince 1980, "A family of embedded
-//! Runge–Kutta formulae", J. Comp. Appl. Math. 6; step-size control as in Hairer, Nørsett &
-//! Wanner, *Solving ODEs I*, §II.4).
+//! Adaptive explicit Runge–Kutta integration with error control: the driver shared by the
+//! embedded pairs ([`Adaptive`]: Dormand–Prince 5(4) in `dopri5.rs`, DOP853 in `dop853.rs`);
+//! step-size control as in Hairer, Nørsett & Wanner, *Solving ODEs I*, §II.4.
 
-// Numeric kernels index several arrays in step; index loops read closest to the formulas.
-#![allow(clippy::needless_range_loop)]
-
+use super::dop853::Dop853;
+use super::dopri5::Dopri5;
 use super::OdeSystem;
 use crate::error::{reserve, Error, Result};
 
-const C: [f64; 7] = [0.0, 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0, 1.0];
-const A: [[f64; 6]; 7] = [
-    [0.0; 6],
-    [1.0 / 5.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0, 0.0],
-    [44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0, 0.0],
-    [19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0, 0.0, 0.0],
-    [9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0, 0.0],
-    [35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0],
-];
-/// Fifth-order weights minus the embedded fourth-order ones.
-const E: [f64; 7] = [
-    35.0 / 384.0 - 5179.0 / 57600.0,
-    0.0,
-    500.0 / 1113.0 - 7571.0 / 16695.0,
-    125.0 / 192.0 - 393.0 / 640.0,
-    -2187.0 / 6784.0 + 92097.0 / 339200.0,
-    11.0 / 84.0 - 187.0 / 2100.0,
-    -1.0 / 40.0,
-];
+/// An embedded Runge–Kutta pair of [`solve_adaptive`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Adaptive {
+    /// Dormand–Prince 5(4), seven stages of which the last is the next step's first (six
+    /// evaluations per step); scipy's `RK45`.
+    Dopri5,
+    /// Dormand–Prince 8(5,3), twelve evaluations per step; scipy's `DOP853`.
+    Dop853,
+}
+
+impl Adaptive {
+    /// The pairs, in the order of the docs.
+    pub const ALL: [Adaptive; 2] = [Adaptive::Dopri5, Adaptive::Dop853];
+
+    /// The name as the Python API spells it (`"dopri5"`, `"dop853"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Adaptive::Dopri5 => "dopri5",
+            Adaptive::Dop853 => "dop853",
+        }
+    }
+
+    /// Parse a name of [`Adaptive::name`].
+    ///
+    /// # Errors
+    /// An unknown name, listing the known ones.
+    pub fn parse(name: &str) -> Result<Self> {
+        Adaptive::ALL.into_iter().find(|m| m.name() == name).ok_or_else(|| {
+            let known: Vec<&str> = Adaptive::ALL.iter().map(|m| m.name()).collect();
+            Error::invalid("method", format!("{name:?} is not one of {}", known.join(", ")))
+        })
+    }
+
+    /// Order of the propagated solution.
+    pub fn order(self) -> u32 {
+        match self {
+            Adaptive::Dopri5 => 5,
+            Adaptive::Dop853 => 8,
+        }
+    }
+}
+
+/// What the driver needs of an embedded pair.
+pub(super) trait Pair {
+    /// Stage derivatives kept (`k[0]` is `f(t, y)` at the start of a step).
+    const STAGES: usize;
+    /// Order of the propagated solution: the step changes by `0.9 err^(-1/ORDER)`.
+    const ORDER: f64;
+    /// Smallest and largest factor of a step change.
+    const FACTORS: (f64, f64);
+    /// The stages after the first of a step of `h` from `(t, y)` into `k[1..]`, and the
+    /// propagated solution into `y_new`; returns the evaluations made.
+    fn stages<S: OdeSystem>(
+        sys: &mut S,
+        t: f64,
+        h: f64,
+        y: &[f64],
+        k: &mut [Vec<f64>],
+        y_new: &mut [f64],
+    ) -> Result<usize>;
+    /// The scaled error of the step just taken (accepted when `<= 1`).
+    fn error(tol: &Tolerance, h: f64, k: &[Vec<f64>], y: &[f64], y_new: &[f64]) -> f64;
+    /// Put `f(t, y_new)` (with `t` the new time) into `k[0]` after an accepted step; returns
+    /// the evaluations made.
+    fn advance<S: OdeSystem>(
+        sys: &mut S,
+        t: f64,
+        y_new: &[f64],
+        k: &mut [Vec<f64>],
+    ) -> Result<usize>;
+}
 
 /// The accepted steps of an adaptive run.
 #[derive(Clone, Debug, Default)]
@@ -42,17 +92,20 @@ pub struct AdaptiveSolution {
     pub rejected: usize,
 }
 
-/// Integrate from `t0` to `t1 > t0` with local error per step below
-/// `atol + rtol |y|` (root-mean-square norm), using at most `max_steps` accepted steps.
+/// Integrate from `t0` to `t1 > t0` with the embedded pair `method`, keeping the local error
+/// per step below `atol + rtol |y|` (root-mean-square norm), using at most `max_steps`
+/// accepted steps.
 ///
-/// The propagated solution is the fifth-order one (local extrapolation), so at tight
-/// tolerances the observed order is 5.
+/// The propagated solution is the higher-order one (local extrapolation), so at tight
+/// tolerances the observed order is the pair's [`Adaptive::order`].
 ///
 /// # Errors
 /// Bad arguments, a system error, a step size underflow, too many steps, or a non-finite
 /// state.
+#[allow(clippy::too_many_arguments)]
 pub fn solve_adaptive<S: OdeSystem>(
     sys: &mut S,
+    method: Adaptive,
     y0: &[f64],
     t0: f64,
     t1: f64,
@@ -63,9 +116,25 @@ pub fn solve_adaptive<S: OdeSystem>(
     let n = sys.dim();
     check_arguments(n, y0, t0, t1, rtol, atol)?;
     let tol = Tolerance { rtol, atol };
+    match method {
+        Adaptive::Dopri5 => run::<Dopri5, S>(sys, &tol, y0, t0, t1, max_steps),
+        Adaptive::Dop853 => run::<Dop853, S>(sys, &tol, y0, t0, t1, max_steps),
+    }
+}
+
+/// [`solve_adaptive`] with the pair `P`, the arguments checked.
+fn run<P: Pair, S: OdeSystem>(
+    sys: &mut S,
+    tol: &Tolerance,
+    y0: &[f64],
+    t0: f64,
+    t1: f64,
+    max_steps: usize,
+) -> Result<AdaptiveSolution> {
+    let n = y0.len();
     let mut out = AdaptiveSolution { t: vec![t0], y: y0.to_vec(), ..Default::default() };
     let mut y = y0.to_vec();
-    let mut k: Vec<Vec<f64>> = vec![vec![0.0; n]; 7];
+    let mut k: Vec<Vec<f64>> = vec![vec![0.0; n]; P::STAGES];
     let mut stage = vec![0.0; n];
     sys.rhs(t0, &y, &mut k[0])?;
     out.nfev += 1;
@@ -87,23 +156,24 @@ pub fn solve_adaptive<S: OdeSystem>(
         if last {
             h = t1 - t;
         }
-        stages(sys, t, h, &y, &mut k, &mut stage)?;
-        out.nfev += 6;
-        // `stage` is the fifth-order solution (the stage of row 7).
-        let err = tol.error_norm(h, &k, &y, &stage);
+        out.nfev += P::stages(sys, t, h, &y, &mut k, &mut stage)?;
+        // `stage` is the propagated solution.
+        let err = P::error(tol, h, &k, &y, &stage);
         if !err.is_finite() {
             return Err(Error::Diverged {
                 step: steps,
                 index: stage.iter().position(|v| !v.is_finite()).unwrap_or(0),
-                reason: "non-finite state in Dormand-Prince".into(),
+                reason: "non-finite state in the Runge-Kutta pair".into(),
             });
         }
         if err <= 1.0 {
             t = if last { t1 } else { t + h };
             y.copy_from_slice(&stage);
-            k.swap(0, 6); // first same as last
-                          // The output grows by a step's state: refused (naming the step bound) when it no
-                          // longer fits in memory, instead of the process being killed.
+            if t < t1 {
+                out.nfev += P::advance(sys, t, &y, &mut k)?;
+            }
+            // The output grows by a step's state: refused (naming the step bound) when it no
+            // longer fits in memory, instead of the process being killed.
             reserve("max_steps", &mut out.t, 1)?;
             reserve("max_steps", &mut out.y, n)?;
             out.t.push(t);
@@ -112,7 +182,7 @@ pub fn solve_adaptive<S: OdeSystem>(
         } else {
             out.rejected += 1;
         }
-        h *= (0.9 * err.powf(-0.2)).clamp(0.2, 5.0);
+        h *= (0.9 * err.powf(-1.0 / P::ORDER)).clamp(P::FACTORS.0, P::FACTORS.1);
     }
     Ok(out)
 }
@@ -137,33 +207,15 @@ fn check_arguments(n: usize, y0: &[f64], t0: f64, t1: f64, rtol: f64, atol: f64)
     Ok(())
 }
 
-/// Stages 2 to 7 of one Dormand–Prince step of size `h` from `(t, y)` into `k[1..7]`
-/// (`k[0]` holds `f(t, y)`); `stage` ends as the fifth-order solution.
-fn stages<S: OdeSystem>(
-    sys: &mut S,
-    t: f64,
-    h: f64,
-    y: &[f64],
-    k: &mut [Vec<f64>],
-    stage: &mut [f64],
-) -> Result<()> {
-    for s in 1..7 {
-        for i in 0..y.len() {
-            stage[i] = y[i] + h * (0..s).map(|j| A[s][j] * k[j][i]).sum::<f64>();
-        }
-        sys.rhs(t + C[s] * h, stage, &mut k[s])?;
-    }
-    Ok(())
-}
-
 /// The error control's tolerance per component, `atol + rtol |y|`.
-struct Tolerance {
+pub(super) struct Tolerance {
     rtol: f64,
     atol: f64,
 }
 
 impl Tolerance {
-    fn scale(&self, a: f64, b: f64) -> f64 {
+    /// `atol + rtol max(|a|, |b|)`.
+    pub(super) fn scale(&self, a: f64, b: f64) -> f64 {
         self.atol + self.rtol * a.abs().max(b.abs())
     }
 
@@ -179,17 +231,5 @@ impl Tolerance {
         } else {
             0.01 * d0 / d1
         }
-    }
-
-    /// The root-mean-square of the local error estimate `h Σ E_j k_j` of a step from `y`
-    /// to `y_new`, scaled per component.
-    fn error_norm(&self, h: f64, k: &[Vec<f64>], y: &[f64], y_new: &[f64]) -> f64 {
-        let sum = (0..y.len())
-            .map(|i| {
-                let e = h * (0..7).map(|j| E[j] * k[j][i]).sum::<f64>();
-                (e / self.scale(y[i], y_new[i])).powi(2)
-            })
-            .sum::<f64>();
-        (sum / y.len().max(1) as f64).sqrt()
     }
 }

@@ -5,7 +5,8 @@
 //! [`Method`]s, reading and updating a [`History`] (what carries from step to step: the method,
 //! the previous BDF2 step, the Newton settings), so that a system keeps the history in its
 //! state and the workspace in its solver ([`Stepper`] holds the two together);
-//! [`solve_adaptive`] runs the Dormand–Prince 5(4) pair with error control. Second-order methods (symplectic Euler, velocity Verlet) read the state as
+//! [`solve_adaptive`] runs an embedded pair with error control ([`Adaptive`]: Dormand–Prince
+//! 5(4), or DOP853 of order 8). Second-order methods (symplectic Euler, velocity Verlet) read the state as
 //! `y = [x; v]` with `f = [v; a(t, x, v)]`.
 //!
 //! Every method states its order and its stability function `R(z)` (the growth factor per step
@@ -16,12 +17,14 @@
 //! (symplectic Euler, Störmer–Verlet).
 
 mod adaptive;
+mod dop853;
+mod dopri5;
 mod history;
 mod sparse;
 mod stability;
 mod stepper;
 
-pub use adaptive::{solve_adaptive, AdaptiveSolution};
+pub use adaptive::{solve_adaptive, Adaptive, AdaptiveSolution};
 pub use history::History;
 pub use sparse::SparseJacobian;
 pub use stability::{max_stable_dt, max_stable_dt_oscillator, stability_function};

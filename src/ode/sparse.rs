@@ -58,7 +58,10 @@ impl SparseJacobian {
 /// The pattern of `M`, the map from `J`'s entries to `M`'s and the symbolic factorisation
 /// (COLAMD column ordering) are built when the pattern of `J` first appears or changes; each
 /// Jacobian update only refills the values and redoes the numeric factorisation, on one thread
-/// so that results do not depend on the thread count. faer sizes the numeric factors on the
+/// so that results do not depend on the thread count, unless the values of `M` are bitwise
+/// those already factorised (a linear force's constant Jacobian at a constant step): then the
+/// factors are kept, which gives the same bits as factorising again (the factorisation is a
+/// function of the pattern and the values alone). faer sizes the numeric factors on the
 /// first factorisations (partial pivoting may change the fill) and reuses the memory after.
 #[derive(Default)]
 pub(super) struct SparseNewton {
@@ -70,6 +73,8 @@ pub(super) struct SparseNewton {
     m_col_ptr: Vec<usize>,
     m_row_idx: Vec<usize>,
     m_values: Vec<f64>,
+    /// The values of `M` that `numeric` holds the factors of (empty when it holds none).
+    factored: Vec<f64>,
     /// Position in `M` of each entry of `J`, and of each diagonal entry.
     j_to_m: Vec<usize>,
     diag: Vec<usize>,
@@ -107,12 +112,13 @@ impl SparseNewton {
         *self = SparseNewton::default();
     }
 
-    /// Build `M = I - gh J` from the Jacobian just written into `self.jac` and factorise it.
+    /// Build `M = I - gh J` from the Jacobian just written into `self.jac` and factorise it;
+    /// returns `false` when the factors of this `M` (bitwise) were already at hand and kept.
     ///
     /// # Errors
     /// An invalid pattern ([`Error::InvalidInput`] naming `jacobian`), or a structurally
     /// singular matrix ([`Error::SolverFailed`]).
-    pub fn factorize(&mut self, n: usize, gh: f64) -> Result<()> {
+    pub fn factorize(&mut self, n: usize, gh: f64) -> Result<bool> {
         if self.symbolic.is_none()
             || self.jac.col_ptr != self.j_col_ptr
             || self.jac.row_idx != self.j_row_idx
@@ -129,6 +135,14 @@ impl SparseNewton {
         for &d in &self.diag {
             self.m_values[d] += 1.0;
         }
+        let same = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits())
+        };
+        if same(&self.m_values, &self.factored) {
+            return Ok(false);
+        }
+        // Until the factorisation succeeds the numeric factors are of no known `M`.
+        self.factored.clear();
         let (Some(symbolic), Some(buffer)) = (&self.symbolic, &mut self.buffer) else {
             unreachable!("analyse sets the symbolic factorisation")
         };
@@ -146,7 +160,8 @@ impl SparseNewton {
             .map_err(|e| Error::SolverFailed {
                 reason: format!("the Newton iteration matrix is singular ({e:?})"),
             })?;
-        Ok(())
+        self.factored.extend_from_slice(&self.m_values);
+        Ok(true)
     }
 
     /// Overwrite `rhs` with `M⁻¹ rhs` for the last factorised `M`.
@@ -166,6 +181,7 @@ impl SparseNewton {
         self.jac.validate(n)?;
         // Until the analysis succeeds no pattern is analysed (a failure leaves none half-built).
         self.symbolic = None;
+        self.factored.clear();
         let (cp, ri) = (&self.jac.col_ptr, &self.jac.row_idx);
         self.m_col_ptr.clear();
         self.m_row_idx.clear();

@@ -39,7 +39,8 @@ const MAX_SPLITS: u32 = 4;
 /// When the system offers a sparse Jacobian ([`OdeSystem::sparse_jacobian`]) the iteration
 /// matrix `I - γ h J` is assembled in its pattern and factorised by faer's sparse LU (symbolic
 /// analysis kept per pattern, which is bitwise-neutral; numeric factorisation per Jacobian
-/// update); otherwise the Jacobian is dense (analytic, or by forward differences over every
+/// update, kept while the matrix is bitwise the same, as for linear forces at a constant
+/// step, which is bitwise-neutral too); otherwise the Jacobian is dense (analytic, or by forward differences over every
 /// column) with a dense LU factorisation with partial pivoting, in place. The dense workspaces
 /// (`n²` values) are allocated at the first dense step, so systems with a sparse Jacobian
 /// never hold them.
@@ -55,6 +56,9 @@ pub struct Workspace {
     lu: Vec<f64>,
     pivots: Vec<usize>,
     sparse: SparseNewton,
+    /// Numeric LU factorisations of the iteration matrix so far (sparse or dense), for the
+    /// callers' statistics; no step reads it.
+    factorizations: usize,
 }
 
 impl Default for Workspace {
@@ -69,11 +73,19 @@ impl Default for Workspace {
             lu: Vec::new(),
             pivots: Vec::new(),
             sparse: SparseNewton::default(),
+            factorizations: 0,
         }
     }
 }
 
 impl Workspace {
+    /// Numeric LU factorisations of the Newton iteration matrix this workspace has made: one
+    /// per Jacobian update, except sparse updates whose matrix is bitwise the one already
+    /// factorised (kept; see the type's docs).
+    pub fn factorizations(&self) -> usize {
+        self.factorizations
+    }
+
     fn eval<S: OdeSystem>(
         &mut self,
         hist: &mut History,
@@ -425,7 +437,9 @@ impl Workspace {
     ) -> Result<bool> {
         hist.njev += 1;
         if sys.sparse_jacobian(t, y, &mut self.sparse.jac)? {
-            self.sparse.factorize(self.n, gh)?;
+            if self.sparse.factorize(self.n, gh)? {
+                self.factorizations += 1;
+            }
             return Ok(true);
         }
         if self.sparse.is_active() {
@@ -455,6 +469,7 @@ impl Workspace {
                 self.lu[r * n + c] = f64::from(u8::from(r == c)) - gh * self.jac[(r, c)];
             }
         }
+        self.factorizations += 1;
         lu_factor(&mut self.lu, &mut self.pivots, n)?;
         Ok(false)
     }

@@ -209,6 +209,13 @@ impl JacobianWork {
                 Force::Springs { pairs, rest, stiffness, damping } => {
                     for (pair, l) in pairs.iter().zip(rest) {
                         let (a, b) = (pair[0], pair[1]);
+                        if *l == 0.0 && *damping == 0.0 {
+                            // The linear force -k d: its Jacobian written exactly (the general
+                            // form equals it only to rounding), so that the Newton matrix of
+                            // such springs is bitwise constant and keeps its factorisation.
+                            self.add_pair(a, b, -stiffness * DMat3::IDENTITY, DMat3::ZERO);
+                            continue;
+                        }
                         let d = p(a) - p(b);
                         let len = d.length();
                         if len == 0.0 {

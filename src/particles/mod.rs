@@ -56,6 +56,14 @@ use glam::DVec3;
 /// Particles per parallel chunk.
 const CHUNK: usize = 4096;
 
+/// Systems of at most this many slots have nothing to share out between threads: every
+/// parallel pass of a step (forces, accelerations, copies, collisions, the explicit kernel's
+/// tasks) splits its work into chunks of this many particles, so they have one chunk, which
+/// rayon runs on the calling thread. Bindings run their calls on the calling thread too,
+/// without handing them to a chosen thread pool (which costs a wake-up of a pool thread and a
+/// wait for it every call).
+pub const SERIAL_CAPACITY: usize = CHUNK;
+
 /// Counters of the last call to [`Solver::step`].
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, Default, PartialEq)]
 pub struct StepStats {
@@ -67,6 +75,10 @@ pub struct StepStats {
     pub expired: usize,
     /// Collision responses applied.
     pub contacts: usize,
+    /// Numeric LU factorisations of the implicit methods' Newton matrix: one per Jacobian
+    /// update, except when the matrix is bitwise the one already factorised (linear forces at
+    /// a constant step keep one factorisation for the whole call; [`crate::ode::Workspace`]).
+    pub factorizations: usize,
 }
 
 /// A fixed-capacity particle system: a [`Model`] with one [`State`] and a [`Solver`], its

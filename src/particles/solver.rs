@@ -196,7 +196,9 @@ impl Step<'_> {
             cells: &mut solver.cells,
             jacobian: sparse.then_some(&mut solver.jacobian),
         };
+        let before = solver.work.factorizations();
         let result = solver.work.step(history, &mut dynamics, state.time, &mut state.y, dt);
+        solver.stats.factorizations += solver.work.factorizations() - before;
         result.map_err(|e| match e {
             Error::Diverged { index, .. } => Error::Diverged {
                 step: 0,

@@ -47,6 +47,56 @@ def test_dopri5_agrees_with_scipy_on_kepler():
     assert t[0] == 0.0 and t[-1] == prob.t_span[1]
 
 
+@pytest.mark.parametrize(("method", "peer"), [("dopri5", "RK45"), ("dop853", "DOP853")])
+@pytest.mark.parametrize("rtol", [1e-5, 1e-8])
+def test_adaptive_pairs_match_scipy_in_error_and_evaluations(method, peer, rtol):
+    """At equal tolerances the error on Kepler's orbit is of scipy's order of magnitude, and
+    ``f`` is called about as often as scipy calls it (the same pair, the same controller)."""
+    prob = ode.PROBLEMS["kepler"]()
+    exact = prob.exact(prob.t_span[1])
+    calls = [0]
+
+    def f(t: float, y: np.ndarray) -> np.ndarray:
+        calls[0] += 1
+        return prob.f(t, y)
+
+    _, y = ode.solve(f, prob.y0, prob.t_span, method=method, rtol=rtol, atol=rtol * 1e-3)
+    ref = solve_ivp(prob.f, prob.t_span, prob.y0, method=peer, rtol=rtol, atol=rtol * 1e-3)
+    ours, theirs = np.max(np.abs(y[-1] - exact)), np.max(np.abs(ref.y[:, -1] - exact))
+    assert 0.1 < ours / theirs < 10, (ours, theirs)
+    assert 0.5 < calls[0] / ref.nfev < 2, (calls[0], ref.nfev)
+
+
+def test_dop853_reaches_tight_tolerances_with_fewer_evaluations_than_dopri5():
+    prob = ode.PROBLEMS["kepler"]()
+    counts = {}
+    for method in ode.ADAPTIVE:
+        calls = [0]
+
+        def f(t: float, y: np.ndarray, calls: list[int] = calls) -> np.ndarray:
+            calls[0] += 1
+            return prob.f(t, y)
+
+        _, y = ode.solve(f, prob.y0, prob.t_span, method=method, rtol=1e-11, atol=1e-14)
+        assert np.max(np.abs(y[-1] - prob.exact(prob.t_span[1]))) < 1e-7
+        counts[method] = calls[0]
+    assert counts["dop853"] < 0.5 * counts["dopri5"], counts
+
+
+def test_right_hand_sides_of_any_array_like_are_read():
+    """A list, a column or a strided array from ``f`` give the same steps as a flat array."""
+    flat = ode.solve(lambda t, y: -y, [1.0, 2.0], (0, 1), method="dop853")[1]
+    for f in [
+        lambda t, y: [-y[0], -y[1]],
+        lambda t, y: (-y).reshape(2, 1),
+        lambda t, y: np.stack([-y, y])[0],
+        lambda t, y: np.asfortranarray(-np.stack([y, y]).T)[:, 0],
+    ]:
+        np.testing.assert_array_equal(ode.solve(f, [1.0, 2.0], (0, 1), method="dop853")[1], flat)
+    with pytest.raises(ValueError, match="f: returned 3 values"):
+        ode.solve(lambda t, y: [1.0, 2.0, 3.0], [1.0, 2.0], (0, 1), method="dop853")
+
+
 def test_implicit_methods_on_the_stiff_chain_with_and_without_jacobian():
     prob = ode.PROBLEMS["spring_chain"]()
     exact = prob.exact(prob.t_span[1])

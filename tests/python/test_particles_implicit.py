@@ -3,6 +3,8 @@ against the dense path, and its argument checks."""
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 
@@ -93,3 +95,36 @@ def test_sparse_jacobian_must_be_a_bool():
     with pytest.raises(ValueError, match="sparse_jacobian"):
         ps.step(DT, method="implicit_euler", sparse_jacobian="dense")  # type: ignore[arg-type]
     np.testing.assert_array_equal(ps.positions, spring_net(3, 1.0).positions)
+
+
+@pytest.mark.parametrize("method", ["implicit_euler", "trapezoidal"])
+def test_a_linear_chain_is_factorised_once_per_call(method):
+    """Zero-length undamped springs are linear: the Newton matrix keeps its factorisation,
+    and the steps are bitwise those of a system unpickled before each step (a fresh solver,
+    which factorises again)."""
+    n, steps = 300, 20
+    x = np.zeros((n, 3))
+    x[:, 1] = -0.01 * np.arange(n)
+    v = np.zeros((n, 3))
+    v[:, 0] = 0.5 * np.arange(n) / n
+    masses = np.full(n, 1e-3)
+    masses[0] = np.inf
+    pairs = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1)
+    systems = []
+    for _ in range(2):
+        ps = ParticleSystem(x, v, masses=masses)
+        ps.add(Springs(pairs, stiffness=1e4, rest=np.zeros(n - 1)))
+        ps.add(Gravity())
+        systems.append(ps)
+    once, each = systems
+    once.step(DT, steps, method)
+    assert once.stats["factorizations"] == 1
+    for _ in range(steps):
+        each = pickle.loads(pickle.dumps(each))
+        each.step(DT, 1, method)
+        assert each.stats["factorizations"] == 1
+    np.testing.assert_array_equal(once.positions, each.positions)
+    np.testing.assert_array_equal(once.velocities, each.velocities)
+    swinging = hanging_chain(n, 1e4)
+    swinging.step(DT, steps, method)
+    assert swinging.stats["factorizations"] >= steps
