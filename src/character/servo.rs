@@ -86,8 +86,8 @@ pub(super) fn stable(
     tree.crba(model);
     w.servo.fill(0.0);
     for (iv, n, s) in servos(model) {
-        for k in iv..iv + n {
-            w.servo[k] = s.kp * w.diff[k] - s.kd * qd[k];
+        for (k, &v) in qd.iter().enumerate().skip(iv).take(n) {
+            w.servo[k] = s.kp * w.diff[k] - s.kd * v;
             tree.mass_matrix[(k, k)] += dt * s.kd;
         }
     }
@@ -100,15 +100,15 @@ pub(super) fn stable(
     }
     let mut clamped = false;
     for (iv, n, s) in servos(model) {
-        for k in iv..iv + n {
-            let t = w.servo[k] - s.kd * dt * qdd[k];
+        for (k, &a) in qdd.iter().enumerate().skip(iv).take(n) {
+            let t = w.servo[k] - s.kd * dt * a;
             clamped |= t.abs() > s.max_torque;
             w.servo[k] = t.clamp(-s.max_torque, s.max_torque);
         }
     }
     if clamped {
-        for k in 0..nv {
-            tau[k] += w.servo[k];
+        for (t, s) in tau.iter_mut().zip(&w.servo) {
+            *t += s;
         }
         tree.aba(model, tau, qdd);
     }
@@ -123,7 +123,7 @@ fn cholesky_solve(a: &mut DMatrix<f64>, b: &mut [f64]) -> bool {
         for k in 0..j {
             d -= a[(j, k)] * a[(j, k)];
         }
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return false;
         }
         let d = d.sqrt();

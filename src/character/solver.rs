@@ -109,7 +109,7 @@ impl Solver {
                 p.remaining -= dt;
             }
             state.pushes.retain(|p| p.remaining > 0.0);
-            let bad = state.q.iter().chain(&state.qd).position(|v| !(v.abs() < 1e8));
+            let bad = state.q.iter().chain(&state.qd).position(|v| v.is_nan() || v.abs() >= 1e8);
             if let Some(index) = bad {
                 result = Err(Error::Diverged {
                     step: n,

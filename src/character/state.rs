@@ -179,7 +179,7 @@ fn checked_coordinates(model: &Model, q: &[f64], name: &str) -> Result<Vec<f64>>
         if matches!(b.joint, Joint::Ball | Joint::Free) {
             let quat = &mut out[at..at + 4];
             let n = quat.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if !(n > 1e-12) {
+            if n.is_nan() || n <= 1e-12 {
                 return Err(Error::invalid(name, "a zero quaternion").at(at));
             }
             quat.iter_mut().for_each(|v| *v /= n);
