@@ -43,6 +43,8 @@ pub struct Tree {
     u: Vec<SVec>,
     /// The joint-space inertia `M` of the last [`Tree::crba`] (`nv x nv`).
     pub mass_matrix: DMatrix<f64>,
+    /// Scratch of `nv` values for solves with `M`'s factor.
+    pub(super) column: Vec<f64>,
 }
 
 impl Tree {
@@ -65,6 +67,7 @@ impl Tree {
         if self.mass_matrix.shape() != (nv, nv) {
             self.mass_matrix = DMatrix::zeros(nv, nv);
         }
+        self.column.resize(nv, 0.0);
     }
 
     /// Positions, orientations, velocities and velocity products of every body at

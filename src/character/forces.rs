@@ -19,6 +19,7 @@
 use super::dynamics::Tree;
 use super::joints::quat;
 use super::model::{Joint, Model};
+use super::servo::{cholesky, cholesky_substitute};
 use super::spatial::spatial;
 use super::state::Push;
 use crate::rotation::quat_to_rotvec;
@@ -93,10 +94,10 @@ fn contacts(model: &Model, tree: &mut Tree, dt: f64) {
     }
 }
 
-/// The joint-limit torques into `tau`; the joint-space inertia and its inverse are computed
-/// (CRBA, Cholesky) only when a limit is passed.
+/// The joint-limit torques into `tau`; the joint-space inertia is computed and factorised
+/// (CRBA, Cholesky, in the workspace) only when a limit is passed.
 fn limits(model: &Model, q: &[f64], qd: &[f64], tree: &mut Tree, tau: &mut [f64]) {
-    let mut inverse: Option<nalgebra::DMatrix<f64>> = None;
+    let mut factorised: Option<bool> = None;
     let (w, zeta) = (model.settings.limit_frequency, model.settings.limit_damping);
     for (i, b) in model.bodies().iter().enumerate() {
         let Some(lim) = b.limits else { continue };
@@ -125,15 +126,13 @@ fn limits(model: &Model, q: &[f64], qd: &[f64], tree: &mut Tree, tau: &mut [f64]
             } else {
                 continue;
             };
-            let minv = inverse.get_or_insert_with(|| {
+            let ok = *factorised.get_or_insert_with(|| {
                 tree.crba(model);
-                let n = tree.mass_matrix.nrows();
-                tree.mass_matrix.clone().cholesky().map_or_else(
-                    || nalgebra::DMatrix::from_element(n, n, f64::NAN),
-                    |c| c.inverse(),
-                )
+                cholesky(&mut tree.mass_matrix)
             });
-            let inertia = 1.0 / axis_inverse_inertia(minv, iv, count, axes[k]);
+            let inverse =
+                if ok { axis_inverse_inertia(tree, iv, count, axes[k]) } else { f64::NAN };
+            let inertia = 1.0 / inverse;
             let t = -(inertia * w * w * e + 2.0 * zeta * inertia * w * rates[k]);
             let t = if e > 0.0 { t.min(0.0) } else { t.max(0.0) };
             if count == 1 {
@@ -149,22 +148,11 @@ fn limits(model: &Model, q: &[f64], qd: &[f64], tree: &mut Tree, tau: &mut [f64]
 
 /// `aᵀ (M⁻¹)_jj a`: the inverse effective inertia of a joint's `count` degrees of freedom at
 /// `iv` about the unit direction `axis` (a revolute joint: its own), the whole tree free to
-/// respond.
-fn axis_inverse_inertia(
-    minv: &nalgebra::DMatrix<f64>,
-    iv: usize,
-    count: usize,
-    axis: DVec3,
-) -> f64 {
-    if count == 1 {
-        return minv[(iv, iv)];
-    }
-    let a = axis.to_array();
-    let mut s = 0.0;
-    for r in 0..3 {
-        for c in 0..3 {
-            s += a[r] * minv[(iv + r, iv + c)] * a[c];
-        }
-    }
-    s
+/// respond; `tree.mass_matrix` holds the Cholesky factor of `M`, `tree.column` is scratch.
+fn axis_inverse_inertia(tree: &mut Tree, iv: usize, count: usize, axis: DVec3) -> f64 {
+    let a = if count == 1 { [1.0, 0.0, 0.0] } else { axis.to_array() };
+    tree.column.fill(0.0);
+    tree.column[iv..iv + count].copy_from_slice(&a[..count]);
+    cholesky_substitute(&tree.mass_matrix, &mut tree.column);
+    (0..count).map(|r| a[r] * tree.column[iv + r]).sum()
 }

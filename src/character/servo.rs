@@ -94,10 +94,11 @@ pub(super) fn stable(
     for k in 0..nv {
         qdd[k] = tau[k] - w.bias[k] + w.servo[k];
     }
-    if !cholesky_solve(&mut tree.mass_matrix, qdd) {
+    if !cholesky(&mut tree.mass_matrix) {
         qdd.fill(f64::NAN);
         return;
     }
+    cholesky_substitute(&tree.mass_matrix, qdd);
     let mut clamped = false;
     for (iv, n, s) in servos(model) {
         for (k, &a) in qdd.iter().enumerate().skip(iv).take(n) {
@@ -114,10 +115,10 @@ pub(super) fn stable(
     }
 }
 
-/// Solve `A x = b` in place (`b` becomes `x`) for symmetric positive definite `A`, which is
-/// overwritten by its Cholesky factor; `false` if `A` is not positive definite.
-fn cholesky_solve(a: &mut DMatrix<f64>, b: &mut [f64]) -> bool {
-    let n = b.len();
+/// Overwrite the lower triangle of symmetric positive definite `a` with its Cholesky factor
+/// `L` (`a = L Lᵀ`); `false` if `a` is not positive definite.
+pub(super) fn cholesky(a: &mut DMatrix<f64>) -> bool {
+    let n = a.nrows();
     for j in 0..n {
         let mut d = a[(j, j)];
         for k in 0..j {
@@ -136,19 +137,24 @@ fn cholesky_solve(a: &mut DMatrix<f64>, b: &mut [f64]) -> bool {
             a[(i, j)] = s / d;
         }
     }
+    true
+}
+
+/// Solve `L Lᵀ x = b` in place (`b` becomes `x`) with the factor `l` of [`cholesky`].
+pub(super) fn cholesky_substitute(l: &DMatrix<f64>, b: &mut [f64]) {
+    let n = b.len();
     for i in 0..n {
         let mut s = b[i];
         for k in 0..i {
-            s -= a[(i, k)] * b[k];
+            s -= l[(i, k)] * b[k];
         }
-        b[i] = s / a[(i, i)];
+        b[i] = s / l[(i, i)];
     }
     for i in (0..n).rev() {
         let mut s = b[i];
         for k in i + 1..n {
-            s -= a[(k, i)] * b[k];
+            s -= l[(k, i)] * b[k];
         }
-        b[i] = s / a[(i, i)];
+        b[i] = s / l[(i, i)];
     }
-    true
 }
