@@ -254,13 +254,33 @@ fn crowd_scenes() -> Vec<(String, usize)> {
     found
 }
 
+/// The CMU ragdoll falling limp onto the ground (contacts and joint limits active).
+fn character_scenes() -> Vec<(String, usize)> {
+    use kinema::character::{ragdoll, ArticulatedBody, RagdollOptions, Settings};
+    let text = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
+    let skeleton = kinema::mocap::parse_asf(&text, "07-walk.asf").unwrap();
+    let options = RagdollOptions {
+        scale: skeleton.metres_per_unit(),
+        clearance: 0.3,
+        ..RagdollOptions::default()
+    };
+    let mut body = ArticulatedBody::new(ragdoll(&skeleton, &options, Settings::default()).unwrap());
+    vec![("character, ragdoll".into(), allocations(120, || body.step(1.0 / 480.0, 4).unwrap()))]
+}
+
 #[test]
 fn steps_allocate_nothing_once_warmed_up() {
-    let found: Vec<(String, usize)> =
-        [particle_scenes(), cloth_scenes(), rigid_scenes(), constrained_scenes(), crowd_scenes()]
-            .into_iter()
-            .flatten()
-            .collect();
+    let found: Vec<(String, usize)> = [
+        particle_scenes(),
+        cloth_scenes(),
+        rigid_scenes(),
+        constrained_scenes(),
+        crowd_scenes(),
+        character_scenes(),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
     let allocating: Vec<&(String, usize)> = found.iter().filter(|(_, n)| *n > 0).collect();
     assert!(allocating.is_empty(), "steps that allocated (scene, allocations): {allocating:?}");
 }
