@@ -744,6 +744,14 @@ def skin_proximity_weights(
     k: int,
     falloff: float,
 ) -> tuple[npt.NDArray[np.uint32], _F64]: ...
+def skin_heat_weights(
+    vertices: npt.ArrayLike,
+    triangles: list[list[int]],
+    segments: npt.ArrayLike,
+    owners: list[int],
+    bones: int,
+    k: int,
+) -> tuple[npt.NDArray[np.uint32], _F64]: ...
 def skin_capsule_union(
     segments: npt.ArrayLike, radii: list[float], blend: float, cell: float
 ) -> tuple[_F64, npt.NDArray[np.uint32]]: ...

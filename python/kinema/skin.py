@@ -6,8 +6,11 @@ pose whose values are all zero: an Acclaim skeleton's rest pose) to the skeleton
 ``(V, 3)``), in the skeleton's length units like the vertices.
 
 Each vertex follows up to ``influences`` bones with normalised weights: given as
-``weights=(bones, weights)`` (two ``(V, k)`` arrays), or computed by bone proximity (the ``k``
-nearest bones by distance to their segments, weights proportional to ``distance**-falloff``).
+``weights=(bones, weights)`` (two ``(V, k)`` arrays), or computed — ``"heat"``, by heat
+diffusion over the surface (Baran & Popović 2007, "bone heat": smooth blends over the
+surface, the default when ``triangles`` are given), or ``"proximity"``, by bone proximity
+(the ``k`` nearest bones by distance to their segments, weights proportional to
+``distance**-falloff``; the default without triangles).
 Two blends (``method=``): ``"dqs"``, dual quaternion skinning (Kavan, Collins, Žára &
 O'Sullivan 2008), the default, which keeps the volume of twisted joints; ``"lbs"``, linear
 blend skinning, which collapses a joint twisted by 180° (the "candy wrapper"). Both are exact
@@ -15,7 +18,7 @@ for a vertex that follows one bone. Conventions and sources in docs/skin.md.
 
 ``body_mesh(skeleton)`` gives any skeleton a body: capsules around its bones merged into one
 closed surface (the smooth union of their signed distances, polygonised in Rust), returned as a
-``Skin`` with proximity weights.
+``Skin`` with heat weights.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from kinema.mocap import BvhSkeleton, Skeleton
 __all__ = ["Skin", "body_mesh", "bone_segments"]
 
 _METHODS = ("dqs", "lbs")
+_WEIGHTS = ("heat", "proximity")
 
 
 def _check_skeleton(skeleton: Any) -> None:
@@ -84,8 +88,12 @@ class Skin:
     """``vertices (V, 3)`` in the bind pose of ``skeleton`` (a ``kinema.mocap.Skeleton`` or
     ``BvhSkeleton``), bound to its bones.
 
-    ``weights``: ``None`` (bone proximity: the ``influences`` nearest bones, weights
-    ``∝ distance**-falloff``, normalised) or ``(bones, weights)``, two ``(V, k)`` arrays (bone =
+    ``weights``: ``"heat"`` (heat diffusion over the surface, Baran & Popović 2007: bone ``i``'s
+    weights solve ``−Δwⁱ + H wⁱ = H pⁱ`` with the cotangent Laplacian, ``H_jj = 1/d_j²`` for the
+    distance ``d_j`` to the vertex's nearest bone and ``pⁱ_j = 1`` where bone ``i`` is nearest;
+    the ``influences`` largest, normalised; needs ``triangles``), ``"proximity"`` (the
+    ``influences`` nearest bones, weights ``∝ distance**-falloff``, normalised), ``None`` (heat
+    with triangles, proximity without) or ``(bones, weights)``, two ``(V, k)`` arrays (bone =
     joint index; weights non-negative, normalised per vertex here). ``bind_pose``: the
     skeleton's values (``(stride,)``) at which the vertices were modelled; default all zero.
     ``triangles (M, 3)`` are kept for export and drawing. ``method``: ``"dqs"`` or ``"lbs"``.
@@ -95,7 +103,7 @@ class Skin:
         self,
         vertices: Any,
         skeleton: Any,
-        weights: tuple[Any, Any] | None = None,
+        weights: str | tuple[Any, Any] | None = None,
         *,
         triangles: Any = None,
         method: str = "dqs",
@@ -118,10 +126,21 @@ class Skin:
         bind_p, bind_q = skeleton.forward_kinematics(pose)
         joints = len(skeleton.parents)
         if weights is None:
+            weights = "proximity" if triangles is None else "heat"
+        if isinstance(weights, str):
+            if weights not in _WEIGHTS:
+                raise ValueError('weights: must be "heat", "proximity", None or (bones, weights)')
+            if weights == "heat" and triangles is None:
+                raise ValueError('weights: "heat" needs the surface\'s triangles')
             segments, owners = bone_segments(skeleton, bind_p, bind_q)
-            bones, w = _kinema.skin_proximity_weights(
-                rest, segments, owners, joints, influences, real(falloff, "falloff")
-            )
+            if weights == "heat":
+                bones, w = _kinema.skin_heat_weights(
+                    rest, triangles.tolist(), segments, owners, joints, influences
+                )
+            else:
+                bones, w = _kinema.skin_proximity_weights(
+                    rest, segments, owners, joints, influences, real(falloff, "falloff")
+                )
             k = len(w) // max(len(rest), 1)
         else:
             bones, w, k = _influences(weights, len(rest), joints)
@@ -167,6 +186,7 @@ def body_mesh(
     *,
     blend: float | None = None,
     cell: float | None = None,
+    weights: str = "heat",
     method: str = "dqs",
     influences: int = 4,
     falloff: float = 4.0,
@@ -174,7 +194,8 @@ def body_mesh(
 ) -> Skin:
     """A body for ``skeleton``: capsules of ``radius`` around its bones (``bone_segments`` at
     the bind pose) merged into one closed, manifold, outward-facing surface, bound to the bones
-    with proximity weights (``influences``, ``falloff``) and blended by ``method``.
+    with ``weights`` (``"heat"`` or ``"proximity"``, see :class:`Skin`; ``influences``,
+    ``falloff``) and blended by ``method``.
 
     Lengths are in the skeleton's units. ``radius``: one for every bone or one per segment of
     ``bone_segments`` (default: 4 % of the bind pose's largest extent). The surface is the zero
@@ -200,6 +221,7 @@ def body_mesh(
     return Skin(
         vertices,
         skeleton,
+        weights,
         triangles=triangles.astype(np.int64),
         method=method,
         influences=influences,

@@ -5,7 +5,7 @@ use super::array::{compute, rows};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use crate::error::Error;
-use crate::skin::{capsule_union, proximity_weights, Method, Skin};
+use crate::skin::{capsule_union, heat_weights, proximity_weights, Method, Skin};
 use crate::snapshot::Snapshot;
 use numpy::{PyArray1, PyArray2, PyArrayDyn, PyArrayMethods, PyReadonlyArray1, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
@@ -112,6 +112,28 @@ fn skin_proximity_weights<'py>(
     Ok((PyArray1::from_vec(py, b), PyArray1::from_vec(py, w)))
 }
 
+/// The `k` largest heat-diffusion weights (Baran & Popović 2007) of every vertex (V, 3) of
+/// the surface with `triangles` (M, 3), for the bones owning `segments` (S, 2, 3), segment
+/// `s` owned by bone `owners[s]` of `bones`: `(bones (V k,), weights (V k,))`.
+#[pyfunction]
+fn skin_heat_weights<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArrayDyn<'py, f64>,
+    triangles: Vec<[u32; 3]>,
+    segments: PyReadonlyArrayDyn<'py, f64>,
+    owners: Vec<u32>,
+    bones: usize,
+    k: Int,
+) -> PyResult<Influences<'py>> {
+    let v = rows::<3>(&vertices, "vertices", &[3])?;
+    let s = rows::<6>(&segments, "segments", &[2, 3])?;
+    let k = k.range("influences", 1, 64)?;
+    let pairs: Vec<([f64; 3], [f64; 3])> =
+        s.iter().map(|r| ([r[0], r[1], r[2]], [r[3], r[4], r[5]])).collect();
+    let (b, w) = detached(py, || heat_weights(v, &triangles, &pairs, &owners, bones, k))?;
+    Ok((PyArray1::from_vec(py, b), PyArray1::from_vec(py, w)))
+}
+
 /// Vertices (V, 3) and triangles (M, 3) of a surface.
 type SurfaceMesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>);
 
@@ -138,6 +160,7 @@ fn skin_capsule_union<'py>(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySkin>()?;
     m.add_function(wrap_pyfunction!(skin_proximity_weights, m)?)?;
+    m.add_function(wrap_pyfunction!(skin_heat_weights, m)?)?;
     m.add_function(wrap_pyfunction!(skin_capsule_union, m)?)?;
     Ok(())
 }

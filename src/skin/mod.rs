@@ -23,10 +23,12 @@
 
 mod blend;
 mod body;
+mod heat;
 mod snapshot;
 mod weights;
 
 pub use body::capsule_union;
+pub use heat::heat_weights;
 pub use weights::proximity_weights;
 
 use crate::error::{Error, Result};

@@ -24,24 +24,9 @@ pub fn proximity_weights(
     k: usize,
     falloff: f64,
 ) -> Result<(Vec<u32>, Vec<f64>)> {
-    if k == 0 {
-        return Err(Error::invalid("influences", "must be at least 1"));
-    }
-    if segments.is_empty() || segments.len() != bones_of.len() {
-        return Err(Error::invalid("segments", "needs one bone per segment, at least one"));
-    }
-    if let Some(s) = bones_of.iter().position(|&b| b as usize >= bones) {
-        return Err(Error::invalid("segments", "names a bone beyond the skeleton").at(s));
-    }
+    check_bones(vertices, segments, bones_of, bones, k)?;
     if !(falloff.is_finite() && falloff > 0.0) {
         return Err(Error::invalid("falloff", "must be positive and finite"));
-    }
-    let finite = |p: &[f64; 3]| p.iter().all(|x| x.is_finite());
-    if !vertices.iter().all(finite) {
-        return Err(Error::invalid("vertices", "contains NaN or infinity"));
-    }
-    if !segments.iter().all(|(a, b)| finite(a) && finite(b)) {
-        return Err(Error::invalid("segments", "contains NaN or infinity"));
     }
     let k = k.min(bones);
     let mut out_bones = vec![0u32; vertices.len() * k];
@@ -59,6 +44,51 @@ pub fn proximity_weights(
     Ok((out_bones, out_weights))
 }
 
+/// The checks shared by the weight computations: `k ≥ 1`, one bone per segment and at least
+/// one segment, bones within `bones`, finite vertices and segments.
+pub(super) fn check_bones(
+    vertices: &[[f64; 3]],
+    segments: &[([f64; 3], [f64; 3])],
+    bones_of: &[u32],
+    bones: usize,
+    k: usize,
+) -> Result<()> {
+    if k == 0 {
+        return Err(Error::invalid("influences", "must be at least 1"));
+    }
+    if segments.is_empty() || segments.len() != bones_of.len() {
+        return Err(Error::invalid("segments", "needs one bone per segment, at least one"));
+    }
+    if let Some(s) = bones_of.iter().position(|&b| b as usize >= bones) {
+        return Err(Error::invalid("segments", "names a bone beyond the skeleton").at(s));
+    }
+    let finite = |p: &[f64; 3]| p.iter().all(|x| x.is_finite());
+    if !vertices.iter().all(finite) {
+        return Err(Error::invalid("vertices", "contains NaN or infinity"));
+    }
+    if !segments.iter().all(|(a, b)| finite(a) && finite(b)) {
+        return Err(Error::invalid("segments", "contains NaN or infinity"));
+    }
+    Ok(())
+}
+
+/// The distance from `x` to each bone (its nearest segment) into `distance` (one per bone;
+/// infinite for a bone with no segment).
+pub(super) fn bone_distances(
+    x: DVec3,
+    segments: &[([f64; 3], [f64; 3])],
+    bones_of: &[u32],
+    distance: &mut [f64],
+) {
+    distance.fill(f64::INFINITY);
+    for ((a, b), &bone) in segments.iter().zip(bones_of) {
+        let (a, b) = (DVec3::from_array(*a), DVec3::from_array(*b));
+        let d = x.distance(closest_point_on_segment(a, b, x));
+        let slot = &mut distance[bone as usize];
+        *slot = slot.min(d);
+    }
+}
+
 /// The nearest bones of `x` into `bones`/`weights` (see [`proximity_weights`]), with
 /// `distance` (one per bone) as scratch.
 fn nearest(
@@ -70,13 +100,7 @@ fn nearest(
     weights: &mut [f64],
     falloff: f64,
 ) {
-    distance.fill(f64::INFINITY);
-    for ((a, b), &bone) in segments.iter().zip(bones_of) {
-        let (a, b) = (DVec3::from_array(*a), DVec3::from_array(*b));
-        let d = x.distance(closest_point_on_segment(a, b, x));
-        let slot = &mut distance[bone as usize];
-        *slot = slot.min(d);
-    }
+    bone_distances(x, segments, bones_of, distance);
     // The k smallest, nearest first; ties by bone index (deterministic).
     for (i, slot) in bones.iter_mut().enumerate() {
         let best = (0..distance.len())

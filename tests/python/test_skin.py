@@ -146,6 +146,10 @@ def test_bad_arguments_name_the_argument(walk):
         skin.Skin(verts, sk, (np.full((len(verts), 1), 99), np.ones((len(verts), 1))))
     with pytest.raises(ValueError, match="weights"):
         skin.Skin(verts, sk, (np.zeros((len(verts), 1), int), np.zeros((len(verts), 1))))
+    with pytest.raises(ValueError, match="weights"):
+        skin.Skin(verts, sk, "heat")  # heat weights need the triangles
+    with pytest.raises(ValueError, match="weights"):
+        skin.Skin(verts, sk, "nearest")
     with pytest.raises(ValueError, match="influences"):
         skin.Skin(verts, sk, influences=0)
     with pytest.raises(ValueError, match="falloff"):
