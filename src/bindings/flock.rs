@@ -35,7 +35,7 @@ impl Flock {
     /// The object stored by `__reduce__`.
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { flock: Core::from_snapshot(data)? })
+        Ok(Self { flock: Core::from_snapshot(data)?, saved: None })
     }
 
     /// A flock of boids at `positions` (N, 3) in m with `velocities` (N, 3) in m/s; the
