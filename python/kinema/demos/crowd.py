@@ -29,9 +29,10 @@ def _gif(frames: list[np.ndarray], radius: float, walls: list[Any], title: str, 
 
     def draw(k: int) -> None:
         ax.cla()
-        for w in walls:
-            w = np.asarray(w)
-            ax.plot(*np.vstack([w, w[:1]] if len(w) > 2 else w).T, "k-", lw=2)
+        for wall in walls:
+            w = np.asarray(wall, dtype=np.float64)
+            closed = np.concatenate([w, w[:1]]) if len(w) > 2 else w
+            ax.plot(closed[:, 0], closed[:, 1], "k-", lw=2)
         p = frames[k]
         ax.scatter(p[:, 0], p[:, 1], s=size, c=np.arange(len(p)), cmap="hsv")
         ax.set_xlim(lo[0], hi[0])
