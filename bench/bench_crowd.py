@@ -57,7 +57,7 @@ def rvo2_circle(n: int, steps: int) -> tuple[float, float, int]:
     sim = pyrvo.RVOSimulator(0.25, 15.0, 10, 10.0, 10.0, 1.5, 2.0)
     p, g = starts(n)
     for x in p:
-        sim.add_agent(pyrvo.Vector2(float(x[0]), float(x[1])))
+        sim.add_agent((float(x[0]), float(x[1])))
     arrival = np.full(n, np.inf)
     t0 = time.perf_counter()
     for k in range(steps):
@@ -69,7 +69,7 @@ def rvo2_circle(n: int, steps: int) -> tuple[float, float, int]:
             length = np.hypot(*d)
             if length > 1.0:
                 d = d / length
-            sim.set_agent_pref_velocity(i, pyrvo.Vector2(float(d[0]), float(d[1])))
+            sim.set_agent_pref_velocity(i, (float(d[0]), float(d[1])))
         sim.do_step()
     rate = steps / (time.perf_counter() - t0)
     done = np.isfinite(arrival)
