@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from kinema import _kinema, anim, cloth, fluid, particles, rigid
+from kinema import _kinema, anim, cloth, crowd, flock, fluid, particles, rigid
 from kinema.constraints import ConstrainedSystem
 from kinema.rotation import Rotation
 from kinema.scene import FORMAT_VERSION, AnimatedSphere, Character, CheckpointError, Scene, _Entry
@@ -58,6 +58,8 @@ _NATIVES: dict[str, Any] = {
         _kinema.ClothCore,
         _kinema.RigidWorld,
         _kinema.Fluid,
+        _kinema.Crowd,
+        _kinema.Flock,
         _kinema.KeyTrack,
         _kinema.AsfSkeleton,
         _kinema.AmcMotion,
@@ -123,6 +125,8 @@ _SCHEMAS: dict[str, _Schema] = {
         _Schema(cloth.Cloth, {"_core": _kinema.ClothCore, "model": str}),
         _Schema(rigid.World, {"_world": _kinema.RigidWorld, "_shapes": list}),
         _Schema(fluid.Fluid, {"_f": _kinema.Fluid}),
+        _Schema(crowd.Crowd, {"_c": _kinema.Crowd}),
+        _Schema(flock.Flock, {"_f": _kinema.Flock, "_dim": int}),
         _Schema(rigid.Sphere, {"radius": _Number}),
         _Schema(rigid.Box, {"half_extents": object}),
         _Schema(rigid.Capsule, {"radius": _Number, "height": _Number}),
@@ -483,7 +487,15 @@ def _check_scene(scene: Scene) -> None:
 def _check_entry(e: Any, where: str) -> None:
     _need(isinstance(e, _Entry), f"{where}: a {type(e).__name__}")
     obj = e.obj
-    kinds = (particles.ParticleSystem, ConstrainedSystem, cloth.Cloth, rigid.World, fluid.Fluid)
+    kinds = (
+        particles.ParticleSystem,
+        ConstrainedSystem,
+        cloth.Cloth,
+        rigid.World,
+        fluid.Fluid,
+        crowd.Crowd,
+        flock.Flock,
+    )
     _need(isinstance(obj, kinds), f"{where}: a {type(obj).__name__}")
     _need(
         e.receives == isinstance(obj, (cloth.Cloth, particles.ParticleSystem)),

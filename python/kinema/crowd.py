@@ -40,7 +40,8 @@ class Crowd:
     interact). Agents walk at ``preferred_speed`` m/s, never faster than ``max_speed``, and
     have arrived within ``goal_tolerance`` m of their goal. ORCA adds to every preferred
     velocity a ``perturbation`` (m/s) in a direction hashed from ``seed``, the step and the
-    agent, which breaks exactly symmetric deadlocks (0 turns it off).
+    agent, which breaks exactly symmetric deadlocks (0 turns it off). ``navigation`` (m, or
+    ``None``: off) turns on the global layer with that clearance (:meth:`set_navigation`).
     """
 
     def __init__(
@@ -64,6 +65,7 @@ class Crowd:
         max_substep: float = 0.005,
         perturbation: float = 0.0,
         seed: int = 0,
+        navigation: float | None = None,
     ) -> None:
         if not isinstance(model, str):
             raise TypeError("model: expected 'orca' or 'social_force'")
@@ -87,6 +89,24 @@ class Crowd:
             real(perturbation, "perturbation"),
             seed,
         )
+        self.set_navigation(navigation)
+
+    def set_navigation(self, clearance: float | None) -> None:
+        """Turn the global navigation layer on, its paths keeping ``clearance`` (m, > 0; at
+        least ``radius`` is sensible) from the obstacles, or off (``None``). With it each step
+        every agent heads for the next waypoint of its shortest path to its goal around the
+        obstacles (A* on a visibility graph over the obstacles' convex corners pushed out by
+        the clearance), re-planned from where it is; a goal that no path reaches is walked to
+        straight, as without navigation."""
+        if isinstance(clearance, bool):
+            raise TypeError("navigation: expected a clearance in m or None")
+        if clearance is None:
+            self._c.set_navigation(None)
+            return
+        c = real(clearance, "navigation")
+        if not (np.isfinite(c) and c > 0):
+            raise ValueError("navigation: the clearance must be finite and > 0 (or None)")
+        self._c.set_navigation(c)
 
     def add_agents(self, positions: Any, goals: Any) -> None:
         """Add agents at rest at ``positions`` ``(N, 2)`` (m), each walking to its goal in

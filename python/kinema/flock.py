@@ -2,7 +2,9 @@
 and cohesion, with a neighbour radius and a field of view, as steering forces bounded by a
 maximum force and speed (Reynolds 1999, "Steering behaviors for autonomous characters"), in
 2-D or 3-D, computed in Rust on a uniform grid, in parallel and bitwise the same on any
-number of threads. See docs/crowd.md.
+number of threads; Reynolds' (1999) steering behaviours (seek, flee, arrive, pursue, evade,
+wander, obstacle avoidance) add as weighted forces (:meth:`Flock.add_behaviour`). See
+docs/crowd.md.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import numpy as np
 
 from kinema import _kinema
 from kinema._array import real
+from kinema.geometry import shape_params
 
 __all__ = ["Flock"]
 
@@ -105,3 +108,65 @@ class Flock:
         """The polarisation order parameter ``|sum v_i / |v_i|| / N`` (Vicsek et al. 1995):
         1 when all fly one way, about ``1 / sqrt(N)`` for random headings."""
         return self._f.polarisation()
+
+    def add_behaviour(
+        self,
+        kind: str,
+        *,
+        target: Any = None,
+        boid: int = 0,
+        slow_radius: float = 1.0,
+        distance: float = 2.0,
+        radius: float = 1.0,
+        seed: int = 0,
+        shape: Any = None,
+        horizon: float = 1.0,
+        clearance: float = 0.0,
+        weight: float = 1.0,
+        boids: tuple[int, int] | None = None,
+    ) -> None:
+        """Add a steering behaviour of Reynolds (1999), weighted by ``weight`` and acting on
+        the boids ``boids = (first, end)`` (all if ``None``), on top of the flocking rules:
+
+        - ``"seek"`` / ``"flee"``: towards / away from ``target`` (m) at the maximum speed;
+        - ``"arrive"``: towards ``target``, slowing linearly within ``slow_radius`` (m) to
+          stop on it;
+        - ``"pursue"`` / ``"evade"``: seek / flee where boid ``boid`` will be, predicted
+          straight on for its distance over the maximum speed;
+        - ``"wander"``: seek a point ``radius`` (m) from the point ``distance`` (m) ahead, in a
+          direction drawn each step from ``seed`` (deterministic; in-plane for a 2-D flock);
+        - ``"avoid"``: steer sideways from ``shape`` (a :mod:`kinema.geometry` shape) when the
+          straight path within ``horizon`` (s) comes closer than ``clearance`` (m), straight
+          out when already closer.
+
+        Each gives a desired velocity; its steering is that minus the velocity, at most
+        ``max_force``; the weighted sum with the flocking rules is at most ``max_force``."""
+        if not isinstance(kind, str):
+            raise TypeError("kind: expected a behaviour name")
+        values: list[float] = []
+        shape_kind = ""
+        if kind in ("seek", "flee", "arrive"):
+            if target is None:
+                raise ValueError(f"target: {kind} needs a target")
+            values = _rows([target], "target", self._dim)[0].tolist()
+            if kind == "arrive":
+                values.append(real(slow_radius, "slow_radius"))
+        elif kind == "wander":
+            values = [real(distance, "distance"), real(radius, "radius")]
+        elif kind == "avoid":
+            if shape is None:
+                raise ValueError("shape: avoid needs a shape")
+            shape_kind, params = shape_params(shape)
+            values = [*params, real(horizon, "horizon"), real(clearance, "clearance")]
+        first, end = (0, len(self)) if boids is None else boids
+        self._f.add_steering(
+            kind,
+            real(weight, "weight"),
+            first,
+            end,
+            values,
+            boid,
+            seed,
+            self._dim == 2,
+            shape_kind,
+        )

@@ -1,8 +1,8 @@
 """Scenes: one clock for any mix of systems, with coupling, recording, checkpoints.
 
 A :class:`Scene` steps what was added to it (particle systems, constrained particles, cloth,
-rigid worlds, fluids) with one clock: every frame of ``dt`` seconds is ``substeps`` steps of
-``dt / substeps``. Kinematic objects (an :class:`AnimatedSphere` on a keyframed path, a
+rigid worlds, fluids, crowds, flocks) with one clock: every frame of ``dt`` seconds is
+``substeps`` steps of ``dt / substeps``. Kinematic objects (an :class:`AnimatedSphere` on a keyframed path, a
 motion-captured :class:`Character` whose bones are capsules) and the spheres, capsules and boxes of
 rigid worlds are colliders for every cloth and particle system in the scene (one-way: cloth and
 particles do not push back). A scene models only what it was given: without colliders *and*
@@ -36,6 +36,8 @@ from typing import Any
 import numpy as np
 
 from kinema import cloth as _cloth
+from kinema import crowd as _crowd
+from kinema import flock as _flock
 from kinema import fluid as _fluid
 from kinema import ode as _ode
 from kinema import particles as _particles
@@ -215,7 +217,8 @@ class Scene:
 
         Systems: :class:`kinema.particles.ParticleSystem`, :class:`kinema.cloth.Cloth`,
         :class:`kinema.rigid.World`, :class:`kinema.fluid.Fluid` (its walls only, no
-        colliders yet), :class:`kinema.constraints.ConstrainedSystem` (which steps
+        colliders yet), :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
+        obstacles only), :class:`kinema.constraints.ConstrainedSystem` (which steps
         its particles: do not add those too). ``options`` are passed to the system's ``step``
         every step, e.g. ``method="rk4"`` or ``integrator="bdf2", solver="cholesky"``.
         Kinematic objects: :class:`AnimatedSphere`, :class:`Character` (no options)."""
@@ -235,10 +238,12 @@ class Scene:
                 for e in self._entries
             ):
                 raise ValueError("item: it is stepped by a constrained system in the scene")
-        elif not isinstance(item, (_cloth.Cloth, _rigid.World, _fluid.Fluid)):
+        elif not isinstance(
+            item, (_cloth.Cloth, _rigid.World, _fluid.Fluid, _crowd.Crowd, _flock.Flock)
+        ):
             raise ValueError(
                 "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, Fluid, "
-                f"AnimatedSphere or Character, got {type(item).__name__}"
+                f"Crowd, Flock, AnimatedSphere or Character, got {type(item).__name__}"
             )
         self._entries.append(_Entry(item, dict(options)))
         return item
@@ -464,7 +469,8 @@ class Scene:
     def diagnostics(self) -> dict[str, float]:
         """Numbers describing the current state, keyed ``"<index>.<name>"`` by system index
         in :attr:`systems`: energies (J), momenta (kg m/s), constraint violation (m, m/s),
-        solver iterations. Also ``"time"`` (s)."""
+        solver iterations; a crowd's summed agent collisions and agents arrived, a flock's
+        polarisation. Also ``"time"`` (s)."""
         out: dict[str, float] = {"time": self.time}
         for i, e in enumerate(self._entries):
             o = e.obj
@@ -491,6 +497,12 @@ class Scene:
                     ("angular_momentum", o.angular_momentum()),
                 ):
                     out[f"{i}.{name}"] = float(np.linalg.norm(vec))
+            elif isinstance(o, _crowd.Crowd):
+                m = o.metrics()
+                out[f"{i}.agent_collisions"] = float(m["agent_collisions"])
+                out[f"{i}.arrived"] = float(m["arrived"])
+            elif isinstance(o, _flock.Flock):
+                out[f"{i}.polarisation"] = o.polarisation()
         return out
 
     def record(self, name: str, quantity: Callable[[], Any] | None = None) -> None:
@@ -598,8 +610,10 @@ def _checkpoint(entry: _Entry) -> Callable[[], None]:
         cores = [obj._core]
     elif isinstance(obj, _particles.ParticleSystem):
         cores = [obj._sys]
-    elif isinstance(obj, _fluid.Fluid):
+    elif isinstance(obj, (_fluid.Fluid, _flock.Flock)):
         cores = [obj._f]
+    elif isinstance(obj, _crowd.Crowd):
+        cores = [obj._c]
     else:
         cores = [obj._world]
     for core in cores:

@@ -6,7 +6,7 @@ use super::array::{compute, rows};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
-use crate::crowd::{Crowd as Core, Kind, Settings, SocialForce};
+use crate::crowd::{Crowd as Core, Kind, Settings, SocialForce, State, Stats};
 use crate::error::Error;
 use crate::snapshot::Snapshot;
 use glam::DVec2;
@@ -21,6 +21,8 @@ pub struct Crowd {
     /// Whether a view of the agents' arrays was handed out: their buffers must then never be
     /// reallocated, so no agent may be added.
     viewed: bool,
+    /// The scene's undo point (`_mark`).
+    saved: Option<(State, Stats)>,
 }
 
 fn points(arr: &PyReadonlyArrayDyn<'_, f64>, arg: &str) -> PyResult<Vec<DVec2>> {
@@ -44,7 +46,7 @@ impl Crowd {
     /// The object stored by `__reduce__`.
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { crowd: Core::from_snapshot(data)?, viewed: false })
+        Ok(Self { crowd: Core::from_snapshot(data)?, viewed: false, saved: None })
     }
 
     /// An empty crowd: `model` ("orca" or "social_force"), agent `radius` (m), `max_speed`
@@ -101,7 +103,7 @@ impl Crowd {
             seed: seed.count("seed")? as u64,
             kind,
         };
-        Ok(Crowd { crowd: Core::new(settings)?, viewed: false })
+        Ok(Crowd { crowd: Core::new(settings)?, viewed: false, saved: None })
     }
 
     /// Add agents at `positions` (N, 2) in m walking to `goals` (N, 2) in m.
@@ -124,6 +126,30 @@ impl Crowd {
     /// Add a static obstacle polygon (K, 2) in m (counterclockwise; two points: a wall).
     fn add_obstacle(&mut self, polygon: PyReadonlyArrayDyn<'_, f64>) -> PyResult<()> {
         Ok(self.crowd.add_obstacle(&points(&polygon, "polygon")?)?)
+    }
+
+    /// Turn the navigation layer on with paths keeping `clearance` (m) from the obstacles,
+    /// or off (`None`).
+    fn set_navigation(&mut self, clearance: Option<f64>) -> PyResult<()> {
+        Ok(self.crowd.set_navigation(clearance)?)
+    }
+
+    /// Keep a copy of the state and stats to go back to (`_rollback`; the scene's undo
+    /// point).
+    fn _mark(&mut self) {
+        let crowd = &self.crowd;
+        let saved = self.saved.get_or_insert_with(|| (crowd.state().clone(), crowd.stats));
+        saved.0.clone_from(crowd.state());
+        saved.1 = crowd.stats;
+    }
+
+    /// Put the state and stats back as they were at the last `_mark`, in place (views stay
+    /// valid: agents are never added by a step).
+    fn _rollback(&mut self) {
+        if let Some((state, stats)) = &self.saved {
+            self.crowd.state_mut().clone_from(state);
+            self.crowd.stats = *stats;
+        }
     }
 
     /// Advance `steps` steps of `dt` seconds (GIL released).

@@ -6,7 +6,8 @@ use super::array::rows;
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
-use crate::flock::{Flock as Core, Settings};
+use crate::error::Error;
+use crate::flock::{Behaviour, Flock as Core, Settings, State, Steering};
 use crate::snapshot::Snapshot;
 use glam::DVec3;
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
@@ -16,6 +17,8 @@ use pyo3::prelude::*;
 #[pyclass(module = "kinema._kinema")]
 pub struct Flock {
     flock: Core,
+    /// The scene's undo point (`_mark`).
+    saved: Option<State>,
 }
 
 fn points(arr: &PyReadonlyArrayDyn<'_, f64>, arg: &str) -> PyResult<Vec<DVec3>> {
@@ -32,7 +35,7 @@ impl Flock {
     /// The object stored by `__reduce__`.
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { flock: Core::from_snapshot(data)? })
+        Ok(Self { flock: Core::from_snapshot(data)?, saved: None })
     }
 
     /// A flock of boids at `positions` (N, 3) in m with `velocities` (N, 3) in m/s; the
@@ -64,7 +67,76 @@ impl Flock {
             max_force,
         };
         let (p, v) = (points(&positions, "positions")?, points(&velocities, "velocities")?);
-        Ok(Flock { flock: Core::new(settings, &p, &v)? })
+        Ok(Flock { flock: Core::new(settings, &p, &v)?, saved: None })
+    }
+
+    /// Keep a copy of the state to go back to (`_rollback`; the scene's undo point).
+    fn _mark(&mut self) {
+        let flock = &self.flock;
+        self.saved.get_or_insert_with(|| flock.state().clone()).clone_from(flock.state());
+    }
+
+    /// Put the state back as it was at the last `_mark`, in place (views stay valid).
+    fn _rollback(&mut self) {
+        if let Some(state) = &self.saved {
+            self.flock.state_mut().clone_from(state);
+        }
+    }
+
+    /// Add a steering behaviour of `kind` — "seek", "flee" (`values`: target 3, m),
+    /// "arrive" (target 3, slow radius, m), "pursue", "evade" (`boid`), "wander" (distance,
+    /// radius in m, `seed`, `planar`), "avoid" (`shape` and its parameters, then horizon in
+    /// s and clearance in m) — with `weight`, acting on boids `first..end`.
+    #[allow(clippy::too_many_arguments)]
+    fn add_steering(
+        &mut self,
+        kind: &str,
+        weight: f64,
+        first: Int,
+        end: Int,
+        values: Vec<f64>,
+        boid: Int,
+        seed: Int,
+        planar: bool,
+        shape: &str,
+    ) -> PyResult<()> {
+        let need = |n: usize| {
+            if values.len() == n {
+                Ok(())
+            } else {
+                Err(Error::invalid("values", format!("expected {n} numbers")))
+            }
+        };
+        let v3 = |k: usize| DVec3::new(values[k], values[k + 1], values[k + 2]);
+        let max = u32::MAX as usize;
+        let behaviour = match kind {
+            "seek" | "flee" => {
+                need(3)?;
+                if kind == "seek" {
+                    Behaviour::Seek(v3(0))
+                } else {
+                    Behaviour::Flee(v3(0))
+                }
+            }
+            "arrive" => {
+                need(4)?;
+                Behaviour::Arrive { target: v3(0), slow_radius: values[3] }
+            }
+            "pursue" => Behaviour::Pursue(boid.range("boid", 0, max)? as u32),
+            "evade" => Behaviour::Evade(boid.range("boid", 0, max)? as u32),
+            "wander" => {
+                need(2)?;
+                let seed = seed.count("seed")? as u64;
+                Behaviour::Wander { distance: values[0], radius: values[1], seed, planar }
+            }
+            "avoid" => {
+                let (shape, tail) = super::geometry::shape(shape, &values, 2)?;
+                Behaviour::Avoid { shape, horizon: tail[0], clearance: tail[1] }
+            }
+            _ => return Err(Error::invalid("kind", "unknown steering behaviour").into()),
+        };
+        let boids = [first.range("boids", 0, max)? as u32, end.range("boids", 0, max)? as u32];
+        Ok(self.flock.add_steering(Steering { behaviour, weight, boids })?)
     }
 
     /// Advance `steps` steps of `dt` seconds (GIL released).

@@ -8,7 +8,10 @@
 //!   [`lp`]), obstacles handled as in the RVO2 library (§6; `orca.rs`);
 //! - **social forces** (Helbing & Molnár 1995; Helbing, Farkas & Vicsek 2000): a driving term
 //!   towards the preferred velocity and exponential, body and sliding-friction interactions
-//!   with agents and walls (`social.rs`).
+//!   with agents and walls (`social.rs`);
+//!
+//! and, optionally, a global layer (`navigation.rs`): A* on a visibility graph over the
+//! obstacles' convex vertices gives each agent its next waypoint around walls.
 //!
 //! Coordinates are 2-D, in metres on the ground plane (world `x` and `z`, +Y being up).
 //! Neighbours come from the shared hashed uniform grid (`geometry::grid`), rebuilt every
@@ -22,6 +25,7 @@
 pub mod lp;
 pub mod metrics;
 mod model;
+mod navigation;
 mod orca;
 mod snapshot;
 mod social;
@@ -29,6 +33,7 @@ mod solver;
 mod state;
 
 pub use model::{Kind, Model, Settings, SocialForce, Vertex};
+pub use navigation::Roadmap;
 pub use solver::{Solver, Stats};
 pub use state::{State, MAX_AGENTS};
 
@@ -88,6 +93,14 @@ impl Crowd {
     /// Those of [`Model::add_obstacle`]; the crowd is then unchanged.
     pub fn add_obstacle(&mut self, polygon: &[DVec2]) -> Result<()> {
         self.model.add_obstacle(polygon)
+    }
+
+    /// Turn the navigation layer on or off ([`Model::set_navigation`]).
+    ///
+    /// # Errors
+    /// Those of [`Model::set_navigation`]; the crowd is then unchanged.
+    pub fn set_navigation(&mut self, clearance: Option<f64>) -> Result<()> {
+        self.model.set_navigation(clearance)
     }
 
     /// Advance `steps` steps of `dt` seconds ([`Solver::step`]); `stats` then describes the

@@ -4,6 +4,7 @@
 //! neighbours, its edge's direction and whether it is convex).
 
 use super::lp::det;
+use super::navigation::Roadmap;
 use crate::error::{Error, Result};
 use glam::DVec2;
 
@@ -173,6 +174,8 @@ pub struct Model {
     pub(super) vertices: Vec<Vertex>,
     /// Start of each polygon in `vertices` (one more entry than polygons).
     pub(super) polygons: Vec<u32>,
+    /// The global navigation layer, if on: the roadmap of the obstacles.
+    pub(super) navigation: Option<Roadmap>,
 }
 
 impl Model {
@@ -182,7 +185,29 @@ impl Model {
     /// A setting out of its range (named).
     pub fn new(settings: Settings) -> Result<Self> {
         settings.validate()?;
-        Ok(Model { settings, vertices: Vec::new(), polygons: vec![0] })
+        Ok(Model { settings, vertices: Vec::new(), polygons: vec![0], navigation: None })
+    }
+
+    /// Turn the global navigation layer on, with paths keeping `clearance` (m) from the
+    /// obstacles (at least the agent radius is sensible), or off (`None`): agents then head
+    /// for the next waypoint of their shortest path around the obstacles instead of straight
+    /// for their goal ([`Roadmap`], `navigation.rs`).
+    ///
+    /// # Errors
+    /// A clearance not finite and > 0 (`clearance`).
+    pub fn set_navigation(&mut self, clearance: Option<f64>) -> Result<()> {
+        if let Some(c) = clearance {
+            if !(c.is_finite() && c > 0.0) {
+                return Err(Error::invalid("clearance", "must be finite and > 0"));
+            }
+        }
+        self.navigation = clearance.map(|c| Roadmap::new(self, c));
+        Ok(())
+    }
+
+    /// The navigation roadmap, if navigation is on.
+    pub fn navigation(&self) -> Option<&Roadmap> {
+        self.navigation.as_ref()
     }
 
     /// The settings.
@@ -236,6 +261,9 @@ impl Model {
             });
         }
         self.polygons.push(self.vertices.len() as u32);
+        if let Some(c) = self.navigation.as_ref().map(Roadmap::clearance) {
+            self.navigation = Some(Roadmap::new(self, c));
+        }
         Ok(())
     }
 

@@ -11,6 +11,7 @@ impl Model {
     /// [`Model::add_obstacle`] makes of the stored polygons.
     fn validate(&self) -> Result<()> {
         let mut fresh = Model::new(self.settings)?;
+        fresh.set_navigation(self.navigation.as_ref().map(|n| n.clearance()))?;
         check(
             self.polygons.first() == Some(&0)
                 && self.polygons.windows(2).all(|w| w[0] < w[1])

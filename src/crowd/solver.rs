@@ -7,6 +7,7 @@
 //! so results are bitwise the same on any number of threads.
 
 use super::metrics::{self, Collisions};
+use super::navigation::Search;
 use super::orca::{self, Scratch};
 use super::social::{self, Agents};
 use super::{Kind, Model, SocialForce, State};
@@ -37,6 +38,8 @@ pub struct Solver {
     points: Vec<DVec3>,
     scratch: Vec<Scratch>,
     fallbacks: Vec<usize>,
+    /// Per-chunk A* workspaces of the navigation layer.
+    routes: Vec<Search>,
     /// New velocities (ORCA) or accelerations (social forces), `N`.
     next: Vec<DVec2>,
     /// Positions at the start of the step (m), `N`.
@@ -107,24 +110,40 @@ impl Solver {
     }
 
     /// Preferred velocities: towards the goal at the preferred speed, or `(goal - p) /
-    /// horizon` when that is slower; plus `jitter` (m/s) times [`orca::jitter`] if positive.
-    fn prefer(model: &Model, state: &mut State, horizon: f64, jitter: f64) {
+    /// horizon` when that is slower; with navigation on, at the preferred speed towards the
+    /// next waypoint while the goal is out of sight; plus `jitter` (m/s) times
+    /// [`orca::jitter`] if positive.
+    fn prefer(&mut self, model: &Model, state: &mut State, horizon: f64, jitter: f64) {
         let (speed, seed, step) =
             (model.settings.preferred_speed, model.settings.seed, state.tally.steps);
-        state
-            .preferred
-            .par_iter_mut()
-            .zip(&state.positions)
-            .zip(&state.goals)
-            .enumerate()
-            .for_each(|(i, ((pref, &p), &g))| {
-                let to = (g - p) / horizon;
-                let l = to.length();
-                *pref = if l > speed { to * (speed / l) } else { to };
-                if jitter > 0.0 {
-                    *pref += jitter * orca::jitter(seed, step, i);
+        let (positions, goals) = (&state.positions, &state.goals);
+        self.routes.resize_with(state.len().div_ceil(CHUNK), Search::default);
+        state.preferred.par_chunks_mut(CHUNK).zip(self.routes.par_iter_mut()).enumerate().for_each(
+            |(c, (out, route))| {
+                for (k, pref) in out.iter_mut().enumerate() {
+                    let i = c * CHUNK + k;
+                    let (p, g) = (positions[i], goals[i]);
+                    let target = match &model.navigation {
+                        Some(map) => map.waypoint(model, p, g, route),
+                        None => g,
+                    };
+                    *pref = if target == g {
+                        let to = (g - p) / horizon;
+                        let l = to.length();
+                        if l > speed {
+                            to * (speed / l)
+                        } else {
+                            to
+                        }
+                    } else {
+                        (target - p).normalize_or_zero() * speed
+                    };
+                    if jitter > 0.0 {
+                        *pref += jitter * orca::jitter(seed, step, i);
+                    }
                 }
-            });
+            },
+        );
     }
 
     /// Size the per-agent buffers for `n` agents.
@@ -140,7 +159,7 @@ impl Solver {
     /// number of agents that needed the fallback program.
     fn orca(&mut self, model: &Model, state: &mut State, dt: f64) -> usize {
         let n = state.len();
-        Self::prefer(model, state, dt, model.settings.perturbation);
+        self.prefer(model, state, dt, model.settings.perturbation);
         if n == 0 {
             return 0;
         }
@@ -172,7 +191,7 @@ impl Solver {
     /// Euler `v += a h` (speed capped at the maximum), `p += v h`.
     fn social(&mut self, model: &Model, sf: &SocialForce, state: &mut State, h: f64) {
         let n = state.len();
-        Self::prefer(model, state, sf.relaxation_time, 0.0);
+        self.prefer(model, state, sf.relaxation_time, 0.0);
         if n == 0 {
             return;
         }

@@ -3,7 +3,9 @@
 //! of view — as steering forces bounded by a maximum force and speed (Reynolds 1999,
 //! "Steering behaviors for autonomous characters"), in 2-D or 3-D. Neighbours come from the
 //! shared hashed uniform grid (`geometry::grid`), rebuilt every step; the step is parallel
-//! and bitwise the same on any number of threads.
+//! and bitwise the same on any number of threads. Reynolds' (1999) steering behaviours
+//! (seek, flee, arrive, pursue, evade, wander, obstacle avoidance against the shared shapes)
+//! add as weighted forces ([`Steering`], `steering.rs`).
 //!
 //! The flock is split as every system of kinema is: a [`Model`] (the settings), a [`State`]
 //! (positions, velocities, time) and a [`Solver`] (grid and accelerations), so one model and
@@ -14,10 +16,12 @@ mod model;
 mod snapshot;
 mod solver;
 mod state;
+mod steering;
 
 pub use model::{Model, Settings};
 pub use solver::Solver;
 pub use state::{State, MAX_BOIDS};
+pub use steering::{Behaviour, Steering};
 
 use crate::error::Result;
 use glam::DVec3;
@@ -48,6 +52,14 @@ impl Flock {
     /// The model.
     pub fn model(&self) -> &Model {
         &self.model
+    }
+
+    /// Add a weighted steering behaviour ([`Model::add_steering`]).
+    ///
+    /// # Errors
+    /// Those of [`Model::add_steering`]; the flock is then unchanged.
+    pub fn add_steering(&mut self, steering: Steering) -> Result<()> {
+        self.model.add_steering(steering)
     }
 
     /// The state.

@@ -2,6 +2,7 @@
 //! schools"; the steering-force form of Reynolds 1999, "Steering behaviors for autonomous
 //! characters"), read-only during a step.
 
+use super::steering::Steering;
 use crate::error::{Error, Result};
 
 /// The parameters shared by every boid.
@@ -49,6 +50,8 @@ impl Default for Settings {
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct Model {
     pub(super) settings: Settings,
+    /// The steering behaviours added on top of the flocking rules, in order.
+    pub(super) steering: Vec<Steering>,
 }
 
 impl Model {
@@ -82,7 +85,22 @@ impl Model {
         if !(positive(s.field_of_view) && s.field_of_view <= std::f64::consts::TAU) {
             return Err(Error::invalid("field_of_view", "must be in (0, 2 pi]"));
         }
-        Ok(Model { settings })
+        Ok(Model { settings, steering: Vec::new() })
+    }
+
+    /// Add a weighted steering behaviour ([`Steering`], Reynolds 1999).
+    ///
+    /// # Errors
+    /// A parameter out of its range (named); the model is then unchanged.
+    pub fn add_steering(&mut self, steering: Steering) -> Result<()> {
+        steering.validate()?;
+        self.steering.push(steering);
+        Ok(())
+    }
+
+    /// The steering behaviours, in the order added.
+    pub fn steering(&self) -> &[Steering] {
+        &self.steering
     }
 
     /// The settings.

@@ -9,6 +9,7 @@
 //! `max_force` long. The acceleration is the weighted sum, again at most `max_force`; then
 //! semi-implicit Euler `v += a dt` (speed capped at `max_speed`), `p += v dt`.
 
+use super::steering::{self, Behaviour, Steering};
 use super::{Model, Settings, State};
 use crate::error::{Error, Result};
 use crate::geometry::grid::Grid;
@@ -43,6 +44,14 @@ impl Solver {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(Error::invalid("dt", "must be finite and > 0"));
         }
+        let n = state.len();
+        for s in &model.steering {
+            if let Behaviour::Pursue(j) | Behaviour::Evade(j) = s.behaviour {
+                if j as usize >= n {
+                    return Err(Error::invalid("target", "no boid of that index"));
+                }
+            }
+        }
         self.backup.clone_from(state);
         let set = &model.settings;
         for step in 0..steps {
@@ -51,7 +60,8 @@ impl Solver {
             self.grid.build(&state.positions, n, set.neighbour_radius);
             let (grid, st) = (&self.grid, &*state);
             self.acceleration.par_iter_mut().enumerate().with_min_len(CHUNK).for_each(|(i, a)| {
-                *a = steering(set, st, i, grid.neighbours(i));
+                *a = flocking(set, st, i, grid.neighbours(i));
+                *a = behaviours(set, &model.steering, st, i, *a);
             });
             state
                 .velocities
@@ -95,7 +105,7 @@ fn steer(set: &Settings, desired: DVec3, v: DVec3) -> DVec3 {
 /// neighbour radius) that lie in its field of view: separation away from those closer than
 /// the separation distance, each weighted by the inverse distance (`-Σ d / |d|²`), alignment
 /// towards their mean velocity, cohesion towards their centre.
-fn steering(set: &Settings, state: &State, i: usize, neighbours: &[u32]) -> DVec3 {
+fn flocking(set: &Settings, state: &State, i: usize, neighbours: &[u32]) -> DVec3 {
     let (p, v) = (state.positions[i], state.velocities[i]);
     let speed = v.length();
     let sees_all = set.field_of_view >= std::f64::consts::TAU || speed == 0.0;
@@ -123,4 +133,26 @@ fn steering(set: &Settings, state: &State, i: usize, neighbours: &[u32]) -> DVec
         + set.alignment * steer(set, velocity * inv, v)
         + set.cohesion * steer(set, offset * inv, v);
     a.clamp_length_max(set.max_force)
+}
+
+/// The flocking acceleration `flocking` of boid `i` plus its weighted steering behaviours,
+/// at most `max_force` long (m/s²; `flocking` itself when none acts on it).
+fn behaviours(
+    set: &Settings,
+    list: &[Steering],
+    state: &State,
+    i: usize,
+    flocking: DVec3,
+) -> DVec3 {
+    let mut a = flocking;
+    let mut any = false;
+    for s in list.iter().filter(|s| (s.boids[0] as usize..s.boids[1] as usize).contains(&i)) {
+        a += s.weight * steering::force(set, &s.behaviour, state, i);
+        any = true;
+    }
+    if any {
+        a.clamp_length_max(set.max_force)
+    } else {
+        flocking
+    }
 }
