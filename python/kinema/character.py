@@ -1,7 +1,7 @@
 """Articulated characters in reduced coordinates (issue #27, first slice).
 
 A :class:`Model` is a kinematic tree of rigid bodies joined by revolute (hinge), ball,
-free (6 DOF) and fixed joints, built body by body (parents first). An
+free (6 DOF), planar (x, y, turn about z) and fixed joints, built body by body (parents first). An
 :class:`ArticulatedBody` steps it with Featherstone's articulated-body algorithm (forward
 dynamics in O(n); the CRBA and RNEA for stable PD), semi-implicit Euler or RK4, joint limits
 as stiff one-sided springs, penalty ground contact on the plane y = 0 with friction, PD or
@@ -26,7 +26,7 @@ from kinema._array import as_vector3, real
 
 __all__ = ["ArticulatedBody", "Model", "Ragdoll"]
 
-_JOINTS = ("revolute", "ball", "free", "fixed")
+_JOINTS = ("revolute", "ball", "free", "planar", "fixed")
 
 
 def _index(value: object, name: str) -> int:
@@ -73,7 +73,8 @@ class Model:
         """Append a body and return its index.
 
         ``parent``: index of a body added before, or ``None`` (the world). ``joint``:
-        ``"revolute"`` (about ``axis``), ``"ball"``, ``"free"`` or ``"fixed"``. ``offset``
+        ``"revolute"`` (about ``axis``), ``"ball"``, ``"free"``, ``"planar"`` (x, y, and a
+        turn about z: coordinates ``[x, y, θ]``) or ``"fixed"``. ``offset``
         (m): the joint's position in the parent's frame (the world's for a root); the body's
         frame has its origin at the joint and the parent's axes at the zero pose. ``mass``
         (kg), ``com`` (m, body frame), ``inertia`` (3x3, kg m², about the centre of mass).
@@ -84,7 +85,7 @@ class Model:
         damping (N m s/rad).
         """
         if joint not in _JOINTS:
-            raise ValueError("joint: expected 'revolute', 'ball', 'free' or 'fixed'")
+            raise ValueError("joint: expected 'revolute', 'ball', 'free', 'planar' or 'fixed'")
         p = None if parent is None else _index(parent, "parent")
         if p is not None and p < 0:
             raise ValueError("parent: expected a body index >= 0 or None")

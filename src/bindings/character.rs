@@ -40,7 +40,8 @@ impl ArticulatedModel {
         ArticulatedModel { model: Model::new(Settings::default()) }
     }
 
-    /// Append a body; returns its index. `joint` is "revolute", "ball", "free" or "fixed";
+    /// Append a body; returns its index. `joint` is "revolute", "ball", "free", "planar" or
+    /// "fixed";
     /// `inertia` the 3x3 inertia about the centre of mass (kg m², rows); `shape` a capsule
     /// `(a, b, radius)` or None; `limits` up to three `(lower, upper)` (rad) or None.
     #[allow(clippy::too_many_arguments)]
@@ -63,11 +64,12 @@ impl ArticulatedModel {
             "revolute" => Joint::Revolute { axis: DVec3::from_array(axis) },
             "ball" => Joint::Ball,
             "free" => Joint::Free,
+            "planar" => Joint::Planar,
             "fixed" => Joint::Fixed,
             _ => {
                 return Err(Error::invalid(
                     "joint",
-                    "expected 'revolute', 'ball', 'free' or 'fixed'",
+                    "expected 'revolute', 'ball', 'free', 'planar' or 'fixed'",
                 )
                 .into())
             }

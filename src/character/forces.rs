@@ -51,7 +51,7 @@ pub(super) fn passive(
     }
     for (i, b) in model.bodies().iter().enumerate() {
         let (_, iv) = model.starts(i);
-        if b.joint != Joint::Free {
+        if matches!(b.joint, Joint::Revolute { .. } | Joint::Ball) {
             for k in 0..b.joint.nv() {
                 tau[iv + k] -= b.damping * qd[iv + k];
             }
