@@ -287,7 +287,7 @@ fn advance(phase: &mut Phase, gait: &Gait, model: &Model, tree: &Tree) {
 
 /// The joint torques of SIMBICON (§3.2–3.3) into `state`'s applied torques.
 fn control(gait: &Gait, phase: &Phase, model: &Model, tree: &Tree, state: &mut State) {
-    let pose = if phase.state % 2 == 0 { &gait.lift } else { &gait.strike };
+    let pose = if phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
     let (swing, stance) = legs(phase.state);
     let (q, qd) = (state.q(), state.qd());
     let dof = |body: usize| model.starts(body).1;
