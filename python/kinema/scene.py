@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from kinema import character as _character
 from kinema import cloth as _cloth
 from kinema import fluid as _fluid
 from kinema import ode as _ode
@@ -215,7 +216,7 @@ class Scene:
 
         Systems: :class:`kinema.particles.ParticleSystem`, :class:`kinema.cloth.Cloth`,
         :class:`kinema.rigid.World`, :class:`kinema.fluid.Fluid` (its walls only, no
-        colliders yet), :class:`kinema.constraints.ConstrainedSystem` (which steps
+        colliders yet), :class:`kinema.character.Biped` (its own ground, no colliders), :class:`kinema.constraints.ConstrainedSystem` (which steps
         its particles: do not add those too). ``options`` are passed to the system's ``step``
         every step, e.g. ``method="rk4"`` or ``integrator="bdf2", solver="cholesky"``.
         Kinematic objects: :class:`AnimatedSphere`, :class:`Character` (no options)."""
@@ -235,9 +236,9 @@ class Scene:
                 for e in self._entries
             ):
                 raise ValueError("item: it is stepped by a constrained system in the scene")
-        elif not isinstance(item, (_cloth.Cloth, _rigid.World, _fluid.Fluid)):
+        elif not isinstance(item, (_cloth.Cloth, _rigid.World, _fluid.Fluid, _character.Biped)):
             raise ValueError(
-                "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, Fluid, "
+                "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, Fluid, Biped, "
                 f"AnimatedSphere or Character, got {type(item).__name__}"
             )
         self._entries.append(_Entry(item, dict(options)))
@@ -600,6 +601,8 @@ def _checkpoint(entry: _Entry) -> Callable[[], None]:
         cores = [obj._sys]
     elif isinstance(obj, _fluid.Fluid):
         cores = [obj._f]
+    elif isinstance(obj, _character.Biped):
+        cores = [obj._w]
     else:
         cores = [obj._world]
     for core in cores:

@@ -160,9 +160,9 @@ pub struct Phase {
 /// and a solver. A snapshot holds the model, the state, the phase and the gait.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Walker {
-    model: Model,
-    state: State,
-    phase: Phase,
+    pub(super) model: Model,
+    pub(super) state: State,
+    pub(super) phase: Phase,
     /// The gait (free to change between steps).
     pub gait: Gait,
     #[serde(skip)]
@@ -212,6 +212,12 @@ impl Walker {
     /// The controller's phase.
     pub fn phase(&self) -> Phase {
         self.phase
+    }
+
+    /// Put back a state and phase saved from this walker (a scene's undo).
+    pub fn restore(&mut self, state: &State, phase: Phase) {
+        self.state.clone_from(state);
+        self.phase = phase;
     }
 
     /// Advance `steps` steps of `dt` seconds: each runs the FSM's transitions, the

@@ -15,5 +15,6 @@ DEMOS: dict[str, str] = {
     "cloth": "Baraff–Witkin cloth draping over a sphere onto the ground (GIF)",
     "mocap": "a CMU walk on its skeleton, edited by IK to step over an obstacle (GIF)",
     "fluid": "an SPH dam break (DFSPH), particles coloured by speed (GIF)",
+    "biped": "the planar SIMBICON walker, pushed from behind and recovering (GIF)",
     "skin": "a CMU walk skinned on a procedural body, written as glTF (.glb) and a GIF",
 }
