@@ -443,9 +443,8 @@ class Biped:
             index = names.index(body)
         else:
             index = _index(body, "body")
-        if np.ndim(force) == 0:
-            force = (real(force, "force"), 0.0, 0.0)  # type: ignore[arg-type]
-        self._w.push(index, as_vector3(force, "force"), real(duration, "duration"))
+        vector = (real(force, "force"), 0.0, 0.0) if np.ndim(force) == 0 else force
+        self._w.push(index, as_vector3(vector, "force"), real(duration, "duration"))
 
     @property
     def com(self) -> np.ndarray:

@@ -75,7 +75,7 @@ def test_scene_steps_the_biped_and_undoes_a_failed_frame():
 
 
 def test_bad_arguments_name_the_argument_without_quoting_it():
-    with pytest.raises(ValueError, match="^kp") as e:
+    with pytest.raises(ValueError, match=r"^kp") as e:
         character.Biped(kp=-1.0)
     with pytest.raises(ValueError, match="swing_hip"):
         character.Biped(swing_hip=(0.5, float("nan")))
@@ -84,9 +84,9 @@ def test_bad_arguments_name_the_argument_without_quoting_it():
     with pytest.raises(TypeError, match="wobble"):
         character.Biped(wobble=(1, 2))
     b = character.Biped()
-    with pytest.raises(ValueError, match="^dt"):
+    with pytest.raises(ValueError, match=r"^dt"):
         b.step(-1.0)
-    with pytest.raises(ValueError, match="^body"):
+    with pytest.raises(ValueError, match=r"^body"):
         b.push(10.0, 0.1, body="tail-secret")
     assert "tail-secret" not in str(e.value)
     with pytest.raises(ValueError, match="duration"):
