@@ -60,10 +60,11 @@ fn random_tree(rng: &mut Rng, n: usize) -> (Model, Vec<f64>, Vec<f64>) {
     let mut model =
         Model::new(Settings { gravity: DVec3::new(0.3, -9.81, 0.2), ..free_settings() });
     for i in 0..n {
-        let joint = match rng.below(if i == 0 { 3 } else { 4 }) {
+        let joint = match rng.below(if i == 0 { 4 } else { 5 }) {
             0 => Joint::Revolute { axis: rng.vec() + DVec3::splat(0.1) },
             1 => Joint::Ball,
             2 => Joint::Free,
+            3 => Joint::Planar,
             _ => Joint::Fixed,
         };
         let parent = if i == 0 { None } else { Some(rng.below(i)) };
@@ -124,6 +125,58 @@ fn aba_agrees_with_crba_and_rnea_on_random_trees() {
         let t = 0.5 * v.dot(&(&m * &v));
         assert!((t - tree.kinetic_energy(&model)).abs() <= 1e-10 * (1.0 + t), "case {case}");
     }
+}
+
+/// A chain of 3 hinges about z under a root of kind `root`, thrown in the x–y plane: the
+/// planar root at `[x, y, θ]`, `[vx, vy, ω]`, the free root at the same planar pose.
+fn thrown_chain(root: Joint) -> ArticulatedBody {
+    let settings = Settings { integrator: Integrator::Rk4, ..free_settings() };
+    let mut model = Model::new(settings);
+    let inertia = DMat3::from_diagonal(DVec3::new(0.02, 0.003, 0.05));
+    model.add_body(body(None, root, DVec3::ZERO, 3.0, DVec3::new(0.1, 0.2, 0.0), inertia)).unwrap();
+    for i in 1..4 {
+        let b = body(
+            Some(i - 1),
+            Joint::Revolute { axis: DVec3::Z },
+            DVec3::new(0.3, -0.1, 0.0),
+            1.0 + 0.5 * i as f64,
+            DVec3::new(0.2, 0.05, 0.0),
+            DMat3::from_diagonal(DVec3::new(0.01, 0.002, 0.02)),
+        );
+        model.add_body(b).unwrap();
+    }
+    let (x, y, th, vx, vy, w) = (0.2, 1.5, 0.7, 1.3, 2.0, -3.0);
+    let mut c = ArticulatedBody::new(model);
+    let (model, state) = c.parts_mut();
+    let (mut q, mut qd) = (vec![], vec![]);
+    if root == Joint::Planar {
+        q.extend([x, y, th]);
+        qd.extend([vx, vy, w]);
+    } else {
+        let r = DQuat::from_rotation_z(th);
+        q.extend([x, y, 0.0, r.w, r.x, r.y, r.z]);
+        // Free-joint rates: ω in body axes (z is z), v in parent axes.
+        qd.extend([0.0, 0.0, w, vx, vy, 0.0]);
+    }
+    q.extend([0.4, -0.8, 1.1]);
+    qd.extend([2.0, -1.0, 0.5]);
+    state.set_q(model, &q).unwrap();
+    state.set_qd(&qd).unwrap();
+    c
+}
+
+#[test]
+fn a_planar_root_moves_as_a_free_root_kept_in_the_plane() {
+    let (mut planar, mut free) = (thrown_chain(Joint::Planar), thrown_chain(Joint::Free));
+    for _ in 0..4 {
+        planar.step(1e-3, 250).unwrap();
+        free.step(1e-3, 250).unwrap();
+        let (a, b) = (planar.kinematics().positions().to_vec(), free.kinematics().positions());
+        for (p, f) in a.iter().zip(b) {
+            assert!((*p - *f).length() < 1e-9, "planar {p} vs free {f}");
+        }
+    }
+    assert!(planar.com().y < 0.0, "the chain falls under gravity");
 }
 
 /// A hinge about z at the origin holding a body of `mass` with its centre of mass at

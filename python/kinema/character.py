@@ -1,12 +1,13 @@
 """Articulated characters in reduced coordinates (issue #27, first slice).
 
 A :class:`Model` is a kinematic tree of rigid bodies joined by revolute (hinge), ball,
-free (6 DOF) and fixed joints, built body by body (parents first). An
+free (6 DOF), planar (x, y, turn about z) and fixed joints, built body by body (parents first). An
 :class:`ArticulatedBody` steps it with Featherstone's articulated-body algorithm (forward
 dynamics in O(n); the CRBA and RNEA for stable PD), semi-implicit Euler or RK4, joint limits
 as stiff one-sided springs, penalty ground contact on the plane y = 0 with friction, PD or
 stable PD servos (Tan, Liu & Turk 2011) and timed pushes. :meth:`Ragdoll.from_skeleton`
-builds a limp ragdoll from an ASF skeleton.
+builds a limp ragdoll from an ASF skeleton. :class:`Biped` is the planar 7-link biped of
+SIMBICON (Yin, Loken & van de Panne 2007) walking under its controller.
 
 Coordinates ``q``: per joint, a hinge angle (rad), a ball joint's quaternion ``(w, x, y,
 z)``, a free joint's position (m) and quaternion; rates ``qd``: hinge rate, a ball joint's
@@ -24,9 +25,9 @@ import numpy as np
 from kinema import _kinema
 from kinema._array import as_vector3, real
 
-__all__ = ["ArticulatedBody", "Model", "Ragdoll"]
+__all__ = ["ArticulatedBody", "Biped", "Model", "Ragdoll"]
 
-_JOINTS = ("revolute", "ball", "free", "fixed")
+_JOINTS = ("revolute", "ball", "free", "planar", "fixed")
 
 
 def _index(value: object, name: str) -> int:
@@ -73,7 +74,8 @@ class Model:
         """Append a body and return its index.
 
         ``parent``: index of a body added before, or ``None`` (the world). ``joint``:
-        ``"revolute"`` (about ``axis``), ``"ball"``, ``"free"`` or ``"fixed"``. ``offset``
+        ``"revolute"`` (about ``axis``), ``"ball"``, ``"free"``, ``"planar"`` (x, y, and a
+        turn about z: coordinates ``[x, y, θ]``) or ``"fixed"``. ``offset``
         (m): the joint's position in the parent's frame (the world's for a root); the body's
         frame has its origin at the joint and the parent's axes at the zero pose. ``mass``
         (kg), ``com`` (m, body frame), ``inertia`` (3x3, kg m², about the centre of mass).
@@ -84,7 +86,7 @@ class Model:
         damping (N m s/rad).
         """
         if joint not in _JOINTS:
-            raise ValueError("joint: expected 'revolute', 'ball', 'free' or 'fixed'")
+            raise ValueError("joint: expected 'revolute', 'ball', 'free', 'planar' or 'fixed'")
         p = None if parent is None else _index(parent, "parent")
         if p is not None and p < 0:
             raise ValueError("parent: expected a body index >= 0 or None")
@@ -326,3 +328,168 @@ class Ragdoll(ArticulatedBody):
         if settings:
             out.configure(**settings)
         return out
+
+
+_POSE = (
+    "cd",
+    "cv",
+    "torso",
+    "swing_hip",
+    "swing_knee",
+    "swing_ankle",
+    "stance_knee",
+    "stance_ankle",
+)
+_WALK = {  # the defaults of kinema::character::Gait (the paper's walk, torso leaning)
+    "cd": (0.0, 2.2),
+    "cv": (0.2, 0.0),
+    "torso": (-0.15, -0.15),
+    "swing_hip": (0.5, -0.1),
+    "swing_knee": (-1.1, -0.05),
+    "swing_ankle": (0.6, 0.15),
+    "stance_knee": (-0.05, -0.1),
+    "stance_ankle": (0.0, 0.0),
+}
+
+
+class Biped:
+    """The planar SIMBICON biped walking (Yin, Loken & van de Panne 2007; docs/character.md).
+
+    Seven links in the x–y plane (x forward, y up): a torso on a planar root, and per leg a
+    thigh, a shin and a foot on hinges about z, with the paper's masses and lengths; feet
+    touch the ground y = 0 at heel and toe. The SIMBICON controller runs every step: a
+    four-state machine (states 0/2 last ``duration`` s while a leg lifts, states 1/3 end when
+    the swing foot strikes), PD servos towards each state's pose, the swing hip's target
+    ``θ = swing_hip + cd·d + cv·v`` (``d``: stance ankle to centre of mass, m; ``v``: centre
+    of mass velocity, m/s), the torso servoed in the world frame through the stance hip.
+
+    Gait parameters are pairs ``(states 0/2, states 1/3)``: ``cd`` (rad/m), ``cv``
+    (rad s/m), ``torso`` (rad from vertical, negative leans forward), ``swing_hip`` (rad,
+    world frame, positive forward), ``swing_knee``, ``swing_ankle``, ``stance_knee``,
+    ``stance_ankle`` (rad, relative; a bent knee is negative). ``duration`` (s); ``kp``
+    (N m/rad), ``kd`` (N m s/rad) of the joints, ``torso_kp``, ``torso_kd`` of the torso;
+    ``max_torque`` (N m) per joint. ``speed``: initial forward speed (m/s).
+    ``contact_frequency`` (rad/s) and ``friction`` of the ground (see
+    :class:`ArticulatedBody`). Step with ``dt`` ≤ 1e-4 s (explicit PD on the 1 kg feet).
+
+    Coordinates ``q`` (9,): torso ``x, y`` (m, at the hips) and angle (rad), then hip, knee
+    and ankle angles of the right leg, then of the left.
+    """
+
+    def __init__(
+        self,
+        *,
+        duration: float = 0.3,
+        kp: float = 300.0,
+        kd: float = 30.0,
+        torso_kp: float = 1000.0,
+        torso_kd: float = 100.0,
+        max_torque: float = 400.0,
+        speed: float = 0.3,
+        contact_frequency: float = 200.0,
+        friction: float = 1.0,
+        **pose: Any,
+    ) -> None:
+        unknown = sorted(set(pose) - set(_POSE))
+        if unknown:
+            raise TypeError(f"unexpected keyword arguments: {', '.join(unknown)}")
+        values = []
+        for name in _POSE:
+            pair = pose.get(name, _WALK[name])
+            values.append(_floats(pair, name, (2,)))
+        lift = [float(v[0]) for v in values]
+        strike = [float(v[1]) for v in values]
+        control = [
+            real(v, n)
+            for v, n in (
+                (duration, "duration"),
+                (kp, "kp"),
+                (kd, "kd"),
+                (torso_kp, "torso_kp"),
+                (torso_kd, "torso_kd"),
+                (max_torque, "max_torque"),
+            )
+        ]
+        self._w = _kinema.Walker(
+            lift,
+            strike,
+            control,
+            real(speed, "speed"),
+            real(contact_frequency, "contact_frequency"),
+            real(friction, "friction"),
+        )
+
+    @property
+    def gait(self) -> dict[str, Any]:
+        """The gait parameters as keywords of :class:`Biped` (pairs for the poses)."""
+        lift, strike, control = self._w.gait()
+        out: dict[str, Any] = {n: (a, b) for n, a, b in zip(_POSE, lift, strike, strict=True)}
+        names = ("duration", "kp", "kd", "torso_kp", "torso_kd", "max_torque")
+        out.update(zip(names, control, strict=True))
+        return out
+
+    def step(self, dt: float, steps: int = 1) -> None:
+        """Advance ``steps`` steps of ``dt`` seconds (controller, then dynamics, per step).
+        Raises :class:`kinema.SimulationError` on divergence, leaving the biped as it was."""
+        self._w.step(real(dt, "dt"), _index(steps, "steps"))
+
+    def push(self, force: Any, duration: float, body: str | int = "torso") -> None:
+        """Push ``body`` (a name or index; default the torso) with ``force`` (N, world, 3
+        values or a number for x) at its centre of mass for ``duration`` seconds."""
+        names = self.names
+        if isinstance(body, str):
+            if body not in names:
+                raise ValueError(f"body: expected one of {', '.join(names)}")
+            index = names.index(body)
+        else:
+            index = _index(body, "body")
+        vector = (real(force, "force"), 0.0, 0.0) if np.ndim(force) == 0 else force
+        self._w.push(index, as_vector3(vector, "force"), real(duration, "duration"))
+
+    @property
+    def com(self) -> np.ndarray:
+        """Centre of mass (m, world), shape (3,)."""
+        return np.array(self._w.com)
+
+    @property
+    def feet_in_contact(self) -> tuple[bool, bool]:
+        """Whether the right and left feet touch the ground."""
+        return self._w.feet_in_contact
+
+    @property
+    def state(self) -> int:
+        """The controller's FSM state (0, 1: the right leg swings; 2, 3: the left)."""
+        return self._w.phase()[0]
+
+    @property
+    def steps(self) -> int:
+        """Foot strikes so far (FSM transitions 1 → 2 and 3 → 0)."""
+        return self._w.phase()[2]
+
+    @property
+    def q(self) -> np.ndarray:
+        """Read-only view of the coordinates (9,), updated in place by :meth:`step`."""
+        return self._w.q
+
+    @property
+    def qd(self) -> np.ndarray:
+        """Read-only view of the rates (9,)."""
+        return self._w.qd
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._w.time
+
+    @property
+    def names(self) -> list[str]:
+        """Body names: torso, then right and left thigh, shin, foot."""
+        return self._w.names()
+
+    def positions(self) -> np.ndarray:
+        """World positions (m) of the body frames (7, 3): the hips (torso and thighs), knees
+        (shins), ankles (feet)."""
+        return self._w.positions()
+
+    def __repr__(self) -> str:
+        return f"Biped(time={self.time:.4g} s, x={self.com[0]:.3g} m, steps={self.steps})"

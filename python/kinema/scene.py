@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from kinema import character as _character
 from kinema import cloth as _cloth
 from kinema import crowd as _crowd
 from kinema import flock as _flock
@@ -218,7 +219,8 @@ class Scene:
         Systems: :class:`kinema.particles.ParticleSystem`, :class:`kinema.cloth.Cloth`,
         :class:`kinema.rigid.World`, :class:`kinema.fluid.Fluid` (its walls only, no
         colliders yet), :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
-        obstacles only), :class:`kinema.constraints.ConstrainedSystem` (which steps
+        obstacles only), :class:`kinema.character.Biped` (its own ground, no colliders),
+        :class:`kinema.constraints.ConstrainedSystem` (which steps
         its particles: do not add those too). ``options`` are passed to the system's ``step``
         every step, e.g. ``method="rk4"`` or ``integrator="bdf2", solver="cholesky"``.
         Kinematic objects: :class:`AnimatedSphere`, :class:`Character` (no options)."""
@@ -239,11 +241,19 @@ class Scene:
             ):
                 raise ValueError("item: it is stepped by a constrained system in the scene")
         elif not isinstance(
-            item, (_cloth.Cloth, _rigid.World, _fluid.Fluid, _crowd.Crowd, _flock.Flock)
+            item,
+            (
+                _cloth.Cloth,
+                _rigid.World,
+                _fluid.Fluid,
+                _crowd.Crowd,
+                _flock.Flock,
+                _character.Biped,
+            ),
         ):
             raise ValueError(
                 "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, Fluid, "
-                f"Crowd, Flock, AnimatedSphere or Character, got {type(item).__name__}"
+                f"Crowd, Flock, Biped, AnimatedSphere or Character, got {type(item).__name__}"
             )
         self._entries.append(_Entry(item, dict(options)))
         return item
@@ -614,6 +624,8 @@ def _checkpoint(entry: _Entry) -> Callable[[], None]:
         cores = [obj._f]
     elif isinstance(obj, _crowd.Crowd):
         cores = [obj._c]
+    elif isinstance(obj, _character.Biped):
+        cores = [obj._w]
     else:
         cores = [obj._world]
     for core in cores:

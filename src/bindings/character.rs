@@ -8,8 +8,8 @@ use super::mocap::PySkeleton;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::character::{
-    ragdoll, ArticulatedBody as Core, Body, Capsule, Integrator, Joint, Limits, Model,
-    RagdollOptions, Servo, ServoMode, Settings,
+    ragdoll, ArticulatedBody as Core, Body, Capsule, Gait, Integrator, Joint, Limits, Model, Phase,
+    Pose, RagdollOptions, Servo, ServoMode, Settings, State, Walker as WalkerCore,
 };
 use crate::error::Error;
 use crate::snapshot::Snapshot;
@@ -40,7 +40,8 @@ impl ArticulatedModel {
         ArticulatedModel { model: Model::new(Settings::default()) }
     }
 
-    /// Append a body; returns its index. `joint` is "revolute", "ball", "free" or "fixed";
+    /// Append a body; returns its index. `joint` is "revolute", "ball", "free", "planar" or
+    /// "fixed";
     /// `inertia` the 3x3 inertia about the centre of mass (kg m², rows); `shape` a capsule
     /// `(a, b, radius)` or None; `limits` up to three `(lower, upper)` (rad) or None.
     #[allow(clippy::too_many_arguments)]
@@ -63,11 +64,12 @@ impl ArticulatedModel {
             "revolute" => Joint::Revolute { axis: DVec3::from_array(axis) },
             "ball" => Joint::Ball,
             "free" => Joint::Free,
+            "planar" => Joint::Planar,
             "fixed" => Joint::Fixed,
             _ => {
                 return Err(Error::invalid(
                     "joint",
-                    "expected 'revolute', 'ball', 'free' or 'fixed'",
+                    "expected 'revolute', 'ball', 'free', 'planar' or 'fixed'",
                 )
                 .into())
             }
@@ -345,5 +347,162 @@ impl ArticulatedBody {
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<ArticulatedModel>()?;
+    m.add_class::<Walker>()?;
     m.add_class::<ArticulatedBody>()
+}
+
+/// The planar SIMBICON walker; see `kinema.character.Biped` for the API.
+#[pyclass(module = "kinema._kinema")]
+pub struct Walker {
+    walker: WalkerCore,
+    /// The undo point of [`Walker::_mark`] (state and phase; none before the first).
+    saved: Option<(State, Phase)>,
+}
+
+/// A pose from its eight values `[cd, cv, torso, swing_hip, swing_knee, swing_ankle,
+/// stance_knee, stance_ankle]`.
+fn pose(v: [f64; 8]) -> Pose {
+    let [cd, cv, torso, swing_hip, swing_knee, swing_ankle, stance_knee, stance_ankle] = v;
+    Pose { cd, cv, torso, swing_hip, swing_knee, swing_ankle, stance_knee, stance_ankle }
+}
+
+fn pose_values(p: &Pose) -> [f64; 8] {
+    [p.cd, p.cv, p.torso, p.swing_hip, p.swing_knee, p.swing_ankle, p.stance_knee, p.stance_ankle]
+}
+
+#[pymethods]
+impl Walker {
+    /// Pickle support: the walker as a snapshot (model, state, phase, gait).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        reduce(slf, |s| &s.walker, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { walker: WalkerCore::from_snapshot(data)?, saved: None })
+    }
+
+    /// Remember the state and the controller's phase (a scene's undo point).
+    fn _mark(&mut self) {
+        let phase = self.walker.phase();
+        match &mut self.saved {
+            Some((state, saved)) => {
+                state.clone_from(self.walker.state());
+                *saved = phase;
+            }
+            None => self.saved = Some((self.walker.state().clone(), phase)),
+        }
+    }
+
+    /// Put the state and the phase back as they were at the last [`Walker::_mark`].
+    fn _rollback(&mut self) {
+        if let Some((state, phase)) = &self.saved {
+            self.walker.restore(state, *phase);
+        }
+    }
+
+    /// The walker at `speed` (m/s) with the gait's `lift` and `strike` poses (8 values
+    /// each, see `pose`), `[duration, kp, kd, torso_kp, torso_kd, max_torque]`, the ground
+    /// contact's `contact_frequency` (rad/s) and `friction`.
+    #[new]
+    fn new(
+        lift: [f64; 8],
+        strike: [f64; 8],
+        control: [f64; 6],
+        speed: f64,
+        contact_frequency: f64,
+        friction: f64,
+    ) -> PyResult<Self> {
+        let [duration, kp, kd, torso_kp, torso_kd, max_torque] = control;
+        let gait = Gait {
+            lift: pose(lift),
+            strike: pose(strike),
+            duration,
+            kp,
+            kd,
+            torso_kp,
+            torso_kd,
+            max_torque,
+        };
+        let settings = Settings { contact_frequency, friction, ..Settings::default() };
+        settings_check(&settings)?;
+        Ok(Walker { walker: WalkerCore::new(settings, gait, speed)?, saved: None })
+    }
+
+    /// The gait: `(lift, strike, [duration, kp, kd, torso_kp, torso_kd, max_torque])`.
+    fn gait(&self) -> ([f64; 8], [f64; 8], [f64; 6]) {
+        let g = &self.walker.gait;
+        let control = [g.duration, g.kp, g.kd, g.torso_kp, g.torso_kd, g.max_torque];
+        (pose_values(&g.lift), pose_values(&g.strike), control)
+    }
+
+    /// Advance `steps` steps of `dt` seconds (GIL released).
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: Int) -> PyResult<()> {
+        let steps = steps.count("steps")?;
+        let walker = &mut self.walker;
+        detached(py, || walker.step(dt, steps))
+    }
+
+    /// Push the torso (body 0) or another body with `force` (N, world) for `duration` s.
+    fn push(&mut self, body: Int, force: [f64; 3], duration: f64) -> PyResult<()> {
+        let body = body.count("body")?;
+        let (model, state) = self.walker.parts_mut();
+        Ok(state.push(model, body, DVec3::from_array(force), duration)?)
+    }
+
+    /// Read-only view of the coordinates (9,), updated in place by `step`.
+    #[getter]
+    fn q<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        view(slf, &[9], |r| r.walker.state().q())
+    }
+
+    /// Read-only view of the rates (9,), updated in place by `step`.
+    #[getter]
+    fn qd<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        view(slf, &[9], |r| r.walker.state().qd())
+    }
+
+    /// Centre of mass (m, world).
+    #[getter]
+    fn com(&mut self) -> [f64; 3] {
+        self.walker.com().to_array()
+    }
+
+    /// Whether the right and left feet touch the ground.
+    #[getter]
+    fn feet_in_contact(&mut self) -> (bool, bool) {
+        let [r, l] = self.walker.feet_in_contact();
+        (r, l)
+    }
+
+    /// `(FSM state, time in it (s), steps taken)`.
+    fn phase(&self) -> (u8, f64, u64) {
+        let p = self.walker.phase();
+        (p.state, p.time, p.steps)
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.walker.state().time()
+    }
+
+    /// World positions of the body frames (7, 3) in m (joints: hips, knees, ankles).
+    fn positions<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let p: Vec<DVec3> = self.walker.kinematics().positions().to_vec();
+        compute::<3>(py, p.len(), &[3], |out| {
+            out.iter_mut().zip(&p).for_each(|(o, v)| *o = v.to_array());
+            Ok(())
+        })
+    }
+
+    /// Body names, in order.
+    fn names(&self) -> Vec<String> {
+        self.walker.model().bodies().iter().map(|b| b.name.clone()).collect()
+    }
+}
+
+fn settings_check(settings: &Settings) -> PyResult<()> {
+    Ok(Model::new(*settings).check_settings()?)
 }

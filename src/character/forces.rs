@@ -51,7 +51,7 @@ pub(super) fn passive(
     }
     for (i, b) in model.bodies().iter().enumerate() {
         let (_, iv) = model.starts(i);
-        if b.joint != Joint::Free {
+        if matches!(b.joint, Joint::Revolute { .. } | Joint::Ball) {
             for k in 0..b.joint.nv() {
                 tau[iv + k] -= b.damping * qd[iv + k];
             }
@@ -67,30 +67,53 @@ fn apply(tree: &mut Tree, i: usize, point: DVec3, force: DVec3) {
 }
 
 fn contacts(model: &Model, tree: &mut Tree, dt: f64) {
-    let s = &model.settings;
-    for (i, b) in model.bodies().iter().enumerate() {
-        let Some(shape) = b.shape else { continue };
-        // Viscous coefficients above m / (4 dt) would overshoot in an explicit step.
-        let cap = b.mass / (4.0 * dt);
-        let k = b.mass * s.contact_frequency.powi(2);
-        let c = (2.0 * s.contact_damping * b.mass * s.contact_frequency).min(cap);
-        let ends: &[DVec3] =
-            if shape.a == shape.b { &[shape.a][..] } else { &[shape.a, shape.b][..] };
-        for &end in ends {
-            let centre = tree.pos[i] + tree.rot[i] * end;
-            let depth = shape.radius - centre.y;
-            if depth <= 0.0 {
-                continue;
-            }
-            let point = end + tree.rot[i].conjugate() * (-shape.radius * DVec3::Y);
-            let v = &tree.v[i];
-            let local = DVec3::new(v[3], v[4], v[5]) + DVec3::new(v[0], v[1], v[2]).cross(point);
-            let vel = tree.rot[i] * local;
-            let normal = (k * depth - c * vel.y).max(0.0);
-            let slip = DVec3::new(vel.x, 0.0, vel.z);
-            let friction = -(s.friction * normal / slip.length().max(s.slip_speed)).min(cap) * slip;
-            apply(tree, i, point, DVec3::new(friction.x, normal, friction.z));
+    for i in 0..model.bodies().len() {
+        for_each_contact(model, tree, i, dt, |tree, point, force| apply(tree, i, point, force));
+    }
+}
+
+/// The total ground force (N, world) on the bodies at the state of the last
+/// [`Tree::kinematics`], for a step `dt` (zero without a ground).
+pub(super) fn ground_force(model: &Model, tree: &mut Tree, dt: f64) -> DVec3 {
+    let mut total = DVec3::ZERO;
+    if model.settings.ground {
+        for i in 0..model.bodies().len() {
+            for_each_contact(model, tree, i, dt, |_, _, force| total += force);
         }
+    }
+    total
+}
+
+/// Call `visit(tree, point, force)` for every ground contact of body `i`: the contact point
+/// (m, body frame) and the force there (N, world).
+fn for_each_contact(
+    model: &Model,
+    tree: &mut Tree,
+    i: usize,
+    dt: f64,
+    mut visit: impl FnMut(&mut Tree, DVec3, DVec3),
+) {
+    let (s, b) = (&model.settings, &model.bodies()[i]);
+    let Some(shape) = b.shape else { return };
+    // Viscous coefficients above m / (4 dt) would overshoot in an explicit step.
+    let cap = b.mass / (4.0 * dt);
+    let k = b.mass * s.contact_frequency.powi(2);
+    let c = (2.0 * s.contact_damping * b.mass * s.contact_frequency).min(cap);
+    let ends: &[DVec3] = if shape.a == shape.b { &[shape.a][..] } else { &[shape.a, shape.b][..] };
+    for &end in ends {
+        let centre = tree.pos[i] + tree.rot[i] * end;
+        let depth = shape.radius - centre.y;
+        if depth <= 0.0 {
+            continue;
+        }
+        let point = end + tree.rot[i].conjugate() * (-shape.radius * DVec3::Y);
+        let v = &tree.v[i];
+        let local = DVec3::new(v[3], v[4], v[5]) + DVec3::new(v[0], v[1], v[2]).cross(point);
+        let vel = tree.rot[i] * local;
+        let normal = (k * depth - c * vel.y).max(0.0);
+        let slip = DVec3::new(vel.x, 0.0, vel.z);
+        let friction = -(s.friction * normal / slip.length().max(s.slip_speed)).min(cap) * slip;
+        visit(tree, point, DVec3::new(friction.x, normal, friction.z));
     }
 }
 

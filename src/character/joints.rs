@@ -26,6 +26,7 @@ pub(super) fn relative(joint: Joint, q: &[f64]) -> (DQuat, DVec3) {
         Joint::Revolute { axis } => (DQuat::from_axis_angle(axis, q[0]), DVec3::ZERO),
         Joint::Ball => (quat(q), DVec3::ZERO),
         Joint::Free => (quat(&q[3..7]), DVec3::new(q[0], q[1], q[2])),
+        Joint::Planar => (DQuat::from_rotation_z(q[2]), DVec3::new(q[0], q[1], 0.0)),
     }
 }
 
@@ -36,8 +37,8 @@ pub(super) fn transform(joint: Joint, q: &[f64]) -> Transform {
 }
 
 /// The motion subspace `S` (body coordinates, its `nv` columns padded with zeros to 6) of the
-/// joint, given its transform `x_j` (a free joint's linear rate is in parent axes, so its `S`
-/// turns it by `E`).
+/// joint, given its transform `x_j` (free and planar joints' linear rates are in parent axes,
+/// so their `S` turns them by `E`).
 pub(super) fn subspace(joint: Joint, x_j: &Transform) -> SMat {
     let mut s = SMat::zeros();
     match joint {
@@ -49,12 +50,17 @@ pub(super) fn subspace(joint: Joint, x_j: &Transform) -> SMat {
             let e = Matrix3::from_column_slice(&x_j.rot.to_cols_array());
             s.fixed_view_mut::<3, 3>(3, 3).copy_from(&e);
         }
+        Joint::Planar => {
+            s.set_column(0, &spatial(DVec3::ZERO, x_j.rot * DVec3::X));
+            s.set_column(1, &spatial(DVec3::ZERO, x_j.rot * DVec3::Y));
+            s.set_column(2, &spatial(DVec3::Z, DVec3::ZERO));
+        }
     }
     s
 }
 
-/// `c_J = Ṡ q̇` (body coordinates): zero but for a free joint, whose linear rate `v` (parent
-/// axes) seen in the turning body axes gives `[0; −ω × E v]`.
+/// `c_J = Ṡ q̇` (body coordinates): zero but for free and planar joints, whose linear rate `v`
+/// (parent axes) seen in the turning body axes gives `[0; −ω × E v]`.
 pub(super) fn bias(joint: Joint, x_j: &Transform, qd: &[f64]) -> SVec {
     match joint {
         Joint::Free => {
@@ -62,11 +68,15 @@ pub(super) fn bias(joint: Joint, x_j: &Transform, qd: &[f64]) -> SVec {
             let v = x_j.rot * DVec3::new(qd[3], qd[4], qd[5]);
             spatial(DVec3::ZERO, -w.cross(v))
         }
+        Joint::Planar => {
+            let v = x_j.rot * DVec3::new(qd[0], qd[1], 0.0);
+            spatial(DVec3::ZERO, -(qd[2] * DVec3::Z).cross(v))
+        }
         _ => SVec::zeros(),
     }
 }
 
-/// `out = q ⊕ h q̇` for every joint of `model`: angles and free-joint positions by `h q̇`,
+/// `out = q ⊕ h q̇` for every joint of `model`: angles and free- and planar-joint positions by `h q̇`,
 /// quaternions by `q exp(h ω / 2)` (ω in body axes), renormalised.
 pub fn integrate(model: &Model, q: &[f64], qd: &[f64], h: f64, out: &mut [f64]) {
     for (i, b) in model.bodies().iter().enumerate() {
@@ -82,6 +92,11 @@ pub fn integrate(model: &Model, q: &[f64], qd: &[f64], h: f64, out: &mut [f64]) 
                 }
                 store(turn(quat(&q[3..]), qd, h), &mut out[3..7]);
             }
+            Joint::Planar => {
+                for k in 0..3 {
+                    out[k] = q[k] + h * qd[k];
+                }
+            }
         }
     }
 }
@@ -92,7 +107,7 @@ fn turn(q: DQuat, w: &[f64], h: f64) -> DQuat {
 
 /// `out = target ⊖ q` per degree of freedom: angle differences, and for quaternions the
 /// rotation vector of `q⁻¹ q̄` (body axes, angle in `[0, π]`); free joints get the position
-/// difference and rotation vector.
+/// difference and rotation vector, planar joints the differences of `[x, y, θ]`.
 pub fn difference(model: &Model, target: &[f64], q: &[f64], out: &mut [f64]) {
     for (i, b) in model.bodies().iter().enumerate() {
         let (iq, iv) = model.starts(i);
@@ -106,6 +121,11 @@ pub fn difference(model: &Model, target: &[f64], q: &[f64], out: &mut [f64]) {
                     .copy_from_slice(&quat_to_rotvec(quat(&q[3..]).conjugate() * quat(&t[3..])));
                 for k in 0..3 {
                     out[3 + k] = t[k] - q[k];
+                }
+            }
+            Joint::Planar => {
+                for k in 0..3 {
+                    out[k] = t[k] - q[k];
                 }
             }
         }

@@ -19,23 +19,29 @@
 //! - `servo.rs`: PD and stable PD (Tan et al. 2011, eq. 5–8).
 //! - `solver.rs`: the [`Solver`] (forward dynamics of a step, symplectic Euler, RK4).
 //! - `ragdoll.rs`: a model from an ASF skeleton.
+//! - `biped.rs`: the planar 7-link biped of SIMBICON (Yin et al. 2007, Table 1).
+//! - `simbicon.rs`: the SIMBICON controller and the [`Walker`] (Yin et al. 2007, §3).
 //! - `snapshot.rs`: snapshots of states and of [`ArticulatedBody`].
 
+mod biped;
 mod dynamics;
 mod forces;
 mod joints;
 mod model;
 mod ragdoll;
 mod servo;
+mod simbicon;
 mod snapshot;
 mod solver;
 pub mod spatial;
 mod state;
 
+pub use biped::{hip_height, planar_biped, LEFT, RIGHT, TORSO};
 pub use dynamics::Tree;
 pub use joints::{difference, integrate};
 pub use model::{Body, Capsule, Integrator, Joint, Limits, Model, Servo, ServoMode, Settings};
 pub use ragdoll::{ragdoll, RagdollOptions};
+pub use simbicon::{Gait, Phase, Pose, Walker};
 pub use solver::Solver;
 pub use state::{Push, State};
 

@@ -25,6 +25,10 @@ pub enum Joint {
     /// z)` relative to the parent frame (7 coordinates), and its spatial velocity in body
     /// axes `[ω; v]` (6 rates: rad/s; m/s of the body frame's origin).
     Free,
+    /// A planar joint: translation in the parent's x–y plane and rotation about its z axis
+    /// (3 coordinates `[x, y, θ]`: m, m, rad; 3 rates `[vx, vy, ω]`: m/s in parent axes,
+    /// rad/s). The root of a planar character (Featherstone 2008, Table 4.1, "planar").
+    Planar,
 }
 
 impl Joint {
@@ -35,6 +39,7 @@ impl Joint {
             Joint::Revolute { .. } => 1,
             Joint::Ball => 4,
             Joint::Free => 7,
+            Joint::Planar => 3,
         }
     }
 
@@ -45,6 +50,7 @@ impl Joint {
             Joint::Revolute { .. } => 1,
             Joint::Ball => 3,
             Joint::Free => 6,
+            Joint::Planar => 3,
         }
     }
 }
@@ -128,8 +134,8 @@ pub struct Body {
     pub shape: Option<Capsule>,
     /// Joint limits, if any (revolute and ball joints).
     pub limits: Option<Limits>,
-    /// Viscous joint damping (N m s/rad) on every rotational degree of freedom (not on free
-    /// joints).
+    /// Viscous joint damping (N m s/rad) on every degree of freedom of a revolute or ball
+    /// joint (not on free or planar joints).
     pub damping: f64,
     /// PD servo on the joint, if any (revolute and ball joints).
     pub servo: Option<Servo>,
@@ -230,7 +236,7 @@ impl Model {
     /// inertia that is not symmetric positive definite or non-finite values (`inertia`,
     /// `com`, `offset`), a zero hinge axis (`axis`), limits on a joint without angles or
     /// with lower > upper (`limits`), a negative damping (`damping`), a shape of negative
-    /// radius (`shape`), a servo on a free or fixed joint or with negative gains (`servo`).
+    /// radius (`shape`), a servo on a free, planar or fixed joint or with negative gains (`servo`).
     pub fn add_body(&mut self, mut body: Body) -> Result<usize> {
         check_body(&body, self.bodies.len())?;
         if let Joint::Revolute { axis } = &mut body.joint {
@@ -279,6 +285,7 @@ impl Model {
                 Joint::Revolute { .. } => q.push(0.0),
                 Joint::Ball => q.extend([1.0, 0.0, 0.0, 0.0]),
                 Joint::Free => q.extend([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]),
+                Joint::Planar => q.extend([0.0, 0.0, 0.0]),
             }
         }
         q

@@ -2,7 +2,7 @@
 //! its model's fingerprint so that it is restored only onto it.
 
 use super::model::Joint;
-use super::{ArticulatedBody, Model, State};
+use super::{planar_biped, ArticulatedBody, Model, State, Walker};
 use crate::error::Result;
 use crate::snapshot::{check, finite, Snapshot, Stamped};
 
@@ -59,6 +59,21 @@ impl Snapshot for ArticulatedBody {
             && rebuilt.inertias.iter().zip(&m.inertias).all(|(a, b)| near(a, b));
         check(same, "model", || "derived data do not match the bodies".into())?;
         self.model.check_settings()?;
+        self.state.validate(&self.model)
+    }
+}
+
+impl Snapshot for Walker {
+    const TAG: &'static str = "Walker";
+
+    /// The model must be the planar biped of its settings; the gait, state and phase valid.
+    fn validate(&self) -> Result<()> {
+        let rebuilt = planar_biped(self.model.settings)?;
+        check(rebuilt == self.model, "model", || "not the planar biped".into())?;
+        self.model.check_settings()?;
+        self.gait.check()?;
+        let phase_ok = self.phase.state < 4 && self.phase.time.is_finite();
+        check(phase_ok, "phase", || "state beyond 3 or a non-finite time".into())?;
         self.state.validate(&self.model)
     }
 }

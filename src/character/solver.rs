@@ -7,7 +7,7 @@
 //! weighted stage velocities, `q ⊕ dt Σ bᵢ vᵢ`, and `q̇` by `dt Σ bᵢ aᵢ`.
 
 use super::dynamics::Tree;
-use super::forces::passive;
+use super::forces::{ground_force, passive};
 use super::joints::integrate;
 use super::model::{Integrator, Model, ServoMode};
 use super::servo::{self, ServoWork};
@@ -47,6 +47,13 @@ impl Solver {
     pub fn kinematics(&mut self, model: &Model, state: &State) -> &mut Tree {
         self.tree.kinematics(model, &state.q, &state.qd);
         &mut self.tree
+    }
+
+    /// The total ground contact force (N, world) on `state`'s bodies, as a step `dt` would
+    /// apply it (the penalty forces of [`super::Settings::contact_frequency`]).
+    pub fn ground_force(&mut self, model: &Model, state: &State, dt: f64) -> glam::DVec3 {
+        self.tree.kinematics(model, &state.q, &state.qd);
+        ground_force(model, &mut self.tree, dt)
     }
 
     /// The accelerations `qdd` (`nv`) of `state`'s inputs at `(q, q̇)` for a step `dt`
