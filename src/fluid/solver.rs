@@ -22,7 +22,7 @@
 use super::model::{Model, Pressure};
 use super::{State, Stats};
 use crate::error::{reserve, Error, Result};
-use crate::geometry::grid::Grid;
+use crate::geometry::grid::{Grid, CHUNK};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -39,6 +39,9 @@ pub struct Solver {
     grid: Grid,
     /// Fluid then boundary positions (m), the points of the grid.
     points: Vec<DVec3>,
+    /// `∇W_ij` (1/m⁴) of every neighbour pair, in the grid's list layout (chunk `i / CHUNK`,
+    /// [`Grid::span`]): computed with the densities, read by every solver iteration.
+    gradients: Vec<Vec<DVec3>>,
     /// The stepped copy of the state's velocities (m/s).
     v: Vec<DVec3>,
     /// The stepped copy of the state's pressures `κ` (m²/s²).
@@ -294,31 +297,44 @@ impl Solver {
         self.grid.build(&self.points, n, model.support);
     }
 
-    /// Densities `ρ̂` and, if `factors`, DFSPH's `α`.
+    /// Densities `ρ̂`, the kernel gradients of every pair and, if `factors`, DFSPH's `α`.
     fn densities(&mut self, model: &Model, factors: bool) {
-        let Solver { grid, points, density, alpha, .. } = self;
+        let Solver { grid, points, density, alpha, gradients, .. } = self;
         let (h, kernel, vol, n) =
             (model.support, model.settings.kernel, model.volume, density.len());
         let vb = &model.boundary_volume;
-        density.par_iter_mut().zip(alpha.par_iter_mut()).enumerate().for_each(|(i, (rho, a))| {
-            let (mut r, mut g, mut s) = (vol * kernel.value(0.0, h), DVec3::ZERO, 0.0);
-            for &j in grid.neighbours(i) {
-                let j = j as usize;
-                let d = points[i] - points[j];
-                let w = if j < n { vol } else { vb[j - n] };
-                r += w * kernel.value(d.length(), h);
-                if factors {
-                    let gw = kernel.gradient(d, h) * w;
-                    g += gw;
-                    if j < n {
-                        s += gw.length_squared();
+        gradients.resize_with(n.div_ceil(CHUNK), Vec::new);
+        let chunks = density.par_chunks_mut(CHUNK).zip(alpha.par_chunks_mut(CHUNK));
+        chunks.zip(gradients).enumerate().for_each(|(c, ((rho, a), grads))| {
+            grads.clear();
+            for (k, (rho, a)) in rho.iter_mut().zip(a).enumerate() {
+                let i = c * CHUNK + k;
+                let (mut r, mut g, mut s) = (vol * kernel.value(0.0, h), DVec3::ZERO, 0.0);
+                for &j in grid.neighbours(i) {
+                    let j = j as usize;
+                    let d = points[i] - points[j];
+                    let w = if j < n { vol } else { vb[j - n] };
+                    r += w * kernel.value(d.length(), h);
+                    let gradient = kernel.gradient(d, h);
+                    grads.push(gradient);
+                    if factors {
+                        let gw = gradient * w;
+                        g += gw;
+                        if j < n {
+                            s += gw.length_squared();
+                        }
                     }
                 }
+                *rho = r;
+                s += g.length_squared();
+                *a = if s > 1e-9 / (h * h) { 1.0 / s } else { 0.0 };
             }
-            *rho = r;
-            s += g.length_squared();
-            *a = if s > 1e-9 / (h * h) { 1.0 / s } else { 0.0 };
         });
+    }
+
+    /// The neighbours of particle `i` and their `∇W_ij` (of the last [`Solver::densities`]).
+    fn pairs(&self, i: usize) -> (&[u32], &[DVec3]) {
+        (self.grid.neighbours(i), &self.gradients[i / CHUNK][self.grid.span(i)])
     }
 
     /// Gravity's velocity change `g` (m/s: `dt` times gravity) and XSPH viscosity:
@@ -343,33 +359,33 @@ impl Solver {
 
     /// `Δv_i = -dt [Σ_j V (k_i + k_j) ∇W_ij + Σ_b V_b k_i ∇W_ib]` with this iteration's `k`.
     fn apply(&mut self, model: &Model, h: f64) {
-        let Solver { grid, points, v, k, dv, .. } = self;
-        let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, v.len());
+        let mut dv = std::mem::take(&mut self.dv);
+        let (vol, n, k) = (model.volume, self.v.len(), &self.k);
         let vb = &model.boundary_volume;
         dv.par_iter_mut().enumerate().for_each(|(i, out)| {
             let mut sum = DVec3::ZERO;
-            for &j in grid.neighbours(i) {
+            let (near, grads) = self.pairs(i);
+            for (&j, &g) in near.iter().zip(grads) {
                 let j = j as usize;
-                let g = kernel.gradient(points[i] - points[j], sup);
                 sum += if j < n { g * (vol * (k[i] + k[j])) } else { g * (vb[j - n] * k[i]) };
             }
             *out = sum * -h;
         });
-        v.par_iter_mut().zip(&*dv).for_each(|(v, dv)| *v += *dv);
+        self.v.par_iter_mut().zip(&dv).for_each(|(v, dv)| *v += *dv);
+        self.dv = dv;
     }
 
     /// The residual of `which` solve per particle for the velocities now: the predicted
     /// density error `ρ̂* - 1`, or the density rate `Dρ̂/Dt` (1/s, 0 for sparse particles).
     fn residuals(&mut self, model: &Model, h: f64, which: Solve) {
-        let Solver { grid, points, v, density, residual, .. } = self;
-        let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, v.len());
+        let mut residual = std::mem::take(&mut self.residual);
+        let (vol, n, v, density) = (model.volume, self.v.len(), &self.v, &self.density);
         let vb = &model.boundary_volume;
         residual.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let near = grid.neighbours(i);
+            let (near, grads) = self.pairs(i);
             let mut rate = 0.0;
-            for &j in near {
+            for (&j, &g) in near.iter().zip(grads) {
                 let j = j as usize;
-                let g = kernel.gradient(points[i] - points[j], sup);
                 rate += if j < n { vol * (v[i] - v[j]).dot(g) } else { vb[j - n] * v[i].dot(g) };
             }
             *out = match which {
@@ -378,6 +394,7 @@ impl Solver {
                 Solve::Divergence => rate,
             };
         });
+        self.residual = residual;
     }
 
     /// One DFSPH solve: warm start from the state's pressures, then Jacobi iterations on
