@@ -149,7 +149,7 @@ impl Grid {
     /// Where the list of query point `i` lies in the buffer of its chunk `i / CHUNK`, so
     /// callers can keep per-pair data in buffers of the same layout.
     pub fn span(&self, i: usize) -> std::ops::Range<usize> {
-        let start = if i % CHUNK == 0 { 0 } else { self.ends[i - 1] as usize };
+        let start = if i.is_multiple_of(CHUNK) { 0 } else { self.ends[i - 1] as usize };
         start..self.ends[i] as usize
     }
 
