@@ -135,8 +135,8 @@ def main() -> None:
         f"threads: kinema {os.environ.get('KINEMA_NUM_THREADS', 'all')}, numpy 1; load {os.getloadavg()[0]:.1f}"
     )
     print(
-        "| L / s | fluid particles | boundary particles | DFSPH ms/frame (substeps) | PBF ms/frame "
-        "(substeps) | WCSPH ms/frame, CPU ms (substeps) | numpy WCSPH ms/frame, CPU ms "
+        "| L / s | fluid particles | boundary particles | DFSPH ms/frame, CPU ms (substeps) | PBF "
+        "ms/frame (substeps) | WCSPH ms/frame, CPU ms (substeps) | numpy WCSPH ms/frame, CPU ms "
         "| numpy / kinema WCSPH, wall / CPU | compression % (DFSPH / WCSPH / numpy) |"
     )
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---|")
@@ -161,7 +161,7 @@ def main() -> None:
         nb = len(ref_fluid.boundary_particles)
         d, p, w = results["dfsph"], results["pbf"], results["wcsph"]
         print(
-            f"| {per_l} | {n} | {nb} | {d[0]:.1f} ({d[2]:.0f}) | {p[0]:.1f} ({p[2]:.0f}) "
+            f"| {per_l} | {n} | {nb} | {d[0]:.1f}, {d[1]:.1f} ({d[2]:.0f}) | {p[0]:.1f} ({p[2]:.0f}) "
             f"| {w[0]:.1f}, {w[1]:.1f} ({w[2]:.0f}) | {ms_ref:.1f}, {cpu_ref:.1f} "
             f"| {ms_ref / w[0]:.1f}x / {cpu_ref / w[1]:.1f}x "
             f"| {d[3]:.3f} / {w[3]:.3f} / {err:.3f} |"

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from kinema import cloth as _cloth
+from kinema import fluid as _fluid
 from kinema import particles as _particles
 from kinema import rigid as _rigid
 from kinema.rotation import Rotation
@@ -91,6 +92,9 @@ def of_scene(scene: Any) -> Geometry:
     for i, s in enumerate(scene.systems):
         if isinstance(s, _cloth.Cloth):
             g.meshes[f"cloth{i}"] = (s.positions.copy(), s.triangles.astype(np.int64))
+        elif isinstance(s, _fluid.Fluid):
+            v, t = s.surface_mesh()
+            g.meshes[f"fluid{i}"] = (v, t.astype(np.int64))
         elif isinstance(s, _particles.ParticleSystem):
             g.points[f"particles{i}"] = s.positions[s.alive].copy()
         elif hasattr(s, "_particles"):  # a constrained system

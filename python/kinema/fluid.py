@@ -33,7 +33,9 @@ class Fluid:
     iterations per solve), ``"pbf"`` (position-based fluids: iterations until the mean
     density error is below ``density_tolerance`` percent, at most ``max_iterations``, with
     the tensile-instability term of strength ``tensile`` in [0, 1]) or ``"wcsph"`` (Tait
-    equation with speed of sound ``sound_speed`` m/s); ``kernel`` ``"cubic"`` or ``"wendland"``. Substeps move no particle
+    equation with speed of sound ``sound_speed`` m/s); ``kernel`` ``"cubic"`` or ``"wendland"``;
+    ``surface_tension`` Akinci, Akinci & Teschner's (2013) ``γ`` (0: off; cohesion and
+    curvature terms, see docs/fluid.md for its units: not a surface tension in N/m). Substeps move no particle
     more than ``cfl`` spacings and last at most ``max_dt`` s; a frame needing more than
     ``max_substeps`` fails with :class:`kinema.SimulationError` (the fluid unchanged).
     """
@@ -45,6 +47,7 @@ class Fluid:
         viscosity: float = 0.01,
         solver: str = "dfsph",
         *,
+        surface_tension: float = 0.0,
         kernel: str = "cubic",
         density_tolerance: float = 0.05,
         divergence_tolerance: float = 0.1,
@@ -65,6 +68,7 @@ class Fluid:
             real(rest_density, "rest_density"),
             kernel,
             real(viscosity, "viscosity"),
+            real(surface_tension, "surface_tension"),
             solver,
             real(density_tolerance, "density_tolerance"),
             real(divergence_tolerance, "divergence_tolerance"),
@@ -151,6 +155,15 @@ class Fluid:
     def pressures(self) -> np.ndarray:
         """Pressures ``(N,)`` (Pa) of the last substep (a new array)."""
         return self._f.pressures()
+
+    def surface_mesh(self, resolution: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The fluid's surface: vertices ``(V, 3)`` (m) and outward triangles ``(T, 3)``, the
+        level ½ of the smoothed colour field ``Σ V W(x - x_j)`` (Müller et al. 2003) sampled
+        every ``resolution`` m (default half the spacing) by marching tetrahedra: closed on
+        a block or a settled column. Empty arrays for an empty fluid."""
+        if resolution is None:
+            resolution = 0.5 * self._f.spacing
+        return self._f.surface_mesh(real(resolution, "resolution"))
 
     @property
     def boundary_particles(self) -> np.ndarray:

@@ -10,7 +10,7 @@ use crate::error::Error;
 use crate::fluid::{Emitter, Fluid as Core, Kernel, Pressure, Settings, State, Stats, Wall};
 use crate::snapshot::Snapshot;
 use glam::DVec3;
-use numpy::PyArrayDyn;
+use numpy::{PyArray1, PyArray2, PyArrayDyn, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -66,6 +66,9 @@ impl Fluid {
     }
 }
 
+/// Vertices (V, 3) and triangles (T, 3) of a surface.
+type SurfaceMesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>);
+
 fn v3(p: [f64; 3]) -> DVec3 {
     DVec3::from_array(p)
 }
@@ -109,7 +112,7 @@ impl Fluid {
     }
 
     /// An empty fluid: `spacing` (m), `rest_density` (kg/m³), `kernel` ("cubic" or
-    /// "wendland"), XSPH `viscosity`, `solver` ("dfsph", "pbf" or "wcsph") with its
+    /// "wendland"), XSPH `viscosity`, Akinci's `surface_tension` γ, `solver` ("dfsph", "pbf" or "wcsph") with its
     /// tolerances (%) and iteration cap, PBF's `tensile` `k`, or `sound_speed` (m/s); `cfl`,
     /// `max_dt` (s), `max_substeps`, `gravity` (m/s²).
     #[new]
@@ -119,6 +122,7 @@ impl Fluid {
         rest_density: f64,
         kernel: &str,
         viscosity: f64,
+        surface_tension: f64,
         solver: &str,
         density_tolerance: f64,
         divergence_tolerance: f64,
@@ -154,6 +158,7 @@ impl Fluid {
             rest_density,
             kernel,
             viscosity,
+            surface_tension,
             pressure,
             cfl,
             max_dt,
@@ -249,6 +254,17 @@ impl Fluid {
         out1(py, &self.fluid.pressures())
     }
 
+    /// Vertices (V, 3) in m and outward triangles (T, 3) of the fluid's surface sampled every
+    /// `resolution` m.
+    fn surface_mesh<'py>(&self, py: Python<'py>, resolution: f64) -> PyResult<SurfaceMesh<'py>> {
+        let fluid = &self.fluid;
+        let (v, t) = detached(py, || fluid.surface_mesh(resolution))?;
+        let (nv, nt) = (v.len(), t.len());
+        let v = PyArray1::from_vec(py, v.into_flattened()).reshape([nv, 3])?;
+        let t = PyArray1::from_vec(py, t.into_flattened()).reshape([nt, 3])?;
+        Ok((v, t))
+    }
+
     /// The boundary particles (B, 3) in m (a new array).
     fn boundary_particles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let b = self.fluid.model().boundary_particles();
@@ -256,6 +272,12 @@ impl Fluid {
             out.iter_mut().zip(b).for_each(|(o, p)| *o = p.to_array());
             Ok(())
         })
+    }
+
+    /// The particle spacing at rest (m).
+    #[getter]
+    fn spacing(&self) -> f64 {
+        self.fluid.model().settings().spacing
     }
 
     /// The mass of one particle (kg).

@@ -7,6 +7,8 @@
 //!   `q ≤ 1`.
 //! - Wendland C2 (Wendland 1995; Dehnen & Aly 2012, table 1): `σ = 21 / (2π h³)`,
 //!   `f = (1 - q)⁴ (1 + 4q)`.
+//!
+//! And the cohesion spline of surface tension, [`cohesion`] (Akinci, Akinci & Teschner 2013).
 
 use glam::DVec3;
 use std::f64::consts::PI;
@@ -79,6 +81,19 @@ impl Kernel {
     }
 }
 
+/// Akinci, Akinci & Teschner's (2013, eq. 2) cohesion spline `C(r)` (1/m³) for a distance
+/// `r ≥ 0` (m) and support `h` (m): `32 / (π h⁹)` times `(h - r)³ r³` for `h/2 < r ≤ h`,
+/// `2 (h - r)³ r³ - h⁶/64` for `r ≤ h/2`, 0 beyond `h`: attraction, largest at `h/2`, turning
+/// to repulsion at short range.
+pub fn cohesion(r: f64, h: f64) -> f64 {
+    if r >= h {
+        return 0.0;
+    }
+    let (t, r3) = ((h - r).powi(3), r.powi(3));
+    let f = if 2.0 * r > h { t * r3 } else { 2.0 * t * r3 - h.powi(6) / 64.0 };
+    32.0 / (PI * h.powi(9)) * f
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -148,6 +163,22 @@ mod tests {
                 assert!(w > 0.0 && w < last);
                 last = w;
             }
+        }
+    }
+
+    #[test]
+    fn cohesion_spline() {
+        let h = 0.2;
+        assert_eq!(cohesion(h, h), 0.0);
+        assert_eq!(cohesion(2.0 * h, h), 0.0);
+        // Continuous at h/2, where it peaks at 1 / (2π h³); repulsive near 0.
+        let peak = cohesion(0.5 * h, h);
+        assert!((peak * 2.0 * PI * h.powi(3) - 1.0).abs() < 1e-12, "{peak}");
+        assert!((cohesion(0.4999999 * h, h) / peak - 1.0).abs() < 1e-5);
+        assert!((cohesion(0.5000001 * h, h) / peak - 1.0).abs() < 1e-5);
+        assert!(cohesion(0.0, h) < 0.0 && cohesion(0.3 * h, h) > 0.0);
+        for i in 1..100 {
+            assert!(cohesion(i as f64 / 100.0 * h, h) <= peak);
         }
     }
 }

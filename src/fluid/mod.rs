@@ -10,7 +10,8 @@
 //! - **WCSPH** (Becker & Teschner 2007, "Weakly compressible SPH for free surface flows"):
 //!   pressure from the Tait equation, the simple reference.
 //!
-//! Viscosity is XSPH (Schechter & Bridson 2012). Substeps follow the CFL condition
+//! Viscosity is XSPH (Schechter & Bridson 2012). [`surface_mesh`] gives the liquid's
+//! surface as a closed triangle mesh (`surface.rs`). Substeps follow the CFL condition
 //! ([`Solver::step`]); neighbours come from a uniform grid rebuilt every substep
 //! (`grid.rs`), in parallel and deterministically (the same bits for any thread count).
 //!
@@ -26,6 +27,7 @@ mod model;
 mod snapshot;
 mod solver;
 mod state;
+mod surface;
 
 pub use boundary::Wall;
 pub use emitter::Emitter;
@@ -33,6 +35,7 @@ pub use kernel::Kernel;
 pub use model::{Model, Pressure, Settings};
 pub use solver::Solver;
 pub use state::State;
+pub use surface::surface_mesh;
 
 use crate::error::Result;
 use glam::DVec3;
@@ -163,6 +166,14 @@ impl Fluid {
         let mut out = Vec::new();
         self.solver.densities_of(&self.model, &self.state, &mut out);
         out
+    }
+
+    /// The surface mesh of the fluid sampled every `resolution` metres ([`surface_mesh`]).
+    ///
+    /// # Errors
+    /// Those of [`surface_mesh`].
+    pub fn surface_mesh(&self, resolution: f64) -> Result<crate::geometry::isosurface::Mesh> {
+        surface_mesh(&self.model, &self.state, resolution)
     }
 
     /// Pressures (Pa) of the last substep, `N` ([`State::pressures`] times `ρ₀`).

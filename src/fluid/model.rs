@@ -73,6 +73,13 @@ pub struct Settings {
     /// velocity the fraction `ν` towards the kernel-weighted mean of its neighbours'
     /// (Schechter & Bridson 2012, eq. 11; SPlisHSPlasH's `Viscosity_XSPH`).
     pub viscosity: f64,
+    /// Surface tension `γ` of Akinci, Akinci & Teschner (2013, eq. 1-6), default 0 (off):
+    /// the acceleration `a_i = -γ Σ_j K_ij [m_j C(r_ij) x̂_ij + (n_i - n_j)]` with
+    /// `K_ij = 2ρ₀ / (ρ_i + ρ_j)`, the cohesion spline `C` ([`super::kernel::cohesion`],
+    /// 1/m³) and the outward normals `n_i = -h Σ_j (m_j / ρ_j) ∇W_ij` (dimensionless). As in the paper
+    /// (and SPlisHSPlasH) one number scales both terms, so `γ` is in m⁴/(kg s²) for the
+    /// cohesion and m/s² for the curvature term: it is not the physical `σ` in N/m.
+    pub surface_tension: f64,
     /// The pressure solver (default DFSPH).
     pub pressure: Pressure,
     /// Courant number: a substep moves no particle more than `cfl` spacings (default 0.4).
@@ -93,6 +100,7 @@ impl Settings {
             rest_density: 1000.0,
             kernel: Kernel::CubicSpline,
             viscosity: 0.01,
+            surface_tension: 0.0,
             pressure: Pressure::DFSPH,
             cfl: 0.4,
             max_dt: 0.005,
@@ -103,10 +111,15 @@ impl Settings {
 
     fn validate(&self) -> Result<()> {
         let positive = |v: f64| v.is_finite() && v > 0.0;
-        let checks: [(&str, bool, &str); 6] = [
+        let checks: [(&str, bool, &str); 7] = [
             ("spacing", positive(self.spacing), "must be finite and > 0"),
             ("rest_density", positive(self.rest_density), "must be finite and > 0"),
             ("viscosity", (0.0..=1.0).contains(&self.viscosity), "must be in [0, 1]"),
+            (
+                "surface_tension",
+                self.surface_tension.is_finite() && self.surface_tension >= 0.0,
+                "must be finite and >= 0",
+            ),
             ("cfl", self.cfl > 0.0 && self.cfl <= 1.0, "must be in (0, 1]"),
             ("max_dt", positive(self.max_dt), "must be finite and > 0"),
             ("gravity", self.gravity.is_finite(), "must be finite"),

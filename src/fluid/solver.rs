@@ -22,7 +22,7 @@
 use super::model::{Model, Pressure};
 use super::{State, Stats};
 use crate::error::{reserve, Error, Result};
-use crate::geometry::grid::Grid;
+use crate::geometry::grid::{Grid, CHUNK};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -39,6 +39,9 @@ pub struct Solver {
     grid: Grid,
     /// Fluid then boundary positions (m), the points of the grid.
     points: Vec<DVec3>,
+    /// `∇W_ij` (1/m⁴) of every neighbour pair, in the grid's list layout (chunk `i / CHUNK`,
+    /// [`Grid::span`]): computed with the densities, read by every solver iteration.
+    gradients: Vec<Vec<DVec3>>,
     /// The stepped copy of the state's velocities (m/s).
     v: Vec<DVec3>,
     /// The stepped copy of the state's pressures `κ` (m²/s²).
@@ -55,6 +58,9 @@ pub struct Solver {
     k: Vec<f64>,
     /// The pressure accumulated by the current solve (m²/s²).
     total: Vec<f64>,
+    /// Surface normals `n_i = -h Σ_j V/ρ̂_j ∇W_ij` (Akinci et al. 2013, eq. 5, pointing out
+    /// of the fluid), with surface tension only.
+    normals: Vec<DVec3>,
     /// Velocity change scratch (m/s); PBF's position corrections (m).
     dv: Vec<DVec3>,
     /// PBF: the positions at the start of the substep (m).
@@ -243,7 +249,7 @@ impl Solver {
                     self.solve(model, h, Solve::Divergence, max_iterations, divergence_tolerance);
                 stats.divergence_iterations += it;
                 stats.divergence_error = stats.divergence_error.max(err);
-                self.non_pressure(model, gravity);
+                self.non_pressure(model, h, gravity);
                 let (it, err, max) =
                     self.solve(model, h, Solve::Density, max_iterations, density_tolerance);
                 stats.density_iterations += it;
@@ -264,7 +270,7 @@ impl Solver {
                 let (mean, max) = compression(&self.residual);
                 stats.density_error = stats.density_error.max(mean);
                 stats.max_density_error = stats.max_density_error.max(max);
-                self.non_pressure(model, gravity);
+                self.non_pressure(model, h, gravity);
                 let c2 = sound_speed * sound_speed / 7.0;
                 for ((p, k), &r) in self.pressure.iter_mut().zip(&mut self.k).zip(&self.density) {
                     *p = (c2 * (r.powi(7) - 1.0)).max(0.0);
@@ -294,82 +300,132 @@ impl Solver {
         self.grid.build(&self.points, n, model.support);
     }
 
-    /// Densities `ρ̂` and, if `factors`, DFSPH's `α`.
+    /// Densities `ρ̂`, the kernel gradients of every pair and, if `factors`, DFSPH's `α`.
     fn densities(&mut self, model: &Model, factors: bool) {
-        let Solver { grid, points, density, alpha, .. } = self;
+        let Solver { grid, points, density, alpha, gradients, .. } = self;
         let (h, kernel, vol, n) =
             (model.support, model.settings.kernel, model.volume, density.len());
         let vb = &model.boundary_volume;
-        density.par_iter_mut().zip(alpha.par_iter_mut()).enumerate().for_each(|(i, (rho, a))| {
-            let (mut r, mut g, mut s) = (vol * kernel.value(0.0, h), DVec3::ZERO, 0.0);
-            for &j in grid.neighbours(i) {
-                let j = j as usize;
-                let d = points[i] - points[j];
-                let w = if j < n { vol } else { vb[j - n] };
-                r += w * kernel.value(d.length(), h);
-                if factors {
-                    let gw = kernel.gradient(d, h) * w;
-                    g += gw;
-                    if j < n {
-                        s += gw.length_squared();
+        gradients.resize_with(n.div_ceil(CHUNK), Vec::new);
+        let chunks = density.par_chunks_mut(CHUNK).zip(alpha.par_chunks_mut(CHUNK));
+        chunks.zip(gradients).enumerate().for_each(|(c, ((rho, a), grads))| {
+            grads.clear();
+            for (k, (rho, a)) in rho.iter_mut().zip(a).enumerate() {
+                let i = c * CHUNK + k;
+                let (mut r, mut g, mut s) = (vol * kernel.value(0.0, h), DVec3::ZERO, 0.0);
+                for &j in grid.neighbours(i) {
+                    let j = j as usize;
+                    let d = points[i] - points[j];
+                    let w = if j < n { vol } else { vb[j - n] };
+                    r += w * kernel.value(d.length(), h);
+                    let gradient = kernel.gradient(d, h);
+                    grads.push(gradient);
+                    if factors {
+                        let gw = gradient * w;
+                        g += gw;
+                        if j < n {
+                            s += gw.length_squared();
+                        }
                     }
                 }
+                *rho = r;
+                s += g.length_squared();
+                *a = if s > 1e-9 / (h * h) { 1.0 / s } else { 0.0 };
             }
-            *rho = r;
-            s += g.length_squared();
-            *a = if s > 1e-9 / (h * h) { 1.0 / s } else { 0.0 };
         });
     }
 
-    /// Gravity's velocity change `g` (m/s: `dt` times gravity) and XSPH viscosity:
-    /// `v_i += g + ν Σ_j (V / ρ̂_j) (v_j - v_i) W_ij`.
-    fn non_pressure(&mut self, model: &Model, g: DVec3) {
-        let Solver { grid, points, v, density, dv, .. } = self;
+    /// The neighbours of particle `i` and their `∇W_ij` (of the last [`Solver::densities`]).
+    fn pairs(&self, i: usize) -> (&[u32], &[DVec3]) {
+        (self.grid.neighbours(i), &self.gradients[i / CHUNK][self.grid.span(i)])
+    }
+
+    /// Gravity's velocity change `g` (m/s: `dt` times gravity), XSPH viscosity
+    /// `v_i += g + ν Σ_j (V / ρ̂_j) (v_j - v_i) W_ij`, and over `dt` (s) surface tension
+    /// (Akinci et al. 2013, [`super::Settings::surface_tension`]).
+    fn non_pressure(&mut self, model: &Model, dt: f64, g: DVec3) {
+        let gamma = model.settings.surface_tension;
+        if gamma > 0.0 {
+            self.normals_now(model);
+        }
+        let mut dv = std::mem::take(&mut self.dv);
+        let Solver { grid, points, v, density, normals, .. } = &*self;
         let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, v.len());
-        let nu = model.settings.viscosity;
+        let (nu, mass) = (model.settings.viscosity, model.volume * model.settings.rest_density);
         dv.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let mut sum = DVec3::ZERO;
+            let (mut sum, mut tension) = (DVec3::ZERO, DVec3::ZERO);
             for &j in grid.neighbours(i) {
                 let j = j as usize;
                 if j < n {
-                    let w = kernel.value((points[i] - points[j]).length(), sup);
-                    sum += (v[j] - v[i]) * (vol / density[j] * w);
+                    let d = points[i] - points[j];
+                    let r = d.length();
+                    sum += (v[j] - v[i]) * (vol / density[j] * kernel.value(r, sup));
+                    if gamma > 0.0 && r > 0.0 {
+                        let cohesion = d * (mass * super::kernel::cohesion(r, sup) / r);
+                        let k = 2.0 / (density[i] + density[j]);
+                        tension += (cohesion + normals[i] - normals[j]) * k;
+                    }
                 }
             }
-            *out = g + sum * nu;
+            *out = g + sum * nu - tension * (gamma * dt);
         });
-        v.par_iter_mut().zip(&*dv).for_each(|(v, dv)| *v += *dv);
+        self.v.par_iter_mut().zip(&dv).for_each(|(v, dv)| *v += *dv);
+        self.dv = dv;
+    }
+
+    /// The surface normals `n_i = -h Σ_j (V / ρ̂_j) ∇W_ij` over fluid neighbours (Akinci et
+    /// al. 2013, eq. 5), from the last [`Solver::densities`]' gradients. `∇W_ij` (with
+    /// respect to `x_i`) points towards the neighbours, so the sign makes `n` point out of
+    /// the fluid: with `n` pointing in, the curvature term pushed a cube's corners outwards
+    /// (its corner ratio in `tests/fluid_tension.rs` grew from 1.53 to 2.2 in 1 s).
+    fn normals_now(&mut self, model: &Model) {
+        let mut normals = std::mem::take(&mut self.normals);
+        let n = self.v.len();
+        normals.resize(n, DVec3::ZERO);
+        let (vol, h, density) = (model.volume, model.support, &self.density);
+        normals.par_iter_mut().enumerate().for_each(|(i, out)| {
+            let (near, grads) = self.pairs(i);
+            let mut sum = DVec3::ZERO;
+            for (&j, &g) in near.iter().zip(grads) {
+                let j = j as usize;
+                if j < n {
+                    sum += g * (vol / density[j]);
+                }
+            }
+            *out = sum * -h;
+        });
+        self.normals = normals;
     }
 
     /// `Δv_i = -dt [Σ_j V (k_i + k_j) ∇W_ij + Σ_b V_b k_i ∇W_ib]` with this iteration's `k`.
     fn apply(&mut self, model: &Model, h: f64) {
-        let Solver { grid, points, v, k, dv, .. } = self;
-        let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, v.len());
+        let mut dv = std::mem::take(&mut self.dv);
+        let (vol, n, k) = (model.volume, self.v.len(), &self.k);
         let vb = &model.boundary_volume;
         dv.par_iter_mut().enumerate().for_each(|(i, out)| {
             let mut sum = DVec3::ZERO;
-            for &j in grid.neighbours(i) {
+            let (near, grads) = self.pairs(i);
+            for (&j, &g) in near.iter().zip(grads) {
                 let j = j as usize;
-                let g = kernel.gradient(points[i] - points[j], sup);
                 sum += if j < n { g * (vol * (k[i] + k[j])) } else { g * (vb[j - n] * k[i]) };
             }
             *out = sum * -h;
         });
-        v.par_iter_mut().zip(&*dv).for_each(|(v, dv)| *v += *dv);
+        self.v.par_iter_mut().zip(&dv).for_each(|(v, dv)| *v += *dv);
+        self.dv = dv;
     }
 
     /// The residual of `which` solve per particle for the velocities now: the predicted
     /// density error `ρ̂* - 1`, or the density rate `Dρ̂/Dt` (1/s, 0 for sparse particles).
     fn residuals(&mut self, model: &Model, h: f64, which: Solve) {
-        let Solver { grid, points, v, density, residual, .. } = self;
-        let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, v.len());
+        let mut residual = std::mem::take(&mut self.residual);
+        let (vol, n, v, density) = (model.volume, self.v.len(), &self.v, &self.density);
         let vb = &model.boundary_volume;
         residual.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let near = grid.neighbours(i);
+            let (near, grads) = self.pairs(i);
             let mut rate = 0.0;
-            for &j in near {
+            for (&j, &g) in near.iter().zip(grads) {
                 let j = j as usize;
-                let g = kernel.gradient(points[i] - points[j], sup);
                 rate += if j < n { vol * (v[i] - v[j]).dot(g) } else { vb[j - n] * v[i].dot(g) };
             }
             *out = match which {
@@ -378,6 +434,7 @@ impl Solver {
                 Solve::Divergence => rate,
             };
         });
+        self.residual = residual;
     }
 
     /// One DFSPH solve: warm start from the state's pressures, then Jacobi iterations on
@@ -489,7 +546,7 @@ impl Solver {
                 wall.confine(x, v, margin);
             }
         });
-        self.non_pressure(model, DVec3::ZERO);
+        self.non_pressure(model, h, DVec3::ZERO);
         (iterations, mean, largest)
     }
 

@@ -5,17 +5,20 @@
 //!
 //! Cells are hashed into a power-of-two table of about twice the number of points (so a
 //! particle far from the others costs nothing), and points are sorted by bucket with a
-//! counting sort (stable: within a bucket, by index). A candidate counts only if its cell is
-//! the cell being visited (two cells sharing a bucket give no duplicates) and it lies closer
-//! than `h`. Neighbour lists are built in two parallel passes (count, then fill the slice of
-//! each point found by a prefix sum), so lists and their order do not depend on the thread
-//! count. Buffers only grow: a rebuild of the same size allocates nothing.
+//! counting sort (stable: within a bucket, by index); their positions and cells are copied in
+//! that order, so the candidates of a cell are read from contiguous memory. A candidate counts
+//! only if it lies closer than `h` and its cell is the cell being visited (two cells sharing a
+//! bucket give no duplicates). The lists are found in one parallel pass over chunks of query
+//! points, each chunk appending to its own buffer (Ihmsen et al.'s compact storage, one pass
+//! instead of count-then-fill), so lists and their order do not depend on the thread count.
+//! Buffers only grow: a rebuild of the same size allocates nothing.
 
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// Points per parallel task.
-const CHUNK: usize = 512;
+/// Query points per parallel task and per list buffer: the lists of query points
+/// `c CHUNK .. (c + 1) CHUNK` lie in buffer `c` (see [`Grid::span`]).
+pub const CHUNK: usize = 512;
 
 /// The grid and the neighbour lists of the query points (see the module docs).
 #[derive(Clone, Debug, Default)]
@@ -28,10 +31,15 @@ pub struct Grid {
     start: Vec<u32>,
     /// Point indices sorted by bucket.
     sorted: Vec<u32>,
-    /// Start of each query point's list in `list` (`queries + 1` entries).
-    offsets: Vec<usize>,
-    /// The neighbours of every query point, concatenated.
-    list: Vec<u32>,
+    /// Positions of the points in `sorted`'s order.
+    sorted_points: Vec<DVec3>,
+    /// Cells of the points in `sorted`'s order.
+    sorted_cells: Vec<[i64; 3]>,
+    /// End of each query point's list in its chunk's buffer (`queries` entries; a list starts
+    /// where the previous point's ends, or at 0 for a chunk's first point).
+    ends: Vec<u32>,
+    /// The neighbours of every chunk of `CHUNK` query points, concatenated per chunk.
+    lists: Vec<Vec<u32>>,
 }
 
 fn cell_of(p: DVec3, inv_h: f64) -> [i64; 3] {
@@ -84,82 +92,53 @@ impl Grid {
             self.start[k] = self.start[k - 1];
         }
         self.start[0] = 0;
+        self.sorted_points.resize(n, DVec3::ZERO);
+        self.sorted_cells.resize(n, [0; 3]);
+        let cell = &self.cell;
+        self.sorted_points.par_iter_mut().zip(&mut self.sorted_cells).zip(&self.sorted).for_each(
+            |((p, c), &j)| {
+                *p = points[j as usize];
+                *c = cell[j as usize];
+            },
+        );
         self.lists(points, queries, h, mask);
     }
 
-    /// Count, then fill, the neighbour lists of the first `queries` points.
+    /// The neighbour lists of the first `queries` points, one chunk of `CHUNK` per task.
     fn lists(&mut self, points: &[DVec3], queries: usize, h: f64, mask: u64) {
-        let mut counts = std::mem::take(&mut self.offsets);
+        let mut ends = std::mem::take(&mut self.ends);
+        let mut lists = std::mem::take(&mut self.lists);
+        ends.resize(queries, 0);
+        lists.resize_with(queries.div_ceil(CHUNK), Vec::new);
         let this = &*self;
-        counts.resize(queries + 1, 0);
-        counts[..queries].par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
-            for (k, o) in out.iter_mut().enumerate() {
-                *o = 0;
-                this.visit(points, c * CHUNK + k, h, mask, |_| *o += 1);
+        ends.par_chunks_mut(CHUNK).zip(&mut lists).enumerate().for_each(|(c, (ends, list))| {
+            list.clear();
+            for (k, end) in ends.iter_mut().enumerate() {
+                this.visit(points[c * CHUNK + k], c * CHUNK + k, h, mask, list);
+                // At most `CHUNK` times the points (< 2³² / CHUNK in any real use).
+                *end = list.len() as u32;
             }
         });
-        // Exclusive prefix sum in place (the last entry, left from the last build, becomes
-        // the total).
-        counts[queries] = 0;
-        let mut total = 0;
-        for c in counts.iter_mut() {
-            let k = *c;
-            *c = total;
-            total += k;
-        }
-        let mut list = std::mem::take(&mut self.list);
-        list.resize(total, 0);
-        self.fill(points, 0, queries, &counts, &mut list, h, mask);
-        self.offsets = counts;
-        self.list = list;
+        self.ends = ends;
+        self.lists = lists;
     }
 
-    /// Fill the lists of query points `lo..hi` into `out` (their part of the list), splitting
-    /// the range in halves on the rayon pool.
-    #[allow(clippy::too_many_arguments)]
-    fn fill(
-        &self,
-        points: &[DVec3],
-        lo: usize,
-        hi: usize,
-        offsets: &[usize],
-        out: &mut [u32],
-        h: f64,
-        mask: u64,
-    ) {
-        if hi - lo <= CHUNK {
-            let base = offsets[lo];
-            for (k, &start) in offsets[lo..hi].iter().enumerate() {
-                let mut at = start - base;
-                self.visit(points, lo + k, h, mask, |j| {
-                    out[at] = j;
-                    at += 1;
-                });
-            }
-            return;
-        }
-        let mid = lo + (hi - lo) / 2;
-        let (a, b) = out.split_at_mut(offsets[mid] - offsets[lo]);
-        rayon::join(
-            || self.fill(points, lo, mid, offsets, a, h, mask),
-            || self.fill(points, mid, hi, offsets, b, h, mask),
-        );
-    }
-
-    /// Call `f(j)` for every point `j ≠ i` closer than `h` to point `i`, cell by cell
+    /// Append to `out` every point `j ≠ i` closer than `h` to point `i` at `p`, cell by cell
     /// (z, y, x outer to inner), by index within a cell.
-    fn visit(&self, points: &[DVec3], i: usize, h: f64, mask: u64, mut f: impl FnMut(u32)) {
-        let (c, p, h2) = (self.cell[i], points[i], h * h);
+    fn visit(&self, p: DVec3, i: usize, h: f64, mask: u64, out: &mut Vec<u32>) {
+        let (c, h2) = (self.cell[i], h * h);
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
                     let cc = [c[0].wrapping_add(dx), c[1].wrapping_add(dy), c[2].wrapping_add(dz)];
                     let b = hash(cc, mask) as usize;
-                    for &j in &self.sorted[self.start[b] as usize..self.start[b + 1] as usize] {
-                        let ju = j as usize;
-                        if ju != i && self.cell[ju] == cc && (points[ju] - p).length_squared() < h2
-                        {
-                            f(j);
+                    let range = self.start[b] as usize..self.start[b + 1] as usize;
+                    let candidates = self.sorted_points[range.clone()].iter();
+                    for ((q, qc), &j) in
+                        candidates.zip(&self.sorted_cells[range.clone()]).zip(&self.sorted[range])
+                    {
+                        if (*q - p).length_squared() < h2 && *qc == cc && j as usize != i {
+                            out.push(j);
                         }
                     }
                 }
@@ -167,9 +146,16 @@ impl Grid {
         }
     }
 
+    /// Where the list of query point `i` lies in the buffer of its chunk `i / CHUNK`, so
+    /// callers can keep per-pair data in buffers of the same layout.
+    pub fn span(&self, i: usize) -> std::ops::Range<usize> {
+        let start = if i.is_multiple_of(CHUNK) { 0 } else { self.ends[i - 1] as usize };
+        start..self.ends[i] as usize
+    }
+
     /// The neighbours of query point `i` (indices into the points of the last build).
     pub fn neighbours(&self, i: usize) -> &[u32] {
-        &self.list[self.offsets[i]..self.offsets[i + 1]]
+        &self.lists[i / CHUNK][self.span(i)]
     }
 }
 
@@ -222,11 +208,12 @@ mod tests {
             pool.install(|| {
                 let mut grid = Grid::default();
                 grid.build(&pts, 4000, 0.07);
-                (grid.offsets.clone(), grid.list.clone())
+                (grid.ends.clone(), grid.lists.clone())
             })
         };
         let one = lists(1);
-        assert!(one.1.len() > 4000 * 5, "too few neighbours to test: {}", one.1.len());
+        let total: usize = one.1.iter().map(Vec::len).sum();
+        assert!(total > 4000 * 5, "too few neighbours to test: {total}");
         assert_eq!(one, lists(2));
     }
 
@@ -235,10 +222,10 @@ mod tests {
         let pts = random_points(2000, 3, 1.0);
         let mut grid = Grid::default();
         grid.build(&pts, 2000, 0.1);
-        let caps = (grid.list.capacity(), grid.sorted.capacity(), grid.start.capacity());
-        let ptr = grid.list.as_ptr();
+        let caps = (grid.lists[1].capacity(), grid.sorted.capacity(), grid.start.capacity());
+        let ptr = grid.lists[1].as_ptr();
         grid.build(&pts, 2000, 0.1);
-        assert_eq!(caps, (grid.list.capacity(), grid.sorted.capacity(), grid.start.capacity()));
-        assert_eq!(ptr, grid.list.as_ptr());
+        assert_eq!(caps, (grid.lists[1].capacity(), grid.sorted.capacity(), grid.start.capacity()));
+        assert_eq!(ptr, grid.lists[1].as_ptr());
     }
 }

@@ -77,6 +77,7 @@ def test_pickle_round_trip_continues_bit_for_bit():
         ({"spacing": 0.1, "kernel": "gauss"}, "kernel"),
         ({"spacing": 0.1, "max_iterations": 0}, "max_iterations"),
         ({"spacing": 0.1, "gravity": [0, float("nan"), 0]}, "gravity"),
+        ({"spacing": 0.1, "surface_tension": -1.0}, "surface_tension"),
     ],
 )
 def test_bad_settings_name_the_argument(kwargs, name):
@@ -205,3 +206,31 @@ def test_scene_steps_saves_and_rolls_back_a_fluid(tmp_path):
     with pytest.raises(kinema.SimulationError):
         two.step()
     assert np.array_equal(a.positions, before) and a.time == 0.0
+
+
+def test_surface_mesh_is_closed_and_encloses_the_block():
+    f = small()
+    v, t = f.surface_mesh()
+    assert v.shape[1] == 3 and t.shape[1] == 3 and t.dtype == np.uint32
+    # Closed and oriented: every directed edge once, its reverse once; Euler characteristic 2.
+    edges = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    keys = edges[:, 0].astype(np.int64) * len(v) + edges[:, 1]
+    back = edges[:, 1].astype(np.int64) * len(v) + edges[:, 0]
+    assert len(np.unique(keys)) == len(keys) and np.array_equal(np.sort(keys), np.sort(back))
+    assert len(v) - len(keys) // 2 + len(t) == 2
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    volume = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0
+    # A thin block (5 x 10 x 5 spacings): its rounded edges take 7.1 % (measured).
+    assert volume == pytest.approx(len(f) * 0.02**3, rel=0.09)
+    assert Fluid(spacing=0.02).surface_mesh()[0].shape == (0, 3)
+    with pytest.raises(ValueError, match="resolution"):
+        f.surface_mesh(0.0)
+
+
+def test_scene_obj_frame_holds_the_fluid_surface(tmp_path):
+    scene = kinema.Scene(dt=1 / 60)
+    f = scene.add(small())
+    path = scene.export_obj(tmp_path)
+    text = path.read_text()
+    assert "o fluid0" in text
+    assert text.count("\nf ") == len(f.surface_mesh()[1])
