@@ -421,17 +421,11 @@ fn not_positive() -> Error {
     Error::SolverFailed { reason: "multigrid: the system matrix is not positive definite".into() }
 }
 
-/// `P = (I - ω D⁻¹ Â) P̂` with `ω = 4/(3ρ)`, `ρ` the Gershgorin bound (largest block row sum
-/// of `‖D⁻¹ Âᵢⱼ‖∞`) of `ρ(D⁻¹ Â)`; then `Pᵀ`.
+/// `P = (I - ω D⁻¹ Â) P̂` with `ω = 4/(3ρ)`, `ρ` the estimate of `ρ(D⁻¹ Â)` of
+/// [`spectral_radius`]; then `Pᵀ`.
 fn smooth_prolongator(fine: &mut Level, position: &mut [usize]) {
+    let rho = spectral_radius(fine);
     let (a, p) = (&fine.a, &mut fine.p);
-    let norm = |m: DMat3| {
-        let t = m.transpose();
-        [t.x_axis, t.y_axis, t.z_axis].iter().map(|r| r.abs().element_sum()).fold(0.0, f64::max)
-    };
-    let rho = (0..a.n())
-        .map(|i| a.row(i).map(|s| norm(fine.inverse[i] * a.blocks[s])).sum::<f64>())
-        .fold(0.0, f64::max);
     let omega = 4.0 / (3.0 * rho);
     let tent = &fine.tentative;
     for i in 0..a.n() {
@@ -454,6 +448,34 @@ fn smooth_prolongator(fine: &mut Level, position: &mut [usize]) {
     for (block, &t) in fine.pt.blocks.iter_mut().zip(&fine.pt_source) {
         *block = p.blocks[t].transpose();
     }
+}
+
+/// Power iterations for the spectral radius of `D⁻¹ Â` from a fixed start (so that the
+/// estimate depends on the matrix alone): `D⁻¹ Â` is self-adjoint in the `D` inner product,
+/// the Rayleigh quotients `vᵀ Â v / vᵀ D v` rise to `ρ` from below. Uses the level's `x`
+/// and `r` as scratch.
+fn spectral_radius(level: &mut Level) -> f64 {
+    const ITERATIONS: usize = 15;
+    let a = &level.a;
+    let (v, w) = (&mut level.x, &mut level.r);
+    for (i, vi) in v.iter_mut().enumerate() {
+        // A fixed start with all components and no symmetry.
+        *vi = DVec3::new(1.0, 1.3, 0.7) * (1.0 + 0.5 * ((i * 7919) % 13) as f64);
+    }
+    let mut rho = 0.0;
+    for _ in 0..ITERATIONS {
+        let (mut num, mut den) = (0.0, 0.0);
+        for i in 0..a.n() {
+            let av: DVec3 = a.row(i).map(|s| a.blocks[s] * v[a.cols[s] as usize]).sum();
+            num += v[i].dot(av);
+            den += v[i].dot(a.blocks[level.diag[i]] * v[i]);
+            w[i] = level.inverse[i] * av;
+        }
+        rho = num / den;
+        let scale = 1.0 / w.iter().map(|x| x.length_squared()).sum::<f64>().sqrt();
+        v.iter_mut().zip(w.iter()).for_each(|(vi, wi)| *vi = *wi * scale);
+    }
+    rho
 }
 
 /// `Â P`, then the coarse operator `Pᵀ (Â P)` ([`product_into`]).
