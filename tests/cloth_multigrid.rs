@@ -63,11 +63,12 @@ fn multigrid_iterations_do_not_grow_with_stiffness() {
 }
 
 /// Resolution: grids 24²/48²/96² of the cotton-like cloth (stretch 1e4, shear 1e3),
-/// multigrid within a factor 2, block SSOR growing by more.
+/// multigrid within a factor 1.5 (22/25/30; 26/33/51 with the Gershgorin bound as the
+/// prolongator smoothing's `ρ`), block SSOR growing by more than 2.
 #[test]
 fn multigrid_iterations_do_not_grow_with_resolution() {
     let (mg, ssor) = table(&[(24, 1e4, 1e3), (48, 1e4, 1e3), (96, 1e4, 1e3)]);
-    assert!(spread(&mg) <= 2.0, "multigrid {mg:?}");
+    assert!(spread(&mg) <= 1.5, "multigrid {mg:?}");
     assert!(spread(&ssor) > 2.0, "block SSOR {ssor:?}");
 }
 
