@@ -104,7 +104,7 @@ fn multigrid_solution_matches_cholesky() {
 }
 
 /// The docs table (run with `--ignored --nocapture`): stretch 1e2…1e6 at 64² (shear 1e3,
-/// then shear a tenth of the stretch), grids 32²/64²/128² at stretch 1e4.
+/// then shear a tenth of the stretch), grids 32²/64²/128²/256² at stretch 1e4.
 #[test]
 #[ignore]
 fn iteration_table() {
@@ -114,7 +114,9 @@ fn iteration_table() {
         let ratio: Vec<usize> =
             stretches.iter().map(|&k| iterations(64, k, k / 10.0, solver)).collect();
         let grid: Vec<usize> =
-            [32, 64, 128].iter().map(|&n| iterations(n, 1e4, 1e3, solver)).collect();
-        println!("{solver:?}: 64², shear 1e3 {fixed:?}; shear k/10 {ratio:?}; 32/64/128² {grid:?}");
+            [32, 64, 128, 256].iter().map(|&n| iterations(n, 1e4, 1e3, solver)).collect();
+        println!(
+            "{solver:?}: 64², shear 1e3 {fixed:?}; shear k/10 {ratio:?}; 32/64/128/256² {grid:?}"
+        );
     }
 }
