@@ -5,13 +5,17 @@ step of explicit integration of the same cloth.
 
 The reference implements the same triangle model (stretch, shear, dihedral bending; Gauss–Newton
 force Jacobians), the same linear system `(M - h ∂f/∂v - h² ∂f/∂x) Δv = h (f + h ∂f/∂x v)`
-assembled with scipy.sparse and solved by scipy's conjugate gradient with a Jacobi
-preconditioner on the free degrees of freedom (the pinned ones eliminated), to the same
-relative tolerance. Position Based Dynamics (pypbd, Bender et al.) runs the same grid with its
+assembled with scipy.sparse and solved by scipy's conjugate gradient on the free degrees of
+freedom (the pinned ones eliminated), preconditioned by pyamg's smoothed aggregation multigrid
+with the rigid motions as near-null space (the method of kinema's default solver; the tol-1e-3 table
+uses Jacobi) or by Jacobi, to the same relative tolerance. Position Based Dynamics (pypbd, Bender et al.) runs the same grid with its
 default solver iterations when it is installed: a different method (constraint projection, no
 linear solve), what a user wanting speed over accuracy would pick instead.
 
-Run: python bench/bench_cloth.py [--quick] [--sizes 32 64 128 256] [--steps 10]
+The first tables run the defaults a new user gets on the cotton-like square hung from two
+corners and on a drape over a sphere onto the ground, wall and CPU time (process_time).
+
+Run: python bench/bench_cloth.py [--quick] [--defaults-only] [--sizes 32 64 128 256] [--steps 10]
 (--quick: 16² and 32² grids, 3 steps, the solver trade on 24² for 10 steps, the explicit limit
 on an 8² cloth.)
 """
@@ -31,22 +35,24 @@ import numpy as np  # noqa: E402
 
 import kinema  # noqa: E402
 import kinema.cloth  # noqa: E402
-from kinema.cloth import Cloth  # noqa: E402
+from kinema.cloth import Cloth, Plane, Sphere  # noqa: E402
 
 try:
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 except ImportError:
     sp = None
+try:
+    import pyamg
+except ImportError:
+    pyamg = None
 
 MATERIAL = dict(kinema.cloth.MATERIAL)
 """The speed tables' material: the library's default."""
-COTTON = {"density": 1.0, "stretch": 1e4, "shear": 1e3, "bend": 1e-3, "damping": 0.1}
-"""A cotton-like cloth (areal density 1 kg/m², as in issue #21), for the at-the-defaults table."""
 DT = 1.0 / 60.0
 TOL = 1e-3
 """The speed tables' PCG tolerance (with step subdivision off); the defaults are tol 1e-6 and
-max_strain_change 0.01 (subdivision on), measured in `at_defaults`."""
+max_strain_change 0.01 (subdivision on), measured in `defaults_tables`."""
 
 
 def kinema_cloth(n: int) -> Cloth:
@@ -145,7 +151,7 @@ class NumpyCloth:
         theta = -np.arctan2(np.sum(np.cross(m1, m2) * e, axis=1) / el, np.sum(m1 * m2, axis=1))
         yield h, theta, grad, self.kb
 
-    def step(self, dt: float) -> int:
+    def step(self, dt: float, tol: float = TOL, multigrid: bool = False) -> int:
         nv = len(self.x)
         f = np.zeros((nv, 3))
         f[:, 1] = -9.81 * self.m
@@ -179,7 +185,17 @@ class NumpyCloth:
         b = dt * (f.ravel() + dt * kv)
         free = self.free
         af = a[free][:, free]
-        precond = sp.diags(1.0 / af.diagonal())
+        if multigrid:
+            # Smoothed aggregation on the free degrees of freedom, with the rigid motions
+            # (three translations, three rotations) as near-null space, as kinema's multigrid.
+            xf = self.x - self.x.mean(0)
+            modes = np.zeros((len(self.x), 3, 6))
+            modes[:, :, :3] = np.eye(3)
+            modes[:, :, 3:] = np.cross(np.eye(3)[None, :, :], xf[:, None, :]).transpose(0, 2, 1)
+            near_null = modes.reshape(3 * len(self.x), 6)[free]
+            precond = pyamg.smoothed_aggregation_solver(af, B=near_null).aspreconditioner()
+        else:
+            precond = sp.diags(1.0 / af.diagonal())
         dv = np.zeros(3 * nv)
         iterations = 0
 
@@ -187,7 +203,7 @@ class NumpyCloth:
             nonlocal iterations
             iterations += 1
 
-        dv[free], _ = spla.cg(af, b[free], rtol=TOL, M=precond, callback=count)
+        dv[free], _ = spla.cg(af, b[free], rtol=tol, M=precond, callback=count, maxiter=20000)
         self.v += dv.reshape(-1, 3)
         self.x += dt * self.v
         return iterations
@@ -230,26 +246,115 @@ def time_pbd(n: int, steps: int) -> float | None:
     return (time.perf_counter() - start) / steps
 
 
-def at_defaults(n: int, material: dict[str, float], steps: int) -> tuple[float, float, float]:
-    """ms per step, CG iterations per step and the largest edge stretch (length / rest length)
-    of an n x n cloth pinned at two corners, stepped with ``step(dt)`` and no other option: the
-    step settings a new user gets (PCG, tol 1e-6, max_strain_change 0.01)."""
-    cloth = Cloth.grid(n, n, 1.0, 1.0, **material)
-    cloth.pin([0, n - 1])
-    cloth.step(DT, 10)
-    iterations = 0
-    start = time.perf_counter()
-    for _ in range(steps):
-        cloth.step(DT)
-        iterations += cloth.stats["iterations"]
-    elapsed = (time.perf_counter() - start) / steps
+def hanging(n: int) -> Cloth:
+    """The default (cotton-like) n x n square of 1 m, flat, pinned at two corners."""
+    return kinema_cloth(n)
+
+
+def drape(n: int) -> Cloth:
+    """The default n x n square of 1 m dropped from 0.75 m over a sphere of radius 0.3 m
+    resting on the ground."""
+    cloth = Cloth.grid(n, n, 1.0, 1.0)
+    cloth.set_state(cloth.positions + np.array([0.0, 0.75, 0.0]))
+    cloth.add_collider(Sphere((0.0, 0.3, 0.0), 0.3))
+    cloth.add_collider(Plane())
+    return cloth
+
+
+def largest_stretch(cloth: Cloth, rest: np.ndarray) -> float:
+    """The largest edge length over its rest length."""
+    t = cloth.triangles
+    edges = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
     x = cloth.positions
-    edges = np.concatenate([cloth.triangles[:, [a, b]] for a, b in ((0, 1), (1, 2), (2, 0))])
-    rest = kinema_cloth(n).positions
-    stretch = np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1) / np.linalg.norm(
-        rest[edges[:, 0]] - rest[edges[:, 1]], axis=1
+    length = np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
+    return float((length / np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)).max())
+
+
+def timed(step, steps: int) -> tuple[float, float, float]:
+    """Wall and CPU (process_time) seconds per call of ``step`` and its mean return value."""
+    total = 0.0
+    wall, cpu = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        total += step()
+    return (
+        (time.perf_counter() - wall) / steps,
+        (time.process_time() - cpu) / steps,
+        total / steps,
     )
-    return elapsed, iterations / steps, float(stretch.max())
+
+
+def at_defaults(
+    scene, n: int, steps: int, **options: float
+) -> tuple[float, float, float, float, float]:
+    """Wall and CPU ms per step, CG iterations and substeps per step, and the largest edge
+    stretch at the end, of ``scene(n)`` stepped by ``step(dt, **options)`` (no options: the
+    settings a new user gets) after 30 steps (0.5 s)."""
+    cloth = scene(n)
+    rest = cloth.positions.copy()
+    cloth.step(DT, 30, **options)
+    substeps = 0.0
+
+    def one() -> float:
+        nonlocal substeps
+        cloth.step(DT, **options)
+        substeps += cloth.stats["substeps"]
+        return cloth.stats["iterations"]
+
+    wall, cpu, its = timed(one, steps)
+    return 1e3 * wall, 1e3 * cpu, its, substeps / steps, largest_stretch(cloth, rest)
+
+
+def numpy_at_tol(n: int, steps: int, multigrid: bool) -> tuple[float, float, float]:
+    """Wall and CPU ms per step and CG iterations of the numpy/scipy reference on the hanging
+    square at tol 1e-6 (pyamg's smoothed aggregation or Jacobi as preconditioner), after 30
+    steps."""
+    cloth = NumpyCloth(n)
+    for _ in range(30):
+        cloth.step(DT, 1e-6, multigrid)
+    wall, cpu, its = timed(lambda: cloth.step(DT, 1e-6, multigrid), steps)
+    return 1e3 * wall, 1e3 * cpu, its
+
+
+def defaults_tables(sizes: list[int], steps: int, numpy_max: int) -> None:
+    """The at-the-defaults tables (issue #21)."""
+    print(
+        "At the defaults a new user gets (default cotton-like material; `step(dt)`: multigrid PCG"
+        " to tol 1e-6, max_strain_change 0.01, max_strain 0.03), dt = 1/60 s, from 0.5 s on;"
+        " kinema on one thread:"
+    )
+    print(
+        "| scene | grid | wall ms/step | CPU ms/step | CG its/step | substeps/step | largest edge stretch |"
+    )
+    print("|---|---|---:|---:|---:|---:|---:|")
+    for name, scene in (("hanging from two corners", hanging), ("drape over a sphere", drape)):
+        for n in sizes:
+            w, c, its, sub, st = at_defaults(scene, n, steps if n <= 64 else max(2, steps // 3))
+            print(f"| {name} | {n}² | {w:.1f} | {c:.1f} | {its:.0f} | {sub:.2f} | {st:.3f} |")
+    if sp is None:
+        return
+    print()
+    print(
+        "The same method (implicit Euler, one Newton step, tol 1e-6, no subdivision, no strain"
+        " limit) on the hanging square, kinema against numpy/scipy.sparse (scipy's CG; pyamg's"
+        " smoothed aggregation with the rigid modes, rebuilt every step, or Jacobi), CPU ms per"
+        " step (wall in brackets), one thread each, one process:"
+    )
+    print(
+        "| grid | kinema multigrid | its | numpy + pyamg SA | its | ratio | numpy + Jacobi | its | ratio |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    same = {"max_strain_change": float("inf"), "max_strain": float("inf")}
+    for n in sizes:
+        k = steps if n <= 64 else max(2, steps // 3)
+        w, c, its, _, _ = at_defaults(hanging, n, k, **same)
+        cells = f"{c:.1f} ({w:.1f}) | {its:.0f}"
+        for multigrid in (True, False):
+            if n > numpy_max or (multigrid and pyamg is None):
+                cells += " | — | — | —"
+                continue
+            nw, nc, nits = numpy_at_tol(n, max(2, k // 3), multigrid)
+            cells += f" | {nc:.0f} ({nw:.0f}) | {nits:.0f} | {nc / c:.0f}x"
+        print(f"| {n}² | {cells} |")
 
 
 def solver_trade(n: int, steps: int) -> list[tuple[str, float, float]]:
@@ -297,7 +402,10 @@ def main() -> None:
     )
     parser.add_argument("--steps", type=int, help="default 10 (3 with --quick)")
     parser.add_argument(
-        "--numpy-max", type=int, default=64, help="largest grid for the numpy reference"
+        "--numpy-max", type=int, default=128, help="largest grid for the numpy reference"
+    )
+    parser.add_argument(
+        "--defaults-only", action="store_true", help="only the at-the-defaults tables"
     )
     args = parser.parse_args()
     sizes = args.sizes or ([16, 32] if args.quick else [32, 64, 128])
@@ -310,20 +418,9 @@ def main() -> None:
         "Threads: kinema 1 (set_num_threads(1)), numpy/scipy 1 (OPENBLAS_NUM_THREADS=1), pypbd its own."
     )
     print()
-    print(
-        f"At the defaults a new user gets (`step(dt)`: PCG, tol 1e-6, max_strain_change 0.01),"
-        f" dt = 1/60 s, pinned at two corners, {base_steps} steps after 10 (1/3 as many from 128²):"
-    )
-    print("| grid | material | ms/step | CG its/step | largest edge stretch |")
-    print("|---|---|---:|---:|---:|")
-    for n in sizes:
-        steps = max(2, base_steps if n <= 64 else base_steps // 3)
-        for name, material in (
-            ("default (0.1 kg/m², stretch 1e3)", MATERIAL),
-            ("cotton-like (1 kg/m², stretch 1e4)", COTTON),
-        ):
-            elapsed, its, stretch = at_defaults(n, material, steps)
-            print(f"| {n}² | {name} | {1e3 * elapsed:.1f} | {its:.0f} | {stretch:.3f} |")
+    defaults_tables(sizes, base_steps, args.numpy_max)
+    if args.defaults_only:
+        return
     print()
     print(
         f"Speed at tol {TOL:g}, subdivision off (max_strain_change=inf), default material, dt = 1/60 s:"

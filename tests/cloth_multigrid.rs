@@ -63,11 +63,12 @@ fn multigrid_iterations_do_not_grow_with_stiffness() {
 }
 
 /// Resolution: grids 24²/48²/96² of the cotton-like cloth (stretch 1e4, shear 1e3),
-/// multigrid within a factor 2, block SSOR growing by more.
+/// multigrid within a factor 1.5 (22/25/30; 26/33/51 with the Gershgorin bound as the
+/// prolongator smoothing's `ρ`), block SSOR growing by more than 2.
 #[test]
 fn multigrid_iterations_do_not_grow_with_resolution() {
     let (mg, ssor) = table(&[(24, 1e4, 1e3), (48, 1e4, 1e3), (96, 1e4, 1e3)]);
-    assert!(spread(&mg) <= 2.0, "multigrid {mg:?}");
+    assert!(spread(&mg) <= 1.5, "multigrid {mg:?}");
     assert!(spread(&ssor) > 2.0, "block SSOR {ssor:?}");
 }
 
@@ -103,7 +104,7 @@ fn multigrid_solution_matches_cholesky() {
 }
 
 /// The docs table (run with `--ignored --nocapture`): stretch 1e2…1e6 at 64² (shear 1e3,
-/// then shear a tenth of the stretch), grids 32²/64²/128² at stretch 1e4.
+/// then shear a tenth of the stretch), grids 32²/64²/128²/256² at stretch 1e4.
 #[test]
 #[ignore]
 fn iteration_table() {
@@ -113,7 +114,9 @@ fn iteration_table() {
         let ratio: Vec<usize> =
             stretches.iter().map(|&k| iterations(64, k, k / 10.0, solver)).collect();
         let grid: Vec<usize> =
-            [32, 64, 128].iter().map(|&n| iterations(n, 1e4, 1e3, solver)).collect();
-        println!("{solver:?}: 64², shear 1e3 {fixed:?}; shear k/10 {ratio:?}; 32/64/128² {grid:?}");
+            [32, 64, 128, 256].iter().map(|&n| iterations(n, 1e4, 1e3, solver)).collect();
+        println!(
+            "{solver:?}: 64², shear 1e3 {fixed:?}; shear k/10 {ratio:?}; 32/64/128/256² {grid:?}"
+        );
     }
 }

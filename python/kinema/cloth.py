@@ -346,6 +346,13 @@ class Cloth:
         """Whether self-collision is on."""
         return self._core.self_collision is not None
 
+    def self_intersections(self) -> np.ndarray:
+        """The pairs ``(K, 2)`` (int64, ``i < j``) of triangles that share no vertex and intersect
+        in the current shape, by an exact all-pairs test (a sweep along x, each candidate pair
+        decided with exact orientation predicates after Shewchuk 1997). Empty for a cloth that
+        does not pass through itself."""
+        return np.asarray(self._core.self_intersections()).astype(np.int64).reshape(-1, 2)
+
     def forces(self) -> np.ndarray:
         """Net force ``(N, 3)`` N on each vertex (gravity, elastic, damping; not constraints)."""
         return np.asarray(self._core.forces())

@@ -11,6 +11,7 @@ use crate::cloth::{
     SolveOptions, State, Triangulation, VertexConstraint,
 };
 use crate::error::Error;
+use crate::geometry::triangle::intersecting_triangles;
 use crate::ode::Method;
 use crate::snapshot::Snapshot;
 use glam::DVec3;
@@ -314,6 +315,17 @@ impl ClothCore {
         let t = self.cloth.triangles();
         compute::<3>(py, t.len(), &[3], |out| {
             out.iter_mut().zip(t).for_each(|(o, t)| *o = t.map(|i| i as f64));
+            Ok(())
+        })
+    }
+
+    /// The pairs (K, 2) of triangles that share no vertex and intersect, as float64 triangle
+    /// indices `i < j`: the exact all-pairs test of
+    /// `geometry::triangle::intersecting_triangles` (Shewchuk's orientation predicates).
+    fn self_intersections<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let pairs = intersecting_triangles(self.cloth.positions(), self.cloth.triangles());
+        compute::<2>(py, pairs.len(), &[2], |out| {
+            out.iter_mut().zip(&pairs).for_each(|(o, &(i, j))| *o = [i as f64, j as f64]);
             Ok(())
         })
     }

@@ -261,3 +261,19 @@ def test_undo_point_puts_the_whole_state_back_in_place():
     assert c.positions.tobytes() == other.positions.tobytes()
     assert c.velocities.tobytes() == other.velocities.tobytes()
     assert np.array_equal(view, c.positions) and view.base is not None
+
+
+def test_self_intersections_finds_crossing_triangles_only() -> None:
+    # Two separate triangles: the second pierces the first's interior, then is lifted clear.
+    v = np.array(
+        [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.2, 0.2, -0.5], [0.2, 0.2, 0.5], [0.3, 0.6, 0.0]],
+        float,
+    )
+    crossing = Cloth(v, np.array([[0, 1, 2], [3, 4, 5]]))
+    pairs = crossing.self_intersections()
+    assert pairs.dtype == np.int64 and pairs.tolist() == [[0, 1]]
+    lifted = v + (np.arange(6) >= 3)[:, None] * np.array([0.0, 0.0, 1.0])
+    clear = Cloth(lifted, np.array([[0, 1, 2], [3, 4, 5]]))
+    assert clear.self_intersections().shape == (0, 2)
+    # A flat sheet: adjacent triangles share vertices and do not count.
+    assert Cloth.grid(6, 6, 1.0, 1.0).self_intersections().shape == (0, 2)

@@ -12,7 +12,7 @@ DEMOS: dict[str, str] = {
     "constraints": "a bead on a wire with and without drift feedback, and a rope of rods",
     "keyframes": "a bouncing ball and a camera path under several interpolation schemes",
     "rigid": "the tumbling T-handle and the drift of each rotation integrator",
-    "cloth": "Baraff–Witkin cloth draping over a sphere onto the ground (GIF)",
+    "cloth": "a cotton sheet dropping and folding onto itself, with self-collision (GIF)",
     "mocap": "a CMU walk on its skeleton, edited by IK to step over an obstacle (GIF)",
     "fluid": "an SPH dam break (DFSPH), particles coloured by speed (GIF)",
     "crowd": "ORCA circle crossing and a social-force bottleneck (GIFs), boids round spheres",
