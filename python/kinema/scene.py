@@ -40,6 +40,7 @@ from kinema import fluid as _fluid
 from kinema import ode as _ode
 from kinema import particles as _particles
 from kinema import rigid as _rigid
+from kinema import rods as _rods
 from kinema._array import as_vector3, real
 from kinema._kinema import KinemaError
 from kinema.constraints import ConstrainedSystem
@@ -215,8 +216,10 @@ class Scene:
 
         Systems: :class:`kinema.particles.ParticleSystem`, :class:`kinema.cloth.Cloth`,
         :class:`kinema.rigid.World`, :class:`kinema.fluid.Fluid` (its walls only, no
-        colliders yet), :class:`kinema.constraints.ConstrainedSystem` (which steps
-        its particles: do not add those too). ``options`` are passed to the system's ``step``
+        colliders yet), :class:`kinema.rods.Rod` and :class:`kinema.rods.Hair` (their own
+        static colliders only; move a hair's head with ``set_head`` between frames),
+        :class:`kinema.constraints.ConstrainedSystem` (which steps its particles: do not add
+        those too). ``options`` are passed to the system's ``step``
         every step, e.g. ``method="rk4"`` or ``integrator="bdf2", solver="cholesky"``.
         Kinematic objects: :class:`AnimatedSphere`, :class:`Character` (no options)."""
         if any(e.obj is item for e in self._entries) or any(k is item for k in self._kinematic):
@@ -235,10 +238,12 @@ class Scene:
                 for e in self._entries
             ):
                 raise ValueError("item: it is stepped by a constrained system in the scene")
-        elif not isinstance(item, (_cloth.Cloth, _rigid.World, _fluid.Fluid)):
+        elif not isinstance(
+            item, (_cloth.Cloth, _rigid.World, _fluid.Fluid, _rods.Rod, _rods.Hair)
+        ):
             raise ValueError(
-                "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, Fluid, "
-                f"AnimatedSphere or Character, got {type(item).__name__}"
+                "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, Fluid, Rod, "
+                f"Hair, AnimatedSphere or Character, got {type(item).__name__}"
             )
         self._entries.append(_Entry(item, dict(options)))
         return item
@@ -491,6 +496,11 @@ class Scene:
                     ("angular_momentum", o.angular_momentum()),
                 ):
                     out[f"{i}.{name}"] = float(np.linalg.norm(vec))
+            elif isinstance(o, _rods.Rod):
+                out[f"{i}.elastic_energy"] = o.energy()
+                out[f"{i}.iterations"] = float(o.stats["iterations"])
+            elif isinstance(o, _rods.Hair):
+                out[f"{i}.iterations"] = float(o.stats["iterations"])
         return out
 
     def record(self, name: str, quantity: Callable[[], Any] | None = None) -> None:
@@ -600,6 +610,10 @@ def _checkpoint(entry: _Entry) -> Callable[[], None]:
         cores = [obj._sys]
     elif isinstance(obj, _fluid.Fluid):
         cores = [obj._f]
+    elif isinstance(obj, _rods.Rod):
+        cores = [obj._r]
+    elif isinstance(obj, _rods.Hair):
+        cores = [obj._h]
     else:
         cores = [obj._world]
     for core in cores:

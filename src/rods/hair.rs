@@ -76,6 +76,16 @@ struct Task {
     error: Option<Error>,
 }
 
+/// What changes in a [`Hair`] (its strands' states, the head's pose and goal, the stats): an
+/// undo point ([`Hair::save`], [`Hair::restore`]; no allocation once sized).
+#[derive(Clone, Debug, Default)]
+pub struct Motion {
+    states: Vec<State>,
+    head: Option<Pose>,
+    goal: Option<Pose>,
+    stats: Stats,
+}
+
 /// Many strands of one model on a moving head (see the module docs).
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Hair {
@@ -194,6 +204,34 @@ impl Hair {
     /// The repulsion.
     pub fn repulsion(&self) -> Repulsion {
         self.repulsion
+    }
+
+    /// Copy what changes into `into`.
+    pub fn save(&self, into: &mut Motion) {
+        if into.states.len() != self.states.len() {
+            into.states.clone_from(&self.states);
+        }
+        for (a, b) in into.states.iter_mut().zip(&self.states) {
+            a.clone_from(b);
+        }
+        (into.head, into.goal, into.stats) = (Some(self.head), self.goal, self.stats);
+    }
+
+    /// Put back what [`Hair::save`] copied into `from` (nothing if it holds no save).
+    pub fn restore(&mut self, from: &Motion) {
+        let Some(head) = from.head else { return };
+        for (a, b) in self.states.iter_mut().zip(&from.states) {
+            a.clone_from(b);
+        }
+        (self.head, self.goal, self.stats) = (head, from.goal, from.stats);
+    }
+
+    /// Add a static collision shape for every strand ([`Model::add_collider`]).
+    ///
+    /// # Errors
+    /// Those of [`Model::add_collider`].
+    pub fn add_collider(&mut self, collider: super::Collider) -> Result<()> {
+        self.model.add_collider(collider)
     }
 
     /// Set the repulsion for the later steps.

@@ -16,4 +16,5 @@ DEMOS: dict[str, str] = {
     "mocap": "a CMU walk on its skeleton, edited by IK to step over an obstacle (GIF)",
     "fluid": "an SPH dam break (DFSPH), particles coloured by speed (GIF)",
     "skin": "a CMU walk skinned on a procedural body, written as glTF (.glb) and a GIF",
+    "hair": "a sphere head turning and nodding with thousands of elastic-rod strands (GIF)",
 }
