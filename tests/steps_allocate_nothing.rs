@@ -268,6 +268,36 @@ fn character_scenes() -> Vec<(String, usize)> {
     vec![("character, ragdoll".into(), allocations(120, || body.step(1.0 / 480.0, 4).unwrap()))]
 }
 
+/// A hair of 100 curly strands on a turning head (repulsion active, several tasks), and a rod
+/// on a plane with friction.
+fn rod_scenes() -> Vec<(String, usize)> {
+    use kinema::rods::{Collider, Hair, Material, Repulsion, Rod, Settings};
+    let material =
+        Material { youngs_modulus: 1e9, shear_modulus: 4e8, density: 1300.0, radius: [1e-4; 2] };
+    let normals: Vec<DVec3> = (0..100)
+        .map(|i| DVec3::new((i % 10) as f64 * 0.05 - 0.25, 1.0, (i / 10) as f64 * 0.05 - 0.25))
+        .collect();
+    let points: Vec<DVec3> = normals.iter().map(|n| 0.1 * n.normalize()).collect();
+    let repulsion = Repulsion { stiffness: 1e2, thickness: 2e-4 };
+    let settings = Settings::default();
+    let mut hair =
+        Hair::groom(&points, &normals, 0.05, 16, 0.004, material, settings, repulsion).unwrap();
+    let mut angle = 0.0;
+    let mut turn = || {
+        angle += 0.05;
+        hair.set_head(DQuat::from_rotation_y(angle), DVec3::ZERO).unwrap();
+        hair.step(1.0 / 60.0, 2).unwrap();
+    };
+    let mut found = vec![("rods, hair".to_string(), allocations(3, &mut turn))];
+    let points: Vec<DVec3> = (0..=20).map(|i| DVec3::new(0.01 * i as f64, 0.01, 0.0)).collect();
+    let mut rod = Rod::new(&points, material, settings, None).unwrap();
+    let plane = geometry::Shape::Plane(geometry::Plane { point: DVec3::ZERO, normal: DVec3::Y });
+    rod.model_mut().add_collider(Collider { shape: plane, friction: 0.3 }).unwrap();
+    found
+        .push(("rods, rod on a plane".into(), allocations(3, || rod.step(1.0 / 60.0, 2).unwrap())));
+    found
+}
+
 #[test]
 fn steps_allocate_nothing_once_warmed_up() {
     let found: Vec<(String, usize)> = [
@@ -277,6 +307,7 @@ fn steps_allocate_nothing_once_warmed_up() {
         constrained_scenes(),
         crowd_scenes(),
         character_scenes(),
+        rod_scenes(),
     ]
     .into_iter()
     .flatten()

@@ -94,5 +94,5 @@ def as_orientation(value: object, name: str) -> list[float]:
     if value is None:
         return [1.0, 0.0, 0.0, 0.0]
     if not isinstance(value, Rotation) or not value.single:
-        raise ValueError(f"{name}: expected a single kinema.Rotation, got {value!r}")
+        raise ValueError(f"{name}: expected a single kinema.Rotation, got {type(value).__name__}")
     return [float(c) for c in value.as_quat()]

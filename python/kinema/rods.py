@@ -5,7 +5,9 @@ of the shape given), twisting and stretching, stepped by implicit Euler (Newton 
 system with a line search, stable at dt = 1/60 for stiff hair) or symplectic Euler.
 
 Build a :class:`Rod` from points (its rest shape) or with :meth:`Rod.straight`, clamp or pin
-it, then ``step`` it or ``solve_static`` it. ``positions``, ``velocities`` and ``twists`` are
+it, then ``step`` it or ``solve_static`` it. :func:`groom` grows a :class:`Hair` (many strands
+of one model, stepped in parallel, roots clamped to a moving head, kept apart by a rod–rod
+repulsion) from scalp points, e.g. from :func:`sphere_cap`. ``positions``, ``velocities`` and ``twists`` are
 read-only numpy views of the Rust state, updated in place (no copy). See docs/rods.md.
 """
 
@@ -20,7 +22,7 @@ from kinema import _kinema
 from kinema._array import as_orientation, as_vector3, real
 from kinema.geometry import Box, Capsule, Plane, Sphere, shape_params
 
-__all__ = ["Rod"]
+__all__ = ["Hair", "Rod", "groom", "sphere_cap"]
 
 
 def _index(value: object, name: str) -> int:
@@ -231,6 +233,162 @@ class Rod:
         """What the last ``step`` or ``solve_static`` did: ``steps``, ``iterations`` (Newton,
         summed), ``halvings`` (of the line searches, summed)."""
         return self._r.stats()
+
+
+class Hair:
+    """Strands on a head, made by :func:`groom`: one rod model (the template strand) placed on
+    every scalp point, stepped together in parallel (implicit Euler; bitwise the same on any
+    number of threads), their root edges clamped to the head's pose (:meth:`set_head`), kept
+    apart by a penalty on the distance between the centrelines of different strands."""
+
+    def __init__(self, core: Any) -> None:
+        self._h = core
+
+    def set_head(self, rotation: Any = None, translation: Any = (0.0, 0.0, 0.0)) -> None:
+        """Move the head to ``rotation`` (a single :class:`kinema.Rotation` about the origin,
+        ``None`` for none) then ``translation`` (m) by the end of the next :meth:`step` call
+        (slerp and linearly over its steps); the roots follow it exactly."""
+        q = as_orientation(rotation, "rotation")
+        self._h.set_head(q, as_vector3(translation, "translation"))
+
+    @property
+    def head(self) -> tuple[Any, np.ndarray]:
+        """The head's pose after the last step: a :class:`kinema.Rotation` and a translation
+        (m)."""
+        from kinema.rotation import Rotation
+
+        q, t = self._h.head()
+        return Rotation.from_quat(q), np.array(t)
+
+    def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> None:
+        """Add a static collision shape for every strand (as :meth:`Rod.add_collider`)."""
+        kind, p = shape_params(collider)
+        if collider.restitution is not None:
+            raise ValueError("restitution: rod contacts are inelastic; leave it None for rods")
+        if isinstance(collider, Sphere) and collider.inside:
+            raise ValueError("inside: rods collide with the outside of a sphere only")
+        if any(v != 0.0 for v in as_vector3(collider.velocity, "velocity")):
+            raise ValueError("velocity: rod colliders are static")
+        self._h.add_collider(
+            kind, [*p, 0.0 if collider.friction is None else float(collider.friction)]
+        )
+
+    def step(self, dt: float, steps: int = 1) -> None:
+        """Advance ``steps`` steps of ``dt`` seconds; on a :class:`kinema.SimulationError` every
+        strand and the head are as they were."""
+        self._h.step(real(dt, "dt"), steps)
+
+    def __len__(self) -> int:
+        return len(self._h)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """The vertex positions ``(S, N, 3)`` of the ``S`` strands (m, a new array)."""
+        return self._h.positions().reshape(len(self), -1, 3)
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return self._h.time
+
+    @property
+    def stats(self) -> dict[str, int]:
+        """What the last ``step`` did: ``steps``, ``iterations`` and ``halvings`` summed over
+        the strands."""
+        return self._h.stats()
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        return (Hair, (self._h,))
+
+
+def groom(
+    points: Any,
+    normals: Any,
+    length: float = 0.1,
+    segments: int = 16,
+    curl: float = 0.0,
+    *,
+    radius: float = 5e-5,
+    youngs_modulus: float = 1e9,
+    shear_modulus: float | None = None,
+    density: float = 1300.0,
+    gravity: Any = (0.0, -9.81, 0.0),
+    tolerance: float = 1e-10,
+    max_iterations: int = 100,
+    contact_stiffness: float = 1e4,
+    friction_velocity: float = 1e-3,
+    repulsion_stiffness: float = 0.0,
+    thickness: float | None = None,
+) -> Hair:
+    """Grow a :class:`Hair`: one strand from each scalp point ``points`` ``(S, 3)`` (m, the
+    head at rest) along ``normals`` ``(S, 3)`` (made unit): ``segments`` edges over the arc
+    length ``length`` (m), straight when ``curl`` is 0, else a helix of radius ``curl`` (m)
+    about the normal at a 45° pitch (natural curvature ``1 / (2 curl)``). The template is
+    turned from ``+z`` onto each normal by the shortest arc. The material is that of
+    :class:`Rod` (defaults: human hair, ``E = 1 GPa``, ``r = 50 µm``, ``ρ = 1300 kg/m³``).
+    ``repulsion_stiffness`` (N/m, 0 for none) penalises centrelines of different strands
+    closer than ``thickness`` (m, default twice the radius)."""
+    pts, nrm = _floats(points, "points"), _floats(normals, "normals")
+    for a, name in ((pts, "points"), (nrm, "normals")):
+        if a.ndim != 2 or a.shape[1] != 3:
+            raise ValueError(f"{name}: expected shape (S, 3), got {a.shape}")
+    r = real(radius, "radius")
+    e = real(youngs_modulus, "youngs_modulus")
+    g = e / 3.0 if shear_modulus is None else real(shear_modulus, "shear_modulus")
+    return Hair(
+        _kinema.Hair(
+            np.ascontiguousarray(pts),
+            np.ascontiguousarray(nrm),
+            real(length, "length"),
+            _index(segments, "segments"),
+            real(curl, "curl"),
+            [r, r],
+            e,
+            g,
+            real(density, "density"),
+            as_vector3(gravity, "gravity"),
+            real(tolerance, "tolerance"),
+            max_iterations,
+            real(contact_stiffness, "contact_stiffness"),
+            real(friction_velocity, "friction_velocity"),
+            real(repulsion_stiffness, "repulsion_stiffness"),
+            2.0 * r if thickness is None else real(thickness, "thickness"),
+        )
+    )
+
+
+def sphere_cap(
+    count: int,
+    radius: float = 0.1,
+    center: Any = (0.0, 0.0, 0.0),
+    axis: Any = (0.0, 1.0, 0.0),
+    angle: float = np.pi / 2,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` points ``(count, 3)`` spread evenly (a Fibonacci spiral, equal areas) over the
+    cap of the sphere of ``radius`` (m) about ``center`` within ``angle`` (rad, up to π) of
+    ``axis``, and their outward unit normals: a scalp for :func:`groom`."""
+    n = _index(count, "count")
+    if n < 1:
+        raise ValueError("count: expected at least 1 point")
+    r, a = real(radius, "radius"), real(angle, "angle")
+    if not (np.isfinite(r) and r > 0.0):
+        raise ValueError("radius: must be finite and > 0")
+    if not (np.isfinite(a) and 0.0 < a <= np.pi):
+        raise ValueError("angle: must be in (0, pi]")
+    z = np.asarray(as_vector3(axis, "axis"))
+    norm = float(np.linalg.norm(z))
+    if not (np.isfinite(norm) and norm > 0.0):
+        raise ValueError("axis: must be a finite non-zero vector")
+    z = z / norm
+    x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    k = np.arange(n) + 0.5
+    h = 1.0 - (1.0 - np.cos(a)) * k / n  # equal areas: uniform in the height
+    rho = np.sqrt(np.clip(1.0 - h * h, 0.0, None))
+    phi = np.pi * (3.0 - np.sqrt(5.0)) * k
+    normals = rho[:, None] * (np.cos(phi)[:, None] * x + np.sin(phi)[:, None] * y) + h[:, None] * z
+    return np.asarray(as_vector3(center, "center")) + r * normals, normals
 
 
 def _floats(value: object, name: str) -> np.ndarray:

@@ -43,6 +43,7 @@ from kinema import fluid as _fluid
 from kinema import ode as _ode
 from kinema import particles as _particles
 from kinema import rigid as _rigid
+from kinema import rods as _rods
 from kinema._array import as_vector3, real
 from kinema._kinema import KinemaError
 from kinema.constraints import ConstrainedSystem
@@ -220,6 +221,8 @@ class Scene:
         :class:`kinema.rigid.World`, :class:`kinema.fluid.Fluid` (its walls only, no
         colliders yet), :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
         obstacles only), :class:`kinema.character.Biped` (its own ground, no colliders),
+        :class:`kinema.rods.Rod` and :class:`kinema.rods.Hair` (their own static colliders
+        only; move a hair's head with ``set_head`` between frames),
         :class:`kinema.constraints.ConstrainedSystem` (which steps
         its particles: do not add those too). ``options`` are passed to the system's ``step``
         every step, e.g. ``method="rk4"`` or ``integrator="bdf2", solver="cholesky"``.
@@ -249,11 +252,14 @@ class Scene:
                 _crowd.Crowd,
                 _flock.Flock,
                 _character.Biped,
+                _rods.Rod,
+                _rods.Hair,
             ),
         ):
             raise ValueError(
                 "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, Fluid, "
-                f"Crowd, Flock, Biped, AnimatedSphere or Character, got {type(item).__name__}"
+                "Crowd, Flock, Biped, Rod, Hair, AnimatedSphere or Character, "
+                f"got {type(item).__name__}"
             )
         self._entries.append(_Entry(item, dict(options)))
         return item
@@ -513,6 +519,11 @@ class Scene:
                 out[f"{i}.arrived"] = float(m["arrived"])
             elif isinstance(o, _flock.Flock):
                 out[f"{i}.polarisation"] = o.polarisation()
+            elif isinstance(o, _rods.Rod):
+                out[f"{i}.elastic_energy"] = o.energy()
+                out[f"{i}.iterations"] = float(o.stats["iterations"])
+            elif isinstance(o, _rods.Hair):
+                out[f"{i}.iterations"] = float(o.stats["iterations"])
         return out
 
     def record(self, name: str, quantity: Callable[[], Any] | None = None) -> None:
@@ -626,6 +637,10 @@ def _checkpoint(entry: _Entry) -> Callable[[], None]:
         cores = [obj._c]
     elif isinstance(obj, _character.Biped):
         cores = [obj._w]
+    elif isinstance(obj, _rods.Rod):
+        cores = [obj._r]
+    elif isinstance(obj, _rods.Hair):
+        cores = [obj._h]
     else:
         cores = [obj._world]
     for core in cores:

@@ -7,7 +7,10 @@ use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::error::Error;
-use crate::rods::{Collider, End, Integrator, Material, Rod as Core, Settings};
+use crate::rods::{
+    Collider, End, Hair as HairCore, Integrator, Material, Motion, Repulsion, Rod as Core,
+    Settings, State, Stats,
+};
 use crate::snapshot::Snapshot;
 use glam::{DQuat, DVec3};
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn};
@@ -18,6 +21,8 @@ use pyo3::types::PyDict;
 #[pyclass(module = "kinema._kinema")]
 pub struct Rod {
     rod: Core,
+    /// The scene's undo point (`_mark`).
+    saved: Option<(State, Stats)>,
 }
 
 #[pymethods]
@@ -30,7 +35,7 @@ impl Rod {
     /// The object stored by `__reduce__`.
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { rod: Core::from_snapshot(data)? })
+        Ok(Self { rod: Core::from_snapshot(data)?, saved: None })
     }
 
     /// A rod at rest in the shape of `points` (N, 3) in m: semi-axes `radius` (m, along
@@ -56,25 +61,32 @@ impl Rod {
     ) -> PyResult<Self> {
         let points: Vec<DVec3> =
             rows::<3>(&points, "points", &[3])?.iter().map(|p| DVec3::from_array(*p)).collect();
-        let integrator = match integrator {
-            "implicit" => Integrator::ImplicitEuler,
-            "symplectic" => Integrator::SymplecticEuler,
-            _ => {
-                return Err(
-                    Error::invalid("integrator", "expected 'implicit' or 'symplectic'").into()
-                )
-            }
-        };
         let material = Material { youngs_modulus, shear_modulus, density, radius };
-        let settings = Settings {
-            gravity: DVec3::from_array(gravity),
+        let settings = settings(
+            gravity,
             integrator,
             tolerance,
-            max_iterations: max_iterations.range("max_iterations", 1, MAX_ITERATIONS)?,
+            max_iterations,
             contact_stiffness,
             friction_velocity,
-        };
-        Ok(Rod { rod: Core::new(&points, material, settings, twist.as_deref())? })
+        )?;
+        Ok(Rod { rod: Core::new(&points, material, settings, twist.as_deref())?, saved: None })
+    }
+
+    /// Keep a copy of the state and stats (the scene's undo point).
+    fn _mark(&mut self) {
+        let rod = &self.rod;
+        let saved = self.saved.get_or_insert_with(|| (rod.state().clone(), rod.stats));
+        saved.0.clone_from(rod.state());
+        saved.1 = rod.stats;
+    }
+
+    /// Put the state and stats back as they were at the last `_mark`, in place.
+    fn _rollback(&mut self) {
+        if let Some((state, stats)) = &self.saved {
+            self.rod.state_mut().clone_from(state);
+            self.rod.stats = *stats;
+        }
     }
 
     /// Clamp the first (`last` false) or last end: its edge keeps position and frame.
@@ -91,10 +103,8 @@ impl Rod {
         rotation: [f64; 4],
         translation: [f64; 3],
     ) -> PyResult<()> {
-        let [w, x, y, z] = rotation;
         let end = if last { End::Last } else { End::First };
-        let q = DQuat::from_xyzw(x, y, z, w);
-        Ok(self.rod.move_clamp(end, q, DVec3::from_array(translation))?)
+        Ok(self.rod.move_clamp(end, quaternion(rotation), DVec3::from_array(translation))?)
     }
 
     /// Add a static collider: its kind and parameters ([`super::geometry::shape`]), then
@@ -204,6 +214,169 @@ impl Rod {
     }
 }
 
+/// The rod settings from their Python arguments (the integrator by name).
+fn settings(
+    gravity: [f64; 3],
+    integrator: &str,
+    tolerance: f64,
+    max_iterations: Int,
+    contact_stiffness: f64,
+    friction_velocity: f64,
+) -> PyResult<Settings> {
+    let integrator = match integrator {
+        "implicit" => Integrator::ImplicitEuler,
+        "symplectic" => Integrator::SymplecticEuler,
+        _ => return Err(Error::invalid("integrator", "expected 'implicit' or 'symplectic'").into()),
+    };
+    Ok(Settings {
+        gravity: DVec3::from_array(gravity),
+        integrator,
+        tolerance,
+        max_iterations: max_iterations.range("max_iterations", 1, MAX_ITERATIONS)?,
+        contact_stiffness,
+        friction_velocity,
+    })
+}
+
+/// A quaternion given as (w, x, y, z).
+fn quaternion([w, x, y, z]: [f64; 4]) -> DQuat {
+    DQuat::from_xyzw(x, y, z, w)
+}
+
+/// Many strands of one rod model on a moving head; see `kinema.rods.Hair` for the API.
+#[pyclass(module = "kinema._kinema")]
+pub struct Hair {
+    hair: HairCore,
+    /// The scene's undo point (`_mark`).
+    saved: Motion,
+}
+
+#[pymethods]
+impl Hair {
+    /// Pickle support: the hair as a snapshot (model, placements, states, head).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        reduce(slf, |s| &s.hair, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { hair: HairCore::from_snapshot(data)?, saved: Motion::default() })
+    }
+
+    /// Strands grown from the scalp `points` (S, 3) along `normals` (S, 3): `length` (m),
+    /// `segments` edges, helix radius `curl` (m); the material and settings as for `Rod`;
+    /// the repulsion's `repulsion_stiffness` (N/m, 0 for none) and `thickness` (m).
+    #[new]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        points: PyReadonlyArrayDyn<'_, f64>,
+        normals: PyReadonlyArrayDyn<'_, f64>,
+        length: f64,
+        segments: Int,
+        curl: f64,
+        radius: [f64; 2],
+        youngs_modulus: f64,
+        shear_modulus: f64,
+        density: f64,
+        gravity: [f64; 3],
+        tolerance: f64,
+        max_iterations: Int,
+        contact_stiffness: f64,
+        friction_velocity: f64,
+        repulsion_stiffness: f64,
+        thickness: f64,
+    ) -> PyResult<Self> {
+        let vectors = |a: &PyReadonlyArrayDyn<'_, f64>, name: &str| -> PyResult<Vec<DVec3>> {
+            Ok(rows::<3>(a, name, &[3])?.iter().map(|p| DVec3::from_array(*p)).collect())
+        };
+        let (points, normals) = (vectors(&points, "points")?, vectors(&normals, "normals")?);
+        let material = Material { youngs_modulus, shear_modulus, density, radius };
+        let settings = settings(
+            gravity,
+            "implicit",
+            tolerance,
+            max_iterations,
+            contact_stiffness,
+            friction_velocity,
+        )?;
+        let repulsion = Repulsion { stiffness: repulsion_stiffness, thickness };
+        let segments = segments.range("segments", 1, 1 << 20)?;
+        let hair = HairCore::groom(
+            &points, &normals, length, segments, curl, material, settings, repulsion,
+        )?;
+        Ok(Hair { hair, saved: Motion::default() })
+    }
+
+    /// Keep a copy of what changes (the scene's undo point).
+    fn _mark(&mut self) {
+        self.hair.save(&mut self.saved);
+    }
+
+    /// Put back what changed since the last `_mark`.
+    fn _rollback(&mut self) {
+        self.hair.restore(&self.saved);
+    }
+
+    /// Move the head to `rotation` (w, x, y, z) and `translation` (m) by the end of the
+    /// next step call.
+    fn set_head(&mut self, rotation: [f64; 4], translation: [f64; 3]) -> PyResult<()> {
+        Ok(self.hair.set_head(quaternion(rotation), DVec3::from_array(translation))?)
+    }
+
+    /// The head's pose after the last step: rotation (w, x, y, z), translation (m).
+    fn head(&self) -> ([f64; 4], [f64; 3]) {
+        let (q, t) = self.hair.head();
+        ([q.w, q.x, q.y, q.z], t.to_array())
+    }
+
+    /// Add a static collider: its kind and parameters, then Coulomb's friction coefficient.
+    fn add_collider(&mut self, kind: &str, p: Vec<f64>) -> PyResult<()> {
+        let (shape, t) = super::geometry::shape(kind, &p, 1)?;
+        Ok(self.hair.add_collider(Collider { shape, friction: t[0] })?)
+    }
+
+    /// Advance `steps` steps of `dt` seconds (GIL released, strands in parallel).
+    fn step(&mut self, py: Python<'_>, dt: f64, steps: Int) -> PyResult<()> {
+        let steps = steps.count("steps")?;
+        let hair = &mut self.hair;
+        detached(py, || hair.step(dt, steps))
+    }
+
+    /// Number of strands.
+    fn __len__(&self) -> usize {
+        self.hair.states().len()
+    }
+
+    /// The positions (S N, 3) in m, strand after strand (a new array).
+    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let states = self.hair.states();
+        let n = self.hair.model().edges() + 1;
+        compute::<3>(py, states.len() * n, &[3], |out| {
+            let all = states.iter().flat_map(|s| s.positions());
+            out.iter_mut().zip(all).for_each(|(o, p)| *o = p.to_array());
+            Ok(())
+        })
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.hair.states()[0].time()
+    }
+
+    /// What the last `step` did, summed over the strands.
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.hair.stats;
+        let d = PyDict::new(py);
+        d.set_item("steps", s.steps)?;
+        d.set_item("iterations", s.iterations)?;
+        d.set_item("halvings", s.halvings)?;
+        Ok(d)
+    }
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<Rod>()
+    m.add_class::<Rod>()?;
+    m.add_class::<Hair>()
 }

@@ -15,6 +15,15 @@
 //!   (IPC eq. 16): a force of magnitude `μ λ` opposing sliding faster than `ε_v`
 //!   (`friction_velocity`, m/s), and a stiff spring below it (static friction, with a creep
 //!   slower than `ε_v`). The static solve and symplectic Euler have no friction.
+//! - **Rod–rod repulsion** (hair volume; [`super::Hair`]): an [`Obstacle`] is a segment of
+//!   another strand near edge `a` of this one, found at the start of the step (closest points
+//!   `p₀ = (1 − s) x_a + s x_{a+1}` and `q`, unit normal `n = (p₀ − q)/|p₀ − q|`). During the
+//!   step the other strand is held where it was and the contact is linearised about the start
+//!   (the plane through `q` of normal `n`, the parameter `s` kept): the gap
+//!   `g = n·((1 − s) x_a + s x_{a+1} − q) − d` (`d` the distance the centrelines keep,
+//!   [`super::Repulsion::thickness`]) stores `½ k g²` when `g < 0` (`k`
+//!   [`super::Repulsion::stiffness`], N/m): a penalty, implicit in this strand and lagged in
+//!   the other, as the strands are stepped in parallel. Both strands of a pair feel it.
 
 use super::band::Band;
 use super::Model;
@@ -138,6 +147,83 @@ pub(super) fn friction(
             let w = if y > 0.0 { u / y } else { DVec3::ZERO };
             let ww = DMat3::from_cols(w * w.x, w * w.y, w * w.z);
             add_block(band, 4 * c.vertex, &(c.limit * (f1_over_y * projector + along * ww)));
+        }
+    }
+    energy
+}
+
+/// The rod–rod repulsion of a [`super::Hair`] (see the module docs).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Repulsion {
+    /// Penalty stiffness `k` (N/m); 0 turns the repulsion off.
+    pub stiffness: f64,
+    /// The distance `d` the centrelines keep (m), typically twice the strand radius.
+    pub thickness: f64,
+}
+
+impl Repulsion {
+    /// The repulsion, checked: both finite and ≥ 0.
+    ///
+    /// # Errors
+    /// A bad value (`repulsion_stiffness`, `thickness`).
+    pub fn checked(self) -> Result<Self> {
+        if !(self.stiffness.is_finite() && self.stiffness >= 0.0) {
+            return Err(Error::invalid("repulsion_stiffness", "must be finite and >= 0"));
+        }
+        if !(self.thickness.is_finite() && self.thickness >= 0.0) {
+            return Err(Error::invalid("thickness", "must be finite and >= 0"));
+        }
+        Ok(self)
+    }
+}
+
+/// A segment of another strand near edge `edge` of this one, at the start of a step (see
+/// the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Obstacle {
+    /// The edge `a` of this strand.
+    pub edge: usize,
+    /// The parameter `s` ∈ [0, 1] of its closest point.
+    pub s: f64,
+    /// The closest point `q` of the other segment (m).
+    pub point: DVec3,
+    /// The unit normal from `q` towards this edge.
+    pub normal: DVec3,
+}
+
+/// Add the repulsion penalties of `obstacles` on the vertices `x` to `grad` and, with `band`, their Hessian
+/// (`k w wᵀ ⊗ n nᵀ`, `w = (1 − s, s)`); returns their energy (J).
+pub(super) fn repel(
+    obstacles: &[Obstacle],
+    repulsion: Repulsion,
+    x: &[DVec3],
+    grad: &mut [f64],
+    band: Option<&mut Band>,
+) -> f64 {
+    let (k, thickness) = (repulsion.stiffness, repulsion.thickness);
+    let mut energy = 0.0;
+    let mut band = band;
+    for o in obstacles {
+        let (a, n, w) = (o.edge, o.normal, [1.0 - o.s, o.s]);
+        let g = n.dot(w[0] * x[a] + w[1] * x[a + 1] - o.point) - thickness;
+        if g >= 0.0 {
+            continue;
+        }
+        energy += 0.5 * k * g * g;
+        for (v, wv) in w.iter().enumerate() {
+            for r in 0..3 {
+                grad[4 * (a + v) + r] += k * g * wv * n[r];
+            }
+        }
+        if let Some(band) = band.as_deref_mut() {
+            let nn = k * DMat3::from_cols(n * n.x, n * n.y, n * n.z);
+            add_block(band, 4 * a, &(w[0] * w[0] * nn));
+            add_block(band, 4 * (a + 1), &(w[1] * w[1] * nn));
+            for r in 0..3 {
+                for c in 0..3 {
+                    band.add(4 * (a + 1) + r, 4 * a + c, w[0] * w[1] * nn.col(c)[r]);
+                }
+            }
         }
     }
     energy

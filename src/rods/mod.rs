@@ -9,6 +9,8 @@
 //!   and twisting energies with analytic gradients and Hessians (Kaufman et al. 2014).
 //! - `contact.rs`: contacts with the shared collision shapes: a normal penalty and lagged
 //!   Coulomb friction as potentials of the implicit step (Li et al. 2020).
+//! - `hair.rs`: [`Hair`], many strands of one model on a moving head, stepped in parallel
+//!   and kept apart by a rod–rod repulsion; `groom` grows them from a scalp.
 //! - `band.rs`: the banded `L D Lᵀ` solve of the Newton system, linear in `n`.
 //! - `solver.rs`: implicit Euler by Newton with a line search on the incremental potential,
 //!   symplectic Euler, and the static equilibrium.
@@ -22,15 +24,17 @@ mod band;
 mod contact;
 mod energy;
 mod frames;
+mod hair;
 mod model;
 mod snapshot;
 mod solver;
 mod state;
 
 pub use band::Band;
-pub use contact::Collider;
+pub use contact::{Collider, Repulsion};
 pub use energy::{curvature, elastic, stretch, twist, Local, Stencil, STENCIL};
 pub use frames::{curvature_binormal, directors, reference_twist, transport, Frames};
+pub use hair::{template, Hair, Motion, Pose, STRANDS_PER_TASK};
 pub use model::{End, Integrator, Material, Model, Settings};
 pub use solver::Solver;
 pub use state::State;

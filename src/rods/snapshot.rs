@@ -1,7 +1,7 @@
 //! Rod snapshots: the rod's (model and state), and a state's alone, which records the
 //! fingerprint of its model ([`Model::fingerprint`]) so that it is restored only onto it.
 
-use super::{Frames, Model, Rod, State};
+use super::{Frames, Hair, Model, Rod, State};
 use crate::error::Result;
 use crate::snapshot::{Snapshot, Stamped};
 
@@ -57,5 +57,13 @@ impl Snapshot for Rod {
     fn validate(&self) -> Result<()> {
         self.model.validate()?;
         self.state.validate(&self.model)
+    }
+}
+
+impl Snapshot for Hair {
+    const TAG: &'static str = "Hair";
+
+    fn validate(&self) -> Result<()> {
+        super::hair::validate(self)
     }
 }

@@ -30,7 +30,7 @@
 //! tangent from its reference director, parallel-transported there, to the goal's `m1`.
 
 use super::band::Band;
-use super::contact::{friction, lag, penalty, Lagged};
+use super::contact::{friction, lag, penalty, repel, Lagged, Obstacle, Repulsion};
 use super::energy::elastic;
 use super::frames::{signed_angle, transport, Frames};
 use super::model::Integrator;
@@ -91,6 +91,13 @@ pub struct Solver {
     scale: f64,
 }
 
+/// The obstacles of other strands near this one during a step, with their repulsion
+/// ([`repel`]; only [`super::Hair`] has any).
+type Among<'a> = (&'a [Obstacle], Repulsion);
+
+/// No obstacles.
+const NO_OBSTACLES: Among<'static> = (&[], Repulsion { stiffness: 0.0, thickness: 0.0 });
+
 /// Which minimisation a Newton solve does.
 #[derive(Clone, Copy)]
 enum Goal {
@@ -120,6 +127,34 @@ impl Solver {
         dt: f64,
         steps: usize,
     ) -> Result<Stats> {
+        self.run(model, state, dt, steps, NO_OBSTACLES)
+    }
+
+    /// One implicit Euler step of `dt` (s) of `state` with the repulsion of `obstacles`
+    /// (other strands held where they are, [`repel`]); as [`Solver::step`] otherwise.
+    ///
+    /// # Errors
+    /// As [`Solver::step`]; the state is then left as it was.
+    pub(super) fn step_among(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        dt: f64,
+        obstacles: &[Obstacle],
+        repulsion: Repulsion,
+    ) -> Result<Stats> {
+        self.run(model, state, dt, 1, (obstacles, repulsion))
+    }
+
+    /// [`Solver::step`] among obstacles.
+    fn run(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        dt: f64,
+        steps: usize,
+        among: Among<'_>,
+    ) -> Result<Stats> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(Error::invalid("dt", "must be finite and > 0"));
         }
@@ -130,7 +165,8 @@ impl Solver {
         for s in 0..steps {
             result = match model.settings.integrator {
                 Integrator::ImplicitEuler => {
-                    self.newton(model, &mut work, Goal::Step(dt), steps - s, &mut stats)
+                    let goal = Goal::Step(dt);
+                    self.newton(model, &mut work, goal, steps - s, &mut stats, among)
                 }
                 Integrator::SymplecticEuler => self.explicit(model, &mut work, dt, steps - s),
             }
@@ -160,7 +196,7 @@ impl Solver {
         let mut work = self.work.take().unwrap_or_else(|| state.clone());
         work.clone_from(state);
         let mut stats = Stats::default();
-        let result = self.newton(model, &mut work, Goal::Static, 1, &mut stats);
+        let result = self.newton(model, &mut work, Goal::Static, 1, &mut stats, NO_OBSTACLES);
         if result.is_ok() {
             work.clamp_goals = [None; 2];
             work.velocities.fill(DVec3::ZERO);
@@ -283,7 +319,14 @@ impl Solver {
     /// `Φ` at `q` (`Goal`), its gradient into `grad` and, with `hess`, its Hessian into the
     /// band (fixed rows and columns replaced by the identity). `None` when the
     /// configuration is unusable (a collapsed edge, a half turn, a non-finite value).
-    fn evaluate(&mut self, model: &Model, trial: bool, goal: Goal, hess: bool) -> Option<f64> {
+    fn evaluate(
+        &mut self,
+        model: &Model,
+        trial: bool,
+        goal: Goal,
+        hess: bool,
+        among: Among<'_>,
+    ) -> Option<f64> {
         let n = model.edges();
         let q = if trial { &self.trial } else { &self.q };
         if !q.iter().all(|v| v.is_finite()) {
@@ -322,6 +365,12 @@ impl Solver {
             };
             phi += contact + sliding;
             self.scale += contact + sliding;
+        }
+        if !among.0.is_empty() {
+            let band = if hess { Some(&mut self.band) } else { None };
+            let repulsion = repel(among.0, among.1, &self.x, &mut self.grad, band);
+            phi += repulsion;
+            self.scale += repulsion;
         }
         let inv_h2 = match goal {
             Goal::Step(h) => 1.0 / (h * h),
@@ -388,6 +437,7 @@ impl Solver {
         goal: Goal,
         remaining: usize,
         stats: &mut Stats,
+        among: Among<'_>,
     ) -> Result<()> {
         let h = match goal {
             Goal::Step(h) => Some(h),
@@ -404,7 +454,8 @@ impl Solver {
         let tol = model.settings.tolerance;
         for _ in 0..model.settings.max_iterations {
             stats.iterations += 1;
-            let phi = self.evaluate(model, false, goal, true).ok_or_else(|| diverged(&self.q))?;
+            let phi =
+                self.evaluate(model, false, goal, true, among).ok_or_else(|| diverged(&self.q))?;
             // From here on Φ is the energy with frames transported from this iterate, whose
             // exact gradient and Hessian are the analytic ones just evaluated, so the Newton
             // direction descends it. Rebasing leaves Φ at this iterate unchanged, so Φ
@@ -421,12 +472,13 @@ impl Solver {
                     c[..3].iter().all(|d| d.abs() <= tol * length)
                         && c.get(3).is_none_or(|d| d.abs() <= tol)
                 });
-            let alpha = if small { 1.0 } else { self.line_search(model, goal, phi, slope, stats)? };
+            let alpha =
+                if small { 1.0 } else { self.line_search(model, goal, phi, slope, stats, among)? };
             for k in 0..self.q.len() {
                 self.q[k] += alpha * self.dir[k];
             }
             if small {
-                return self.commit(model, work, goal);
+                return self.commit(model, work, goal, among);
             }
         }
         Err(Error::SolverFailed {
@@ -446,13 +498,14 @@ impl Solver {
         phi: f64,
         slope: f64,
         stats: &mut Stats,
+        among: Among<'_>,
     ) -> Result<f64> {
         let mut alpha = 1.0;
         for _ in 0..HALVINGS {
             for k in 0..self.q.len() {
                 self.trial[k] = self.q[k] + alpha * self.dir[k];
             }
-            if let Some(trial) = self.evaluate(model, true, goal, false) {
+            if let Some(trial) = self.evaluate(model, true, goal, false, among) {
                 if trial <= phi + ARMIJO * alpha * slope {
                     return Ok(alpha);
                 }
@@ -467,8 +520,14 @@ impl Solver {
 
     /// Write the converged `q` into `work`: positions, twists, frames, and (for a step of
     /// `h`) the velocities `(q − q0) / h`.
-    fn commit(&mut self, model: &Model, work: &mut State, goal: Goal) -> Result<()> {
-        self.evaluate(model, false, goal, false).ok_or_else(|| diverged(&self.q))?;
+    fn commit(
+        &mut self,
+        model: &Model,
+        work: &mut State,
+        goal: Goal,
+        among: Among<'_>,
+    ) -> Result<()> {
+        self.evaluate(model, false, goal, false, among).ok_or_else(|| diverged(&self.q))?;
         let n = model.edges();
         for i in 0..=n {
             let x = DVec3::from_slice(&self.q[4 * i..4 * i + 3]);
@@ -499,7 +558,8 @@ impl Solver {
     ) -> Result<()> {
         self.load(model, work, Some(0.0), remaining);
         self.q.copy_from_slice(&self.q0);
-        self.evaluate(model, false, Goal::Static, false).ok_or_else(|| diverged(&self.q))?;
+        let among = NO_OBSTACLES;
+        self.evaluate(model, false, Goal::Static, false, among).ok_or_else(|| diverged(&self.q))?;
         for (k, pinned) in fixed_dofs(model).enumerate() {
             let (i, r) = (k / 4, k % 4);
             let rate = if r < 3 { &mut work.velocities[i][r] } else { &mut work.twist_rates[i] };
@@ -511,7 +571,7 @@ impl Solver {
                 self.q[k] += h * *rate;
             }
         }
-        self.commit(model, work, Goal::Static)
+        self.commit(model, work, Goal::Static, among)
     }
 }
 

@@ -18,4 +18,5 @@ DEMOS: dict[str, str] = {
     "crowd": "ORCA circle crossing and a social-force bottleneck (GIFs), boids round spheres",
     "biped": "the planar SIMBICON walker, pushed from behind and recovering (GIF)",
     "skin": "a CMU walk skinned on a procedural body, written as glTF (.glb) and a GIF",
+    "hair": "a sphere head turning and nodding with thousands of elastic-rod strands (GIF)",
 }

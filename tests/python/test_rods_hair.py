@@ -1,0 +1,133 @@
+"""kinema.rods.Hair through Python: the scalp sampler, grooming, a turning head carrying the
+roots, pickling, the Scene entry (undo of a failed frame, records), failed steps and bad
+arguments."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+import kinema
+from kinema import Rotation, Scene
+from kinema.rods import Hair, Rod, groom, sphere_cap
+
+STIFF = {"radius": 1e-4, "youngs_modulus": 1e9, "density": 1300.0, "tolerance": 1e-8}
+
+
+def hair(count: int = 20, **kwargs: object) -> Hair:
+    points, normals = sphere_cap(count, radius=0.1, angle=1.0)
+    return groom(points, normals, length=0.05, segments=8, **{**STIFF, **kwargs})  # type: ignore[arg-type]
+
+
+def test_sphere_cap_spreads_points_on_the_cap() -> None:
+    points, normals = sphere_cap(500, radius=0.2, center=(1, 2, 3), axis=(0, 0, 2), angle=0.5)
+    assert points.shape == normals.shape == (500, 3)
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-12)
+    np.testing.assert_allclose(points, np.array([1, 2, 3]) + 0.2 * normals, atol=1e-12)
+    assert normals[:, 2].min() >= np.cos(0.5) - 1e-12
+    # equal areas: the heights are uniform over the cap, so half lie above its middle height
+    middle = 0.5 * (1.0 + np.cos(0.5))
+    assert abs(np.mean(normals[:, 2] > middle) - 0.5) < 0.01
+
+
+def test_groomed_strands_grow_along_the_normals_and_curl() -> None:
+    points, normals = sphere_cap(5, radius=0.1)
+    h = groom(points, normals, length=0.05, segments=10, gravity=(0, 0, 0), **STIFF)
+    x = h.positions
+    assert x.shape == (5, 11, 3) and len(h) == 5
+    np.testing.assert_allclose(x[:, 0], points, atol=1e-15)
+    np.testing.assert_allclose(x[:, -1], points + 0.05 * normals, atol=1e-12)
+    c = groom(points, normals, length=0.05, segments=40, curl=0.004, **STIFF).positions
+    # a helix of radius 4 mm at 45°: the tip is 0.05/√2 along the normal
+    height = np.einsum("ij,ij->i", c[:, -1] - points, normals)
+    np.testing.assert_allclose(height, 0.05 / np.sqrt(2), rtol=1e-12)
+
+
+def test_turning_head_carries_the_roots_and_pickles_bitwise() -> None:
+    h = hair()
+    rest = h.positions
+    turn = Rotation.from_rotvec([0.0, 0.0, 0.5])
+    h.set_head(turn, (0.0, 0.01, 0.0))
+    h.step(1 / 60, 6)
+    x = h.positions
+    np.testing.assert_allclose(
+        x[:, :2],
+        turn.apply(rest[:, :2].reshape(-1, 3)).reshape(-1, 2, 3) + np.array([0.0, 0.01, 0.0]),
+        atol=1e-14,
+    )
+    q, t = h.head
+    np.testing.assert_allclose(q.as_quat(), turn.as_quat())
+    np.testing.assert_allclose(t, [0.0, 0.01, 0.0])
+    copy = pickle.loads(pickle.dumps(h))
+    for a in (h, copy):
+        a.set_head(Rotation.from_rotvec([0.3, 0.0, 0.5]))
+        a.step(1 / 60, 3)
+    assert np.array_equal(h.positions, copy.positions)
+    assert h.time == pytest.approx(9 / 60)
+
+
+def test_failed_step_leaves_every_strand_as_it_was() -> None:
+    h = hair(max_iterations=1)
+    before = h.positions
+    h.set_head(Rotation.from_rotvec([1.0, 0.0, 0.0]))
+    with pytest.raises(kinema.SimulationError):
+        h.step(1 / 60, 2)
+    assert np.array_equal(h.positions, before)
+
+
+def test_scene_steps_records_and_pickles_rods_and_hair() -> None:
+    scene = Scene(dt=1 / 60, substeps=2)
+    rod = scene.add(Rod.straight(11, 0.1, radius=1e-3, youngs_modulus=1e7))
+    rod.clamp(0)
+    h = scene.add(hair())
+    scene.record("0.elastic_energy")
+    scene.record("tips", lambda: h.positions[:, -1])
+    scene.step(3)
+    assert scene.records["tips"].shape == (3, 20, 3)
+    assert scene.records["0.elastic_energy"][-1] > 0.0
+    copy = pickle.loads(pickle.dumps(scene))
+    scene.step(2)
+    copy.step(2)
+    assert np.array_equal(copy.systems[1].positions, h.positions)
+
+
+def test_scene_rolls_back_the_hair_when_the_rod_fails() -> None:
+    scene = Scene(dt=1 / 60, substeps=2)
+    h = scene.add(hair())
+    rod = scene.add(Rod.straight(11, 0.1, radius=1e-3, youngs_modulus=1e7, max_iterations=1))
+    rod.clamp(0)
+    before = h.positions
+    with pytest.raises(kinema.SimulationError):
+        scene.step()
+    assert np.array_equal(h.positions, before)
+    assert scene.frame == 0
+
+
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        (lambda: sphere_cap(0), "count"),
+        (lambda: sphere_cap(3, radius=-1.0), "radius"),
+        (lambda: sphere_cap(3, angle=4.0), "angle"),
+        (lambda: sphere_cap(3, axis=(0, 0, 0)), "axis"),
+        (lambda: groom(np.zeros((2, 3)), np.ones((3, 3))), "normals"),
+        (lambda: groom(np.zeros((2, 3)), np.zeros((2, 3))), "normals"),
+        (lambda: groom(np.zeros((2, 2)), np.ones((2, 3))), "points"),
+        (lambda: groom(np.zeros((2, 3)), np.ones((2, 3)), length=-1.0), "length"),
+        (lambda: groom(np.zeros((2, 3)), np.ones((2, 3)), segments=0), "segments"),
+        (lambda: groom(np.zeros((2, 3)), np.ones((2, 3)), curl=-1.0), "curl"),
+        (
+            lambda: groom(np.zeros((2, 3)), np.ones((2, 3)), repulsion_stiffness=-1.0),
+            "repulsion_stiffness",
+        ),
+        (lambda: hair().set_head("secret-text"), "rotation"),
+        (lambda: hair().step(float("nan")), "dt"),
+    ],
+)
+def test_bad_hair_arguments_name_the_argument(call: object, name: str) -> None:
+    with pytest.raises((ValueError, TypeError)) as info:
+        call()  # type: ignore[operator]
+    assert name in str(info.value)
+    assert "secret-text" not in str(info.value)
