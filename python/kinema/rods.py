@@ -32,6 +32,18 @@ def _index(value: object, name: str) -> int:
     return operator.index(value)
 
 
+def _collider_params(collider: Plane | Sphere | Capsule | Box) -> tuple[str, list[float]]:
+    """The shape's kind and parameters followed by its friction, for a static rod collider."""
+    kind, p = shape_params(collider)
+    if collider.restitution is not None:
+        raise ValueError("restitution: rod contacts are inelastic; leave it None for rods")
+    if isinstance(collider, Sphere) and collider.inside:
+        raise ValueError("inside: rods collide with the outside of a sphere only")
+    if any(v != 0.0 for v in as_vector3(collider.velocity, "velocity")):
+        raise ValueError("velocity: rod colliders are static")
+    return kind, [*p, 0.0 if collider.friction is None else float(collider.friction)]
+
+
 class Rod:
     """An elastic rod at rest in the shape of ``points`` ``(N, 3)`` (m, N >= 2).
 
@@ -151,16 +163,7 @@ class Rod:
         """Add a static collision shape (:mod:`kinema.geometry`): the vertices keep out of
         it by the rod's radius, with Coulomb friction ``collider.friction`` (default 0;
         restitution and velocity are not used: rod contacts are inelastic, the shape static)."""
-        kind, p = shape_params(collider)
-        if collider.restitution is not None:
-            raise ValueError("restitution: rod contacts are inelastic; leave it None for rods")
-        if isinstance(collider, Sphere) and collider.inside:
-            raise ValueError("inside: rods collide with the outside of a sphere only")
-        if any(v != 0.0 for v in as_vector3(collider.velocity, "velocity")):
-            raise ValueError("velocity: rod colliders are static")
-        self._r.add_collider(
-            kind, [*p, 0.0 if collider.friction is None else float(collider.friction)]
-        )
+        self._r.add_collider(*_collider_params(collider))
 
     def pin(self, index: int) -> None:
         """Hold vertex ``index`` (negative counts from the end) where it is."""
@@ -262,16 +265,7 @@ class Hair:
 
     def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> None:
         """Add a static collision shape for every strand (as :meth:`Rod.add_collider`)."""
-        kind, p = shape_params(collider)
-        if collider.restitution is not None:
-            raise ValueError("restitution: rod contacts are inelastic; leave it None for rods")
-        if isinstance(collider, Sphere) and collider.inside:
-            raise ValueError("inside: rods collide with the outside of a sphere only")
-        if any(v != 0.0 for v in as_vector3(collider.velocity, "velocity")):
-            raise ValueError("velocity: rod colliders are static")
-        self._h.add_collider(
-            kind, [*p, 0.0 if collider.friction is None else float(collider.friction)]
-        )
+        self._h.add_collider(*_collider_params(collider))
 
     def step(self, dt: float, steps: int = 1) -> None:
         """Advance ``steps`` steps of ``dt`` seconds; on a :class:`kinema.SimulationError` every

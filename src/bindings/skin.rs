@@ -87,6 +87,12 @@ impl PySkin {
     }
 }
 
+/// The segments (S, 2, 3) as (start, end) pairs.
+fn segment_pairs(segments: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<([f64; 3], [f64; 3])>> {
+    let s = rows::<6>(segments, "segments", &[2, 3])?;
+    Ok(s.iter().map(|r| ([r[0], r[1], r[2]], [r[3], r[4], r[5]])).collect())
+}
+
 /// Bones and weights of the influences, `k` per vertex, flat.
 type Influences<'py> = (Bound<'py, PyArray1<u32>>, Bound<'py, PyArray1<f64>>);
 
@@ -104,10 +110,8 @@ fn skin_proximity_weights<'py>(
     falloff: f64,
 ) -> PyResult<Influences<'py>> {
     let v = rows::<3>(&vertices, "vertices", &[3])?;
-    let s = rows::<6>(&segments, "segments", &[2, 3])?;
+    let pairs = segment_pairs(&segments)?;
     let k = k.range("influences", 1, 64)?;
-    let pairs: Vec<([f64; 3], [f64; 3])> =
-        s.iter().map(|r| ([r[0], r[1], r[2]], [r[3], r[4], r[5]])).collect();
     let (b, w) = detached(py, || proximity_weights(v, &pairs, &owners, bones, k, falloff))?;
     Ok((PyArray1::from_vec(py, b), PyArray1::from_vec(py, w)))
 }
@@ -126,10 +130,8 @@ fn skin_heat_weights<'py>(
     k: Int,
 ) -> PyResult<Influences<'py>> {
     let v = rows::<3>(&vertices, "vertices", &[3])?;
-    let s = rows::<6>(&segments, "segments", &[2, 3])?;
+    let pairs = segment_pairs(&segments)?;
     let k = k.range("influences", 1, 64)?;
-    let pairs: Vec<([f64; 3], [f64; 3])> =
-        s.iter().map(|r| ([r[0], r[1], r[2]], [r[3], r[4], r[5]])).collect();
     let (b, w) = detached(py, || heat_weights(v, &triangles, &pairs, &owners, bones, k))?;
     Ok((PyArray1::from_vec(py, b), PyArray1::from_vec(py, w)))
 }
@@ -147,9 +149,7 @@ fn skin_capsule_union<'py>(
     blend: f64,
     cell: f64,
 ) -> PyResult<SurfaceMesh<'py>> {
-    let s = rows::<6>(&segments, "segments", &[2, 3])?;
-    let pairs: Vec<([f64; 3], [f64; 3])> =
-        s.iter().map(|r| ([r[0], r[1], r[2]], [r[3], r[4], r[5]])).collect();
+    let pairs = segment_pairs(&segments)?;
     let (v, t) = detached(py, || capsule_union(&pairs, &radii, blend, cell))?;
     let (nv, nt) = (v.len(), t.len());
     let v = PyArray1::from_vec(py, v.into_flattened()).reshape([nv, 3])?;
