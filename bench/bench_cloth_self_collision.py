@@ -17,18 +17,7 @@ import argparse
 
 import numpy as np
 
-from kinema.cloth import Cloth, Plane
-
-
-def sheet(n: int) -> Cloth:
-    cloth = Cloth.grid(n, n, 1.0, 1.0, self_collision=True)
-    x = cloth.positions.copy()
-    z = x[:, 2].copy()
-    x[:, 1] = 0.52 + z
-    x[:, 2] = 0.02 * np.sin(9.0 * z)
-    cloth.set_state(x)
-    cloth.add_collider(Plane(normal=(0, 1, 0), point=(0, 0, 0), friction=0.5))
-    return cloth
+from kinema.demos.cloth import sheet  # the scene of the cloth demo
 
 
 def main() -> None:

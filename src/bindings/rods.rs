@@ -205,12 +205,7 @@ impl Rod {
 
     /// What the last `step` or `solve_static` did.
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let s = self.rod.stats;
-        let d = PyDict::new(py);
-        d.set_item("steps", s.steps)?;
-        d.set_item("iterations", s.iterations)?;
-        d.set_item("halvings", s.halvings)?;
-        Ok(d)
+        stats_dict(py, self.rod.stats)
     }
 }
 
@@ -367,13 +362,17 @@ impl Hair {
 
     /// What the last `step` did, summed over the strands.
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let s = self.hair.stats;
-        let d = PyDict::new(py);
-        d.set_item("steps", s.steps)?;
-        d.set_item("iterations", s.iterations)?;
-        d.set_item("halvings", s.halvings)?;
-        Ok(d)
+        stats_dict(py, self.hair.stats)
     }
+}
+
+/// A step's counters as a Python dict: steps, Newton iterations, line-search halvings.
+fn stats_dict(py: Python<'_>, s: Stats) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("steps", s.steps)?;
+    d.set_item("iterations", s.iterations)?;
+    d.set_item("halvings", s.halvings)?;
+    Ok(d)
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
