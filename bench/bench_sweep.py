@@ -2,14 +2,19 @@
 
 All in one process, one after the other, on a machine that may be busy (ratios matter):
 
-1. overhead: ``--tiny`` tasks that do nothing, on a 2-worker LocalCluster (one thread each):
-   wall time per task, batching included; and tasks of a few ms (a spring chain), whose
-   2-worker time is compared with the serial time, and the workers' time outside the tasks
-   (2 x wall - the sum of the tasks' own seconds) with the time inside them;
+1. overhead: tasks that do nothing, on a 2-worker LocalCluster (one thread each): wall time
+   per task, batching included; and ``--chains`` tasks of under a millisecond (a spring chain),
+   whose 2-worker time is compared with the serial time, with the workers' time outside the
+   tasks against the time inside them, both as wall time (2 x wall - the tasks' own seconds)
+   and as CPU time (the worker processes' CPU time less the tasks' own, which a busy machine
+   does not inflate);
 2. speed-up: ``--tasks`` cloth tasks (a 16x16 Baraff-Witkin cloth, 40 implicit steps, a
-   stiffness x dt grid) run (a) in a plain loop in this process, (b) split between two plain
-   ``multiprocessing`` processes started beforehand, (c) by ``sweep`` on the 2-worker cluster.
-   Every run uses one kinema thread per process. Reported: (a)/(b), (a)/(c) and their ratio.
+   stiffness x dt grid) run (a) in a plain loop in this process, (b) on a two-process
+   ``multiprocessing.Pool`` started beforehand (one task at a time from its shared queue), (c)
+   by ``sweep`` on the 2-worker cluster.
+   Every run uses one kinema thread per process. Reported: (a)/(b), (a)/(c) and their ratio,
+   and the CPU seconds of each plain process beside its wall time (a process that got a whole
+   core has the two equal).
 
 Run: python bench/bench_sweep.py [--quick]
 """
@@ -39,8 +44,10 @@ def cloth_run(system) -> dict[str, float]:
 
 
 def chain_build(stiffness: float, seed: int = 0):
+    """A spring chain of 8 particles, and the CPU clock at the start of the task."""
     from kinema.particles import Gravity, ParticleSystem, Springs
 
+    cpu = time.process_time()
     n = 8
     x = np.zeros((n, 3))
     x[:, 0] = np.arange(n) * 0.1
@@ -49,12 +56,13 @@ def chain_build(stiffness: float, seed: int = 0):
     ps = ParticleSystem(x, masses=masses)
     ps.add(Springs([[i, i + 1] for i in range(n - 1)], stiffness, damping=0.1))
     ps.add(Gravity())
-    return ps
+    return ps, cpu
 
 
-def chain_run(ps) -> dict[str, float]:
+def chain_run(system) -> dict[str, float]:
+    ps, cpu = system
     ps.step(1e-3, steps=1000)
-    return {"tip_y": float(ps.positions[-1, 1])}
+    return {"tip_y": float(ps.positions[-1, 1]), "cpu": time.process_time() - cpu}
 
 
 def nothing_build(i: int) -> int:
@@ -65,34 +73,38 @@ def nothing_run(i: int) -> dict[str, int]:
     return {"i": i}
 
 
-def _plain(tasks, start, done) -> None:
+def _one_thread() -> None:
     import kinema
 
     kinema.set_num_threads(1)
-    start.wait()
-    for p in tasks:
-        cloth_run(cloth_build(**p))
-    done.put(time.perf_counter())
 
 
-def two_processes(design: list[dict]) -> float:
+def _plain_task(p: dict) -> tuple[int, float]:
+    """One cloth task in a pool process: its process id and CPU seconds."""
+    cpu = time.process_time()
+    cloth_run(cloth_build(**p))
+    return os.getpid(), time.process_time() - cpu
+
+
+def two_processes(design: list[dict]) -> tuple[float, list[float]]:
+    """Wall time of ``design`` on a plain two-process ``multiprocessing.Pool`` (one task at a
+    time from a shared queue, as Dask balances), and each process's CPU seconds in the tasks."""
     ctx = mp.get_context("spawn")
-    start, done = ctx.Event(), ctx.Queue()
-    procs = [ctx.Process(target=_plain, args=(design[i::2], start, done)) for i in range(2)]
-    for p in procs:
-        p.start()
-    time.sleep(3.0)  # both imported kinema and wait at the start line
-    t0 = time.perf_counter()
-    start.set()
-    end = max(done.get() for _ in procs)
-    for p in procs:
-        p.join()
-    return end - t0
+    with ctx.Pool(2, initializer=_one_thread) as pool:
+        pool.map(time.sleep, [1.0, 1.0], chunksize=1)  # both started and imported kinema
+        t0 = time.perf_counter()
+        done = pool.map(_plain_task, design, chunksize=1)
+        wall = time.perf_counter() - t0
+    cpu: dict[int, float] = {}
+    for pid, seconds in done:
+        cpu[pid] = cpu.get(pid, 0.0) + seconds
+    return wall, sorted(cpu.values())
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--chains", type=int, help="spring-chain tasks (default 10000, 500 quick)")
     args = parser.parse_args()
     from dask.distributed import Client, LocalCluster
 
@@ -114,25 +126,31 @@ def main() -> None:
     empty = time.perf_counter() - t0
     print(f"{tiny} empty tasks on 2 workers: {empty / tiny * 1e6:.0f} µs per task (wall)")
 
-    chains = grid(stiffness=np.linspace(100.0, 1000.0, tiny // 4))
+    n_chains = args.chains or (500 if args.quick else 10_000)
+    chains = grid(stiffness=np.linspace(100.0, 1000.0, n_chains))
     t0 = time.perf_counter()
     sweep(chain_build, chains, chain_run, client="serial", progress=False)
     serial = time.perf_counter() - t0
+    worker_cpu = client.run(time.process_time)
     t0 = time.perf_counter()
     batched = sweep(chain_build, chains, chain_run, client=client, progress=False)
     dask = time.perf_counter() - t0
-    busy = batched["seconds"].sum()  # worker time inside build + run
+    worker_cpu = sum(t - worker_cpu[w] for w, t in client.run(time.process_time).items())
+    busy = batched["seconds"].sum()  # worker wall time inside build + run
+    busy_cpu = batched["cpu"].sum()  # the same, CPU time
     print(
         f"{len(chains)} tasks of {serial / len(chains) * 1e3:.2f} ms: serial {serial:.2f} s, "
         f"2 workers {dask:.2f} s, speed-up {serial / dask:.2f}; worker time outside the "
-        f"tasks (batched): {(2 * dask - busy) / busy * 100:.1f} % of the time in them, "
-        f"{(2 * dask - busy) / len(chains) * 1e6:.0f} µs per task"
+        f"tasks (batched): wall {(2 * dask - busy) / busy * 100:.1f} % of the time in them "
+        f"({(2 * dask - busy) / len(chains) * 1e6:.0f} µs per task), CPU "
+        f"{(worker_cpu - busy_cpu) / busy_cpu * 100:.1f} % "
+        f"({(worker_cpu - busy_cpu) / len(chains) * 1e6:.0f} µs per task)"
     )
 
     t0 = time.perf_counter()
     table = sweep(cloth_build, design, cloth_run, client="serial", progress=False)
     serial = time.perf_counter() - t0
-    plain = two_processes(design)
+    plain, plain_cpu = two_processes(design)
     t0 = time.perf_counter()
     on_dask = sweep(cloth_build, design, cloth_run, client=client, progress=False)
     dask = time.perf_counter() - t0
@@ -140,7 +158,8 @@ def main() -> None:
     assert np.array_equal(table["lowest"], on_dask["lowest"], equal_nan=True)
     print(
         f"{len(design)} cloth tasks of {serial / len(design):.2f} s: serial {serial:.1f} s, "
-        f"two plain processes {plain:.1f} s (x{serial / plain:.2f}), "
+        f"two plain processes {plain:.1f} s (x{serial / plain:.2f}; CPU in the tasks "
+        f"{' and '.join(f'{c:.1f} s' for c in plain_cpu)}), "
         f"sweep on 2 workers {dask:.1f} s (x{serial / dask:.2f}): "
         f"{plain / dask * 100:.0f} % of the plain processes' speed-up; worker time outside "
         f"the tasks {(2 * dask - busy) / busy * 100:.1f} %"
