@@ -17,12 +17,12 @@ from collections.abc import Callable
 import numpy as np
 
 import kinema
-from kinema import Rotation, slerp
+from kinema import Rotation, Transform, slerp
 
 try:
     from scipy import __version__ as scipy_version
+    from scipy.spatial.transform import RigidTransform, Slerp
     from scipy.spatial.transform import Rotation as R
-    from scipy.spatial.transform import Slerp
 except ImportError:
     R = None
 try:
@@ -69,6 +69,14 @@ def main() -> None:
     rv = theirs.as_rotvec()
     b_vec = rng.standard_normal((n, 3))
     a_vec = theirs.apply(b_vec) + 0.01 * rng.standard_normal((n, 3))
+    mrp = theirs.as_mrp()
+    axes = np.array([[1.0, 0.0, 0.0], [0.0, 0.6, 0.8], [1.0, 0.0, 0.0]])  # Davenport n1 n2 n1
+    dav = theirs.as_davenport(axes, "extrinsic")
+    tr = rng.standard_normal((n, 3))
+    ours_t = Transform.from_components(tr, ours)
+    ours_t2 = Transform.from_components(tr[::-1].copy(), ours2)
+    theirs_t = RigidTransform.from_components(tr, theirs)
+    theirs_t2 = RigidTransform.from_components(tr[::-1].copy(), theirs2)
     key = R.from_quat(q_xyzw[:2])
     sl = Slerp([0.0, 1.0], key)
     o0, o1 = ours[0], ours[1]
@@ -96,6 +104,25 @@ def main() -> None:
         ("apply (N rotations, N vectors)", lambda: ours.apply(v), lambda: theirs.apply(v), None),
         ("compose r1 * r2", lambda: ours * ours2, lambda: theirs * theirs2, None),
         ("slerp (2 keys, N times)", lambda: slerp(o0, o1, t), lambda: sl(t), None),
+        ("as_mrp", ours.as_mrp, theirs.as_mrp, None),
+        ("from_mrp", lambda: Rotation.from_mrp(mrp), lambda: R.from_mrp(mrp), None),
+        (
+            "as_davenport (n1 n2 n1)",
+            lambda: ours.as_davenport(axes, "extrinsic"),
+            lambda: theirs.as_davenport(axes, "extrinsic"),
+            None,
+        ),
+        (
+            "from_davenport (n1 n2 n1)",
+            lambda: Rotation.from_davenport(axes, "extrinsic", dav),
+            lambda: R.from_davenport(axes, "extrinsic", dav),
+            None,
+        ),
+        ("power r ** 0.5", lambda: ours**0.5, lambda: theirs**0.5, None),
+        ("Transform compose t1 * t2", lambda: ours_t * ours_t2, lambda: theirs_t * theirs_t2, None),
+        ("Transform apply", lambda: ours_t.apply(v), lambda: theirs_t.apply(v), None),
+        ("Transform inv", ours_t.inv, theirs_t.inv, None),
+        ("Transform as_matrix", ours_t.as_matrix, theirs_t.as_matrix, None),
         # Unweighted: numpy-quaternion's mean and alignment take no weights.
         ("mean", ours.mean, theirs.mean, None),
         (

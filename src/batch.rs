@@ -5,9 +5,69 @@
 //! result is bitwise the same whatever the thread count, because every row is computed by the
 //! same scalar code and nothing is reduced across rows. When rows fail, the error of the
 //! lowest failing row is returned, also independent of the thread count.
+//!
+//! Results go to an [`Output`]: rows already initialised (`[[f64; O]]`) or rows of a new
+//! buffer that nothing has written yet (`[[MaybeUninit<f64>; O]]`, e.g. a new numpy array),
+//! which the kernels write in full (on success) without reading, so that a caller need not
+//! zero the buffer first (one pass less over memory).
 
 use crate::error::{Error, Result};
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
+
+mod sealed {
+    use std::mem::MaybeUninit;
+
+    /// The rows of an [`super::Output`], to be written and never read.
+    pub trait WriteOnly<const O: usize> {
+        fn write_only(&mut self) -> &mut [[MaybeUninit<f64>; O]];
+    }
+}
+
+/// Where a kernel of this module writes its rows of `O` values: `[[f64; O]]` (a slice, a
+/// `Vec` or an array of rows), or
+/// `[[MaybeUninit<f64>; O]]` that every row of a successful call initialises (after an error,
+/// rows past the failing one may be left unwritten).
+pub trait Output<const O: usize>: sealed::WriteOnly<O> {}
+
+impl<const O: usize> sealed::WriteOnly<O> for [[f64; O]] {
+    #[allow(unsafe_code)]
+    fn write_only(&mut self) -> &mut [[MaybeUninit<f64>; O]] {
+        // SAFETY: `MaybeUninit<f64>` has the layout of `f64`, and this module writes only
+        // initialised values through the view (the trait is sealed), so the rows stay
+        // initialised.
+        unsafe { &mut *(self as *mut [[f64; O]] as *mut [[MaybeUninit<f64>; O]]) }
+    }
+}
+
+impl<const O: usize> sealed::WriteOnly<O> for [[MaybeUninit<f64>; O]] {
+    fn write_only(&mut self) -> &mut [[MaybeUninit<f64>; O]] {
+        self
+    }
+}
+
+impl<const O: usize> sealed::WriteOnly<O> for Vec<[f64; O]> {
+    fn write_only(&mut self) -> &mut [[MaybeUninit<f64>; O]] {
+        self.as_mut_slice().write_only()
+    }
+}
+
+impl<const O: usize, const K: usize> sealed::WriteOnly<O> for [[f64; O]; K] {
+    fn write_only(&mut self) -> &mut [[MaybeUninit<f64>; O]] {
+        self.as_mut_slice().write_only()
+    }
+}
+
+impl<const O: usize> Output<O> for [[f64; O]] {}
+impl<const O: usize> Output<O> for [[MaybeUninit<f64>; O]] {}
+impl<const O: usize> Output<O> for Vec<[f64; O]> {}
+impl<const O: usize, const K: usize> Output<O> for [[f64; O]; K] {}
+
+/// `value` as a row of [`Output`].
+#[inline(always)]
+fn written<const O: usize>(value: [f64; O]) -> [MaybeUninit<f64>; O] {
+    value.map(MaybeUninit::new)
+}
 
 /// Rows per parallel chunk; batches shorter than this run on the calling thread.
 pub const CHUNK: usize = 8192;
@@ -32,13 +92,14 @@ pub fn item<T>(batch: &[T], i: usize) -> &T {
 
 /// Fill `out[i]` with `f(i)` for every row, in parallel for large batches.
 pub fn fill<const O: usize>(
-    out: &mut [[f64; O]],
+    out: &mut (impl Output<O> + ?Sized),
     f: impl Fn(usize) -> Result<[f64; O]> + Sync,
 ) -> Result<()> {
-    let run_chunk = |start: usize, chunk: &mut [[f64; O]]| -> Option<Error> {
+    let out = out.write_only();
+    let run_chunk = |start: usize, chunk: &mut [[MaybeUninit<f64>; O]]| -> Option<Error> {
         for (k, row) in chunk.iter_mut().enumerate() {
             match f(start + k) {
-                Ok(value) => *row = value,
+                Ok(value) => *row = written(value),
                 Err(e) => return Some(e.at(start + k)),
             }
         }
@@ -80,9 +141,10 @@ pub fn sum<const S: usize>(
 /// `out[i] = f(&input[i])` for every row.
 pub fn map<const I: usize, const O: usize>(
     input: &[[f64; I]],
-    out: &mut [[f64; O]],
+    out: &mut (impl Output<O> + ?Sized),
     f: impl Fn(&[f64; I]) -> Result<[f64; O]> + Sync,
 ) -> Result<()> {
+    let out = out.write_only();
     if input.len() != out.len() {
         return Err(Error::invalid("out", "must have as many rows as the input"));
     }
@@ -93,9 +155,10 @@ pub fn map<const I: usize, const O: usize>(
 pub fn map2<const A: usize, const B: usize, const O: usize>(
     a: &[[f64; A]],
     b: &[[f64; B]],
-    out: &mut [[f64; O]],
+    out: &mut (impl Output<O> + ?Sized),
     f: impl Fn(&[f64; A], &[f64; B]) -> Result<[f64; O]> + Sync,
 ) -> Result<()> {
+    let out = out.write_only();
     let n = broadcast_len(("a", a.len()), ("b", b.len()))?;
     if out.len() != n {
         return Err(Error::invalid("out", "must have the broadcast length of the inputs"));
@@ -156,7 +219,7 @@ pub trait PairKernel<const A: usize, const B: usize, const O: usize>: Sync {
 /// thread count).
 pub fn lanes<const I: usize, const O: usize>(
     input: &[[f64; I]],
-    out: &mut [[f64; O]],
+    out: &mut (impl Output<O> + ?Sized),
     kernel: &impl LaneKernel<I, O>,
 ) -> Result<usize> {
     // Rows of no numbers take no memory: the single-input kernel is a pair kernel whose
@@ -172,9 +235,10 @@ pub fn lanes<const I: usize, const O: usize>(
 pub fn lanes2<const A: usize, const B: usize, const O: usize>(
     a: &[[f64; A]],
     b: &[[f64; B]],
-    out: &mut [[f64; O]],
+    out: &mut (impl Output<O> + ?Sized),
     kernel: &impl PairKernel<A, B, O>,
 ) -> Result<usize> {
+    let out = out.write_only();
     if a.len() != out.len() || b.len() != out.len() {
         return Err(Error::invalid("out", "must have as many rows as the inputs"));
     }
@@ -210,7 +274,7 @@ struct LaneChunk<'a, const A: usize, const B: usize, const O: usize, K> {
     start: usize,
     a: &'a [[f64; A]],
     b: &'a [[f64; B]],
-    out: &'a mut [[f64; O]],
+    out: &'a mut [[MaybeUninit<f64>; O]],
     kernel: &'a K,
 }
 
@@ -225,7 +289,12 @@ impl<const A: usize, const B: usize, const O: usize, K: PairKernel<A, B, O>> pul
         let mut count = 0;
         let blocks = a.chunks(LANES).zip(b.chunks(LANES)).zip(out.chunks_mut(LANES));
         for (k, ((a, b), out)) in blocks.enumerate() {
-            count += kernel.block(start + k * LANES, a, b, out)?;
+            let mut block = [[0.0; O]; LANES];
+            let block = &mut block[..out.len()];
+            count += kernel.block(start + k * LANES, a, b, block)?;
+            for (row, &value) in out.iter_mut().zip(block.iter()) {
+                *row = written(value);
+            }
         }
         Ok(count)
     }
@@ -298,5 +367,41 @@ mod tests {
         map2(&a, &b, &mut out, |x, y| Ok([x[0] * y[0]])).unwrap();
         assert_eq!(out, [[2.0], [4.0], [6.0]]);
         assert!(broadcast_len(("a", 2), ("b", 3)).is_err());
+    }
+
+    /// Doubles each row lane by lane, counting the rows it saw.
+    struct Double;
+
+    impl LaneKernel<2, 2> for Double {
+        fn block(&self, _: usize, rows: &[[f64; 2]], out: &mut [[f64; 2]]) -> Result<usize> {
+            for (o, r) in out.iter_mut().zip(rows) {
+                *o = [2.0 * r[0], 2.0 * r[1]];
+            }
+            Ok(rows.len())
+        }
+    }
+
+    #[test]
+    fn unwritten_rows_are_written_in_full_as_initialised_ones_are() {
+        let n = 3 * CHUNK + 5; // parallel chunks and a ragged last block
+        let input: Vec<[f64; 2]> = (0..n).map(|i| [i as f64, -(i as f64)]).collect();
+        let mut expected = vec![[f64::NAN; 2]; n];
+        assert_eq!(lanes(&input, &mut expected, &Double).unwrap(), n);
+        let mut unwritten = vec![[MaybeUninit::<f64>::uninit(); 2]; n];
+        assert_eq!(lanes(&input, unwritten.as_mut_slice(), &Double).unwrap(), n);
+        let written: Vec<[f64; 2]> = unwritten.iter().map(|r| r.map(|v| read(&v))).collect();
+        assert_eq!(written, expected);
+        assert!(expected.iter().enumerate().all(|(i, r)| *r == [2.0 * i as f64, -2.0 * i as f64]));
+
+        let mut unwritten = vec![[MaybeUninit::<f64>::uninit(); 1]; n];
+        map(&input, unwritten.as_mut_slice(), |r| Ok([r[0] + r[1]])).unwrap();
+        assert!(unwritten.iter().all(|r| read(&r[0]) == 0.0));
+    }
+
+    /// A value the kernels wrote (the test reads only those).
+    #[allow(unsafe_code)]
+    fn read(v: &MaybeUninit<f64>) -> f64 {
+        // SAFETY: called only on rows the kernel under test wrote.
+        unsafe { v.assume_init() }
     }
 }

@@ -190,7 +190,11 @@ impl ArcLengthCurve {
     ///
     /// # Errors
     /// As [`ArcLengthCurve::time_at`], for the lowest failing row (named by its index).
-    pub fn times_at(&self, s: &[[f64; 1]], out: &mut [[f64; 1]]) -> Result<()> {
+    pub fn times_at(
+        &self,
+        s: &[[f64; 1]],
+        out: &mut (impl batch::Output<1> + ?Sized),
+    ) -> Result<()> {
         batch::map(s, out, |&[s]| Ok([self.time_at(s)?]))
     }
 }

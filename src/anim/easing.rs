@@ -69,7 +69,11 @@ impl Easing {
     ///
     /// # Errors
     /// As [`Easing::eval`], for the lowest failing row (named by its index).
-    pub fn eval_many(self, u: &[[f64; 1]], out: &mut [[f64; 1]]) -> Result<()> {
+    pub fn eval_many(
+        self,
+        u: &[[f64; 1]],
+        out: &mut (impl batch::Output<1> + ?Sized),
+    ) -> Result<()> {
         batch::map(u, out, |&[u]| Ok([self.eval(u)?]))
     }
 }

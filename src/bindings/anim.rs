@@ -1,8 +1,8 @@
 //! `kinema.anim`: compiled keyframe tracks and subdivision.
 
 use super::args::Int;
-use super::array::compute;
 use super::array::rows;
+use super::array::{compute, zeroed};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use crate::anim::{
@@ -196,7 +196,7 @@ impl KeyRotationTrack {
     ) -> PyResult<Bound<'py, numpy::PyArrayDyn<f64>>> {
         let ts = rows::<1>(&t, "t", &[1])?.as_flattened();
         let track = &self.track;
-        compute(py, ts.len(), &[4], |out| track.eval_many(ts, out))
+        compute(py, ts.len(), &[4], |out| track.eval_many(ts, zeroed(out)))
     }
 
     /// Angular velocities (`order` 1, rad/s) or accelerations (`order` 2, rad/s²), world
@@ -210,7 +210,7 @@ impl KeyRotationTrack {
         let order = order.count("order")?;
         let ts = rows::<1>(&t, "t", &[1])?.as_flattened();
         let track = &self.track;
-        compute(py, ts.len(), &[3], |out| track.rates_many(ts, order, out))
+        compute(py, ts.len(), &[3], |out| track.rates_many(ts, order, zeroed(out)))
     }
 }
 

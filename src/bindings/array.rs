@@ -43,50 +43,51 @@ pub fn rows<'a, const N: usize>(
 /// Values in a huge page (2 MB).
 const HUGE_PAGE: usize = 1 << 18;
 
-/// A new C-contiguous numpy array of `shape`, every value 0.
-///
-/// Like `PyArray::zeros`, but the zeros are written here, in parallel runs of one huge page
-/// on the pool of the kernels for large arrays, into a buffer from numpy's allocator (which
-/// backs large arrays with huge pages), instead of by `calloc` on one thread.
+/// Rows of a new output array that nothing has written yet.
+pub type Unwritten<const N: usize> = [[MaybeUninit<f64>; N]];
+
+/// `out` with every value set to 0, as initialised rows, for results that are not written
+/// row by row through [`crate::batch::Output`] (the zeros are written in parallel runs of one
+/// huge page for large arrays, on the kernels' pool).
 #[allow(unsafe_code)]
-fn zeros<'py>(py: Python<'py>, shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    // SAFETY: `f64` is `Copy` (the array may be dropped uninitialised); its values are only
-    // written, through `MaybeUninit`, until every one is initialised below.
-    let array = unsafe { PyArrayDyn::<f64>::new(py, IxDyn(shape), false) };
-    let len = array.len();
-    // SAFETY: a new C-contiguous array owns `len` values from `data()`, aligned for `f64`
-    // and referenced by nothing else while this slice lives.
-    let values =
-        unsafe { std::slice::from_raw_parts_mut(array.data().cast::<MaybeUninit<f64>>(), len) };
-    let zero = MaybeUninit::new(0.0);
-    if len > HUGE_PAGE {
-        detached(py, || {
-            values.par_chunks_mut(HUGE_PAGE).for_each(|run| run.fill(zero));
-            Ok(())
-        })?;
+pub fn zeroed<const N: usize>(out: &mut Unwritten<N>) -> &mut [[f64; N]] {
+    let zero = [MaybeUninit::new(0.0); N];
+    let run = HUGE_PAGE / N.max(1);
+    if out.len() > run {
+        out.par_chunks_mut(run).for_each(|rows| rows.fill(zero));
     } else {
-        values.fill(zero);
+        out.fill(zero);
     }
-    Ok(array)
+    // SAFETY: every value has just been initialised; `MaybeUninit<f64>` has `f64`'s layout.
+    unsafe { &mut *(out as *mut Unwritten<N> as *mut [[f64; N]]) }
 }
 
-/// A new numpy array of shape `(n, *row_shape)` whose rows `fill` computes with the GIL
-/// released; errors map to Python exceptions (see [`detached`]).
+/// A new numpy array of shape `(n, *row_shape)` whose rows `fill` writes with the GIL
+/// released; errors map to Python exceptions (see [`detached`]). `fill` must initialise every
+/// row when it succeeds: through the kernels of [`crate::batch`] (which write every row of an
+/// [`crate::batch::Output`]) or after [`zeroed`]. The array is not zeroed first, so results
+/// cost one pass over memory, not two.
+#[allow(unsafe_code)]
 pub fn compute<'py, const N: usize>(
     py: Python<'py>,
     n: usize,
     row_shape: &[usize],
-    fill: impl FnOnce(&mut [[f64; N]]) -> Result<(), Error> + Send,
+    fill: impl FnOnce(&mut Unwritten<N>) -> Result<(), Error> + Send,
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let mut shape = vec![n];
     shape.extend_from_slice(row_shape);
-    let array = zeros(py, &shape)?;
-    {
-        let mut guard = array.readwrite();
-        let flat = guard.as_slice_mut().expect("a new numpy array is contiguous");
-        let (rows, rest) = flat.as_chunks_mut::<N>();
-        assert!(rest.is_empty(), "row length equals the product of row_shape");
-        detached(py, || fill(rows))?;
-    }
+    assert_eq!(
+        shape.iter().product::<usize>(),
+        n * N,
+        "row length equals the product of row_shape"
+    );
+    // SAFETY: `f64` is `Copy`, so the array may be dropped with its values uninitialised (as it
+    // is when `fill` fails); it is returned only after `fill` succeeded, having written every row.
+    let array = unsafe { PyArrayDyn::<f64>::new(py, IxDyn(&shape), false) };
+    // SAFETY: a new C-contiguous array owns `n * N` values from `data()`, aligned for `f64`
+    // and referenced by nothing else while this slice lives; they are only written through it.
+    let rows =
+        unsafe { std::slice::from_raw_parts_mut(array.data().cast::<[MaybeUninit<f64>; N]>(), n) };
+    detached(py, || fill(rows))?;
     Ok(array)
 }

@@ -2,7 +2,7 @@
 //! body (a model with its state and solver), ragdolls from ASF skeletons.
 
 use super::args::Int;
-use super::array::compute;
+use super::array::{compute, zeroed};
 use super::error::detached;
 use super::mocap::PySkeleton;
 use super::pickle::{reduce, Reduced};
@@ -307,6 +307,7 @@ impl ArticulatedBody {
     fn positions<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let p: Vec<DVec3> = self.body.kinematics().positions().to_vec();
         compute::<3>(py, p.len(), &[3], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(&p).for_each(|(o, v)| *o = v.to_array());
             Ok(())
         })
@@ -316,6 +317,7 @@ impl ArticulatedBody {
     fn orientations<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let r: Vec<DQuat> = self.body.kinematics().orientations().to_vec();
         compute::<4>(py, r.len(), &[4], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(&r).for_each(|(o, q)| *o = [q.w, q.x, q.y, q.z]);
             Ok(())
         })
@@ -492,6 +494,7 @@ impl Walker {
     fn positions<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let p: Vec<DVec3> = self.walker.kinematics().positions().to_vec();
         compute::<3>(py, p.len(), &[3], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(&p).for_each(|(o, v)| *o = v.to_array());
             Ok(())
         })

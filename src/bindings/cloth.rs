@@ -2,7 +2,7 @@
 //! copy.
 
 use super::args::{counts, Int, MAX_ITERATIONS};
-use super::array::{compute, rows};
+use super::array::{compute, rows, zeroed};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
@@ -304,6 +304,7 @@ impl ClothCore {
     fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let m = self.cloth.masses();
         compute::<1>(py, m.len(), &[], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(m).for_each(|(o, m)| o[0] = *m);
             Ok(())
         })
@@ -314,6 +315,7 @@ impl ClothCore {
     fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let t = self.cloth.triangles();
         compute::<3>(py, t.len(), &[3], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(t).for_each(|(o, t)| *o = t.map(|i| i as f64));
             Ok(())
         })
@@ -325,6 +327,7 @@ impl ClothCore {
     fn self_intersections<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let pairs = intersecting_triangles(self.cloth.positions(), self.cloth.triangles());
         compute::<2>(py, pairs.len(), &[2], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(&pairs).for_each(|(o, &(i, j))| *o = [i as f64, j as f64]);
             Ok(())
         })
@@ -334,6 +337,7 @@ impl ClothCore {
     fn forces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let f = self.cloth.forces();
         compute::<3>(py, f.len(), &[3], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(&f).for_each(|(o, f)| *o = f.to_array());
             Ok(())
         })

@@ -2,7 +2,7 @@
 //! goals numpy views without a copy.
 
 use super::args::Int;
-use super::array::{compute, rows};
+use super::array::{compute, rows, zeroed};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
@@ -31,6 +31,7 @@ fn points(arr: &PyReadonlyArrayDyn<'_, f64>, arg: &str) -> PyResult<Vec<DVec2>> 
 
 fn out1<'py>(py: Python<'py>, values: &[f64]) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     compute::<1>(py, values.len(), &[], |out| {
+        let out = zeroed(out);
         out.iter_mut().zip(values).for_each(|(o, v)| o[0] = *v);
         Ok(())
     })

@@ -2,7 +2,7 @@
 //! copy.
 
 use super::args::{Int, MAX_ITERATIONS};
-use super::array::compute;
+use super::array::{compute, zeroed};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
@@ -56,6 +56,7 @@ impl Fluid {
         if this.varying() {
             let rows = pick(this.fluid.state());
             return compute::<3>(slf.py(), n, &[3], |out| {
+                let out = zeroed(out);
                 out.iter_mut().zip(rows).for_each(|(o, p)| *o = p.to_array());
                 Ok(())
             });
@@ -75,6 +76,7 @@ fn v3(p: [f64; 3]) -> DVec3 {
 
 fn out1<'py>(py: Python<'py>, values: &[f64]) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     compute::<1>(py, values.len(), &[], |out| {
+        let out = zeroed(out);
         out.iter_mut().zip(values).for_each(|(o, v)| o[0] = *v);
         Ok(())
     })
@@ -269,6 +271,7 @@ impl Fluid {
     fn boundary_particles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let b = self.fluid.model().boundary_particles();
         compute::<3>(py, b.len(), &[3], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(b).for_each(|(o, p)| *o = p.to_array());
             Ok(())
         })

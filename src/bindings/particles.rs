@@ -1,7 +1,7 @@
 //! `kinema.particles`: a compiled particle system whose state numpy views without a copy.
 
 use super::args::Int;
-use super::array::{compute, rows};
+use super::array::{compute, rows, zeroed};
 use super::error::detached_on;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
@@ -312,6 +312,7 @@ impl Particles {
     fn alive<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let a = self.system.alive();
         compute::<1>(py, a.len(), &[1], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(a).for_each(|(o, l)| o[0] = f64::from(u8::from(*l)));
             Ok(())
         })
@@ -321,6 +322,7 @@ impl Particles {
     fn ages<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let a = self.system.ages();
         compute::<1>(py, a.len(), &[1], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(a.iter()).for_each(|(o, v)| o[0] = *v);
             Ok(())
         })
@@ -330,6 +332,7 @@ impl Particles {
     fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let a = self.system.masses();
         compute::<1>(py, a.len(), &[1], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(a.iter()).for_each(|(o, v)| o[0] = *v);
             Ok(())
         })

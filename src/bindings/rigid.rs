@@ -1,7 +1,7 @@
 //! `kinema.rigid`: a compiled world of free rigid bodies.
 
 use super::args::{Int, MAX_ITERATIONS};
-use super::array::compute;
+use super::array::{compute, zeroed};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use crate::error::Error;
@@ -211,6 +211,7 @@ impl RigidWorld {
     fn joint_violations<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
         let w = &self.world;
         compute(py, w.joint_count(), &[2], |out| {
+            let out = zeroed(out);
             for (j, o) in out.iter_mut().enumerate() {
                 let (l, a) = w.joint_violation(j)?;
                 *o = [l, a];
@@ -225,6 +226,7 @@ impl RigidWorld {
         let w = &self.world;
         let c = w.joint_coordinates();
         compute(py, c.len(), &[2], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(&c).for_each(|(o, &(x, v))| *o = [x, v]);
             Ok(())
         })
@@ -347,6 +349,7 @@ impl RigidWorld {
     fn positions<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
         let w = &self.world;
         compute(py, w.len(), &[3], |out| {
+            let out = zeroed(out);
             out.iter_mut().enumerate().for_each(|(i, o)| *o = w.position(i).to_array());
             Ok(())
         })
@@ -356,6 +359,7 @@ impl RigidWorld {
     fn orientations<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
         let w = &self.world;
         compute(py, w.len(), &[4], |out| {
+            let out = zeroed(out);
             out.iter_mut()
                 .enumerate()
                 .for_each(|(i, o)| *o = crate::rotation::quat_to_wxyz(w.orientation(i)));
@@ -367,6 +371,7 @@ impl RigidWorld {
     fn velocities<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
         let w = &self.world;
         compute(py, w.len(), &[3], |out| {
+            let out = zeroed(out);
             out.iter_mut().enumerate().for_each(|(i, o)| *o = w.velocity(i).to_array());
             Ok(())
         })
@@ -376,6 +381,7 @@ impl RigidWorld {
     fn angular_velocities<'py>(&self, py: Python<'py>) -> PyResult<Array<'py>> {
         let w = &self.world;
         compute(py, w.len(), &[3], |out| {
+            let out = zeroed(out);
             out.iter_mut().enumerate().for_each(|(i, o)| *o = w.angular_velocity(i).to_array());
             Ok(())
         })

@@ -2,7 +2,7 @@
 //! numpy views without a copy.
 
 use super::args::{Int, MAX_ITERATIONS};
-use super::array::{compute, rows};
+use super::array::{compute, rows, zeroed};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
@@ -168,6 +168,7 @@ impl Rod {
     fn material_frames<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let frames = self.rod.material_frames();
         compute::<9>(py, frames.len(), &[3, 3], |out| {
+            let out = zeroed(out);
             for (o, f) in out.iter_mut().zip(&frames) {
                 for (r, v) in f.iter().enumerate() {
                     o[3 * r..3 * r + 3].copy_from_slice(&v.to_array());
@@ -192,6 +193,7 @@ impl Rod {
     fn masses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let m = self.rod.model().masses();
         compute::<1>(py, m.len(), &[], |out| {
+            let out = zeroed(out);
             out.iter_mut().zip(m).for_each(|(o, v)| o[0] = *v);
             Ok(())
         })
@@ -348,6 +350,7 @@ impl Hair {
         let states = self.hair.states();
         let n = self.hair.model().edges() + 1;
         compute::<3>(py, states.len() * n, &[3], |out| {
+            let out = zeroed(out);
             let all = states.iter().flat_map(|s| s.positions());
             out.iter_mut().zip(all).for_each(|(o, p)| *o = p.to_array());
             Ok(())

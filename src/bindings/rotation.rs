@@ -1,7 +1,7 @@
 //! Rotation kernels for `kinema.rotation`: every function maps batches of rows and
 //! broadcasts a batch of one against a batch of N.
 
-use super::array::{compute, rows};
+use super::array::{compute, rows, zeroed};
 use crate::batch::{broadcast_len, fill, item, map, map2};
 use crate::error::{ensure_finite, Error, Result};
 use crate::rotation::{self as rot, EulerSequence};
@@ -277,6 +277,7 @@ fn quat_mean<'py>(
 fn rotation_group<'py>(py: Python<'py>, group: &str, axis: &str) -> PyResult<Array<'py>> {
     let g = rot::create_group(group, axis)?;
     compute(py, g.len(), &[4], |out| {
+        let out = zeroed(out);
         out.copy_from_slice(&g);
         Ok(())
     })
@@ -317,6 +318,7 @@ fn align_vectors<'py>(
     let (a, b) = (rows::<3>(&a, "a", &[3])?, rows::<3>(&b, "b", &[3])?);
     let weights = rows::<1>(&weights, "weights", &[1])?;
     compute(py, 1, &[15], |out| {
+        let out = zeroed(out);
         let w: Vec<f64> = weights.iter().map(|w| w[0]).collect();
         let r = rot::align_vectors(a, b, &w)?;
         let mut row = [f64::NAN; 15];

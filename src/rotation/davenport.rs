@@ -17,7 +17,7 @@
 //! `[0, π]` for proper ones), and the angles are those of `as_euler`.
 
 use super::euler::EulerSequence;
-use crate::batch::map2;
+use crate::batch::{map2, Output};
 use crate::error::{Error, Result};
 use glam::{DQuat, DVec3};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -55,7 +55,7 @@ pub fn davenport_from_quats(
     axes: &[[f64; 9]],
     intrinsic: bool,
     quats: &[[f64; 4]],
-    out: &mut [[f64; 3]],
+    out: &mut (impl Output<3> + ?Sized),
 ) -> Result<usize> {
     let locked = AtomicUsize::new(0);
     map2(axes, quats, out, |n, w| {

@@ -21,7 +21,7 @@
 
 use super::quat::quat_from_wxyz;
 use super::trig::atan2_finite;
-use crate::batch::{lanes, LaneKernel, LANES};
+use crate::batch::{lanes, LaneKernel, Output, LANES};
 use crate::error::{ensure_finite, Error, Result};
 use crate::math::wrap_angle;
 use glam::{DQuat, DVec3};
@@ -141,7 +141,11 @@ impl EulerSequence {
     ///
     /// # Errors
     /// The lowest row that is zero or not finite, or `out` of another length.
-    pub fn from_quats(&self, quats: &[[f64; 4]], out: &mut [[f64; 3]]) -> Result<usize> {
+    pub fn from_quats(
+        &self,
+        quats: &[[f64; 4]],
+        out: &mut (impl Output<3> + ?Sized),
+    ) -> Result<usize> {
         lanes(quats, out, &ToEuler { seq: self, l: self.layout() })
     }
 

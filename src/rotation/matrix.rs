@@ -2,7 +2,7 @@
 //! rotation to an arbitrary matrix.
 
 use super::quat::quat_from_wxyz;
-use crate::batch::{by_component, lanes, LaneKernel, LANES};
+use crate::batch::{by_component, lanes, LaneKernel, Output, LANES};
 use crate::error::{ensure_finite, Error, Result};
 use glam::DQuat;
 use nalgebra::Matrix3;
@@ -44,7 +44,7 @@ pub fn quat_to_matrix(q: DQuat) -> [f64; 9] {
 ///
 /// # Errors
 /// The lowest row that is zero or not finite, or `out` of another length.
-pub fn quats_to_matrices(quats: &[[f64; 4]], out: &mut [[f64; 9]]) -> Result<()> {
+pub fn quats_to_matrices(quats: &[[f64; 4]], out: &mut (impl Output<9> + ?Sized)) -> Result<()> {
     lanes(quats, out, &ToMatrices)?;
     Ok(())
 }

@@ -1,7 +1,7 @@
 //! Unit quaternions at the array boundary: checked construction from `(w, x, y, z)`,
 //! normalisation that neither overflows nor underflows, the canonical sign, the angle.
 
-use crate::batch::{by_component, lanes, lanes2, map2, LaneKernel, PairKernel, LANES};
+use crate::batch::{by_component, lanes, lanes2, map2, LaneKernel, Output, PairKernel, LANES};
 use crate::error::{ensure_finite, Error, Result};
 use glam::DQuat;
 
@@ -42,7 +42,11 @@ pub fn quat_from_wxyz(q: &[f64; 4]) -> Result<DQuat> {
 ///
 /// # Errors
 /// The lowest row that is zero or not finite, or `out` of another length.
-pub fn normalize_quats(quats: &[[f64; 4]], canonical: bool, out: &mut [[f64; 4]]) -> Result<()> {
+pub fn normalize_quats(
+    quats: &[[f64; 4]],
+    canonical: bool,
+    out: &mut (impl Output<4> + ?Sized),
+) -> Result<()> {
     lanes(quats, out, &Normalize { canonical })?;
     Ok(())
 }
@@ -97,7 +101,11 @@ impl LaneKernel<4, 4> for Normalize {
 ///
 /// # Errors
 /// The lowest row that is zero or not finite; lengths that do not broadcast.
-pub fn multiply_quats(a: &[[f64; 4]], b: &[[f64; 4]], out: &mut [[f64; 4]]) -> Result<()> {
+pub fn multiply_quats(
+    a: &[[f64; 4]],
+    b: &[[f64; 4]],
+    out: &mut (impl Output<4> + ?Sized),
+) -> Result<()> {
     if a.len() == b.len() {
         lanes2(a, b, out, &Multiply)?;
         return Ok(());

@@ -7,7 +7,7 @@
 //! factor `sin(θ/2)/θ` uses its Taylor series below `θ = 1e-3`, and `atan2` needs no series.
 
 use super::trig::{sin_cos_reduced, SIN_COS_LIMIT};
-use crate::batch::{by_component, lanes, LaneKernel, LANES};
+use crate::batch::{by_component, lanes, LaneKernel, Output, LANES};
 use crate::error::{ensure_finite, Error, Result};
 use glam::{DQuat, DVec3};
 
@@ -54,7 +54,7 @@ fn exp_factors(theta: f64) -> (f64, f64) {
 ///
 /// # Errors
 /// The lowest row with a non-finite component, or `out` of another length.
-pub fn quats_from_rotvecs(rotvecs: &[[f64; 3]], out: &mut [[f64; 4]]) -> Result<()> {
+pub fn quats_from_rotvecs(rotvecs: &[[f64; 3]], out: &mut (impl Output<4> + ?Sized)) -> Result<()> {
     lanes(rotvecs, out, &FromRotvecs)?;
     Ok(())
 }
