@@ -340,15 +340,15 @@ _POSE = (
     "stance_knee",
     "stance_ankle",
 )
-_WALK = {  # the defaults of kinema::character::Gait (the paper's walk, torso leaning)
+_WALK = {  # the defaults of kinema::character::Gait (the paper's walk, Table 1)
     "cd": (0.0, 2.2),
     "cv": (0.2, 0.0),
-    "torso": (-0.15, -0.15),
-    "swing_hip": (0.5, -0.1),
+    "torso": (0.0, 0.0),
+    "swing_hip": (0.4, -0.7),
     "swing_knee": (-1.1, -0.05),
-    "swing_ankle": (0.6, 0.15),
+    "swing_ankle": (0.2, 0.2),
     "stance_knee": (-0.05, -0.1),
-    "stance_ankle": (0.0, 0.0),
+    "stance_ankle": (0.2, 0.2),
 }
 
 
@@ -368,9 +368,12 @@ class Biped:
     world frame, positive forward), ``swing_knee``, ``swing_ankle``, ``stance_knee``,
     ``stance_ankle`` (rad, relative; a bent knee is negative). ``duration`` (s); ``kp``
     (N m/rad), ``kd`` (N m s/rad) of the joints, ``torso_kp``, ``torso_kd`` of the torso;
-    ``max_torque`` (N m) per joint. ``speed``: initial forward speed (m/s).
-    ``contact_frequency`` (rad/s) and ``friction`` of the ground (see
-    :class:`ArticulatedBody`). Step with ``dt`` ≤ 1e-4 s (explicit PD on the 1 kg feet).
+    ``max_torque`` (N m) per joint. The defaults are the paper's walk (Table 1; 1.14 m/s).
+    ``speed``: initial forward speed (m/s). ``contact_frequency`` (rad/s) and ``friction``
+    of the ground (see :class:`ArticulatedBody`). ``slope`` (rad, positive climbs): the
+    ground stays y = 0 and gravity turns by it; the controller takes the vertical from
+    gravity and the swing hip's target from the ground's normal. The knees and ankles are
+    stable PD servos: step with ``dt`` ≤ 2e-3 s (it walks up to 3.5e-3 s).
 
     Coordinates ``q`` (9,): torso ``x, y`` (m, at the hips) and angle (rad), then hip, knee
     and ankle angles of the right leg, then of the left.
@@ -382,12 +385,13 @@ class Biped:
         duration: float = 0.3,
         kp: float = 300.0,
         kd: float = 30.0,
-        torso_kp: float = 1000.0,
-        torso_kd: float = 100.0,
+        torso_kp: float = 300.0,
+        torso_kd: float = 30.0,
         max_torque: float = 400.0,
         speed: float = 0.3,
         contact_frequency: float = 200.0,
         friction: float = 1.0,
+        slope: float = 0.0,
         **pose: Any,
     ) -> None:
         unknown = sorted(set(pose) - set(_POSE))
@@ -417,6 +421,7 @@ class Biped:
             real(speed, "speed"),
             real(contact_frequency, "contact_frequency"),
             real(friction, "friction"),
+            real(slope, "slope"),
         )
 
     @property

@@ -406,7 +406,8 @@ impl Walker {
 
     /// The walker at `speed` (m/s) with the gait's `lift` and `strike` poses (8 values
     /// each, see `pose`), `[duration, kp, kd, torso_kp, torso_kd, max_torque]`, the ground
-    /// contact's `contact_frequency` (rad/s) and `friction`.
+    /// contact's `contact_frequency` (rad/s) and `friction`, on a `slope` (rad, positive
+    /// climbs; the ground stays y = 0 and gravity turns by it).
     #[new]
     fn new(
         lift: [f64; 8],
@@ -415,6 +416,7 @@ impl Walker {
         speed: f64,
         contact_frequency: f64,
         friction: f64,
+        slope: f64,
     ) -> PyResult<Self> {
         let [duration, kp, kd, torso_kp, torso_kd, max_torque] = control;
         let gait = Gait {
@@ -427,7 +429,12 @@ impl Walker {
             torso_kd,
             max_torque,
         };
-        let settings = Settings { contact_frequency, friction, ..Settings::default() };
+        if !(slope.is_finite() && slope.abs() < std::f64::consts::FRAC_PI_2) {
+            return Err(Error::invalid("slope", "must be finite and within ±π/2").into());
+        }
+        let g = Settings::default().gravity.length();
+        let gravity = DVec3::new(-g * slope.sin(), -g * slope.cos(), 0.0);
+        let settings = Settings { contact_frequency, friction, gravity, ..Settings::default() };
         settings_check(&settings)?;
         Ok(Walker { walker: WalkerCore::new(settings, gait, speed)?, saved: None })
     }

@@ -14,19 +14,24 @@
 //!   `τ_A = −τ_torso − τ_B` (`τ_B` the swing hip's torque), so that the hips together
 //!   apply `τ_torso` to the torso. Every torque is clamped to `±max_torque`.
 //!
-//! The controller runs once per step at the step's start (explicit PD: stable while
-//! `k_d dt / I ≲ 1` for the foot's inertia about the ankle, so `dt ≤ 2e-4 s` at the default
-//! gains).
+//! "World frame" and "horizontal" are taken against gravity, not against the ground: with
+//! the gravity of [`Settings::gravity`] turned by α the biped walks on a slope of α.
+//!
+//! The hip torques are computed once per step at the step's start (explicit PD on the
+//! heavy torso and legs). The knees and ankles are servos of the model with the gait's
+//! gains, by default stable PD (Tan, Liu & Turk 2011, [`super::servo`]), whose targets the
+//! controller sets: the 1 kg feet would need `k_d dt / I ≲ 1` under explicit PD
+//! (`dt ≤ 2e-4 s` at the paper's gains).
 
 use super::biped::{planar_biped, LEFT, RIGHT, TORSO};
 use super::dynamics::Tree;
-use super::model::{Model, Settings};
+use super::model::{Model, Servo, Settings};
 use super::solver::Solver;
 use super::state::State;
 use crate::error::{Error, Result};
 use glam::DVec3;
 
-/// The targets and feedback gains of a pair of mirrored states (§3.2, Table 2 of the paper).
+/// The targets and feedback gains of a pair of mirrored states (§3.2, Table 1 of the paper).
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct Pose {
     /// Balance feedback on the stance ankle's distance to the centre of mass, `c_d` (rad/m).
@@ -49,10 +54,9 @@ pub struct Pose {
 }
 
 /// A SIMBICON gait: the poses of states 0/2 (`lift`) and 1/3 (`strike`), the length of
-/// states 0 and 2 and the PD gains. The default is the paper's walk (Table 2) but for the
-/// torso, which leans forward by 0.15 rad and is servoed with stiffer gains than the joints:
-/// with the paper's upright torso this model walks backwards (−0.27 m/s measured), and
-/// `k_p = 300` holds the 70 kg torso only to twice its target lean.
+/// states 0 and 2 and the PD gains. The default is the paper's walk (Table 1, its 2-D
+/// gait): upright torso, `k_p = 300` N m/rad and `k_d = 30` N m s/rad at every joint and at
+/// the torso.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct Gait {
     /// States 0 and 2 (the swing leg lifts).
@@ -79,28 +83,28 @@ impl Default for Gait {
             lift: Pose {
                 cd: 0.0,
                 cv: 0.2,
-                torso: -0.15,
-                swing_hip: 0.5,
+                torso: 0.0,
+                swing_hip: 0.4,
                 swing_knee: -1.1,
-                swing_ankle: 0.6,
+                swing_ankle: 0.2,
                 stance_knee: -0.05,
-                stance_ankle: 0.0,
+                stance_ankle: 0.2,
             },
             strike: Pose {
                 cd: 2.2,
                 cv: 0.0,
-                torso: -0.15,
-                swing_hip: -0.1,
+                torso: 0.0,
+                swing_hip: -0.7,
                 swing_knee: -0.05,
-                swing_ankle: 0.15,
+                swing_ankle: 0.2,
                 stance_knee: -0.1,
-                stance_ankle: 0.0,
+                stance_ankle: 0.2,
             },
             duration: 0.3,
             kp: 300.0,
             kd: 30.0,
-            torso_kp: 1000.0,
-            torso_kd: 100.0,
+            torso_kp: 300.0,
+            torso_kd: 30.0,
             max_torque: 400.0,
         }
     }
@@ -172,16 +176,17 @@ pub struct Walker {
 impl Walker {
     /// The biped standing straight with its soles on the ground (sunk by the contact
     /// springs' rest depth), moving forward at `speed` (m/s), under `gait`, in FSM state 0,
-    /// with `settings` (a ground is needed to walk).
+    /// with `settings` (a ground is needed to walk; gravity gives the vertical).
     ///
     /// # Errors
-    /// A gait that [`Gait::check`] refuses; a non-finite `speed` (`speed`).
+    /// A gait that [`Gait::check`] refuses; a non-finite `speed` (`speed`); a gravity
+    /// without a component in the x–y plane (`gravity`).
     pub fn new(settings: Settings, gait: Gait, speed: f64) -> Result<Self> {
         gait.check()?;
         if !speed.is_finite() {
             return Err(Error::invalid("speed", "must be finite"));
         }
-        let model = planar_biped(settings)?;
+        let model = walker_model(settings, &gait)?;
         let mut state = State::new(&model);
         let mut q = model.neutral();
         q[1] = super::biped::hip_height() - 0.002;
@@ -228,6 +233,12 @@ impl Walker {
     /// are as before the call.
     pub fn step(&mut self, dt: f64, steps: usize) -> Result<()> {
         self.gait.check()?;
+        let servo = joint_servo(&self.gait);
+        if self.model.bodies()[SERVOED[0]].servo != Some(servo) {
+            for body in SERVOED {
+                self.model.set_servo(body, Some(servo))?;
+            }
+        }
         let (start, phase) = (self.state.clone(), self.phase);
         for _ in 0..steps {
             let tree = self.solver.kinematics(&self.model, &self.state);
@@ -257,6 +268,41 @@ impl Walker {
     pub fn kinematics(&mut self) -> &mut Tree {
         self.solver.kinematics(&self.model, &self.state)
     }
+}
+
+/// The bodies whose joints are servos of the model (knees and ankles), driven towards the
+/// controller's targets with the gait's gains.
+pub(super) const SERVOED: [usize; 4] = [RIGHT[1], RIGHT[2], LEFT[1], LEFT[2]];
+
+/// The servo of every knee and ankle under `gait`.
+fn joint_servo(gait: &Gait) -> Servo {
+    Servo { kp: gait.kp, kd: gait.kd, max_torque: gait.max_torque }
+}
+
+/// The walker's model: the planar biped with `settings` and `gait`'s servos at its knees
+/// and ankles.
+///
+/// # Errors
+/// A gravity without a component in the x–y plane (`gravity`); those of
+/// [`planar_biped`] and [`Model::set_servo`].
+pub(super) fn walker_model(settings: Settings, gait: &Gait) -> Result<Model> {
+    let g = settings.gravity;
+    if !(g.x.hypot(g.y) > 0.0) {
+        return Err(Error::invalid("gravity", "must have a component in the x-y plane"));
+    }
+    let mut model = planar_biped(settings)?;
+    for body in SERVOED {
+        model.set_servo(body, Some(joint_servo(gait)))?;
+    }
+    Ok(model)
+}
+
+/// The upward vertical (against gravity) and the forward horizontal, unit vectors in the
+/// x–y plane, and the angle (rad, about z) of the vertical from the y axis.
+fn vertical(model: &Model) -> (DVec3, DVec3, f64) {
+    let g = model.settings.gravity;
+    let up = DVec3::new(-g.x, -g.y, 0.0).normalize();
+    (up, DVec3::new(up.y, -up.x, 0.0), (-up.x).atan2(up.y))
 }
 
 /// Whether body `foot`'s capsule reaches below the ground plane.
@@ -291,35 +337,36 @@ fn advance(phase: &mut Phase, gait: &Gait, model: &Model, tree: &Tree) {
     }
 }
 
-/// The joint torques of SIMBICON (§3.2–3.3) into `state`'s applied torques.
+/// SIMBICON's controls (§3.2–3.3) into `state`: the hips' torques, and the knees' and
+/// ankles' servo targets.
 fn control(gait: &Gait, phase: &Phase, model: &Model, tree: &Tree, state: &mut State) {
     let pose = if phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
     let (swing, stance) = legs(phase.state);
+    let (_, ahead, tilt) = vertical(model);
     let (q, qd) = (state.q(), state.qd());
     let dof = |body: usize| model.starts(body).1;
     let limit = gait.max_torque;
-    let pd = |target: f64, angle: f64, rate: f64| {
-        (gait.kp * (target - angle) - gait.kd * rate).clamp(-limit, limit)
-    };
     let (lin, mass) = (tree.momentum(model).1, model.mass());
-    let d = tree.com(model).x - tree.positions()[stance[2]].x;
-    let v = lin.x / mass;
-    let target_hip = pose.swing_hip + pose.cd * d + pose.cv * v;
-    let (torso, torso_rate) = (q[2], qd[2]);
+    let d = (tree.com(model) - tree.positions()[stance[2]]).dot(ahead);
+    let v = lin.dot(ahead) / mass;
+    // The swing hip's target is measured from the ground's normal (the slope adjustment:
+    // on a slope of α it is θ_d + α from the vertical), the torso's from the vertical.
+    let target_hip = pose.swing_hip + pose.cd * d + pose.cv * v - tilt;
+    let (torso, torso_rate) = (q[2] - tilt, qd[2]);
     let mut tau = [0.0; 9];
     let torso_torque = gait.torso_kp * (pose.torso - torso) - gait.torso_kd * torso_rate;
     let sh = dof(swing[0]);
-    tau[sh] = pd(target_hip, torso + q[sh], torso_rate + qd[sh]);
+    let swing_torque = gait.kp * (target_hip - torso - q[sh]) - gait.kd * (torso_rate + qd[sh]);
+    tau[sh] = swing_torque.clamp(-limit, limit);
     tau[dof(stance[0])] = (-torso_torque - tau[sh]).clamp(-limit, limit);
+    debug_assert_eq!((dof(TORSO), model.nv(), model.nq()), (0, tau.len(), tau.len()));
+    state.torques.copy_from_slice(&tau);
     for (body, target) in [
         (swing[1], pose.swing_knee),
         (swing[2], pose.swing_ankle),
         (stance[1], pose.stance_knee),
         (stance[2], pose.stance_ankle),
     ] {
-        let i = dof(body);
-        tau[i] = pd(target, q[i], qd[i]);
+        state.targets[model.starts(body).0] = target;
     }
-    debug_assert_eq!((dof(TORSO), model.nv()), (0, tau.len()));
-    state.torques.copy_from_slice(&tau);
 }

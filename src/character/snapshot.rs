@@ -2,6 +2,7 @@
 //! its model's fingerprint so that it is restored only onto it.
 
 use super::model::Joint;
+use super::simbicon::SERVOED;
 use super::{planar_biped, ArticulatedBody, Model, State, Walker};
 use crate::error::Result;
 use crate::snapshot::{check, finite, Snapshot, Stamped};
@@ -66,9 +67,13 @@ impl Snapshot for ArticulatedBody {
 impl Snapshot for Walker {
     const TAG: &'static str = "Walker";
 
-    /// The model must be the planar biped of its settings; the gait, state and phase valid.
+    /// The model must be the planar biped of its settings with servos at the knees and
+    /// ankles only; the gait, state and phase valid.
     fn validate(&self) -> Result<()> {
-        let rebuilt = planar_biped(self.model.settings)?;
+        let mut rebuilt = planar_biped(self.model.settings)?;
+        for body in SERVOED {
+            rebuilt.set_servo(body, self.model.bodies()[body].servo)?;
+        }
         check(rebuilt == self.model, "model", || "not the planar biped".into())?;
         self.model.check_settings()?;
         self.gait.check()?;

@@ -1,9 +1,9 @@
 """Biped demo: the planar SIMBICON walker (Yin, Loken & van de Panne 2007) on flat ground.
 
-Writes ``biped.gif`` (the stick figure walking, pushed from behind at t = 4 s with 250 N for
+Writes ``biped.gif`` (the stick figure walking, pushed from behind at t = 4 s with 350 N for
 0.2 s, and recovering) and ``biped.png`` (the centre of mass's speed and height, the foot
 contacts). Prints the walking speed, the steps taken and the largest push survived of a
-sweep (a push at 4 s to the torso for 0.2 s, from behind and from the front). dt = 1e-4 s.
+sweep (a push at 4 s to the torso for 0.2 s, from behind and from the front). dt = 1e-3 s.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 
 from kinema.character import Biped
 
-DT = 1e-4
+DT = 1e-3
 FRAME = 1.0 / 30.0  # s between recorded frames
 
 
@@ -70,7 +70,7 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     seconds = 5.0 if quick else 10.0
-    b, log = walk(seconds, push=250.0)
+    b, log = walk(seconds, push=350.0)
     com = np.array(log["com"])
     t = FRAME * np.arange(1, len(com) + 1)
     half = len(t) // 2
@@ -95,7 +95,7 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
     v = np.gradient(com[:, 0], t)
     axes[0].plot(t, v, label="COM speed (m/s)")
     axes[0].plot(t, com[:, 1], label="COM height (m)")
-    axes[0].axvspan(4.0, 4.2, color="0.85", label="250 N push")
+    axes[0].axvspan(4.0, 4.2, color="0.85", label="350 N push")
     axes[0].set_xlabel("time (s)")
     axes[0].legend(fontsize=8)
     feet = np.array(log["feet"], dtype=float)
@@ -108,7 +108,7 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
     fig.savefig(png, dpi=100)
     plt.close(fig)
 
-    forces = [250.0] if quick else [100.0 * k for k in range(2, 11)]
+    forces = [350.0] if quick else [100.0 * k for k in range(2, 11)]
     sweep_seconds = 5.0 if quick else 7.0
     return {
         "seconds": seconds,
