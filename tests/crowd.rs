@@ -347,3 +347,43 @@ fn bad_arguments_are_named_and_leave_the_crowd_unchanged() {
     }
     assert_eq!(*crowd.state(), before);
 }
+
+#[test]
+#[ignore]
+fn explore_exact_ring() {
+    let n: usize = std::env::var("N").unwrap().parse().unwrap();
+    let r: f64 = std::env::var("R").unwrap().parse().unwrap();
+    let pert: f64 = std::env::var("PERT").unwrap().parse().unwrap();
+    let settings = Settings { perturbation: pert, ..Settings::rvo2_circle() };
+    let mut crowd = Crowd::new(settings).unwrap();
+    let (p, g) = circle(n, r);
+    crowd.add_agents(&p, &g).unwrap();
+    let mut deep: f64 = 0.0;
+    let mut over3 = 0;
+    let mut steps = 0;
+    while steps < 5000 && !crowd.state().arrival_times().iter().all(|t| t.is_finite()) {
+        crowd.step(0.25, 1).unwrap();
+        let q = crowd.state().positions();
+        deep = deep.max(3.0 - min_distance(q));
+        over3 += overlapping_pairs_tol(q, 1.5, 1e-3);
+        steps += 1;
+    }
+    let s = crowd.state();
+    let arrived: Vec<f64> = s.arrival_times().iter().copied().filter(|t| t.is_finite()).collect();
+    eprintln!(
+        "n {n} r {r} pert {pert}: {} arrived in {steps} steps, mean {:.2}, deepest {deep:.4}, over 1mm {over3}, {:?}",
+        arrived.len(),
+        arrived.iter().sum::<f64>() / arrived.len() as f64,
+        s.tally()
+    );
+}
+
+fn overlapping_pairs_tol(p: &[DVec2], radius: f64, tol: f64) -> u64 {
+    let mut count = 0;
+    for i in 0..p.len() {
+        for j in i + 1..p.len() {
+            count += u64::from((p[i] - p[j]).length() < 2.0 * radius - tol);
+        }
+    }
+    count
+}
