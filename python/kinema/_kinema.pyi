@@ -216,6 +216,8 @@ class Crowd:
         body: float,
         friction: float,
         max_substep: float,
+        anisotropy: float,
+        time_gap: float,
         perturbation: float,
         seed: int,
     ) -> Crowd: ...

@@ -37,7 +37,10 @@ class Crowd:
     friction forces with Helbing, Farkas & Vicsek's 2000 parameters ``mass`` kg,
     ``relaxation_time`` s, ``strength`` N, ``range`` m, ``body`` kg/s², ``friction``
     kg/(m s); substeps of at most ``max_substep`` s; agents within ``neighbour_distance``
-    interact). Agents walk at ``preferred_speed`` m/s, never faster than ``max_speed``, and
+    interact; ``anisotropy`` λ in [0, 1] weakens the repulsion from behind to λ times that
+    from ahead (Helbing & Molnár 1995; 1: isotropic) and ``time_gap`` b s makes the required
+    length grow with the speed towards the other, ``d = a + b v`` (Seyfried et al. 2005; 0:
+    off), which together give Weidmann's fundamental diagram (docs/crowd.md)). Agents walk at ``preferred_speed`` m/s, never faster than ``max_speed``, and
     have arrived within ``goal_tolerance`` m of their goal. ORCA adds to every preferred
     velocity a ``perturbation`` (m/s) in a direction hashed from ``seed``, the step and the
     agent, which breaks exactly symmetric deadlocks (0 turns it off). ``navigation`` (m, or
@@ -63,6 +66,8 @@ class Crowd:
         body: float = 1.2e5,
         friction: float = 2.4e5,
         max_substep: float = 0.005,
+        anisotropy: float = 1.0,
+        time_gap: float = 0.0,
         perturbation: float = 0.0,
         seed: int = 0,
         navigation: float | None = None,
@@ -86,6 +91,8 @@ class Crowd:
             real(body, "body"),
             real(friction, "friction"),
             real(max_substep, "max_substep"),
+            real(anisotropy, "anisotropy"),
+            real(time_gap, "time_gap"),
             real(perturbation, "perturbation"),
             seed,
         )

@@ -54,7 +54,8 @@ impl Crowd {
     /// and `preferred_speed` (m/s), `neighbour_distance` (m), `max_neighbours`, ORCA's
     /// `time_horizon` and `obstacle_time_horizon` (s), `goal_tolerance` (m), and the social
     /// forces' `mass` (kg), `relaxation_time` (s), `strength` (N), `range` (m), `body`
-    /// (kg/s²), `friction` (kg/(m s)), `max_substep` (s); ORCA's preferred-velocity
+    /// (kg/s²), `friction` (kg/(m s)), `max_substep` (s), `anisotropy` (λ, in [0, 1]) and
+    /// `time_gap` (s; Seyfried's `d = a + b v`); ORCA's preferred-velocity
     /// `perturbation` (m/s) and its `seed`.
     #[new]
     #[allow(clippy::too_many_arguments)]
@@ -75,6 +76,8 @@ impl Crowd {
         body: f64,
         friction: f64,
         max_substep: f64,
+        anisotropy: f64,
+        time_gap: f64,
         perturbation: f64,
         seed: Int,
     ) -> PyResult<Self> {
@@ -88,6 +91,8 @@ impl Crowd {
                 body,
                 friction,
                 max_substep,
+                anisotropy,
+                time_gap,
             }),
             _ => return Err(Error::invalid("model", "expected 'orca' or 'social_force'").into()),
         };

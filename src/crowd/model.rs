@@ -36,6 +36,18 @@ pub struct SocialForce {
     pub friction: f64,
     /// Longest substep (s), 0.005: a step of `dt` takes `ceil(dt / max_substep)` substeps.
     pub max_substep: f64,
+    /// Anisotropy `λ` in [0, 1] of the exponential repulsion (Helbing & Molnár 1995, §2,
+    /// weaker forces from behind; the continuous form `w = λ + (1 - λ)(1 + cos φ)/2` of
+    /// Helbing, Buzna, Johansson & Werner 2005, eq. 3), `φ` the angle between the agent's
+    /// desired direction and the direction to the other: full force from ahead, `λ` times it
+    /// from behind. 1 (default): isotropic, as Helbing, Farkas & Vicsek 2000.
+    pub anisotropy: f64,
+    /// Time gap `b` (s) of the speed-dependent required length `d = a + b v` of Seyfried,
+    /// Steffen, Klingsch & Boltes 2005 (`a` = the two radii here): the exponential repulsion
+    /// from another agent acts as if the bodies were `b max(0, v_i · e_ij)` larger, `e_ij`
+    /// the unit vector to the other, so an agent keeps a headway that grows with its speed
+    /// towards the one ahead. 0 (default): off.
+    pub time_gap: f64,
 }
 
 impl Default for SocialForce {
@@ -48,6 +60,8 @@ impl Default for SocialForce {
             body: 1.2e5,
             friction: 2.4e5,
             max_substep: 0.005,
+            anisotropy: 1.0,
+            time_gap: 0.0,
         }
     }
 }
@@ -138,7 +152,10 @@ impl Settings {
                     return Err(Error::invalid(arg, "must be finite and > 0"));
                 }
             }
-            for (arg, v) in [("body", s.body), ("friction", s.friction)] {
+            if !(0.0..=1.0).contains(&s.anisotropy) {
+                return Err(Error::invalid("anisotropy", "must be in [0, 1]"));
+            }
+            for (arg, v) in [("body", s.body), ("friction", s.friction), ("time_gap", s.time_gap)] {
                 if !(v.is_finite() && v >= 0.0) {
                     return Err(Error::invalid(arg, "must be finite and >= 0"));
                 }

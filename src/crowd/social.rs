@@ -13,6 +13,14 @@
 //! vector pointing to the pedestrian, `t` its tangent, `g(x) = max(x, 0)` (the body force
 //! `k` and sliding friction `κ` act only on contact) and `Δv_ji^t = (v_j - v_i) · t_ij`. Each
 //! obstacle polygon acts as one wall through its nearest point.
+//!
+//! Two options make the speed fall with density (the fundamental diagram, docs/crowd.md):
+//! the anisotropy `λ` weights the exponential term of `f_ij` by
+//! `w = λ + (1 - λ)(1 + cos φ)/2`, `cos φ = -n_ij · e_i` with `e_i` the desired direction
+//! (Helbing & Molnár 1995, §2; continuous form of Helbing, Buzna, Johansson & Werner 2005,
+//! eq. 3), and the time gap `b` replaces `r_ij` in it by `r_ij + b max(0, -v_i · n_ij)`, the
+//! speed-dependent required length `d = a + b v` of Seyfried et al. 2005 along the line to
+//! the other agent. The body and friction terms stay those of the touching discs.
 
 use super::orca::{apart, segment_distance2};
 use super::{Model, SocialForce};
@@ -36,6 +44,7 @@ pub(super) fn acceleration(
 ) -> DVec2 {
     let r = model.settings.radius;
     let (p, v) = (agents.positions[i], agents.velocities[i]);
+    let e = agents.preferred[i].normalize_or_zero();
     let mut f = sf.mass * (agents.preferred[i] - v) / sf.relaxation_time;
     for &j in candidates {
         let j = j as usize;
@@ -46,7 +55,9 @@ pub(super) fn acceleration(
         let contact = overlap.max(0.0);
         let t = n.perp();
         let slip = (agents.velocities[j] - v).dot(t);
-        f += (sf.strength * (overlap / sf.range).exp() + sf.body * contact) * n
+        let weight = sf.anisotropy + (1.0 - sf.anisotropy) * 0.5 * (1.0 - n.dot(e));
+        let reach = overlap + sf.time_gap * (-v.dot(n)).max(0.0);
+        f += (weight * sf.strength * (reach / sf.range).exp() + sf.body * contact) * n
             + sf.friction * contact * slip * t;
     }
     let reach2 = model.settings.neighbour_distance * model.settings.neighbour_distance;
@@ -110,6 +121,29 @@ mod tests {
         // Newton's third law for the normal part.
         let b = acceleration(&m, &sf, &agents, 1, &[0]);
         assert!((a.x + b.x).abs() < 1e-9 * push);
+    }
+
+    #[test]
+    fn anisotropy_weakens_the_push_from_behind_and_time_gap_lengthens_the_reach() {
+        let (m, sf) = model();
+        // Agent 0 walks +x at 1 m/s; agent 1 is 1 m ahead of it, agent 2 1 m behind.
+        let pos = [DVec2::ZERO, DVec2::new(1.0, 0.0), DVec2::new(-1.0, 0.0)];
+        let vel = [DVec2::new(1.0, 0.0), DVec2::ZERO, DVec2::ZERO];
+        let pref = [DVec2::new(1.0, 0.0); 3];
+        let agents = Agents { positions: &pos, velocities: &vel, preferred: &pref };
+        let push = |sf: &SocialForce, j: u32| {
+            // Less the driving term (zero here: v = v⁰).
+            acceleration(&m, sf, &agents, 0, &[j]).x * sf.mass
+        };
+        let plain = 2000.0 * (-0.4f64 / 0.08).exp();
+        let lam = SocialForce { anisotropy: 0.3, ..sf };
+        assert!((push(&lam, 1) + plain).abs() < 1e-9 * plain, "from ahead: full");
+        assert!((push(&lam, 2) - 0.3 * plain).abs() < 1e-9 * plain, "from behind: λ");
+        // Time gap b: the reach grows by b (v · e) towards the one ahead, not the one behind.
+        let gap = SocialForce { time_gap: 0.1, ..sf };
+        let ahead = 2000.0 * ((-0.4f64 + 0.1) / 0.08).exp();
+        assert!((push(&gap, 1) + ahead).abs() < 1e-9 * ahead);
+        assert!((push(&gap, 2) - plain).abs() < 1e-9 * plain);
     }
 
     #[test]
