@@ -108,3 +108,77 @@ fn heat_weights_refuse_bad_triangles_naming_the_argument() {
     let last = v2.len() - 1;
     assert_eq!((b[2 * last], w[2 * last]), (1, 1.0));
 }
+
+/// Append to `(v, t)` a closed cylinder along y of radius `r` about `(x, ·, 0)` from `y0` to
+/// `y1`: `rings` rings of `sides` vertices and a fan on each end (outward facing).
+fn closed_cylinder(v: &mut Vec<[f64; 3]>, t: &mut Vec<[u32; 3]>, x: f64, r: f64, y: [f64; 2]) {
+    let (rings, sides) = (21, 16);
+    let base = v.len() as u32;
+    for i in 0..rings {
+        let yi = y[0] + (y[1] - y[0]) * i as f64 / (rings - 1) as f64;
+        for s in 0..sides {
+            let a = std::f64::consts::TAU * s as f64 / sides as f64;
+            v.push([x + r * a.cos(), yi, r * a.sin()]);
+        }
+    }
+    let at = |i: usize, s: usize| base + (i * sides + s % sides) as u32;
+    for i in 0..rings - 1 {
+        for s in 0..sides {
+            t.push([at(i, s), at(i + 1, s), at(i + 1, s + 1)]);
+            t.push([at(i, s), at(i + 1, s + 1), at(i, s + 1)]);
+        }
+    }
+    let (bottom, top) = (v.len() as u32, v.len() as u32 + 1);
+    v.push([x, y[0], 0.0]);
+    v.push([x, y[1], 0.0]);
+    for s in 0..sides {
+        t.push([bottom, at(0, s + 1), at(0, s)]);
+        t.push([top, at(rings - 1, s), at(rings - 1, s + 1)]);
+    }
+}
+
+/// Two legs pressed together (a gap of 1 cm), the left leg's bone off its centre away from
+/// the right leg: the inner side of the left leg is nearer to the right leg's bone than to its
+/// own, but that bone is behind the right leg's surface. With the visibility test of Baran &
+/// Popović (§4) every vertex of the left leg follows its own bone alone; without it the inner
+/// side would follow the other leg.
+#[test]
+fn heat_weights_of_legs_pressed_together_follow_the_visible_bone() {
+    let (r, gap) = (0.1, 0.01);
+    let centre = r + gap / 2.0;
+    let (mut v, mut t) = (Vec::new(), Vec::new());
+    closed_cylinder(&mut v, &mut t, -centre, r, [-0.05, 1.05]);
+    let left = v.len();
+    closed_cylinder(&mut v, &mut t, centre, r, [-0.05, 1.05]);
+    let bone_x = [-centre - 0.6 * r, centre];
+    let segments: Vec<_> = bone_x.iter().map(|&x| ([x, 0.0, 0.0], [x, 1.0, 0.0])).collect();
+    let (b, w) = heat_weights(&v, &t, &segments, &[0, 1], 2, 2).unwrap();
+    let mut nearer_the_other = 0;
+    for (j, p) in v.iter().enumerate() {
+        let own = usize::from(j >= left);
+        let d = |x: f64| ((p[0] - x).powi(2) + p[2].powi(2)).sqrt();
+        nearer_the_other += usize::from(d(bone_x[1 - own]) < d(bone_x[own]));
+        let weight = weight_of(own as u32, j, 2, &b, &w);
+        assert!(weight > 1.0 - 1e-9, "vertex {j} of leg {own} follows its bone by {weight}");
+    }
+    assert!(nearer_the_other >= 60, "only {nearer_the_other} vertices nearer the other bone");
+}
+
+/// A closed part of the surface from which no bone is visible (a box inside a shell, the
+/// bones outside both) would make the system singular: it takes its nearest bone without the
+/// visibility test, and the shell (which sees the bones) is held by them as usual.
+#[test]
+fn heat_weights_of_a_part_that_sees_no_bone_take_the_nearest() {
+    let (mut v, mut t) = (Vec::new(), Vec::new());
+    closed_cylinder(&mut v, &mut t, 0.0, 0.1, [0.0, 0.2]);
+    let inner = v.len();
+    closed_cylinder(&mut v, &mut t, 0.0, 0.5, [-0.5, 0.7]);
+    let segments = [([-2.0, 0.0, 0.0], [-2.0, 0.2, 0.0]), ([3.0, 0.0, 0.0], [3.0, 0.2, 0.0])];
+    let (b, w) = heat_weights(&v, &t, &segments, &[0, 1], 2, 2).unwrap();
+    for j in 0..inner {
+        assert!(weight_of(0, j, 2, &b, &w) > 1.0 - 1e-9, "inner vertex {j}");
+    }
+    assert!(w.iter().all(|x| x.is_finite()));
+    let shell_left = (inner..v.len()).find(|&j| v[j][0] < -0.49).unwrap();
+    assert!(weight_of(0, shell_left, 2, &b, &w) > 0.5);
+}

@@ -12,8 +12,8 @@
   config that cannot be used.
 - ``kinema bench``: the peer comparisons of ``bench/`` (quick sizes unless ``--full``).
 - ``kinema info``: versions, threads, build flags.
-- ``kinema view CHECKPOINT``: play a scene's recorded animation in the browser
-  (:mod:`kinema.view`, needs the ``viewer`` extra).
+- ``kinema view FILE``: play a scene checkpoint's recorded animation, or a ``.glb`` file, in
+  the browser (:mod:`kinema.view`, needs the ``viewer`` extra).
 
 Each demo is a module ``kinema.demos.<name>`` with a function
 ``run(out_dir: pathlib.Path, quick: bool) -> dict[str, object]`` that writes its pictures into
@@ -203,8 +203,10 @@ def main(argv: list[str] | None = None) -> int:
     bench.add_argument("--full", action="store_true", help="full sizes (default: quick)")
     bench.add_argument("--dir", type=Path, help="the bench/ folder of a source checkout")
     sub.add_parser("info", help="versions, threads, build flags and available demos")
-    vw = sub.add_parser("view", help="play a scene checkpoint's recorded animation in a browser")
-    vw.add_argument("checkpoint", type=Path, help='a Scene.save file that recorded "animation"')
+    vw = sub.add_parser("view", help="play a recorded animation or a .glb file in a browser")
+    vw.add_argument(
+        "checkpoint", type=Path, help='a Scene.save file that recorded "animation", or a .glb file'
+    )
     vw.add_argument("--port", type=int, default=8080, help="the port to serve on")
     args = parser.parse_args(argv)
 

@@ -571,8 +571,8 @@ class Scene:
 
     def export(self, path: str | os.PathLike[str]) -> None:
         """Write the animation this scene recorded (``record("animation")`` before running) as
-        glTF (``.glb``) or USD (``.usd``, ``.usdc``, ``.usda``): cloth as deforming meshes, rigid
-        bodies and animated spheres as moving meshes (:mod:`kinema.io.scene`). Needs the
+        glTF (``.glb``) or USD (``.usd``, ``.usdc``, ``.usda``): every system, as deforming
+        meshes, moving meshes, polylines and points (:mod:`kinema.io.scene`). Needs the
         ``export`` extra."""
         from kinema.io.scene import export_scene
 

@@ -13,6 +13,8 @@
 //! - [`triangle`]: the closest point of a triangle, an exact triangle–triangle intersection
 //!   test on the exact predicates of [`exact`], and the search for intersecting triangles of
 //!   a mesh;
+//! - [`tree`]: a bounding volume hierarchy of a triangle mesh that tells whether a segment
+//!   meets the surface;
 //! - [`ccd`]: continuous collision detection of a moving vertex and triangle, or two edges
 //!   (the coplanarity cubic of Provot 1997);
 //! - [`isosurface`]: the zero level set of a sampled function as a closed triangle mesh
@@ -31,6 +33,7 @@ pub mod query;
 pub mod segment;
 pub mod shape;
 pub mod solid;
+pub mod tree;
 pub mod triangle;
 
 pub use material::Material;

@@ -18,11 +18,17 @@
 //! faer) for every bone. Since `Σᵢ pⁱ = 1` and `L 1 = 0`, the weights of all bones sum to 1 at
 //! every vertex before any truncation.
 //!
-//! Not done: the paper's visibility test (a bone whose segment to the vertex leaves the mesh
-//! does not hold it, `H_jj = 0`); here the nearest bone holds, as in the proximity weights.
+//! "Nearest" is the paper's nearest *visible* bone (§4): a bone holds a vertex only if the
+//! segment from the vertex to the bone's closest point meets no other part of the surface,
+//! tested exactly against the triangles through a bounding volume hierarchy
+//! ([`TriangleTree`]); a vertex that sees no bone has `H_jj = 0` and takes its weights from
+//! its neighbours alone. So where two limbs touch (legs pressed together, an arm against the
+//! torso) a vertex of one follows its own bone even when the other limb's is nearer.
 
-use super::weights::{bone_distances, check_bones};
+use super::weights::check_bones;
 use crate::error::{Error, Result};
+use crate::geometry::segment::closest_point_on_segment;
+use crate::geometry::tree::TriangleTree;
 use crate::linalg::SparseCholesky;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -66,7 +72,7 @@ pub fn heat_weights(
             return Err(Error::invalid("triangles", "repeats a vertex").at(t));
         }
     }
-    let (nearest, hold) = nearest_bones(vertices, segments, bones_of, bones);
+    let (nearest, hold) = nearest_bones(vertices, triangles, segments, bones_of);
     let (mut matrix, area) = Cotangent::assemble(vertices, triangles);
     for j in 0..n {
         matrix.add(j, j, area[j] * hold[j]);
@@ -100,16 +106,21 @@ pub fn heat_weights(
     Ok((out_bones, out_weights))
 }
 
-/// A vertex's nearest bones, each with its share of `p`.
+/// A vertex's nearest visible bones, each with its share of `p`.
 type Nearest = Vec<(u32, f64)>;
 
-/// Every vertex's nearest bones with their shares of `p` (`1/n` for `n` equidistant), and
-/// its `H_jj = c / d_j²`.
+/// Every vertex's nearest visible bones with their shares of `p` (`1/n` for `n` equidistant),
+/// and its `H_jj = c / d_j²` (0 when it sees no bone). Bone `b` is visible from vertex `j`
+/// when the segment from `j` to the closest point of one of `b`'s segments meets no triangle
+/// of the surface other than those at `j` (the paper's test, §4: a bone on the other side of
+/// the surface, such as the other leg's, does not hold the vertex even when it is nearer).
+/// A connected part of the surface where no vertex sees a bone (the system would be singular
+/// there) takes the nearest bones without the test.
 fn nearest_bones(
     vertices: &[[f64; 3]],
+    triangles: &[[u32; 3]],
     segments: &[([f64; 3], [f64; 3])],
     bones_of: &[u32],
-    bones: usize,
 ) -> (Vec<Nearest>, Vec<f64>) {
     let (lo, hi) = vertices
         .iter()
@@ -117,23 +128,85 @@ fn nearest_bones(
             (lo.min(DVec3::from_array(*v)), hi.max(DVec3::from_array(*v)))
         });
     let floor = MIN_DISTANCE * (hi - lo).length().max(f64::MIN_POSITIVE);
-    vertices
+    let tree = TriangleTree::new(vertices, triangles);
+    let (mut nearest, mut hold): (Vec<Nearest>, Vec<f64>) = vertices
         .par_iter()
-        .map_init(
-            || vec![f64::INFINITY; bones],
-            |distance, v| {
-                bone_distances(DVec3::from_array(*v), segments, bones_of, distance);
-                let d = distance.iter().copied().fold(f64::INFINITY, f64::min);
-                let near: Vec<u32> = (0..bones)
-                    .filter(|&b| distance[b] <= d * (1.0 + TIE))
-                    .map(|b| b as u32)
-                    .collect();
-                let share = 1.0 / near.len() as f64;
-                let d = d.max(floor);
-                (near.into_iter().map(|b| (b, share)).collect(), HEAT / (d * d))
-            },
-        )
-        .unzip()
+        .enumerate()
+        .map(|(j, v)| {
+            let x = DVec3::from_array(*v);
+            let at_j = |t: usize| triangles[t].contains(&(j as u32));
+            let visible = |c: DVec3| !tree.segment_hits(x, c, at_j);
+            closest_visible(x, segments, bones_of, floor, visible)
+        })
+        .unzip();
+    let part = components(vertices.len(), triangles);
+    let mut seen = vec![false; vertices.len()];
+    for (j, &h) in hold.iter().enumerate() {
+        seen[part[j]] |= h > 0.0;
+    }
+    for j in (0..vertices.len()).filter(|&j| !seen[part[j]]) {
+        let x = DVec3::from_array(vertices[j]);
+        (nearest[j], hold[j]) = closest_visible(x, segments, bones_of, floor, |_| true);
+    }
+    (nearest, hold)
+}
+
+/// The bones of the segments nearest to `x` among those whose closest point `c` passes
+/// `visible(c)`, within the relative [`TIE`] of the nearest, each with an equal share; and
+/// `c / d²` for their distance `d` (at least `floor`). No bones and 0 if none is visible.
+fn closest_visible(
+    x: DVec3,
+    segments: &[([f64; 3], [f64; 3])],
+    bones_of: &[u32],
+    floor: f64,
+    visible: impl Fn(DVec3) -> bool,
+) -> (Nearest, f64) {
+    let mut candidates: Vec<(f64, DVec3, u32)> = segments
+        .iter()
+        .zip(bones_of)
+        .map(|((a, b), &bone)| {
+            let c = closest_point_on_segment(DVec3::from_array(*a), DVec3::from_array(*b), x);
+            (x.distance(c), c, bone)
+        })
+        .collect();
+    candidates.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.2.cmp(&q.2)));
+    let Some(first) = candidates.iter().position(|&(_, c, _)| visible(c)) else {
+        return (Vec::new(), 0.0);
+    };
+    let d = candidates[first].0;
+    let mut near: Vec<u32> = candidates[first..]
+        .iter()
+        .take_while(|&&(e, _, _)| e <= d * (1.0 + TIE))
+        .filter(|&&(_, c, _)| c == candidates[first].1 || visible(c))
+        .map(|&(_, _, bone)| bone)
+        .collect();
+    near.sort_unstable();
+    near.dedup();
+    let share = 1.0 / near.len() as f64;
+    let d = d.max(floor);
+    (near.into_iter().map(|b| (b, share)).collect(), HEAT / (d * d))
+}
+
+/// The connected part of every vertex (an index of a vertex of that part): vertices joined
+/// by triangles, by union–find.
+fn components(n: usize, triangles: &[[u32; 3]]) -> Vec<usize> {
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for t in triangles {
+        let mut a = root(&mut parent, t[0] as usize);
+        for &v in &t[1..] {
+            let b = root(&mut parent, v as usize);
+            parent[a.max(b)] = a.min(b);
+            a = a.min(b);
+        }
+    }
+    (0..n).map(|i| root(&mut parent, i)).collect()
 }
 
 /// The `k` largest positive weights of `candidates` into `bones`/`weights`, largest first

@@ -8,7 +8,17 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MeshSequence", "RigidTrack", "SkeletonFrames", "skeleton_frames", "times_of"]
+__all__ = [
+    "FrameMeshes",
+    "MeshSequence",
+    "RigidTrack",
+    "SkeletonFrames",
+    "frame_meshes_of",
+    "frames_of",
+    "skeleton_frames",
+    "strand_segments",
+    "times_of",
+]
 
 
 @dataclass
@@ -26,13 +36,69 @@ class RigidTrack:
 
 @dataclass
 class MeshSequence:
-    """A deforming mesh: ``frames (F, V, 3)`` m of one ``triangles (T, 3)`` topology at ``times
-    (F,)`` s, written as morph targets (see the module docs)."""
+    """Vertices of a fixed number moving: ``frames (F, V, 3)`` m at ``times (F,)`` s, joined by
+    ``triangles (T, 3)`` (a deforming mesh: cloth), or with ``triangles=None`` by ``strands``,
+    the vertex counts ``(S,)`` of polylines laid end to end (rods, hair), or by nothing (points:
+    crowds, flocks). Written as morph targets in glTF, time-sampled points in USD."""
 
     triangles: Any
     times: Any
     frames: Any
     name: str = "mesh"
+    strands: Any = None
+
+
+@dataclass
+class FrameMeshes:
+    """A mesh or point cloud whose size changes from frame to frame (particles born and dying,
+    a fluid and its surface): ``vertices[k] (V_k, 3)`` m at ``times[k]`` s, joined by
+    ``triangles[k] (T_k, 3)``, or points with ``triangles=None``. Written as one node per frame
+    shown only at its time in glTF, time-sampled points and topology in USD."""
+
+    times: Any
+    vertices: list[Any]
+    triangles: list[Any] | None = None
+    name: str = "frames"
+
+
+def frames_of(seq: MeshSequence) -> np.ndarray:
+    """``seq.frames`` as ``(F, V, 3)`` float64, checked (with its elements) against ``V``."""
+    frames = np.asarray(seq.frames, dtype=np.float64)
+    if frames.ndim != 3 or frames.shape[2] != 3 or len(frames) == 0:
+        raise ValueError("frames: expected an (F, V, 3) array of F >= 1 frames")
+    if seq.triangles is None and seq.strands is not None:
+        counts = np.asarray(seq.strands, dtype=np.int64).reshape(-1)
+        if np.any(counts < 2) or counts.sum() != frames.shape[1]:
+            raise ValueError("strands: expected vertex counts >= 2 that sum to the vertices")
+    return frames
+
+
+def strand_segments(strands: Any) -> np.ndarray:
+    """The segments ``(L, 2)`` (vertex index pairs) of polylines of ``strands`` vertices each,
+    laid end to end."""
+    counts = np.asarray(strands, dtype=np.int64).reshape(-1)
+    starts = np.cumsum(counts) - counts
+    return np.concatenate(
+        [
+            np.c_[s + np.arange(n - 1), s + np.arange(1, n)]
+            for s, n in zip(starts, counts, strict=True)
+        ]
+    )
+
+
+def frame_meshes_of(seq: FrameMeshes) -> tuple[np.ndarray, list[np.ndarray], list[Any]]:
+    """``seq``'s times, vertices ``(V_k, 3)`` and triangles (``None`` for points), checked."""
+    vertices = [np.asarray(v, dtype=np.float64).reshape(-1, 3) for v in seq.vertices]
+    t = times_of(seq.times, len(vertices))
+    if seq.triangles is None:
+        return t, vertices, [None] * len(vertices)
+    if len(seq.triangles) != len(vertices):
+        raise ValueError("triangles: expected one array per frame")
+    triangles = [np.asarray(x, dtype=np.int64).reshape(-1, 3) for x in seq.triangles]
+    for v, x in zip(vertices, triangles, strict=True):
+        if len(x) and (x.min() < 0 or x.max() >= len(v)):
+            raise ValueError("triangles: names a vertex beyond its frame's vertices")
+    return t, vertices, triangles
 
 
 def times_of(times: Any, frames: int) -> np.ndarray:

@@ -9,12 +9,18 @@ Three kinds of content, each in metres and seconds (glTF's units), Y up as kinem
   viewer blends the bones linearly (glTF skinning is linear blend skinning): the file shows
   ``method="lbs"`` whatever the skin's method;
 - :class:`RigidTrack`: a rigid mesh moved by node animation (translation and rotation keys);
-- :class:`MeshSequence`: a deforming mesh (cloth, rods, fluid surfaces) as **morph targets**:
-  the first frame is the mesh, every frame ``k`` a target holding its displacement from the
-  first, and a ``weights`` channel that is 1 on target ``k`` at time ``t_k`` and 0 on the others,
-  ``LINEAR``, so that between keys the vertices move on straight lines. One mesh with morph
-  targets rather than one mesh per frame: viewers play it as an animation (Blender imports the
-  targets as shape keys) and the topology is stored once.
+- :class:`MeshSequence`: vertices of a fixed number moving (cloth, rods and hair, crowds and
+  flocks) as **morph targets** of one primitive (``TRIANGLES``, ``LINES`` for polylines,
+  ``POINTS``): the first frame is the mesh, every frame ``k`` a target holding its
+  displacement from the first, and a ``weights`` channel that is 1 on target ``k`` at time
+  ``t_k`` and 0 on the others, ``LINEAR``, so that between keys the vertices move on straight
+  lines. One mesh with morph targets rather than one mesh per frame: viewers play it as an
+  animation (Blender imports the targets as shape keys) and the topology is stored once;
+- :class:`FrameMeshes`: a mesh or point cloud whose size changes (particles, fluids and their
+  surfaces) as **one node per frame** under a parent node, each with its own mesh and a
+  ``scale`` channel, ``STEP``, that is 1 from its time to the next frame's and 0 otherwise
+  (morph targets need one vertex count for all frames). A frame with no vertices is a node
+  without a mesh.
 
 Rotations are written ``(x, y, z, w)`` (glTF's order; kinema's is ``(w, x, y, z)``), each key in
 the hemisphere of the one before so that interpolation takes the short way. Every accessor
@@ -28,7 +34,16 @@ from typing import Any
 
 import numpy as np
 
-from kinema.io._tracks import MeshSequence, RigidTrack, skeleton_frames, times_of
+from kinema.io._tracks import (
+    FrameMeshes,
+    MeshSequence,
+    RigidTrack,
+    frame_meshes_of,
+    frames_of,
+    skeleton_frames,
+    strand_segments,
+    times_of,
+)
 
 __all__ = ["write_glb"]
 
@@ -95,30 +110,42 @@ class _Builder:
             self.doc.scenes[0].nodes.append(index)
         return index
 
-    def mesh(self, vertices: np.ndarray, triangles: np.ndarray, **attributes: int) -> int:
+    def mesh(self, vertices: np.ndarray, elements: Any, mode: int = 4, **attributes: int) -> int:
+        """A mesh of one primitive: ``vertices`` joined by ``elements`` (index rows) drawn as
+        ``mode`` (4 triangles, 1 lines), or ``elements=None``: points (mode 0)."""
         g = self.g
         position = self.accessor(vertices.astype(np.float32), g.VEC3, g.ARRAY_BUFFER)
-        indices = self.accessor(
-            np.asarray(triangles, dtype=np.uint32).reshape(-1), g.SCALAR, g.ELEMENT_ARRAY_BUFFER
-        )
+        indices = None
+        if elements is not None:
+            flat = np.asarray(elements, dtype=np.uint32).reshape(-1)
+            indices = self.accessor(flat, g.SCALAR, g.ELEMENT_ARRAY_BUFFER)
         primitive = g.Primitive(
-            attributes=g.Attributes(POSITION=position, **attributes), indices=indices, material=0
+            attributes=g.Attributes(POSITION=position, **attributes),
+            indices=indices,
+            material=0,
+            mode=g.POINTS if elements is None else mode,
         )
         self.doc.meshes.append(g.Mesh(primitives=[primitive]))
         return len(self.doc.meshes) - 1
 
-    def animate(self, name: str, times: np.ndarray, channels: list[tuple[int, str, Any]]) -> None:
-        """One animation of ``(node, path, values)`` channels keyed at ``times`` (s)."""
+    def animate(
+        self, name: str, times: Any, channels: list[tuple[Any, ...]], step: bool = False
+    ) -> None:
+        """One animation of ``(node, path, values)`` channels keyed at ``times`` (s), or of
+        ``(node, path, values, times)`` channels keyed at their own; ``LINEAR``, or ``STEP``
+        with ``step``."""
         g = self.g
         if not channels:
             return
-        t = self.accessor(np.asarray(times, dtype=np.float32), g.SCALAR)
+        shared = self.accessor(np.asarray(times, dtype=np.float32), g.SCALAR)
+        interpolation = g.ANIM_STEP if step else g.ANIM_LINEAR
         samplers, targets = [], []
-        for node, path, values in channels:
-            kind = {"translation": g.VEC3, "rotation": g.VEC4, "weights": g.SCALAR}[path]
+        for node, path, values, *own in channels:  # own: the channel's key times, if any
+            kind = {"translation": g.VEC3, "rotation": g.VEC4, "scale": g.VEC3}.get(path, g.SCALAR)
             data = np.asarray(values, dtype=np.float32)
             out = self.accessor(data.reshape(-1) if kind == g.SCALAR else data, kind)
-            samplers.append(g.AnimationSampler(input=t, output=out, interpolation=g.ANIM_LINEAR))
+            t = self.accessor(np.asarray(own[0], np.float32), g.SCALAR) if own else shared
+            samplers.append(g.AnimationSampler(input=t, output=out, interpolation=interpolation))
             targets.append(
                 g.AnimationChannel(
                     sampler=len(samplers) - 1, target=g.AnimationChannelTarget(node=node, path=path)
@@ -158,12 +185,15 @@ def _add_rigid(b: _Builder, track: RigidTrack) -> None:
 
 def _add_sequence(b: _Builder, seq: MeshSequence) -> None:
     g = b.g
-    frames = np.asarray(seq.frames, dtype=np.float64)
-    if frames.ndim != 3 or frames.shape[2] != 3 or len(frames) == 0:
-        raise ValueError("frames: expected an (F, V, 3) array of F >= 1 frames")
+    frames = frames_of(seq)
     t = times_of(seq.times, len(frames))
     base = frames[0].astype(np.float32)
-    mesh = b.mesh(base, np.asarray(seq.triangles))
+    if seq.triangles is not None:
+        mesh = b.mesh(base, np.asarray(seq.triangles))
+    elif seq.strands is not None:
+        mesh = b.mesh(base, strand_segments(seq.strands), g.LINES)
+    else:
+        mesh = b.mesh(base, None)
     primitive = b.doc.meshes[mesh].primitives[0]
     for f in frames:
         displacement = f.astype(np.float32) - base
@@ -173,6 +203,20 @@ def _add_sequence(b: _Builder, seq: MeshSequence) -> None:
     b.doc.meshes[mesh].weights = [0.0] * len(frames)
     node = b.node(name=seq.name, mesh=mesh)
     b.animate(seq.name, t, [(node, "weights", np.eye(len(frames)))])
+
+
+def _add_frames(b: _Builder, seq: FrameMeshes) -> None:
+    t, vertices, triangles = frame_meshes_of(seq)
+    children, channels = [], []
+    for k, (v, tri) in enumerate(zip(vertices, triangles, strict=True)):
+        mesh = b.mesh(v, tri) if len(v) else None
+        shown = [1.0] * 3 if k == 0 else [0.0] * 3
+        children.append(b.node(top=False, name=f"{seq.name}_{k}", mesh=mesh, scale=shown))
+        keys = sorted({t[0], t[k], t[min(k + 1, len(t) - 1)]})
+        values = [[1.0] * 3 if key == t[k] else [0.0] * 3 for key in keys]
+        channels.append((children[-1], "scale", values, keys))
+    b.node(name=seq.name, children=children)
+    b.animate(seq.name, t, channels, step=True)
 
 
 def _inverse_bind(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
@@ -242,12 +286,14 @@ def write_glb(
     skins: Any = (),
     rigid: Any = (),
     sequences: Any = (),
+    frames: Any = (),
     scale: float | None = None,
 ) -> None:
     """Write a ``.glb`` file with ``skins`` (``(skin, motion)`` pairs: a
     :class:`kinema.skin.Skin` and a motion of its skeleton, lengths times ``scale``, default the
-    skeleton's ``metres_per_unit`` for Acclaim and 1 for BVH), ``rigid`` (:class:`RigidTrack`)
-    and ``sequences`` (:class:`MeshSequence`), one animation each; see the module docs."""
+    skeleton's ``metres_per_unit`` for Acclaim and 1 for BVH), ``rigid`` (:class:`RigidTrack`),
+    ``sequences`` (:class:`MeshSequence`) and ``frames`` (:class:`FrameMeshes`), one animation
+    each; see the module docs."""
     b = _Builder()
     for skin, motion in skins:
         _add_skin(b, skin, motion, scale)
@@ -255,4 +301,6 @@ def write_glb(
         _add_rigid(b, track)
     for seq in sequences:
         _add_sequence(b, seq)
+    for each in frames:
+        _add_frames(b, each)
     b.save(path)

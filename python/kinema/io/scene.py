@@ -1,12 +1,20 @@
 """A scene's recorded animation written as glTF or USD (:meth:`kinema.Scene.export`).
 
 ``scene.record("animation")`` makes the scene keep, after every frame, its time and the state
-of the systems it knows: every cloth's vertex positions, every rigid body's position and
-orientation, every animated sphere's centre (a record of one row per frame, like any other
-record). ``scene.export(path)`` writes them: a cloth as a deforming mesh, a rigid body (its
-shape's mesh, as :mod:`kinema.plot` draws it) and an animated sphere as rigid tracks, in metres
-and seconds. Particles, fluids, constrained systems and motion-captured characters are not
-exported yet.
+of every system it holds. What has a fixed size goes in the record ``"animation"`` (one row
+per frame, like any other record): every cloth's vertex positions, every rigid body's position
+and orientation, every animated sphere's centre, every rod's and hair's vertices, every crowd's
+and flock's agents, every biped's body frames, every motion-captured character's joints. What
+changes size is kept beside it, one entry per frame: the live particles of a particle or
+constrained system, a fluid's particles and its surface mesh (``Fluid.surface_mesh()`` at its
+default resolution, computed every frame while recording).
+
+``scene.export(path)`` writes them in metres and seconds (see :mod:`kinema.io.gltf` and
+:mod:`kinema.io.usd`): a cloth as a deforming mesh; a rigid body (its shape's mesh, as
+:mod:`kinema.plot` draws it) and an animated sphere as rigid tracks; rods and hair as
+polylines; a character's bones as line segments; crowds (on the ground, ``(x, 0, z)``), flocks
+(2-D ones at ``z = 0``) and bipeds (the 7 body frames) as points; particles and fluids as points
+and a fluid's surface as a mesh, all of whose sizes change from frame to frame.
 """
 
 from __future__ import annotations
@@ -17,75 +25,177 @@ from typing import Any
 
 import numpy as np
 
-from kinema.io._tracks import MeshSequence, RigidTrack
+from kinema.io._tracks import FrameMeshes, MeshSequence, RigidTrack
 
-__all__ = ["export_scene", "frame_state", "scene_tracks"]
+__all__ = ["SceneTracks", "export_scene", "frame_state", "scene_tracks"]
 
 RECORD = "animation"
 """The name of the scene record that :func:`export_scene` reads."""
 
+SceneTracks = tuple[list[RigidTrack], list[MeshSequence], list[FrameMeshes]]
+"""What a scene recorded: rigid tracks, sequences of a fixed size, sequences that change size."""
 
-def _parts(scene: Any) -> list[tuple[Any, int]]:
-    """The exported systems of ``scene`` and the size of each one's state in a record row."""
-    from kinema import cloth, rigid
-    from kinema.scene import AnimatedSphere
 
-    out: list[tuple[Any, int]] = []
-    for s in scene.systems:
-        if isinstance(s, cloth.Cloth):
-            out.append((s, 3 * len(s.positions)))
-        elif isinstance(s, rigid.World):
-            out.append((s, 7 * len(s.positions)))
-        elif isinstance(s, AnimatedSphere):
-            out.append((s, 3))
+def _width(s: Any) -> int | None:
+    """The size of system ``s``'s state in a record row, or None if it changes size (kept
+    beside the record) or is not exported."""
+    from kinema import character, cloth, crowd, flock, rigid, rods
+    from kinema.scene import AnimatedSphere, Character
+
+    if isinstance(s, (cloth.Cloth, rods.Rod, rods.Hair)):
+        return int(np.asarray(s.positions).size)
+    if isinstance(s, rigid.World):
+        return 7 * len(s.positions)
+    if isinstance(s, AnimatedSphere):
+        return 3
+    if isinstance(s, (crowd.Crowd, flock.Flock)):
+        return 3 * len(s.positions)
+    if isinstance(s, character.Biped):
+        return int(np.asarray(s.positions()).size)
+    if isinstance(s, Character):
+        return 3 * len(s.joints(0.0))
+    return None
+
+
+def _lifted(s: Any) -> np.ndarray:
+    """A crowd's or flock's agents in 3-D (m): a crowd's ``(x, z)`` at ``y = 0``, a 2-D flock's
+    ``(x, y)`` at ``z = 0``."""
+    from kinema import crowd
+
+    p = np.asarray(s.positions, dtype=np.float64)
+    out = np.zeros((len(p), 3))
+    if isinstance(s, crowd.Crowd):
+        out[:, [0, 2]] = p
+    else:
+        out[:, : p.shape[1]] = p
     return out
 
 
-def frame_state(scene: Any) -> np.ndarray:
-    """One row of the animation record: the scene's time, then each exported system's state."""
-    from kinema import cloth, rigid
+def _row_part(scene: Any, s: Any) -> np.ndarray:
+    """System ``s``'s part of a record row (see :func:`_width`)."""
+    from kinema import character, crowd, flock, rigid
+    from kinema.scene import AnimatedSphere, Character
 
+    if isinstance(s, rigid.World):
+        return np.c_[s.positions, s.orientations].ravel()
+    if isinstance(s, AnimatedSphere):
+        return np.asarray(s.position(scene.time), dtype=np.float64)
+    if isinstance(s, (crowd.Crowd, flock.Flock)):
+        return _lifted(s).ravel()
+    if isinstance(s, character.Biped):
+        return np.asarray(s.positions()).ravel()
+    if isinstance(s, Character):
+        return np.asarray(s.joints(scene.time)).ravel()
+    return np.asarray(s.positions).ravel()
+
+
+def _particles_of(s: Any) -> Any:
+    """The particle system of ``s`` (itself, or a constrained system's), else None."""
+    from kinema import particles
+
+    p = getattr(s, "_particles", s)
+    return p if isinstance(p, particles.ParticleSystem) else None
+
+
+def _varying_part(s: Any) -> list[np.ndarray] | None:
+    """The state of ``s`` whose size changes: the live particles of a particle or constrained
+    system; a fluid's particles, surface vertices and surface triangles. None for others."""
+    from kinema import fluid
+
+    if isinstance(s, fluid.Fluid):
+        v, t = s.surface_mesh()
+        return [np.array(s.positions, dtype=np.float64), v, np.asarray(t, dtype=np.int64)]
+    p = _particles_of(s)
+    return None if p is None else [np.array(p.positions[p.alive], dtype=np.float64)]
+
+
+def frame_state(scene: Any) -> np.ndarray:
+    """One row of the animation record: the scene's time, then each fixed-size system's state;
+    the state that changes size is appended to the scene's list beside the record."""
     row = [np.array([scene.time])]
-    for s, _ in _parts(scene):
-        if isinstance(s, cloth.Cloth):
-            row.append(np.asarray(s.positions).ravel())
-        elif isinstance(s, rigid.World):
-            row.append(np.c_[s.positions, s.orientations].ravel())
-        else:
-            row.append(s.position(scene.time))
+    varying = []
+    for s in scene.systems:
+        if _width(s) is not None:
+            row.append(_row_part(scene, s))
+        elif (part := _varying_part(s)) is not None:
+            varying.append(part)
+    vars(scene).setdefault("_animation_varying", []).append(varying)
     return np.concatenate(row)
 
 
-def scene_tracks(scene: Any) -> tuple[list[RigidTrack], list[MeshSequence]]:
-    """The animation ``scene`` recorded, as rigid tracks and mesh sequences."""
-    from kinema import _geometry, cloth, rigid
+def _fixed_tracks(scene: Any, rows: np.ndarray, out: SceneTracks) -> None:
+    """The rigid tracks and fixed-size sequences of the record ``rows`` into ``out``."""
+    from kinema import _geometry, cloth, rigid, rods
+    from kinema.scene import AnimatedSphere, Character
 
-    rows = scene.records.get(RECORD)
-    if rows is None or len(rows) == 0:
-        raise ValueError('scene: recorded no animation: call scene.record("animation") first')
-    parts = _parts(scene)
-    if rows.ndim != 2 or rows.shape[1] != 1 + sum(n for _, n in parts):
-        raise ValueError("scene: its systems changed since the animation was recorded")
-    times = rows[:, 0]
-    rigid_tracks, sequences = [], []
-    offset = 1
-    for i, (s, n) in enumerate(parts):
+    rigid_tracks, sequences, _ = out
+    times, offset, f = rows[:, 0], 1, len(rows)
+    for i, s in enumerate(scene.systems):
+        n = _width(s)
+        if n is None:
+            continue
         block = rows[:, offset : offset + n]
         offset += n
         if isinstance(s, cloth.Cloth):
-            frames = block.reshape(len(rows), -1, 3)
-            sequences.append(MeshSequence(s.triangles, times, frames, f"cloth{i}"))
+            sequences.append(MeshSequence(s.triangles, times, block.reshape(f, -1, 3), f"cloth{i}"))
         elif isinstance(s, rigid.World):
-            states = block.reshape(len(rows), -1, 7)
+            states = block.reshape(f, -1, 7)
             for b, shape in enumerate(s.shapes):
                 v, t = _geometry.body_mesh(shape)
                 x, q = states[:, b, :3], states[:, b, 3:]
                 rigid_tracks.append(RigidTrack(v, t, times, x, q, f"body{i}_{b}"))
-        else:
+        elif isinstance(s, AnimatedSphere):
             v, t = _geometry.uv_sphere(float(s.radius))
-            q = np.tile([1.0, 0.0, 0.0, 0.0], (len(rows), 1))
+            q = np.tile([1.0, 0.0, 0.0, 0.0], (f, 1))
             rigid_tracks.append(RigidTrack(v, t, times, block, q, f"sphere{i}"))
-    return rigid_tracks, sequences
+        elif isinstance(s, (rods.Rod, rods.Hair)):
+            dims = np.asarray(s.positions).shape  # (N, 3) for a rod, (S, N, 3) for hair
+            strands = np.full(int(np.prod(dims[:-2])), dims[-2])
+            frames = block.reshape(f, -1, 3)
+            sequences.append(MeshSequence(None, times, frames, f"rods{i}", strands))
+        elif isinstance(s, Character):
+            bones = s._bones.reshape(-1)
+            frames = block.reshape(f, -1, 3)[:, bones]
+            strands = np.full(len(s._bones), 2)
+            sequences.append(MeshSequence(None, times, frames, f"character{i}", strands))
+        else:
+            sequences.append(MeshSequence(None, times, block.reshape(f, -1, 3), f"agents{i}"))
+
+
+def _varying_tracks(scene: Any, times: np.ndarray, out: SceneTracks) -> None:
+    """The sequences that change size, kept beside the record, into ``out``."""
+    from kinema import fluid
+
+    kept = vars(scene).get("_animation_varying", [])
+    if len(kept) != len(times):
+        raise ValueError("scene: its record of particles and fluids does not match its frames")
+    j = 0
+    for i, s in enumerate(scene.systems):
+        is_fluid = isinstance(s, fluid.Fluid)
+        if _width(s) is not None or not (is_fluid or _particles_of(s) is not None):
+            continue
+        name = f"{'fluid' if is_fluid else 'particles'}{i}"
+        parts = [frame[j] for frame in kept]
+        j += 1
+        out[2].append(FrameMeshes(times, [p[0] for p in parts], None, name))
+        if is_fluid:
+            surface = [p[1] for p in parts], [p[2] for p in parts]
+            out[2].append(FrameMeshes(times, *surface, f"{name}_surface"))
+
+
+def scene_tracks(scene: Any) -> SceneTracks:
+    """The animation ``scene`` recorded, as rigid tracks, fixed-size sequences and sequences
+    that change size."""
+    rows = scene.records.get(RECORD)
+    if rows is None or len(rows) == 0:
+        raise ValueError('scene: recorded no animation: call scene.record("animation") first')
+    width = 1 + sum(_width(s) or 0 for s in scene.systems)
+    if rows.ndim != 2 or rows.shape[1] != width:
+        raise ValueError("scene: its systems changed since the animation was recorded")
+    out: SceneTracks = ([], [], [])
+    _fixed_tracks(scene, rows, out)
+    _varying_tracks(scene, rows[:, 0], out)
+    return out
 
 
 def export_scene(scene: Any, path: str | os.PathLike[str]) -> None:
@@ -96,8 +206,10 @@ def export_scene(scene: Any, path: str | os.PathLike[str]) -> None:
     suffix = Path(path).suffix.lower()
     if suffix not in (".glb", ".usd", ".usdc", ".usda"):
         raise ValueError("path: expected a .glb, .usd, .usdc or .usda file name")
-    rigid_tracks, sequences = scene_tracks(scene)
+    rigid_tracks, sequences, frames = scene_tracks(scene)
     if suffix == ".glb":
-        io.write_glb(path, rigid=rigid_tracks, sequences=sequences)
+        io.write_glb(path, rigid=rigid_tracks, sequences=sequences, frames=frames)
     else:
-        io.write_usd(path, rigid=rigid_tracks, sequences=sequences, frame_rate=1.0 / scene.dt)
+        io.write_usd(
+            path, rigid=rigid_tracks, sequences=sequences, frames=frames, frame_rate=1.0 / scene.dt
+        )

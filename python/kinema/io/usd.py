@@ -10,8 +10,12 @@ per second.
   method: ``dualQuaternion`` or ``classicLinear``, so USD shows what kinema computed);
 - :class:`kinema.io.RigidTrack`: an ``Xform`` with time-sampled translate and orient, holding
   the mesh;
-- :class:`kinema.io.MeshSequence`: a ``Mesh`` whose ``points`` are time-sampled (one sample per
-  frame).
+- :class:`kinema.io.MeshSequence`: a ``Mesh`` (triangles), ``BasisCurves`` (``linear``, one
+  curve per strand: rods, hair) or ``Points`` (crowds, flocks) whose ``points`` are
+  time-sampled (one sample per frame);
+- :class:`kinema.io.FrameMeshes`: a ``Mesh`` or ``Points`` whose ``points`` (and a mesh's
+  ``faceVertexCounts`` and ``faceVertexIndices``) are time-sampled, their size changing from
+  sample to sample (particles, fluids and their surfaces).
 """
 
 from __future__ import annotations
@@ -21,7 +25,15 @@ from typing import Any
 
 import numpy as np
 
-from kinema.io._tracks import MeshSequence, RigidTrack, skeleton_frames, times_of
+from kinema.io._tracks import (
+    FrameMeshes,
+    MeshSequence,
+    RigidTrack,
+    frame_meshes_of,
+    frames_of,
+    skeleton_frames,
+    times_of,
+)
 
 __all__ = ["write_usd"]
 
@@ -49,6 +61,14 @@ def _matrix(pxr: Any, rotation: np.ndarray, translation: np.ndarray) -> Any:
     m[:3, :3] = Rotation.from_quat(rotation).as_matrix().T
     m[3, :3] = translation
     return pxr.Gf.Matrix4d(m.tolist())
+
+
+def _codes(times: np.ndarray, rate: float) -> np.ndarray:
+    """The time codes of ``times`` (s): ``t · rate`` frames, rounded to 10⁻⁶ frame so that
+    frame ``k`` recorded at ``k dt`` is the code ``k`` exactly (time samples whose size
+    changes are held, not interpolated, so a code a rounding error early shows the frame
+    before)."""
+    return np.round(np.asarray(times, dtype=np.float64) * rate, 6)
 
 
 def _joint_paths(names: list[str], parents: list[int]) -> list[str]:
@@ -88,7 +108,7 @@ def _add_skin(pxr: Any, stage: Any, path: str, skin: Any, motion: Any, rate: flo
     anim.CreateJointsAttr(joints)
     translations, rotations = anim.CreateTranslationsAttr(), anim.CreateRotationsAttr()
     anim.CreateScalesAttr(Vt.Vec3hArray([pxr.Gf.Vec3h(1, 1, 1)] * len(sf.names)))
-    for k, time in enumerate(sf.times * rate):
+    for k, time in enumerate(_codes(sf.times, rate)):
         translations.Set(Vt.Vec3fArray.FromNumpy(sf.translation[k].astype(np.float32)), time)
         rotations.Set(_quats(pxr, sf.rotation[k]), time)
     UsdSkel.BindingAPI.Apply(skel.GetPrim()).CreateAnimationSourceRel().SetTargets([anim.GetPath()])
@@ -106,7 +126,7 @@ def _add_skin(pxr: Any, stage: Any, path: str, skin: Any, motion: Any, rate: flo
 
 def _add_rigid(pxr: Any, stage: Any, path: str, track: RigidTrack, rate: float) -> None:
     x = np.asarray(track.positions, dtype=np.float64).reshape(-1, 3)
-    t = times_of(track.times, len(x)) * rate
+    t = _codes(times_of(track.times, len(x)), rate)
     q = np.asarray(track.orientations, dtype=np.float64).reshape(len(x), 4)
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     xform = pxr.UsdGeom.Xform.Define(stage, path)
@@ -118,14 +138,37 @@ def _add_rigid(pxr: Any, stage: Any, path: str, track: RigidTrack, rate: float) 
 
 
 def _add_sequence(pxr: Any, stage: Any, path: str, seq: MeshSequence, rate: float) -> None:
-    frames = np.asarray(seq.frames, dtype=np.float64)
-    if frames.ndim != 3 or frames.shape[2] != 3 or len(frames) == 0:
-        raise ValueError("frames: expected an (F, V, 3) array of F >= 1 frames")
-    t = times_of(seq.times, len(frames)) * rate
-    mesh = _mesh(pxr, stage, path, frames[0], seq.triangles)
-    points = mesh.GetPointsAttr()
+    frames = frames_of(seq)
+    t = _codes(times_of(seq.times, len(frames)), rate)
+    if seq.triangles is not None:
+        points = _mesh(pxr, stage, path, frames[0], seq.triangles).GetPointsAttr()
+    elif seq.strands is not None:
+        curves = pxr.UsdGeom.BasisCurves.Define(stage, path)
+        curves.CreateTypeAttr(pxr.UsdGeom.Tokens.linear)
+        counts = np.asarray(seq.strands, dtype=np.int64).reshape(-1)
+        curves.CreateCurveVertexCountsAttr(pxr.Vt.IntArray(counts.tolist()))
+        points = curves.CreatePointsAttr()
+    else:
+        points = pxr.UsdGeom.Points.Define(stage, path).CreatePointsAttr()
     for k, time in enumerate(t):
         points.Set(pxr.Vt.Vec3fArray.FromNumpy(frames[k].astype(np.float32)), time)
+
+
+def _add_frames(pxr: Any, stage: Any, path: str, seq: FrameMeshes, rate: float) -> None:
+    t, vertices, triangles = frame_meshes_of(seq)
+    Vt = pxr.Vt
+    if seq.triangles is None:
+        points = pxr.UsdGeom.Points.Define(stage, path).CreatePointsAttr()
+    else:
+        mesh = pxr.UsdGeom.Mesh.Define(stage, path)
+        mesh.CreateDoubleSidedAttr(True)
+        points = mesh.CreatePointsAttr()
+        counts, indices = mesh.CreateFaceVertexCountsAttr(), mesh.CreateFaceVertexIndicesAttr()
+    for k, time in enumerate(_codes(t, rate)):
+        points.Set(Vt.Vec3fArray.FromNumpy(vertices[k].astype(np.float32)), time)
+        if seq.triangles is not None:
+            counts.Set(Vt.IntArray([3] * len(triangles[k])), time)
+            indices.Set(Vt.IntArray(triangles[k].ravel().tolist()), time)
 
 
 def write_usd(
@@ -134,13 +177,14 @@ def write_usd(
     skins: Any = (),
     rigid: Any = (),
     sequences: Any = (),
+    frames: Any = (),
     frame_rate: float = 60.0,
 ) -> None:
     """Write a USD stage (format from the extension: ``.usda`` text, ``.usd``/``.usdc``
     binary) with ``skins`` (``(skin, motion)`` pairs, lengths times the skeleton's
-    ``metres_per_unit``), ``rigid`` (:class:`kinema.io.RigidTrack`) and ``sequences``
-    (:class:`kinema.io.MeshSequence`) under ``/kinema``; time code ``t · frame_rate`` holds the
-    state at ``t`` s."""
+    ``metres_per_unit``), ``rigid`` (:class:`kinema.io.RigidTrack`), ``sequences``
+    (:class:`kinema.io.MeshSequence`) and ``frames`` (:class:`kinema.io.FrameMeshes`) under
+    ``/kinema``; time code ``t · frame_rate`` holds the state at ``t`` s."""
     pxr = _pxr()
     if not (np.isfinite(frame_rate) and frame_rate > 0):
         raise ValueError("frame_rate: must be positive and finite")
@@ -159,6 +203,9 @@ def write_usd(
     for i, seq in enumerate(sequences):
         _add_sequence(pxr, stage, f"/kinema/mesh{i}", seq, frame_rate)
         end = max(end, float(np.max(seq.times)))
+    for i, each in enumerate(frames):
+        _add_frames(pxr, stage, f"/kinema/frames{i}", each, frame_rate)
+        end = max(end, float(np.max(each.times)))
     stage.SetStartTimeCode(0.0)
     stage.SetEndTimeCode(end * frame_rate)
     stage.GetRootLayer().Save()
