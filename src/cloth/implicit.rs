@@ -64,7 +64,7 @@ impl Solver {
             && strain_change(model, &state.x, &self.scratch.x_new) > options.max_strain_change;
         if !strained {
             self.limit_strain(model, h_eff, options.max_strain);
-            self.self_collide(model, state, h, stats);
+            self.self_collide(model, state, h, options.max_strain, stats);
             let s = &self.scratch;
             let n = state.len();
             if let Some(i) = (0..n).find(|&i| !(s.x_new[i].is_finite() && s.v_new[i].is_finite())) {

@@ -25,6 +25,7 @@
 //! added to the velocity. The broad phase is [`super::bvh::Bvh`], refit at every pass.
 
 use super::bvh::Bvh;
+use super::strain_limit;
 use super::{Model, SelfCollision, Solver, State, StepStats};
 use crate::geometry::ccd::{edge_edge, segment_weights, vertex_triangle, Impact};
 use crate::geometry::segment::closest_points_of_segments;
@@ -128,6 +129,25 @@ impl Work {
             sums: vec![ZoneSums::default(); n],
         }
     }
+
+    /// Shorten the edges of the motion's end positions `x₀ + d` over `1 + max_strain` times
+    /// their rest length ([`strain_limit::Edges::shorten`] with the step's filter and masses).
+    fn limit_strain(
+        &mut self,
+        edges: &strain_limit::Edges,
+        x0: &[DVec3],
+        (filter, mass): (&[DMat3], &[f64]),
+        max_strain: f64,
+    ) {
+        for i in 0..x0.len() {
+            self.x1[i] = x0[i] + self.d[i];
+        }
+        if edges.shorten(&mut self.x1, filter, mass, max_strain) {
+            for i in 0..x0.len() {
+                self.d[i] = self.x1[i] - x0[i];
+            }
+        }
+    }
 }
 
 impl Solver {
@@ -139,6 +159,7 @@ impl Solver {
         model: &Model,
         state: &State,
         h: f64,
+        max_strain: f64,
         stats: &mut StepStats,
     ) {
         let Some(settings) = model.self_collision else {
@@ -154,7 +175,15 @@ impl Solver {
         }
         let filter = Filter { model, x0: &state.x, h, settings };
         stats.proximities += filter.proximity(work);
+        // The impulses stretch edges; each CCD pass checks the motion the strain limit leaves,
+        // so a pass that finds nothing ends with both the limit and no collision.
+        let limit = max_strain.is_finite().then(|| {
+            &**self.limiter.get_or_insert_with(|| Box::new(strain_limit::Edges::new(model)))
+        });
         for _ in 0..settings.iterations {
+            if let Some(edges) = limit {
+                work.limit_strain(edges, &state.x, (&s.filter, &model.mass), max_strain);
+            }
             if filter.ccd_pass(work) == 0 {
                 break;
             }

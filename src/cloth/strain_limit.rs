@@ -2,10 +2,12 @@
 //! mass-spring model to describe rigid cloth behavior", §5; the velocity update as in
 //! Goldenthal et al. 2007, "Efficient simulation of inextensible cloth", §4): every mesh
 //! edge longer than `(1 + max_strain)` times its rest length is shortened to that length by
-//! moving its ends in proportion to their inverse masses (constrained and touching vertices do
-//! not move), in Gauss–Seidel sweeps over the edges, and the velocities take the position
-//! change divided by the step. It works on the step's new positions and velocities in the
-//! scratch, so a step that fails later is rolled back with it.
+//! moving its ends in proportion to their inverse masses restricted to the directions their
+//! filter leaves free, `Sᵢ / mᵢ` (pinned vertices do not move, vertices on a plane or touching
+//! a collider slide along it), in Gauss–Seidel sweeps over the edges, and the velocities take
+//! the position change divided by the step. It works on the step's new positions and
+//! velocities in the scratch, so a step that fails later is rolled back with it. With
+//! self-collision on, [`super::self_collide`] applies it again after its impulses.
 
 use super::{Model, Solver};
 use glam::{DMat3, DVec3};
@@ -44,6 +46,48 @@ impl Edges {
     }
 }
 
+impl Edges {
+    /// Shorten every edge of `x` (m) longer than `1 + max_strain` times its rest length, the
+    /// ends moving by `W g λ` with `W = Sᵢ / mᵢ` (`filter` `S`, `mass` in kg) and `g` the
+    /// edge's direction (the minimum-norm correction in the metric of the masses, restricted to
+    /// the free directions), in at most [`SWEEPS`] Gauss–Seidel sweeps; returns whether any
+    /// edge was too long.
+    pub(super) fn shorten(
+        &self,
+        x: &mut [DVec3],
+        filter: &[DMat3],
+        mass: &[f64],
+        max_strain: f64,
+    ) -> bool {
+        let mut any = false;
+        for _ in 0..SWEEPS {
+            let mut moved = false;
+            for &(a, b, rest) in &self.edges {
+                let (a, b) = (a as usize, b as usize);
+                let d = x[b] - x[a];
+                let (length, longest) = (d.length(), (1.0 + max_strain) * rest);
+                if length <= longest {
+                    continue;
+                }
+                let g = d / length;
+                let (wa, wb) = (filter[a] * g / mass[a], filter[b] * g / mass[b]);
+                let w = g.dot(wa + wb);
+                if w > 1e-12 * (1.0 / mass[a] + 1.0 / mass[b]) {
+                    let lambda = (length - longest) / w;
+                    x[a] += wa * lambda;
+                    x[b] -= wb * lambda;
+                    moved = true;
+                }
+            }
+            any |= moved;
+            if !moved {
+                break;
+            }
+        }
+        any
+    }
+}
+
 impl Solver {
     /// Limit the stretch of every edge of the step's new positions to `max_strain` (see the
     /// module documentation); `h` is the step (s).
@@ -53,35 +97,10 @@ impl Solver {
         }
         let s = &mut self.scratch;
         let limit = self.limiter.get_or_insert_with(|| Box::new(Edges::new(model)));
-        let (filter, x_new, v_new) = (&s.filter, &mut s.x_new, &mut s.v_new);
-        limit.before.copy_from_slice(x_new);
-        let weight = |i: usize| {
-            if filter[i] == DMat3::IDENTITY {
-                1.0 / model.mass[i]
-            } else {
-                0.0
-            }
-        };
-        for _ in 0..SWEEPS {
-            let mut moved = false;
-            for &(a, b, rest) in &limit.edges {
-                let (a, b) = (a as usize, b as usize);
-                let d = x_new[b] - x_new[a];
-                let (length, longest) = (d.length(), (1.0 + max_strain) * rest);
-                let (wa, wb) = (weight(a), weight(b));
-                if length > longest && wa + wb > 0.0 {
-                    let correction = d * ((length - longest) / (length * (wa + wb)));
-                    x_new[a] += wa * correction;
-                    x_new[b] -= wb * correction;
-                    moved = true;
-                }
-            }
-            if !moved {
-                break;
-            }
-        }
-        for i in 0..x_new.len() {
-            v_new[i] += (x_new[i] - limit.before[i]) / h;
+        limit.before.copy_from_slice(&s.x_new);
+        limit.shorten(&mut s.x_new, &s.filter, &model.mass, max_strain);
+        for i in 0..s.x_new.len() {
+            s.v_new[i] += (s.x_new[i] - limit.before[i]) / h;
         }
     }
 }
