@@ -145,14 +145,14 @@ impl Frames {
             self.m1[j] = m1;
             self.m2[j] = m2;
         }
-        for k in 0..stencils {
+        for (k, &base) in base_twist[..stencils].iter().enumerate() {
             let (a, b) = (k, (k + 1) % n);
             let (ta, da, tb, db) =
                 (self.tangents[a], self.reference[a], self.tangents[b], self.reference[b]);
             self.reference_twist[k] = if b == 0 {
-                seam + reference_twist(ta, da, tb, db, base_twist[k] - seam)
+                seam + reference_twist(ta, da, tb, db, base - seam)
             } else {
-                reference_twist(ta, da, tb, db, base_twist[k])
+                reference_twist(ta, da, tb, db, base)
             };
         }
         true
