@@ -50,7 +50,7 @@ fn case(seed: u64, n: usize) -> Case {
     let mut frames = Frames::default();
     let rest_twist = vec![0.0; n - 1];
     let reference: Vec<DVec3> = state_reference(&model, &state);
-    assert!(frames.update(&x, &theta, &rest_tangents, &reference, &rest_twist));
+    assert!(frames.update(&x, &theta, &rest_tangents, &reference, &rest_twist, 0.0));
     Case {
         model,
         base_tangents: frames.tangents.clone(),
@@ -87,7 +87,7 @@ fn eval(c: &Case, q: &[f64], band: Option<&mut Band>) -> (f64, Vec<f64>) {
     let x: Vec<DVec3> = (0..=n).map(|i| DVec3::from_slice(&q[4 * i..])).collect();
     let theta: Vec<f64> = (0..n).map(|j| q[4 * j + 3]).collect();
     let mut frames = Frames::default();
-    assert!(frames.update(&x, &theta, &c.base_tangents, &c.base_reference, &c.base_twist));
+    assert!(frames.update(&x, &theta, &c.base_tangents, &c.base_reference, &c.base_twist, 0.0));
     let mut grad = vec![0.0; q.len()];
     let e = elastic(&c.model, &frames, &theta, &mut grad, band);
     (e, grad)

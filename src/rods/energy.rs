@@ -16,7 +16,7 @@
 //! energy with the frames transported from the configuration they are taken at.
 
 use super::band::Band;
-use super::frames::{curvature_binormal, Frames};
+use super::frames::{curvature_binormal, directors, Frames};
 use super::Model;
 use crate::math::{outer, skew};
 use glam::{DMat3, DVec3};
@@ -210,28 +210,32 @@ pub fn twist(s: &Stencil, reference: f64, theta: (f64, f64)) -> Local {
     out
 }
 
-/// Bending and twisting energy of the stencil at interior vertex `i` of `model` (J) with
-/// gradient and Hessian.
-pub fn bend_twist(model: &Model, frames: &Frames, theta: &[f64], i: usize) -> Local {
-    let s = Stencil {
-        e: frames.edges[i - 1],
-        f: frames.edges[i],
-        me: (frames.m1[i - 1], frames.m2[i - 1]),
-        mf: (frames.m1[i], frames.m2[i]),
+/// Bending and twisting energy of stencil `k` of `model` (the vertex between edges `k` and
+/// `(k + 1) mod n`; J) with gradient and Hessian.
+pub fn bend_twist(model: &Model, frames: &Frames, theta: &[f64], k: usize) -> Local {
+    let (a, b) = (k, (k + 1) % theta.len());
+    // A ring's seam stencil sees its first edge's material frame turned by the seam twist.
+    let mf = if b == 0 {
+        directors(frames.tangents[0], frames.reference[0], theta[0] + frames.seam)
+    } else {
+        (frames.m1[b], frames.m2[b])
     };
-    let w = 1.0 / model.voronoi[i - 1];
+    let s =
+        Stencil { e: frames.edges[a], f: frames.edges[b], me: (frames.m1[a], frames.m2[a]), mf };
+    let w = 1.0 / model.voronoi[k];
     let [b1, b2] = model.bending_stiffness();
-    let rest = model.rest_curvatures[i - 1];
+    let rest = model.rest_curvatures[k];
     let mut out = Local::zero();
     out.add_quadratic(&curvature(&s, 0), rest[0], w * b1);
     out.add_quadratic(&curvature(&s, 1), rest[1], w * b2);
-    let m = twist(&s, frames.reference_twist[i - 1], (theta[i - 1], theta[i]));
-    out.add_quadratic(&m, model.rest_twists[i - 1], w * model.twisting_stiffness());
+    let m = twist(&s, frames.reference_twist[k], (theta[a], theta[b]));
+    out.add_quadratic(&m, model.rest_twists[k], w * model.twisting_stiffness());
     out
 }
 
-/// The elastic energy of a configuration (J), its gradient added to `grad` (`4n + 3`, the
-/// rod's interleaved degrees of freedom) and, with `hess`, its Hessian added to the band.
+/// The elastic energy of a configuration (J), its gradient added to `grad` (the rod's
+/// [`Model::dofs`] interleaved degrees of freedom, `x_0, θ^0, x_1, θ^1, …`) and, with `hess`,
+/// its Hessian added to the band.
 pub fn elastic(
     model: &Model,
     frames: &Frames,
@@ -240,11 +244,12 @@ pub fn elastic(
     mut hess: Option<&mut Band>,
 ) -> f64 {
     let ea = model.stretching_stiffness();
+    let v = model.vertices();
     let mut energy = 0.0;
     for (j, (&e, &rest)) in frames.edges.iter().zip(&model.rest_lengths).enumerate() {
         let (en, g, h) = stretch(e, rest, ea);
         energy += en;
-        let (a, b) = (4 * j, 4 * j + 4);
+        let (a, b) = (4 * j, 4 * ((j + 1) % v));
         for r in 0..3 {
             grad[a + r] -= g[r];
             grad[b + r] += g[r];
@@ -252,27 +257,28 @@ pub fn elastic(
         if let Some(band) = hess.as_deref_mut() {
             for r in 0..3 {
                 for c in 0..3 {
-                    let v = h.col(c)[r];
+                    let val = h.col(c)[r];
                     if r >= c {
-                        band.add(a + r, a + c, v);
-                        band.add(b + r, b + c, v);
+                        band.add(a + r, a + c, val);
+                        band.add(b + r, b + c, val);
                     }
-                    band.add(b + r, a + c, -v);
+                    band.add(b + r, a + c, -val);
                 }
             }
         }
     }
-    for i in 1..frames.edges.len() {
-        let local = bend_twist(model, frames, theta, i);
+    for k in 0..model.stencils() {
+        let local = bend_twist(model, frames, theta, k);
         energy += local.value;
-        let base = 4 * (i - 1);
+        // Stencil coordinate `l` is vertex or edge `k + l / 4` (mod V), component `l mod 4`.
+        let global: [usize; STENCIL] = std::array::from_fn(|l| 4 * ((k + l / 4) % v) + l % 4);
         for r in 0..STENCIL {
-            grad[base + r] += local.grad[r];
+            grad[global[r]] += local.grad[r];
         }
         if let Some(band) = hess.as_deref_mut() {
             for r in 0..STENCIL {
                 for c in 0..=r {
-                    band.add(base + r, base + c, local.hess[r][c]);
+                    band.add(global[r], global[c], local.hess[r][c]);
                 }
             }
         }

@@ -77,7 +77,7 @@ pub fn perpendicular(t: DVec3) -> DVec3 {
 /// the start of the step.
 #[derive(Clone, Debug, Default)]
 pub struct Frames {
-    /// Edge vectors `x_{j+1} - x_j` (m), `n`.
+    /// Edge vectors `x_{(j+1) mod V} − x_j` (m), `n`.
     pub edges: Vec<DVec3>,
     /// Unit tangents, `n`.
     pub tangents: Vec<DVec3>,
@@ -87,24 +87,32 @@ pub struct Frames {
     pub m1: Vec<DVec3>,
     /// Material directors `m2`, `n`.
     pub m2: Vec<DVec3>,
-    /// Reference twist at the interior vertices (rad), `n - 1` (vertex `i` at `i - 1`).
+    /// Reference twist at the stencils (rad): `n − 1` of an open rod (vertex `i` at
+    /// `i − 1`), `n` of a closed one (the last, between edges `n − 1` and 0, with the ring's
+    /// seam twist added).
     pub reference_twist: Vec<f64>,
+    /// A closed rod's seam twist (rad, [`super::State::twist_ring`]): seen from the last
+    /// edge, the first edge's material frame is turned by it.
+    pub seam: f64,
 }
 
 impl Frames {
-    /// Size every buffer for `n` edges (allocates only when they grow).
-    fn resize(&mut self, n: usize) {
+    /// Size every buffer for `n` edges and `stencils` stencils (allocates only when they
+    /// grow).
+    fn resize(&mut self, n: usize, stencils: usize) {
         for v in
             [&mut self.edges, &mut self.tangents, &mut self.reference, &mut self.m1, &mut self.m2]
         {
             v.resize(n, DVec3::ZERO);
         }
-        self.reference_twist.resize(n.saturating_sub(1), 0.0);
+        self.reference_twist.resize(stencils, 0.0);
     }
 
-    /// The frames of positions `x` (`n + 1`) and twists `theta` (`n`), the reference
-    /// directors transported from `(base_tangents, base_reference)` (the start of the step)
-    /// and the reference twists taken on the branch nearest `base_twist`. Returns `false`
+    /// The frames of positions `x` (`V`) and twists `theta` (`n`; the rod is closed when
+    /// `V = n`), the reference directors transported from `(base_tangents, base_reference)`
+    /// (the start of the step) and the reference twists taken on the branch nearest
+    /// `base_twist`. A closed rod's last stencil adds `seam` (rad, the ring's twist beyond
+    /// its twist angles, [`super::State::twist_ring`]; 0 for an open rod). Returns `false`
     /// (frames unusable) when an edge has zero or non-finite length or turned by a half turn
     /// from its base tangent.
     pub fn update(
@@ -114,11 +122,14 @@ impl Frames {
         base_tangents: &[DVec3],
         base_reference: &[DVec3],
         base_twist: &[f64],
+        seam: f64,
     ) -> bool {
-        let n = theta.len();
-        self.resize(n);
+        let (n, v) = (theta.len(), x.len());
+        let stencils = if v == n { n } else { n.saturating_sub(1) };
+        self.resize(n, stencils);
+        self.seam = seam;
         for j in 0..n {
-            let e = x[j + 1] - x[j];
+            let e = x[(j + 1) % v] - x[j];
             let len = e.length();
             let t = e / len;
             if !(len > 0.0 && t.is_finite()) || t.dot(base_tangents[j]) <= -1.0 + 1e-12 {
@@ -134,14 +145,15 @@ impl Frames {
             self.m1[j] = m1;
             self.m2[j] = m2;
         }
-        for i in 1..n {
-            self.reference_twist[i - 1] = reference_twist(
-                self.tangents[i - 1],
-                self.reference[i - 1],
-                self.tangents[i],
-                self.reference[i],
-                base_twist[i - 1],
-            );
+        for (k, &base) in base_twist[..stencils].iter().enumerate() {
+            let (a, b) = (k, (k + 1) % n);
+            let (ta, da, tb, db) =
+                (self.tangents[a], self.reference[a], self.tangents[b], self.reference[b]);
+            self.reference_twist[k] = if b == 0 {
+                seam + reference_twist(ta, da, tb, db, base - seam)
+            } else {
+                reference_twist(ta, da, tb, db, base)
+            };
         }
         true
     }

@@ -69,31 +69,39 @@ impl Default for Settings {
 }
 
 /// A rod model (see the module docs): read-only during a step (`&Model`); several
-/// [`super::State`]s may share it. A rod of `n` edges has `n + 1` vertices.
+/// [`super::State`]s may share it. An open rod of `n` edges has `V = n + 1` vertices and
+/// `n − 1` interior vertices (stencils); a closed rod (a ring, [`Model::closed`]) has
+/// `V = n` vertices, edge `j` joining vertex `j` to `(j + 1) mod n`, and `n` stencils.
+/// Stencil `k` is the vertex `(k + 1) mod V` between edges `k` and `(k + 1) mod n`.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct Model {
     pub(super) material: Material,
     pub(super) settings: Settings,
-    /// The rest positions (m), `n + 1`: the shape the rod was built from.
+    /// Whether the last vertex joins the first by an edge (a ring).
+    pub(super) closed: bool,
+    /// Whether the rod is naturally straight and untwisted ([`Model::straighten`]).
+    pub(super) straight: bool,
+    /// The rest positions (m), `V`: the shape the rod was built from.
     pub(super) rest_positions: Vec<DVec3>,
     /// The reference directors `d1` of the rest shape (space-parallel transported from the
     /// first edge's), `n`.
     pub(super) rest_reference: Vec<DVec3>,
     /// Rest edge lengths `l̄_j` (m), `n`.
     pub(super) rest_lengths: Vec<f64>,
-    /// Voronoi lengths `(l̄_{i−1} + l̄_i) / 2` of the interior vertices (m), `n − 1`.
+    /// Voronoi lengths `(l̄_k + l̄_{k+1}) / 2` of the stencils (m).
     pub(super) voronoi: Vec<f64>,
-    /// Rest material curvatures `(κ̄1, κ̄2)` of the interior vertices, `n − 1` (natural
-    /// curvature: those of the rest shape at zero twist).
+    /// Rest material curvatures `(κ̄1, κ̄2)` of the stencils (natural curvature: those of
+    /// the rest shape at zero twist; zero when straightened).
     pub(super) rest_curvatures: Vec<[f64; 2]>,
-    /// Rest twists `m̄` of the interior vertices (rad), `n − 1`: the rest shape's reference
-    /// twist (zero for its space-parallel frames).
+    /// Rest twists `m̄` of the stencils (rad): the rest shape's reference twist (zero for
+    /// its space-parallel frames, but for a ring's holonomy at its last stencil; zero when
+    /// straightened).
     pub(super) rest_twists: Vec<f64>,
-    /// Lumped vertex masses `ρ A (l̄_{i−1} + l̄_i)/2` (kg), `n + 1`.
+    /// Lumped vertex masses `ρ A (l̄_{i−1} + l̄_i)/2` (kg), `V`.
     pub(super) masses: Vec<f64>,
     /// Twist inertias `ρ (I1 + I2) l̄_j` (kg m²) of the edges, `n`.
     pub(super) inertias: Vec<f64>,
-    /// Pinned vertices (position held), `n + 1`.
+    /// Pinned vertices (position held), `V`.
     pub(super) pinned: Vec<bool>,
     /// Edges whose twist angle is held, `n`.
     pub(super) locked: Vec<bool>,
@@ -162,13 +170,35 @@ impl Settings {
 }
 
 impl Model {
-    /// The model of a rod whose rest shape is `points` (m, at least 2, consecutive points
-    /// distinct, no turn of 170° or more at a vertex), free (nothing pinned).
+    /// The model of an open rod whose rest shape is `points` (m, at least 2, consecutive
+    /// points distinct, no turn of 170° or more at a vertex), free (nothing pinned).
     ///
     /// # Errors
     /// Fewer than 2 points, non-finite or coincident points, a near half turn (`points`, with
     /// index); a material or setting out of range (named).
     pub fn new(points: &[DVec3], material: Material, settings: Settings) -> Result<Self> {
+        Model::build(points, material, settings, false)
+    }
+
+    /// The model of a closed rod (a ring) through `points` (m, at least 3; the last joins
+    /// the first by an edge), its rest shape: its natural curvature is the loop's (an O-ring)
+    /// unless [`Model::straighten`]ed (a ring bent from a straight wire).
+    ///
+    /// # Errors
+    /// As [`Model::new`], and fewer than 3 points (`points`).
+    pub fn closed(points: &[DVec3], material: Material, settings: Settings) -> Result<Self> {
+        if points.len() < 3 {
+            return Err(Error::invalid("points", "a closed rod needs at least 3 points"));
+        }
+        Model::build(points, material, settings, true)
+    }
+
+    fn build(
+        points: &[DVec3],
+        material: Material,
+        settings: Settings,
+        closed: bool,
+    ) -> Result<Self> {
         material.validate()?;
         settings.validate()?;
         if points.len() < 2 {
@@ -177,8 +207,9 @@ impl Model {
         if let Some(i) = points.iter().position(|p| !p.is_finite()) {
             return Err(Error::invalid("points", "contains NaN or infinity").at(i));
         }
-        let n = points.len() - 1;
-        let edges: Vec<DVec3> = points.windows(2).map(|w| w[1] - w[0]).collect();
+        let v = points.len();
+        let n = if closed { v } else { v - 1 };
+        let edges: Vec<DVec3> = (0..n).map(|j| points[(j + 1) % v] - points[j]).collect();
         let scale = edges.iter().map(|e| e.length()).fold(0.0, f64::max);
         if let Some(j) =
             edges.iter().position(|e| e.length() <= 1e-9 * scale || !e.length().is_finite())
@@ -186,10 +217,13 @@ impl Model {
             return Err(Error::invalid("points", "coincides with the next point").at(j));
         }
         let tangents: Vec<DVec3> = edges.iter().map(|e| e.normalize()).collect();
-        if let Some(j) =
-            tangents.windows(2).position(|t| t[0].dot(t[1]) < (170f64).to_radians().cos())
-        {
-            return Err(Error::invalid("points", "turns by 170 degrees or more").at(j + 1));
+        let stencils = if closed { n } else { n - 1 };
+        let pair = |k: usize| (k, (k + 1) % n);
+        if let Some(k) = (0..stencils).position(|k| {
+            let (a, b) = pair(k);
+            tangents[a].dot(tangents[b]) < (170f64).to_radians().cos()
+        }) {
+            return Err(Error::invalid("points", "turns by 170 degrees or more").at((k + 1) % v));
         }
         let mut reference = vec![perpendicular(tangents[0])];
         for j in 1..n {
@@ -197,28 +231,32 @@ impl Model {
             reference.push((d - d.dot(tangents[j]) * tangents[j]).normalize());
         }
         let rest_lengths: Vec<f64> = edges.iter().map(|e| e.length()).collect();
-        let voronoi: Vec<f64> = rest_lengths.windows(2).map(|l| 0.5 * (l[0] + l[1])).collect();
-        let mut rest_curvatures = Vec::with_capacity(n - 1);
-        let mut rest_twists = Vec::with_capacity(n - 1);
-        for i in 1..n {
-            let kb = curvature_binormal(edges[i - 1], edges[i]);
-            let (m1e, m2e) = directors(tangents[i - 1], reference[i - 1], 0.0);
-            let (m1f, m2f) = directors(tangents[i], reference[i], 0.0);
+        let mut voronoi = Vec::with_capacity(stencils);
+        let mut rest_curvatures = Vec::with_capacity(stencils);
+        let mut rest_twists = Vec::with_capacity(stencils);
+        for k in 0..stencils {
+            let (a, b) = pair(k);
+            voronoi.push(0.5 * (rest_lengths[a] + rest_lengths[b]));
+            let kb = curvature_binormal(edges[a], edges[b]);
+            let (m1e, m2e) = directors(tangents[a], reference[a], 0.0);
+            let (m1f, m2f) = directors(tangents[b], reference[b], 0.0);
             rest_curvatures.push([0.5 * kb.dot(m2e + m2f), -0.5 * kb.dot(m1e + m1f)]);
-            let (t0, t1) = (tangents[i - 1], tangents[i]);
-            rest_twists.push(reference_twist(t0, reference[i - 1], t1, reference[i], 0.0));
+            let (t0, t1) = (tangents[a], tangents[b]);
+            rest_twists.push(reference_twist(t0, reference[a], t1, reference[b], 0.0));
         }
         let rho_a = material.density * material.area();
-        let mut masses = vec![0.0; n + 1];
+        let mut masses = vec![0.0; v];
         for (j, l) in rest_lengths.iter().enumerate() {
             masses[j] += 0.5 * rho_a * l;
-            masses[j + 1] += 0.5 * rho_a * l;
+            masses[(j + 1) % v] += 0.5 * rho_a * l;
         }
         let [i1, i2] = material.second_moments();
         let inertias = rest_lengths.iter().map(|l| material.density * (i1 + i2) * l).collect();
         Ok(Model {
             material,
             settings,
+            closed,
+            straight: false,
             rest_positions: points.to_vec(),
             rest_reference: reference,
             rest_lengths,
@@ -227,13 +265,41 @@ impl Model {
             rest_twists,
             masses,
             inertias,
-            pinned: vec![false; n + 1],
+            pinned: vec![false; v],
             locked: vec![false; n],
             colliders: Vec::new(),
         })
     }
 
-    /// Number of edges `n` (the rod has `n + 1` vertices).
+    /// Make the rod naturally straight and untwisted: rest curvatures and twists zero, the
+    /// points only its initial shape (a straight wire bent into it, as Michell's ring).
+    pub fn straighten(&mut self) {
+        self.straight = true;
+        self.rest_curvatures.fill([0.0; 2]);
+        self.rest_twists.fill(0.0);
+    }
+
+    /// Whether the rod is closed (a ring).
+    pub fn is_closed(&self) -> bool {
+        self.closed
+    }
+
+    /// Number of vertices `V` (`n + 1` open, `n` closed).
+    pub fn vertices(&self) -> usize {
+        self.masses.len()
+    }
+
+    /// Number of degrees of freedom, `3 V` positions and `n` twist angles interleaved.
+    pub fn dofs(&self) -> usize {
+        3 * self.vertices() + self.edges()
+    }
+
+    /// Number of stencils (bending and twisting vertices): `n − 1` open, `n` closed.
+    pub fn stencils(&self) -> usize {
+        self.voronoi.len()
+    }
+
+    /// Number of edges `n`.
     pub fn edges(&self) -> usize {
         self.rest_lengths.len()
     }
@@ -248,7 +314,7 @@ impl Model {
         &self.settings
     }
 
-    /// The rest positions (m), `n + 1`.
+    /// The rest positions (m), `V`.
     pub fn rest_positions(&self) -> &[DVec3] {
         &self.rest_positions
     }
@@ -258,7 +324,7 @@ impl Model {
         &self.rest_lengths
     }
 
-    /// The lumped vertex masses (kg), `n + 1`.
+    /// The lumped vertex masses (kg), `V`.
     pub fn masses(&self) -> &[f64] {
         &self.masses
     }
@@ -278,7 +344,7 @@ impl Model {
         self.material.shear_modulus * self.material.torsion_constant()
     }
 
-    /// Pinned vertices, `n + 1`.
+    /// Pinned vertices, `V`.
     pub fn pinned(&self) -> &[bool] {
         &self.pinned
     }
@@ -301,16 +367,20 @@ impl Model {
     }
 
     /// Clamp an end: hold its two vertices and its edge's twist angle, so its edge keeps its
-    /// position and material frame.
+    /// position and material frame (of a ring: its first or last edge).
     pub fn clamp(&mut self, end: End) {
-        let n = self.edges();
-        let (a, j) = match end {
-            End::First => (0, 0),
-            End::Last => (n - 1, n - 1),
-        };
-        self.pinned[a] = true;
-        self.pinned[a + 1] = true;
+        let (j, v) = (self.end_edge(end), self.vertices());
+        self.pinned[j] = true;
+        self.pinned[(j + 1) % v] = true;
         self.locked[j] = true;
+    }
+
+    /// The edge of an end: 0 or `n − 1`.
+    pub(super) fn end_edge(&self, end: End) -> usize {
+        match end {
+            End::First => 0,
+            End::Last => self.edges() - 1,
+        }
     }
 
     /// The static collision shapes.
@@ -346,7 +416,11 @@ impl Model {
     /// Check a decoded model: lengths consistent, values finite and in range.
     pub(super) fn validate(&self) -> Result<()> {
         use crate::snapshot::check;
-        let fresh = Model::new(&self.rest_positions, self.material, self.settings)?;
+        let mut fresh =
+            Model::build(&self.rest_positions, self.material, self.settings, self.closed)?;
+        if self.straight {
+            fresh.straighten();
+        }
         check(
             fresh.rest_lengths == self.rest_lengths
                 && fresh.voronoi == self.voronoi

@@ -12,15 +12,15 @@ impl Stamped for State {
     /// Check a decoded state against its model: lengths, finite values, unit directors.
     fn validate(&self, model: &Model) -> Result<()> {
         use crate::snapshot::{check, finite};
-        let n = model.edges();
+        let (n, v) = (model.edges(), model.vertices());
         for (field, len, want) in [
-            ("positions", self.positions.len(), n + 1),
-            ("velocities", self.velocities.len(), n + 1),
-            ("forces", self.forces.len(), n + 1),
+            ("positions", self.positions.len(), v),
+            ("velocities", self.velocities.len(), v),
+            ("forces", self.forces.len(), v),
             ("twists", self.twists.len(), n),
             ("twist_rates", self.twist_rates.len(), n),
             ("reference", self.reference.len(), n),
-            ("reference_twist", self.reference_twist.len(), n - 1),
+            ("reference_twist", self.reference_twist.len(), model.stencils()),
         ] {
             check(len == want, field, || format!("{len} entries, expected {want}"))?;
         }
@@ -31,7 +31,12 @@ impl Stamped for State {
             || "non-finite".into(),
         )?;
         let scalars = self.twists.iter().chain(&self.twist_rates).chain(&self.reference_twist);
-        check(finite(scalars.copied()) && self.time.is_finite(), "twists", || "non-finite".into())?;
+        check(
+            finite(scalars.copied()) && self.time.is_finite() && self.seam.is_finite(),
+            "twists",
+            || "non-finite".into(),
+        )?;
+        check(model.closed || self.seam == 0.0, "seam", || "an open rod has no seam".into())?;
         check(
             self.clamp_goals.iter().flatten().all(|g| {
                 g.edge < n

@@ -5,7 +5,8 @@
 //!
 //! The degrees of freedom are interleaved, `q = (x0, θ0, x1, θ1, …, x_n)` (`4n + 3`), so
 //! every stencil lies within 10 of the diagonal and the Newton system is a band of
-//! half-bandwidth 10, factored in `O(n)` ([`Band`]).
+//! half-bandwidth 10, factored in `O(n)` ([`Band`]). A closed rod's, `(x0, θ0, …, x_{n−1},
+//! θ^{n−1})` (`4n`), is cyclic: stored folded, a band of half-bandwidth 19.
 //!
 //! - **Implicit Euler** (Bergou et al. 2010, sec. 6; Gast et al. 2015's optimisation form):
 //!   `q_{k+1}` minimises the incremental potential
@@ -14,8 +15,13 @@
 //!   forces; then `v_{k+1} = (q_{k+1} − q_k) / h`. Each Newton iteration solves
 //!   `(M/h² + ∇²E) Δ = −∇Φ`; when the band is not positive definite it adds
 //!   `λ diag|H|` (`λ` from 1e-8, ×10 until it factors, Levenberg–Marquardt style), and a
-//!   backtracking (Armijo) line search on `Φ` halves the step until `Φ` decreases enough.
-//!   Newton stops when a step moves no vertex more than `tolerance` times the rod's length
+//!   backtracking (Armijo) line search on `Φ` halves the step until `Φ` decreases enough,
+//!   trying at each length the straight step and the step with its edges bent back to
+//!   their first-order lengths (`curve_trial`).
+//!   The first iterate is the better of the start of the step and an explicit predictor
+//!   (inertia and external forces, edges put back at their rest lengths from the root:
+//!   `predict`). Newton stops when a step moves no vertex more than `tolerance`
+//!   times the rod's length
 //!   and no twist angle more than `tolerance` rad, or when the decrease of `Φ` it predicts
 //!   is at the rounding level of `Φ` (`ROUNDING`).
 //! - **Static equilibrium**: the same minimisation without the inertial term
@@ -40,6 +46,9 @@ use glam::DVec3;
 
 /// Half-bandwidth of the interleaved Newton system.
 const HALF_BANDWIDTH: usize = 10;
+/// Half-bandwidth of a closed rod's, in the folded order ([`Band::reset_folded`]): a stencil
+/// spans at most four consecutive vertex blocks of 4.
+const FOLDED_HALF_BANDWIDTH: usize = 19;
 /// Armijo's sufficient-decrease constant.
 const ARMIJO: f64 = 1e-4;
 /// The most halvings of one line search.
@@ -89,6 +98,8 @@ pub struct Solver {
     /// The sum of the magnitudes of the terms of the last `Φ` evaluated (J): its rounding
     /// error is about `ε` times this.
     scale: f64,
+    /// The state's ring seam twist (rad, [`State::twist_ring`]).
+    seam: f64,
 }
 
 /// The obstacles of other strands near this one during a step, with their repulsion
@@ -213,12 +224,12 @@ impl Solver {
             return f64::NAN;
         }
         self.grad.clear();
-        self.grad.resize(4 * model.edges() + 3, 0.0);
+        self.grad.resize(model.dofs(), 0.0);
         elastic(model, &self.frames, &state.twists, &mut self.grad, None)
     }
 
     /// The elastic forces `−∂E/∂x` on the vertices (N) and torques `−∂E/∂θ` on the twist
-    /// angles (N m) of `state`, into `forces` (`n + 1`) and `torques` (`n`).
+    /// angles (N m) of `state`, into `forces` (`V`) and `torques` (`n`).
     pub fn elastic_forces(
         &mut self,
         model: &Model,
@@ -229,7 +240,8 @@ impl Solver {
         self.energy(model, state);
         let n = model.edges();
         forces.clear();
-        forces.extend((0..=n).map(|i| -DVec3::from_slice(&self.grad[4 * i..4 * i + 3])));
+        let vertices = 0..model.vertices();
+        forces.extend(vertices.map(|i| -DVec3::from_slice(&self.grad[4 * i..4 * i + 3])));
         torques.clear();
         torques.extend((0..n).map(|j| -self.grad[4 * j + 3]));
     }
@@ -239,7 +251,7 @@ impl Solver {
     /// towards the clamp goals over `remaining` steps), the base tangents.
     fn load(&mut self, model: &Model, work: &State, h: Option<f64>, remaining: usize) {
         let n = model.edges();
-        let dofs = 4 * n + 3;
+        let dofs = model.dofs();
         for v in [
             &mut self.q0,
             &mut self.target,
@@ -254,7 +266,7 @@ impl Solver {
             v.resize(dofs, 0.0);
         }
         let g = model.settings.gravity;
-        for i in 0..=n {
+        for i in 0..model.vertices() {
             let f = model.masses[i] * g + work.forces[i];
             for r in 0..3 {
                 self.q0[4 * i + r] = work.positions[i][r];
@@ -275,12 +287,12 @@ impl Solver {
                 self.target[k] = self.q0[k];
             }
         }
-        self.base.clear();
-        self.base.extend(work.positions.windows(2).map(|w| (w[1] - w[0]).normalize()));
+        work.tangents_into(&mut self.base);
         self.base_reference.clone_from(&work.reference);
         self.base_twist.clone_from(&work.reference_twist);
+        self.seam = work.seam;
         for goal in work.clamp_goals.iter().flatten() {
-            self.move_held(goal, remaining as f64);
+            self.move_held(goal, remaining as f64, model.vertices());
         }
         if !model.colliders.is_empty() {
             lag(model, &work.positions, &mut self.lagged);
@@ -291,15 +303,16 @@ impl Solver {
     /// Set the held values of a clamped edge `1/remaining` of the way to `goal`: its two
     /// vertices, and its twist angle towards the one that turns its reference director,
     /// transported to the new tangent as [`Frames::update`] does, onto the goal's `m1`.
-    fn move_held(&mut self, goal: &super::state::ClampGoal, remaining: f64) {
+    fn move_held(&mut self, goal: &super::state::ClampGoal, remaining: f64, vertices: usize) {
         let j = goal.edge;
+        let node = |v: usize| 4 * ((j + v) % vertices);
         for (v, p) in goal.positions.iter().enumerate() {
-            let k = 4 * (j + v);
+            let k = node(v);
             for r in 0..3 {
                 self.target[k + r] += (p[r] - self.q0[k + r]) / remaining;
             }
         }
-        let x = |v: usize| DVec3::from_slice(&self.target[4 * (j + v)..4 * (j + v) + 3]);
+        let x = |v: usize| DVec3::from_slice(&self.target[node(v)..node(v) + 3]);
         let t = (x(1) - x(0)).normalize();
         let d1 = transport(self.base_reference[j], self.base[j], t);
         let d1 = (d1 - d1.dot(t) * t).normalize();
@@ -333,7 +346,7 @@ impl Solver {
             return None;
         }
         self.x.clear();
-        self.x.extend((0..=n).map(|i| DVec3::from_slice(&q[4 * i..4 * i + 3])));
+        self.x.extend((0..model.vertices()).map(|i| DVec3::from_slice(&q[4 * i..4 * i + 3])));
         self.theta.clear();
         self.theta.extend((0..n).map(|j| q[4 * j + 3]));
         if !self.frames.update(
@@ -342,12 +355,15 @@ impl Solver {
             &self.base,
             &self.base_reference,
             &self.base_twist,
+            self.seam,
         ) {
             return None;
         }
         self.grad.fill(0.0);
-        if hess {
-            self.band.reset(4 * n + 3, HALF_BANDWIDTH);
+        if hess && model.closed {
+            self.band.reset_folded(q.len(), FOLDED_HALF_BANDWIDTH, 4);
+        } else if hess {
+            self.band.reset(q.len(), HALF_BANDWIDTH);
         }
         let band = if hess { Some(&mut self.band) } else { None };
         let mut phi = elastic(model, &self.frames, &self.theta, &mut self.grad, band);
@@ -392,13 +408,7 @@ impl Solver {
             if fixed {
                 self.grad[k] = 0.0;
                 if hess {
-                    for j in k.saturating_sub(HALF_BANDWIDTH)..k {
-                        self.band.set(k, j, 0.0);
-                    }
-                    for i in k + 1..(k + HALF_BANDWIDTH + 1).min(q.len()) {
-                        self.band.set(i, k, 0.0);
-                    }
-                    self.band.set(k, k, 1.0);
+                    self.band.hold(k);
                 }
             }
         }
@@ -450,6 +460,9 @@ impl Solver {
                 self.q[k] = self.target[k];
             }
         }
+        if let Some(h) = h {
+            self.predict(model, h, among);
+        }
         let length: f64 = model.rest_lengths.iter().sum();
         let tol = model.settings.tolerance;
         for _ in 0..model.settings.max_iterations {
@@ -472,14 +485,13 @@ impl Solver {
                     c[..3].iter().all(|d| d.abs() <= tol * length)
                         && c.get(3).is_none_or(|d| d.abs() <= tol)
                 });
-            let alpha =
-                if small { 1.0 } else { self.line_search(model, goal, phi, slope, stats, among)? };
-            for k in 0..self.q.len() {
-                self.q[k] += alpha * self.dir[k];
-            }
             if small {
+                for k in 0..self.q.len() {
+                    self.q[k] += self.dir[k];
+                }
                 return self.commit(model, work, goal, among);
             }
+            self.line_search(model, goal, phi, slope, stats, among)?;
         }
         Err(Error::SolverFailed {
             reason: format!(
@@ -489,8 +501,48 @@ impl Solver {
         })
     }
 
-    /// The step length along `dir` from `q` (where `Φ = phi` and `∇Φ·dir = slope`): 1, halved
-    /// until Armijo's condition holds.
+    /// Start an implicit step of `h` from the better (lower `Φ`) of the start of the step
+    /// (`q`) and an explicit predictor: the inertial target plus the external forces' push,
+    /// `q̃ + h² M⁻¹ f`, with each free vertex then put back at its edge's rest length from
+    /// the vertex before it, along the edge's predicted direction ("follow the leader",
+    /// Müller, Kim & Chentanez 2012), since stretching is the stiffest mode and a Newton
+    /// step from a stretched guess crawls (halved line searches). Held degrees of freedom
+    /// are at their goals in both.
+    fn predict(&mut self, model: &Model, h: f64, among: Among<'_>) {
+        for (k, fixed) in fixed_dofs(model).enumerate() {
+            self.trial[k] = if fixed {
+                self.target[k]
+            } else {
+                self.target[k] + h * h * self.force[k] / self.mass[k]
+            };
+        }
+        for j in 0..model.vertices() - 1 {
+            if model.pinned[j + 1] {
+                continue;
+            }
+            let (a, b) = (4 * j, 4 * j + 4);
+            let xa = DVec3::from_slice(&self.trial[a..a + 3]);
+            let e = DVec3::from_slice(&self.trial[b..b + 3]) - xa;
+            let len = e.length();
+            if len > 0.0 {
+                let xb = xa + e * (model.rest_lengths[j] / len);
+                self.trial[b..b + 3].copy_from_slice(&xb.to_array());
+            }
+        }
+        let goal = Goal::Step(h);
+        let start = self.evaluate(model, false, goal, false, among);
+        let predicted = self.evaluate(model, true, goal, false, among);
+        if predicted.is_some_and(|p| start.is_none_or(|s| p < s)) {
+            self.q.copy_from_slice(&self.trial);
+        }
+    }
+
+    /// Move `q` along `dir` (where `Φ = phi` and `∇Φ·dir = slope`) by a step length of 1,
+    /// halved until Armijo's condition holds. At each length the straight trial
+    /// `q + α dir` is tried first, then the same trial with its edges bent back to the
+    /// lengths the step gives them to first order ([`Solver::curve_trial`]): a Newton step
+    /// that turns edges stretches them to second order, which the stiff stretching
+    /// punishes, so without this the line search halves large turning steps many times.
     fn line_search(
         &mut self,
         model: &Model,
@@ -499,15 +551,20 @@ impl Solver {
         slope: f64,
         stats: &mut Stats,
         among: Among<'_>,
-    ) -> Result<f64> {
+    ) -> Result<()> {
         let mut alpha = 1.0;
         for _ in 0..HALVINGS {
             for k in 0..self.q.len() {
                 self.trial[k] = self.q[k] + alpha * self.dir[k];
             }
-            if let Some(trial) = self.evaluate(model, true, goal, false, among) {
-                if trial <= phi + ARMIJO * alpha * slope {
-                    return Ok(alpha);
+            for curved in [false, true] {
+                if curved {
+                    self.curve_trial(model, alpha);
+                }
+                let bound = phi + ARMIJO * alpha * slope;
+                if self.evaluate(model, true, goal, false, among).is_some_and(|t| t <= bound) {
+                    self.q.copy_from_slice(&self.trial);
+                    return Ok(());
                 }
             }
             alpha *= 0.5;
@@ -516,6 +573,29 @@ impl Solver {
         Err(Error::SolverFailed {
             reason: "the line search found no decrease of the incremental potential".into(),
         })
+    }
+
+    /// Bend the trial `q + α dir` so that its edges keep their straight trial's directions
+    /// but take the lengths the step gives them to first order, `|e| + α t·(Δx_{j+1} − Δx_j)`
+    /// (`e`, `t` at `q`): from the first vertex on, each free vertex is placed at that
+    /// length from the (moved) vertex before it; pinned vertices stay. A curvilinear search
+    /// path tangent to `dir` at `α = 0`.
+    fn curve_trial(&mut self, model: &Model, alpha: f64) {
+        let at = |v: &[f64], k: usize| DVec3::from_slice(&v[k..k + 3]);
+        for j in 0..model.vertices() - 1 {
+            if model.pinned[j + 1] {
+                continue;
+            }
+            let (a, b) = (4 * j, 4 * j + 4);
+            let e = at(&self.q, b) - at(&self.q, a);
+            let step = at(&self.dir, b) - at(&self.dir, a);
+            let length = e.length() + alpha * e.normalize().dot(step);
+            let direction = (e + alpha * step).normalize();
+            if length > 0.0 && direction.is_finite() {
+                let x = at(&self.trial, a) + length * direction;
+                self.trial[b..b + 3].copy_from_slice(&x.to_array());
+            }
+        }
     }
 
     /// Write the converged `q` into `work`: positions, twists, frames, and (for a step of
@@ -529,7 +609,7 @@ impl Solver {
     ) -> Result<()> {
         self.evaluate(model, false, goal, false, among).ok_or_else(|| diverged(&self.q))?;
         let n = model.edges();
-        for i in 0..=n {
+        for i in 0..model.vertices() {
             let x = DVec3::from_slice(&self.q[4 * i..4 * i + 3]);
             if let Goal::Step(h) = goal {
                 work.velocities[i] = (x - work.positions[i]) / h;
@@ -577,8 +657,7 @@ impl Solver {
 
 /// Whether each degree of freedom of `model` (interleaved) is held.
 fn fixed_dofs(model: &Model) -> impl Iterator<Item = bool> + '_ {
-    let n = model.edges();
-    (0..4 * n + 3).map(move |k| {
+    (0..model.dofs()).map(move |k| {
         let (i, r) = (k / 4, k % 4);
         if r < 3 {
             model.pinned[i]

@@ -21,12 +21,13 @@ pub(super) struct ClampGoal {
     pub(super) director: DVec3,
 }
 
-/// The state of a rod of a [`Model`] of `n` edges. `clone_from` reuses every buffer.
+/// The state of a rod of a [`Model`] of `n` edges and `V` vertices. `clone_from` reuses
+/// every buffer.
 #[derive(serde::Serialize, serde::Deserialize, Debug, PartialEq)]
 pub struct State {
-    /// Vertex positions (m), `n + 1`.
+    /// Vertex positions (m), `V`.
     pub(super) positions: Vec<DVec3>,
-    /// Vertex velocities (m/s), `n + 1`.
+    /// Vertex velocities (m/s), `V`.
     pub(super) velocities: Vec<DVec3>,
     /// Twist angles `θ` of the material frames from the reference frames (rad), `n`.
     pub(super) twists: Vec<f64>,
@@ -34,9 +35,14 @@ pub struct State {
     pub(super) twist_rates: Vec<f64>,
     /// Reference directors `d1` (unit, perpendicular to the edges), `n`.
     pub(super) reference: Vec<DVec3>,
-    /// Reference twist at the interior vertices (rad), `n − 1`.
+    /// Reference twist at the stencils (rad), [`Model::stencils`] (a ring's last with its
+    /// seam twist).
     pub(super) reference_twist: Vec<f64>,
-    /// External forces on the vertices (N), `n + 1`, applied during every later step until
+    /// A closed rod's seam twist (rad): the turn of the material frame across the seam
+    /// between its last edge and its first beyond what its twist angles give — the twist
+    /// put into the ring ([`State::twist_ring`]; 0 for an open rod).
+    pub(super) seam: f64,
+    /// External forces on the vertices (N), `V`, applied during every later step until
     /// changed (gravity comes from the model).
     pub(super) forces: Vec<DVec3>,
     /// The prescribed motions of the first and last clamped ends, reached at the end of the
@@ -55,6 +61,7 @@ impl Clone for State {
             twist_rates: Vec::new(),
             reference: Vec::new(),
             reference_twist: Vec::new(),
+            seam: 0.0,
             forces: Vec::new(),
             clamp_goals: [None; 2],
             time: 0.0,
@@ -71,6 +78,7 @@ impl Clone for State {
         self.twist_rates.clone_from(&source.twist_rates);
         self.reference.clone_from(&source.reference);
         self.reference_twist.clone_from(&source.reference_twist);
+        self.seam = source.seam;
         self.forces.clone_from(&source.forces);
         self.clamp_goals = source.clamp_goals;
         self.time = source.time;
@@ -80,26 +88,34 @@ impl Clone for State {
 impl State {
     /// The rod at rest in its rest shape, untwisted, at time 0.
     pub fn new(model: &Model) -> Self {
-        let n = model.edges();
-        State {
+        let (n, v) = (model.edges(), model.vertices());
+        let mut state = State {
             positions: model.rest_positions.clone(),
-            velocities: vec![DVec3::ZERO; n + 1],
+            velocities: vec![DVec3::ZERO; v],
             twists: vec![0.0; n],
             twist_rates: vec![0.0; n],
             reference: model.rest_reference.clone(),
             reference_twist: model.rest_twists.clone(),
-            forces: vec![DVec3::ZERO; n + 1],
+            seam: 0.0,
+            forces: vec![DVec3::ZERO; v],
             clamp_goals: [None; 2],
             time: 0.0,
+        };
+        if model.straight {
+            // The rest shape's reference twists (the model's rest twists are zero).
+            let mut frames = Frames::default();
+            state.frames_into(&mut frames, &mut Vec::new());
+            state.reference_twist.clone_from(&frames.reference_twist);
         }
+        state
     }
 
-    /// Vertex positions (m), `n + 1`.
+    /// Vertex positions (m), `V`.
     pub fn positions(&self) -> &[DVec3] {
         &self.positions
     }
 
-    /// Vertex velocities (m/s), `n + 1`.
+    /// Vertex velocities (m/s), `V`.
     pub fn velocities(&self) -> &[DVec3] {
         &self.velocities
     }
@@ -109,7 +125,7 @@ impl State {
         &self.twists
     }
 
-    /// External forces on the vertices (N), `n + 1`.
+    /// External forces on the vertices (N), `V`.
     pub fn forces(&self) -> &[DVec3] {
         &self.forces
     }
@@ -182,12 +198,10 @@ impl State {
         rotation: DQuat,
         translation: DVec3,
     ) -> Result<()> {
-        let n = model.edges();
-        let (slot, j) = match end {
-            End::First => (0, 0),
-            End::Last => (1, n - 1),
-        };
-        if !(model.locked[j] && model.pinned[j] && model.pinned[j + 1]) {
+        let slot = usize::from(end == End::Last);
+        let j = model.end_edge(end);
+        let k = (j + 1) % model.vertices();
+        if !(model.locked[j] && model.pinned[j] && model.pinned[k]) {
             return Err(Error::invalid("end", "is not clamped"));
         }
         if !(rotation.is_finite() && (rotation.length() - 1.0).abs() < 1e-9) {
@@ -197,27 +211,66 @@ impl State {
             return Err(Error::invalid("translation", "must be finite"));
         }
         let rest = &model.rest_positions;
-        let tangent = (rest[j + 1] - rest[j]).normalize();
+        let tangent = (rest[k] - rest[j]).normalize();
         let (m1, _) = directors(tangent, model.rest_reference[j], 0.0);
         self.clamp_goals[slot] = Some(ClampGoal {
             edge: j,
-            positions: [rotation * rest[j] + translation, rotation * rest[j + 1] + translation],
+            positions: [rotation * rest[j] + translation, rotation * rest[k] + translation],
             director: rotation * m1,
         });
         Ok(())
     }
 
+    /// Twist a closed rod (a ring) by `angle` (rad) more, spread evenly: the seam twist
+    /// grows by `angle` (the material cut at the seam, turned by `angle` about the tangent
+    /// and joined again) and edge `j`'s twist angle by `j angle / n`, so the twist of every
+    /// stencil grows by `angle / n` (Michell's twisted ring). The ring's link
+    /// (Lk = Tw + Wr) grows by `angle / 2π`.
+    ///
+    /// # Errors
+    /// An open rod (`model`); a non-finite angle (`angle`).
+    pub fn twist_ring(&mut self, model: &Model, angle: f64) -> Result<()> {
+        if !model.closed {
+            return Err(Error::invalid("model", "is not a closed rod"));
+        }
+        if !angle.is_finite() {
+            return Err(Error::invalid("angle", "must be finite"));
+        }
+        self.seam += angle;
+        if let Some(last) = self.reference_twist.last_mut() {
+            *last += angle;
+        }
+        let n = self.twists.len() as f64;
+        for (j, t) in self.twists.iter_mut().enumerate() {
+            *t += angle * j as f64 / n;
+        }
+        Ok(())
+    }
+
+    /// A closed rod's seam twist (rad; [`State::twist_ring`]).
+    pub fn seam(&self) -> f64 {
+        self.seam
+    }
+
+    /// The unit tangents of the edges into `tangents` (`n`; non-finite where an edge has
+    /// collapsed).
+    pub(super) fn tangents_into(&self, tangents: &mut Vec<DVec3>) {
+        let (x, v) = (&self.positions, self.positions.len());
+        tangents.clear();
+        tangents.extend((0..self.twists.len()).map(|j| (x[(j + 1) % v] - x[j]).normalize()));
+    }
+
     /// The frames of the state (edges, tangents, reference and material directors,
     /// reference twists) into `frames`; `false` if an edge has collapsed.
     pub(super) fn frames_into(&self, frames: &mut Frames, tangents: &mut Vec<DVec3>) -> bool {
-        tangents.clear();
-        tangents.extend(self.positions.windows(2).map(|w| (w[1] - w[0]).normalize()));
+        self.tangents_into(tangents);
         frames.update(
             &self.positions,
             &self.twists,
             tangents,
             &self.reference,
             &self.reference_twist,
+            self.seam,
         )
     }
 }
