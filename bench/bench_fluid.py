@@ -7,24 +7,39 @@ volumes, Tait pressure clamped at 0, XSPH viscosity, symplectic Euler, neighbour
 WCSPH, in one process. Reported: ms per frame, substeps per frame, the mean compression of
 the last frame (percent) and, for the reference, its time per substep against kinema's.
 
-Run: python bench/bench_fluid.py [--spacings 10 20] [--frames 6]
-(spacings as L / s; 10 is ~2,300 fluid particles, 20 ~14,000, 40 ~100,000.)
+With `--splishsplash SECONDS`, also SPlisHSPlasH (`pysplishsplash` 2.19, DFSPH) on the same dam
+break side by side with kinema's DFSPH, both on one thread, for SECONDS of simulated time (see
+`splishsplash_child`: the same fluid lattice, its wall mesh through kinema's boundary particles,
+the same CFL limit, tolerances and XSPH viscosity). SPlisHSPlasH runs in a child process
+(`OMP_NUM_THREADS=1`, the system's `libGLdispatch.so.0` preloaded: the wheel's own clashes),
+since it can only be run to its scene's end and crashes when its model is read afterwards.
+
+Run: python bench/bench_fluid.py [--spacings 10 20] [--frames 6] [--splishsplash 0.5]
+(spacings as L / s; 10 is 800 fluid particles, 20 6,400, 40 51,200.)
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import subprocess
+import sys
+import tempfile
 import time
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+import kinema
 from kinema.fluid import Fluid
 
 L = 0.146
 FRAME = 1.0 / 60.0
 G = np.array([0.0, -9.81, 0.0])
+# The front is compared at the first frame from this time on (s; T = t √(2g/L) ≈ 2.3, before
+# the surge reaches the far wall at Z = 4L).
+FRONT_AT = 0.2
 
 
 def dam(spacing: float, solver: str) -> Fluid:
@@ -126,11 +141,208 @@ def kinema_frames(fluid: Fluid, frames: int) -> tuple[float, float, float, float
     )
 
 
+def compression(densities: np.ndarray, rest: float = 1000.0) -> float:
+    """Mean compression `max(ρ/ρ₀ - 1, 0)` over the particles (percent)."""
+    return 100.0 * float(np.maximum(densities / rest - 1.0, 0.0).mean())
+
+
+def kinema_seconds(per_l: int, seconds: float) -> dict[str, float]:
+    """kinema's DFSPH on the dam break for `seconds`, one frame of 1/60 s at a time: CPU and
+    wall seconds per simulated second (the first frame not timed), substeps and iterations
+    per substep, the mean compression of the fresh densities at the frames' ends (percent)
+    and the front `Z/L` (the farthest particle plus half a spacing) at `FRONT_AT`, with its
+    `T`."""
+    fluid = dam(L / per_l, "dfsph")
+    fluid.step(FRAME)
+    frames = max(1, round(seconds / FRAME) - 1)
+    wall, cpu, spent, errors, front = 0.0, 0.0, np.zeros(3), [], {}
+    for _ in range(frames):
+        start, cpu0 = time.perf_counter(), time.process_time()
+        fluid.step(FRAME)
+        wall += time.perf_counter() - start
+        cpu += time.process_time() - cpu0
+        stats = fluid.stats
+        spent += [stats["substeps"], stats["density_iterations"], stats["divergence_iterations"]]
+        errors.append(compression(fluid.densities))
+        if "front" not in front and fluid.time >= FRONT_AT - 1e-9:
+            front["front"] = (float(fluid.positions[:, 0].max()) + 0.5 * L / per_l) / L
+            front["T"] = fluid.time * np.sqrt(-2.0 * G[1] / L)
+    simulated = frames * FRAME
+    return {
+        "particles": len(fluid),
+        "boundary": len(fluid.boundary_particles),
+        "cpu_per_s": cpu / simulated,
+        "wall_per_s": wall / simulated,
+        "dt": simulated / spent[0],
+        "iterations": spent[1] / spent[0],
+        "iterations_v": spent[2] / spent[0],
+        "compression": float(np.mean(errors)),
+        **front,
+    }
+
+
+def splishsplash_child(per_l: int, seconds: float, folder: str) -> None:
+    """Run SPlisHSPlasH's DFSPH on the dam break (in this process: called in a child) and print
+    a JSON line like `kinema_seconds`'s. The set-up matches kinema's: particle radius `s/2`; the
+    fluid block's lattice is kinema's (SPlisHSPlasH fills a block from one diameter inside its
+    corner, so the block is given half a spacing larger); the tank is a box mesh (normals in,
+    `mapInvert`) whose faces lie on kinema's boundary-particle layer (its Akinci particles are
+    sampled on the mesh, kinema's a distance behind the tank's faces), sampled regularly;
+    DFSPH with the divergence solve, mean density error 0.05 %, divergence 0.1 %, at most 100
+    iterations each; XSPH 0.01; the CFL step `cflFactor 0.4 diameter / v_max` with
+    `cflFactor = 1` (kinema's `0.4 s / v_max`), at most 0.005 s, at least 1e-6 s. Timed from
+    the end of its first step to the end (CPU time of this process, minus the callback's)."""
+    import pysplishsplash as sph  # only in the child: it needs the preload
+
+    s = L / per_l
+    behind = -float(np.array(dam(s, "dfsph").boundary_particles)[:, 0].min())
+    lower = np.full(3, -behind)
+    upper = np.array([4 * L, 3 * L, 0.4 * L]) + behind
+    corners = [(x, y, z) for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)]
+    quads = [(1, 3, 4, 2), (5, 6, 8, 7), (1, 2, 6, 5), (3, 7, 8, 4), (1, 5, 7, 3), (2, 4, 8, 6)]
+    with open(f"{folder}/box.obj", "w") as out:
+        out.writelines(f"v {x} {y} {z}\n" for x, y, z in corners)
+        for a, b, c, d in quads:
+            out.write(f"f {a} {b} {c}\nf {a} {c} {d}\n")
+    scene = {
+        "Configuration": {
+            "particleRadius": s / 2,
+            "simulationMethod": 4,
+            "gravitation": list(G),
+            "cflMethod": 1,
+            "cflFactor": 1.0,
+            "cflMaxTimeStepSize": 0.005,
+            "cflMinTimeStepSize": 1e-6,
+            "maxIterations": 100,
+            "maxError": 0.05,
+            "maxIterationsV": 100,
+            "maxErrorV": 0.1,
+            "enableDivergenceSolver": True,
+            "boundaryHandlingMethod": 0,
+            "stopAt": seconds,
+            "enableVTKExport": False,
+            "enablePartioExport": False,
+        },
+        "Materials": [{"id": "Fluid", "density0": 1000, "viscosityMethod": 0, "xsph": 0.01}],
+        "RigidBodies": [
+            {
+                "geometryFile": f"{folder}/box.obj",
+                "translation": list((lower + upper) / 2),
+                "scale": list(upper - lower),
+                "isDynamic": False,
+                "isWall": True,
+                "mapInvert": True,
+                "samplingMode": 1,
+            }
+        ],
+        "FluidBlocks": [
+            {
+                "denseMode": 0,
+                "start": [-s / 2] * 3,
+                "end": [L + s / 2, 2 * L + s / 2, 0.4 * L + s / 2],
+                "translation": [0, 0, 0],
+                "scale": [1, 1, 1],
+            }
+        ],
+    }
+    with open(f"{folder}/dam.json", "w") as out:
+        json.dump(scene, out)
+    base = sph.Exec.SimulatorBase()
+    base.init(useGui=False, outputDir=f"{folder}/out", sceneFile=f"{folder}/dam.json")
+    record = {"steps": 0, "start": 0.0, "t0": 0.0, "cpu": 0.0, "aside": 0.0, "errors": []}
+    frame = {"next": FRAME}
+
+    def after_step() -> None:
+        entered = time.process_time()
+        sim, now = sph.Simulation.getCurrent(), sph.TimeManager.getCurrent().getTime()
+        if record["steps"] == 0:
+            record["start"], record["t0"] = entered, now
+        record["steps"] += 1
+        if now >= frame["next"]:
+            frame["next"] += FRAME
+            fm = sim.getFluidModel(0)
+            n = fm.numActiveParticles()
+            rho = np.array([fm.getDensity(i) for i in range(n)])
+            record["errors"].append(compression(rho))
+            if "front" not in record and now >= FRONT_AT - 1e-9:
+                x = float(max(fm.getPosition(i)[0] for i in range(n)))
+                record["front"], record["T"] = (x + s / 2) / L, now * np.sqrt(-2.0 * G[1] / L)
+            record["particles"] = n
+            record["boundary"] = sim.getBoundaryModel(0).numberOfParticles()
+        record["cpu"], record["t1"] = time.process_time(), now
+        record["aside"] += record["cpu"] - entered
+
+    base.setTimeStepCB(after_step)
+    base.run()
+    simulated = record["t1"] - record["t0"]
+    print(
+        "RESULT "
+        + json.dumps(
+            {
+                "particles": record["particles"],
+                "boundary": record["boundary"],
+                "cpu_per_s": (record["cpu"] - record["start"] - record["aside"]) / simulated,
+                "dt": simulated / (record["steps"] - 1),
+                "compression": float(np.mean(record["errors"])),
+                "front": record["front"],
+                "T": float(record["T"]),
+            }
+        ),
+        flush=True,
+    )
+    os._exit(0)  # SPlisHSPlasH crashes in its clean-up
+
+
+def splishsplash(per_l: int, seconds: float) -> dict[str, float]:
+    """`splishsplash_child` in a child process on one thread; its result, with the iterations
+    per step that SPlisHSPlasH prints."""
+    env = dict(os.environ, OMP_NUM_THREADS="1", OMP_WAIT_POLICY="passive")
+    env["LD_PRELOAD"] = "/lib/x86_64-linux-gnu/libGLdispatch.so.0"
+    with tempfile.TemporaryDirectory() as folder:
+        args = [sys.executable, __file__, "--child", str(per_l), str(seconds), folder]
+        out = subprocess.run(args, env=env, capture_output=True, text=True, check=True).stdout
+    result = json.loads(out.split("RESULT ", 1)[1])
+    for line in out.splitlines():
+        if line.startswith("Average number: DFSPH - iterations:"):
+            result["iterations"] = float(line.rsplit(":", 1)[1])
+        if line.startswith("Average number: DFSPH - iterationsV:"):
+            result["iterations_v"] = float(line.rsplit(":", 1)[1])
+    return result
+
+
+def side_by_side(spacings: list[int], seconds: float) -> None:
+    """Print kinema's DFSPH against SPlisHSPlasH's, one thread each."""
+    kinema.set_num_threads(1)
+    print(
+        f"DFSPH side by side, {seconds} s simulated, one thread each; load {os.getloadavg()[0]:.1f}"
+    )
+    print(
+        "| L / s | code | fluid / boundary particles | CPU s per simulated s | mean substep (ms) "
+        "| iterations (density / divergence) per substep | mean compression % | front Z/L at T |"
+    )
+    print("|---:|---|---:|---:|---:|---:|---:|---:|")
+    for per_l in spacings:
+        for name, run in (("kinema", kinema_seconds), ("SPlisHSPlasH", splishsplash)):
+            r = run(per_l, seconds)
+            print(
+                f"| {per_l} | {name} | {r['particles']} / {r['boundary']} | {r['cpu_per_s']:.2f} "
+                f"| {1e3 * r['dt']:.3f} | {r['iterations']:.1f} / {r['iterations_v']:.1f} "
+                f"| {r['compression']:.3f} | {r['front']:.2f} at {r['T']:.2f} |"
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--spacings", type=int, nargs="+", default=[10, 20])
     parser.add_argument("--frames", type=int, default=6)
+    parser.add_argument("--splishsplash", type=float, metavar="SECONDS")
+    parser.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.child:
+        splishsplash_child(int(args.child[0]), float(args.child[1]), args.child[2])
+    if args.splishsplash:
+        side_by_side(args.spacings, args.splishsplash)
+        return
     print(
         f"threads: kinema {os.environ.get('KINEMA_NUM_THREADS', 'all')}, numpy 1; load {os.getloadavg()[0]:.1f}"
     )
