@@ -138,7 +138,7 @@ fn the_hips_apply_the_torso_servo_torque_to_the_torso() {
         let (q, qd) = (w.state().q().to_vec(), w.state().qd().to_vec());
         w.step(DT, 1).unwrap();
         let phase = w.phase();
-        let pose = if phase.state % 2 == 0 { gait.lift } else { gait.strike };
+        let pose = if phase.state.is_multiple_of(2) { gait.lift } else { gait.strike };
         let torso = gait.torso_kp * (pose.torso - q[2]) - gait.torso_kd * qd[2];
         let (hip_r, hip_l) = (w.state().torques()[3], w.state().torques()[6]);
         let (swing, stance) = if phase.state < 2 { (hip_r, hip_l) } else { (hip_l, hip_r) };

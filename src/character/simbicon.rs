@@ -287,7 +287,7 @@ fn joint_servo(gait: &Gait) -> Servo {
 /// [`planar_biped`] and [`Model::set_servo`].
 pub(super) fn walker_model(settings: Settings, gait: &Gait) -> Result<Model> {
     let g = settings.gravity;
-    if !(g.x.hypot(g.y) > 0.0) {
+    if g.x.hypot(g.y).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(Error::invalid("gravity", "must have a component in the x-y plane"));
     }
     let mut model = planar_biped(settings)?;

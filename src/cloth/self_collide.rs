@@ -139,12 +139,12 @@ impl Work {
         (filter, mass): (&[DMat3], &[f64]),
         max_strain: f64,
     ) {
-        for i in 0..x0.len() {
-            self.x1[i] = x0[i] + self.d[i];
+        for ((x1, &x), &d) in self.x1.iter_mut().zip(x0).zip(&self.d) {
+            *x1 = x + d;
         }
         if edges.shorten(&mut self.x1, filter, mass, max_strain) {
-            for i in 0..x0.len() {
-                self.d[i] = self.x1[i] - x0[i];
+            for ((d, &x1), &x) in self.d.iter_mut().zip(&self.x1).zip(x0) {
+                *d = x1 - x;
             }
         }
     }

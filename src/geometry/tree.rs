@@ -153,7 +153,7 @@ mod tests {
         for _ in 0..2000 {
             let a = DVec3::new(rand(), rand(), rand());
             let b = a + 0.3 * (DVec3::new(rand(), rand(), rand()) - 0.5);
-            let skip = |t: usize| t % 7 == 0;
+            let skip = |t: usize| t.is_multiple_of(7);
             let brute = (0..triangles.len())
                 .any(|t| !skip(t) && segment_meets_triangle(a, b, tree.corners[t]));
             assert_eq!(tree.segment_hits(a, b, skip), brute);
