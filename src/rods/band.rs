@@ -176,6 +176,19 @@ mod tests {
 
     /// A random SPD band matrix (diagonally dominant), solved and checked against its
     /// product; an indefinite one is refused at its first bad pivot.
+    /// Factor `m` (holding the symmetric `dense`, n x n) and check that it solves `dense x = b`
+    /// back to `x`.
+    fn solves_back(m: &mut Band, dense: &[f64], x: &[f64]) {
+        let n = x.len();
+        let mut b: Vec<f64> =
+            (0..n).map(|i| dense[i * n..][..n].iter().zip(x).map(|(a, b)| a * b).sum()).collect();
+        m.factor().unwrap();
+        m.solve(&mut b);
+        for (got, want) in b.iter().zip(x) {
+            assert!((got - want).abs() < 1e-13, "{got} {want}");
+        }
+    }
+
     #[test]
     fn factor_and_solve_reproduce_the_right_hand_side() {
         let (n, k) = (37, 10);
@@ -198,13 +211,7 @@ mod tests {
             dense[i * n + i] = 12.0;
         }
         let x: Vec<f64> = (0..n).map(|_| rnd()).collect();
-        let mut b: Vec<f64> =
-            (0..n).map(|i| dense[i * n..][..n].iter().zip(&x).map(|(a, b)| a * b).sum()).collect();
-        m.factor().unwrap();
-        m.solve(&mut b);
-        for (got, want) in b.iter().zip(&x) {
-            assert!((got - want).abs() < 1e-13, "{got} {want}");
-        }
+        solves_back(&mut m, &dense, &x);
         // A cyclic band (entries within 5 of the diagonal modulo n) in blocks of 4, folded.
         let (n, w) = (36, 5);
         let mut dense = vec![0.0; n * n];
@@ -220,13 +227,7 @@ mod tests {
             dense[i * n + i] += 12.0;
         }
         let x: Vec<f64> = (0..n).map(|_| rnd()).collect();
-        let mut b: Vec<f64> =
-            (0..n).map(|i| dense[i * n..][..n].iter().zip(&x).map(|(a, b)| a * b).sum()).collect();
-        m.factor().unwrap();
-        m.solve(&mut b);
-        for (got, want) in b.iter().zip(&x) {
-            assert!((got - want).abs() < 1e-13, "{got} {want}");
-        }
+        solves_back(&mut m, &dense, &x);
         m.reset(3, 1);
         m.add(0, 0, 1.0);
         m.add(1, 0, 2.0);
