@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinema.demos._gif import save_gif_and_last_frame
 from kinema.fluid import Fluid
 
 
@@ -17,7 +18,6 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.animation import FuncAnimation, PillowWriter
 
     width, height, depth = 0.6, 0.4, 0.05
     spacing = 0.025 if quick else 0.0125
@@ -45,13 +45,7 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
         ax.set_ylabel("y (m)")
         ax.set_title(f"dam break, DFSPH, t = {(k + 1) / fps:.2f} s (colour: speed)")
 
-    anim = FuncAnimation(fig, draw, frames=range(len(frames)))
-    gif = out_dir / "fluid.gif"
-    anim.save(gif, writer=PillowWriter(fps=fps))
-    draw(len(frames) - 1)
-    png = out_dir / "fluid.png"
-    fig.savefig(png, dpi=100)
-    plt.close(fig)
+    gif, png = save_gif_and_last_frame(fig, draw, range(len(frames)), out_dir / "fluid", fps)
     return {
         "particles": len(fluid),
         "frames": len(frames),

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from kinema import Rotation
+from kinema.demos._gif import save_gif_and_last_frame
 from kinema.rods import groom, sphere_cap
 
 HEAD = 0.1  # head radius (m)
@@ -44,7 +45,6 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.animation import FuncAnimation, PillowWriter
     from matplotlib.collections import LineCollection
 
     count, fps, seconds, substeps = (200, 30, 0.5, 2) if quick else (600, 30, 2.0, 2)
@@ -86,13 +86,7 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
             ax.set_title(f"{name}, t = {(k + 1) / fps:.2f} s")
         fig.suptitle(f"{count} strands × {segments} segments, implicit DER at dt = 1/60 s")
 
-    anim = FuncAnimation(fig, draw, frames=range(len(frames)))
-    gif = out_dir / "hair.gif"
-    anim.save(gif, writer=PillowWriter(fps=fps))
-    draw(len(frames) - 1)
-    png = out_dir / "hair.png"
-    fig.savefig(png, dpi=100)
-    plt.close(fig)
+    gif, png = save_gif_and_last_frame(fig, draw, range(len(frames)), out_dir / "hair", fps)
     return {
         "strands": count,
         "segments": segments,

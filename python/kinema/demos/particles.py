@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinema.demos._gif import save_gif_and_last_frame
 from kinema.particles import Drag, Emitter, Gravity, ParticleSystem, Plane, Turbulence, Vortex
 
 
@@ -17,7 +18,6 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.animation import FuncAnimation, PillowWriter
 
     fps, seconds = 30, (2.0 if quick else 6.0)
     substeps = 4
@@ -71,13 +71,8 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
         ax.set_title(f"fountain, t = {(k + 1) / fps:.2f} s, {len(pts)} particles")
 
     step = 3 if quick else 1
-    anim = FuncAnimation(fig, draw, frames=range(0, len(frames), step))
-    gif = out_dir / "particles.gif"
-    anim.save(gif, writer=PillowWriter(fps=fps // step))
-    draw(len(frames) - 1)
-    png = out_dir / "particles.png"
-    fig.savefig(png, dpi=100)
-    plt.close(fig)
+    shown = range((len(frames) - 1) % step, len(frames), step)  # ends on the last frame
+    gif, png = save_gif_and_last_frame(fig, draw, shown, out_dir / "particles", fps // step)
     return {
         "animation": str(gif),
         "picture": str(png),
