@@ -2,12 +2,13 @@
 
 All in one process, one after the other, on a machine that may be busy (ratios matter):
 
-1. overhead: tasks that do nothing, on a 2-worker LocalCluster (one thread each): wall time
-   per task, batching included; and ``--chains`` tasks of under a millisecond (a spring chain),
-   whose 2-worker time is compared with the serial time, with the workers' time outside the
-   tasks against the time inside them, both as wall time (2 x wall - the tasks' own seconds)
-   and as CPU time (the worker processes' CPU time less the tasks' own, which a busy machine
-   does not inflate);
+1. overhead: tasks that do nothing, on a 2-worker cluster of ``kinema.sweep.local_client``
+   (what ``sweep`` starts by default: one thread each): wall time per task, batching included;
+   and ``--chains`` tasks of under a millisecond (a spring chain), whose 2-worker time is
+   compared with the serial time, with the workers' time outside the tasks against the time
+   inside them, both as wall time (2 x wall - the tasks' own seconds) and as CPU time (the
+   worker processes' CPU time, every thread, less the CPU time of the thread that ran the
+   tasks while in them; a busy machine does not inflate it);
 2. speed-up: ``--tasks`` cloth tasks (a 16x16 Baraff-Witkin cloth, 40 implicit steps, a
    stiffness x dt grid) run (a) in a plain loop in this process, (b) on a two-process
    ``multiprocessing.Pool`` started beforehand (one task at a time from its shared queue), (c)
@@ -44,10 +45,11 @@ def cloth_run(system) -> dict[str, float]:
 
 
 def chain_build(stiffness: float, seed: int = 0):
-    """A spring chain of 8 particles, and the CPU clock at the start of the task."""
+    """A spring chain of 8 particles, and this thread's CPU clock at the start of the task
+    (the thread's, not the process's: a Dask worker's event loop runs beside the task)."""
     from kinema.particles import Gravity, ParticleSystem, Springs
 
-    cpu = time.process_time()
+    cpu = time.thread_time()
     n = 8
     x = np.zeros((n, 3))
     x[:, 0] = np.arange(n) * 0.1
@@ -62,7 +64,7 @@ def chain_build(stiffness: float, seed: int = 0):
 def chain_run(system) -> dict[str, float]:
     ps, cpu = system
     ps.step(1e-3, steps=1000)
-    return {"tip_y": float(ps.positions[-1, 1]), "cpu": time.process_time() - cpu}
+    return {"tip_y": float(ps.positions[-1, 1]), "cpu": time.thread_time() - cpu}
 
 
 def nothing_build(i: int) -> int:
@@ -106,10 +108,8 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--chains", type=int, help="spring-chain tasks (default 10000, 500 quick)")
     args = parser.parse_args()
-    from dask.distributed import Client, LocalCluster
-
     import kinema
-    from kinema.sweep import grid, sweep
+    from kinema.sweep import grid, local_client, sweep
 
     kinema.set_num_threads(1)
     n_cloth = 8 if args.quick else 64
@@ -117,8 +117,7 @@ def main() -> None:
     design = grid(
         stretch=np.geomspace(1e3, 1e4, n_cloth // 4), dt=[1 / 240, 1 / 120, 1 / 90, 1 / 60]
     )
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0")
-    client = Client(cluster)
+    client = local_client(2)
     sweep(nothing_build, grid(i=range(4)), nothing_run, client=client, progress=False)  # warm
 
     t0 = time.perf_counter()
@@ -166,7 +165,6 @@ def main() -> None:
     )
     print(f"load average (1, 5, 15 min) after the run: {os.getloadavg()}")
     client.close()
-    cluster.close()
 
 
 if __name__ == "__main__":

@@ -280,6 +280,23 @@ def test_array_and_integer_outputs_come_back_from_parquet_unchanged(tmp_path):
     assert list(one["dt"]) == [0.3]
 
 
+def test_python_scalars_give_the_columns_their_numpy_forms_give():
+    def python(system: dict) -> dict:
+        return {"flag": True, "count": -(2**63), "value": 0.1}
+
+    def numpy(system: dict) -> dict:
+        return {"flag": np.bool_(True), "count": np.int64(-(2**63)), "value": np.float64(0.1)}
+
+    design = ks.grid(stiffness=[1.0], dt=[0.1])
+    a = ks.sweep(build, design, python, client="serial", progress=False)
+    b = ks.sweep(build, design, numpy, client="serial", progress=False)
+    for name in ("flag", "count", "value"):
+        assert a[name].dtype == b[name].dtype and a[name][0] == b[name][0]
+        assert type(a[name].tolist()[0]) is type(b[name].tolist()[0])
+    big = ks.sweep(build, design, lambda s: {"count": 2**64}, client="serial", progress=False)
+    assert big["error"][0].startswith("TypeError: run: result 'count' must be numbers")
+
+
 def test_a_bad_return_value_fails_its_task_with_a_clear_error():
     def bad(system: dict) -> dict:
         return {"text": "not a number"}  # type: ignore[dict-item]
@@ -289,6 +306,29 @@ def test_a_bad_return_value_fails_its_task_with_a_clear_error():
     )
     assert table["status"][0] == "failed"
     assert table["error"][0].startswith("TypeError: run: result 'text' must be numbers")
+
+
+def _worker_settings() -> tuple:
+    import dask
+
+    return (
+        dask.config.get("distributed.worker.profile.enabled"),
+        dask.config.get("distributed.admin.tick.interval"),
+        os.environ.get("KINEMA_NUM_THREADS"),
+    )
+
+
+def test_local_client_starts_quiet_single_threaded_workers_and_stops_them():
+    import dask
+
+    with pytest.raises(ValueError, match="n_workers"):
+        ks.local_client(0)
+    with ks.local_client(1) as c:
+        settings = c.run(_worker_settings)
+        cluster = c.cluster
+    assert list(settings.values()) == [(False, "500ms", "1")]
+    assert dask.config.get("distributed.worker.profile.enabled")  # this process's unchanged
+    assert cluster.status.name == "closed"
 
 
 def test_no_client_starts_a_local_cluster_of_single_threaded_processes():

@@ -20,9 +20,18 @@ sweep on Dask or in a loop), :mod:`~kinema.sweep.store` (the checkpoint director
 """
 
 from kinema.sweep.design import grid, latin_hypercube
-from kinema.sweep.engine import sweep
+from kinema.sweep.engine import QUIET_WORKERS, local_client, sweep
 from kinema.sweep.store import checkpoint
 from kinema.sweep.tables import to_xarray
 from kinema.sweep.trade import trade
 
-__all__ = ["checkpoint", "grid", "latin_hypercube", "sweep", "to_xarray", "trade"]
+__all__ = [
+    "QUIET_WORKERS",
+    "checkpoint",
+    "grid",
+    "latin_hypercube",
+    "local_client",
+    "sweep",
+    "to_xarray",
+    "trade",
+]
