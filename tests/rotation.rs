@@ -333,6 +333,50 @@ fn batched_normalisation_equals_the_row_by_row_one_bitwise() {
 }
 
 #[test]
+fn batched_mrps_equal_the_row_by_row_ones_bitwise() {
+    let mut rnd = xorshift(13);
+    // Unit rows (both signs of w), scaled rows, rows past the fast range (huge MRPs, whose
+    // squared norm overflows, and their shadows) and a ragged end.
+    let quats: Vec<[f64; 4]> = (0..10_007)
+        .map(|r| {
+            let q = quat_to_wxyz(DQuat::from_xyzw(rnd(), rnd(), rnd(), rnd()).normalize());
+            if r % 17 == 0 {
+                q.map(|c| 3.0 * c)
+            } else {
+                q
+            }
+        })
+        .collect();
+    let mut mrps = vec![[0.0; 3]; quats.len()];
+    quats_to_mrps(&quats, &mut mrps).unwrap();
+    for (q, p) in quats.iter().zip(&mrps) {
+        let want = quat_to_mrp(quat_from_wxyz(q).unwrap());
+        assert_eq!(want.map(f64::to_bits), p.map(f64::to_bits), "{q:?}");
+    }
+    for (r, p) in mrps.iter_mut().enumerate() {
+        match r % 23 {
+            0 => *p = p.map(|c| c * 1e160),
+            1 => *p = p.map(|c| c * 1e-160),
+            _ => {}
+        }
+    }
+    let mut back = vec![[0.0; 4]; mrps.len()];
+    mrps_to_quats(&mrps, &mut back).unwrap();
+    for (p, q) in mrps.iter().zip(&back) {
+        let want = quat_to_wxyz(quat_from_mrp(p).unwrap());
+        assert_eq!(want.map(f64::to_bits), q.map(f64::to_bits), "{p:?}");
+    }
+    let mut bad = mrps.clone();
+    bad[3_333] = [f64::NAN, 0.0, 0.0];
+    let err = mrps_to_quats(&bad, &mut back).unwrap_err().to_string();
+    assert!(err.contains("3333"), "{err}");
+    let mut zero = quats.clone();
+    zero[4_444] = [0.0; 4];
+    let err = quats_to_mrps(&zero, &mut mrps).unwrap_err().to_string();
+    assert!(err.contains("4444"), "{err}");
+}
+
+#[test]
 fn batched_products_equal_the_row_by_row_ones_bitwise() {
     let mut rnd = xorshift(9);
     let mut unit = || quat_to_wxyz(DQuat::from_xyzw(rnd(), rnd(), rnd(), rnd()).normalize());

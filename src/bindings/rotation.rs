@@ -240,14 +240,14 @@ fn quat_slerp<'py>(
 #[pyfunction]
 fn quat_to_mrp<'py>(py: Python<'py>, quat: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Array<'py>> {
     let input = rows::<4>(&quat, "quat", &[4])?;
-    compute(py, input.len(), &[3], |out| map(input, out, |r| Ok(rot::quat_to_mrp(q(r)?))))
+    compute(py, input.len(), &[3], |out| rot::quats_to_mrps(input, out))
 }
 
 /// Quaternions (N, 4) of modified Rodrigues parameters (N, 3).
 #[pyfunction]
 fn mrp_to_quat<'py>(py: Python<'py>, mrp: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Array<'py>> {
     let input = rows::<3>(&mrp, "mrp", &[3])?;
-    compute(py, input.len(), &[4], |out| map(input, out, |p| Ok(wxyz(rot::quat_from_mrp(p)?))))
+    compute(py, input.len(), &[4], |out| rot::mrps_to_quats(input, out))
 }
 
 /// Weighted mean rotations (M, 4) of M consecutive groups of `size` quaternions each

@@ -37,7 +37,7 @@ pub use matrix::{
     ROTATION_MATRIX_TOL,
 };
 pub use mean::mean;
-pub use mrp::{quat_from_mrp, quat_to_mrp};
+pub use mrp::{mrps_to_quats, quat_from_mrp, quat_to_mrp, quats_to_mrps};
 pub use quat::{
     canonical, multiply_quats, normalize_quats, quat_from_wxyz, quat_to_wxyz, rotation_angle,
 };

@@ -2,14 +2,23 @@
 //! Space Systems", 2003, sec. 3.8): finite for every rotation, norm at most 1 on the
 //! shorter-angle representation.
 
+use crate::batch::{by_component, lanes, LaneKernel, Output, LANES};
 use crate::error::{ensure_finite, Result};
+use crate::rotation::{quat_from_wxyz, quat_to_wxyz};
 use glam::{DQuat, DVec3};
 
 /// The MRPs of `q` taken with `w >= 0` (angle in `[0, π]`, so `|p| <= 1`): `v / (1 + w)`.
 pub fn quat_to_mrp(q: DQuat) -> [f64; 3] {
-    let q = if q.w < 0.0 { -q } else { q };
-    let s = 1.0 / (1.0 + q.w);
-    [q.x * s, q.y * s, q.z * s]
+    to_mrp([q.w, q.x, q.y, q.z])
+}
+
+/// [`quat_to_mrp`] on the components `(w, x, y, z)` of a unit quaternion: the arithmetic
+/// that the row function and the lanes of [`quats_to_mrps`] share.
+#[inline(always)]
+fn to_mrp([w, x, y, z]: [f64; 4]) -> [f64; 3] {
+    let sign = if w < 0.0 { -1.0 } else { 1.0 };
+    let s = 1.0 / (1.0 + sign * w);
+    [sign * x * s, sign * y * s, sign * z * s]
 }
 
 /// The rotation of MRPs `p` (any finite 3-vector; `p` and its shadow `-p/|p|²` give the same
@@ -19,16 +28,123 @@ pub fn quat_to_mrp(q: DQuat) -> [f64; 3] {
 /// [`crate::Error::InvalidInput`] (argument `mrp`) for a non-finite vector.
 pub fn quat_from_mrp(p: &[f64; 3]) -> Result<DQuat> {
     ensure_finite("mrp", p)?;
-    let v = DVec3::from_array(*p);
-    let n2 = v.length_squared();
+    let n2 = squared_norm(p);
     if !n2.is_finite() {
         // Beyond 1e154: the shadow set -p/|p|² is the same rotation and small.
+        let v = DVec3::from_array(*p);
         let u = v / v.length();
         return quat_from_mrp(&(-u / v.length()).to_array());
     }
+    let [w, x, y, z] = from_mrp(p, n2);
+    Ok(DQuat::from_xyzw(x, y, z, w))
+}
+
+#[inline(always)]
+fn squared_norm(p: &[f64; 3]) -> f64 {
+    p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
+}
+
+/// [`quat_from_mrp`] of `p` with its finite squared norm `n2`, as `(w, x, y, z)`: the
+/// arithmetic that the row function and the lanes of [`mrps_to_quats`] share (the result
+/// normalised once more, so that it is unit to rounding).
+#[inline(always)]
+fn from_mrp(p: &[f64; 3], n2: f64) -> [f64; 4] {
     let s = 1.0 / (1.0 + n2);
-    let xyz = 2.0 * s * v;
-    Ok(DQuat::from_xyzw(xyz.x, xyz.y, xyz.z, (1.0 - n2) * s).normalize())
+    let q = [(1.0 - n2) * s, 2.0 * s * p[0], 2.0 * s * p[1], 2.0 * s * p[2]];
+    let inv = 1.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    q.map(|c| c * inv)
+}
+
+/// [`quat_to_mrp`] of every row of `quats` (`(w, x, y, z)`, taken by [`quat_from_wxyz`]) into
+/// `out`, in parallel. Blocks of 8 rows that are unit to rounding run lane by lane (SIMD
+/// through `pulp`), bitwise the row-by-row function.
+///
+/// # Errors
+/// The lowest row that is zero or not finite, or `out` of another length.
+pub fn quats_to_mrps(quats: &[[f64; 4]], out: &mut (impl Output<3> + ?Sized)) -> Result<()> {
+    lanes(quats, out, &ToMrps)?;
+    Ok(())
+}
+
+/// The lane kernel of [`quats_to_mrps`].
+struct ToMrps;
+
+impl LaneKernel<4, 3> for ToMrps {
+    #[inline(always)]
+    fn block(&self, first: usize, qs: &[[f64; 4]], os: &mut [[f64; 3]]) -> Result<usize> {
+        if qs.len() == LANES {
+            let c = by_component(qs);
+            let mut unit = [false; LANES];
+            for k in 0..LANES {
+                let n2 =
+                    c[0][k] * c[0][k] + c[1][k] * c[1][k] + c[2][k] * c[2][k] + c[3][k] * c[3][k];
+                // quat_from_wxyz takes such a row as it is.
+                unit[k] = (n2 - 1.0).abs() <= 4.0 * f64::EPSILON;
+            }
+            if unit.iter().all(|&u| u) {
+                let mut p = [[0.0; LANES]; 3];
+                for k in 0..LANES {
+                    let m = to_mrp([c[0][k], c[1][k], c[2][k], c[3][k]]);
+                    for (lane, v) in p.iter_mut().zip(m) {
+                        lane[k] = v;
+                    }
+                }
+                for (k, o) in os.iter_mut().enumerate() {
+                    *o = [p[0][k], p[1][k], p[2][k]];
+                }
+                return Ok(0);
+            }
+        }
+        for (k, (q, o)) in qs.iter().zip(os.iter_mut()).enumerate() {
+            *o = quat_to_mrp(quat_from_wxyz(q).map_err(|e| e.at(first + k))?);
+        }
+        Ok(0)
+    }
+}
+
+/// [`quat_from_mrp`] of every row of `mrps` into `out` as `(w, x, y, z)`, in parallel. Blocks
+/// of 8 rows with finite squared norms run lane by lane (SIMD through `pulp`), bitwise the
+/// row-by-row function.
+///
+/// # Errors
+/// The lowest row that is not finite, or `out` of another length.
+pub fn mrps_to_quats(mrps: &[[f64; 3]], out: &mut (impl Output<4> + ?Sized)) -> Result<()> {
+    lanes(mrps, out, &FromMrps)?;
+    Ok(())
+}
+
+/// The lane kernel of [`mrps_to_quats`].
+struct FromMrps;
+
+impl LaneKernel<3, 4> for FromMrps {
+    #[inline(always)]
+    fn block(&self, first: usize, ps: &[[f64; 3]], os: &mut [[f64; 4]]) -> Result<usize> {
+        if ps.len() == LANES {
+            let c = by_component(ps);
+            let mut n2 = [0.0; LANES];
+            for k in 0..LANES {
+                n2[k] = squared_norm(&[c[0][k], c[1][k], c[2][k]]);
+            }
+            // A finite squared norm has finite components: the row function's first branch.
+            if n2.iter().all(|n| n.is_finite()) {
+                let mut q = [[0.0; LANES]; 4];
+                for k in 0..LANES {
+                    let r = from_mrp(&[c[0][k], c[1][k], c[2][k]], n2[k]);
+                    for (lane, v) in q.iter_mut().zip(r) {
+                        lane[k] = v;
+                    }
+                }
+                for (k, o) in os.iter_mut().enumerate() {
+                    *o = [q[0][k], q[1][k], q[2][k], q[3][k]];
+                }
+                return Ok(0);
+            }
+        }
+        for (k, (p, o)) in ps.iter().zip(os.iter_mut()).enumerate() {
+            *o = quat_to_wxyz(quat_from_mrp(p).map_err(|e| e.at(first + k))?);
+        }
+        Ok(0)
+    }
 }
 
 #[cfg(test)]
