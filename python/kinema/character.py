@@ -496,5 +496,18 @@ class Biped:
         (shins), ankles (feet)."""
         return self._w.positions()
 
+    def orientations(self) -> np.ndarray:
+        """World orientations of the body frames (7, 4) as ``(w, x, y, z)``: turns about z by
+        the torso's angle plus the joint angles down the leg."""
+        return self._w.orientations()
+
+    @staticmethod
+    def link_boxes() -> list[tuple[np.ndarray, np.ndarray]]:
+        """The box drawn for each body, in its body frame: ``(centre (3,), half extents (3,))``
+        (m). The torso, thighs and shins are the uniform boxes of the model's inertias
+        (length along y); a foot is laid along x from heel to toe and reaches from the ankle
+        down to the sole."""
+        return [(np.array(c), np.array(h)) for c, h in _kinema.Walker.link_boxes()]
+
     def __repr__(self) -> str:
         return f"Biped(time={self.time:.4g} s, x={self.com[0]:.3g} m, steps={self.steps})"

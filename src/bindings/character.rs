@@ -8,8 +8,8 @@ use super::mocap::PySkeleton;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::character::{
-    ragdoll, ArticulatedBody as Core, Body, Capsule, Gait, Integrator, Joint, Limits, Model, Phase,
-    Pose, RagdollOptions, Servo, ServoMode, Settings, State, Walker as WalkerCore,
+    link_boxes, ragdoll, ArticulatedBody as Core, Body, Capsule, Gait, Integrator, Joint, Limits,
+    Model, Phase, Pose, RagdollOptions, Servo, ServoMode, Settings, State, Walker as WalkerCore,
 };
 use crate::error::Error;
 use crate::snapshot::Snapshot;
@@ -505,6 +505,22 @@ impl Walker {
             out.iter_mut().zip(&p).for_each(|(o, v)| *o = v.to_array());
             Ok(())
         })
+    }
+
+    /// World orientations of the body frames (7, 4) as (w, x, y, z) (a new array).
+    fn orientations<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let r: Vec<DQuat> = self.walker.kinematics().orientations().to_vec();
+        compute::<4>(py, r.len(), &[4], |out| {
+            let out = zeroed(out);
+            out.iter_mut().zip(&r).for_each(|(o, q)| *o = [q.w, q.x, q.y, q.z]);
+            Ok(())
+        })
+    }
+
+    /// The box drawn for each body, in its body frame: `(centre, half extents)` (m).
+    #[staticmethod]
+    fn link_boxes() -> Vec<([f64; 3], [f64; 3])> {
+        link_boxes().iter().map(|(c, h)| (c.to_array(), h.to_array())).collect()
     }
 
     /// Body names, in order.

@@ -33,6 +33,31 @@ pub const SOLE_RADIUS: f64 = 0.02;
 /// How far the heel is behind the ankle (m).
 pub const HEEL: f64 = 0.05;
 
+/// Side of the square cross-section (m) of the torso, thigh, shin and foot boxes.
+const WIDTHS: [f64; 4] = [0.2, 0.1, 0.08, 0.06];
+
+/// The box drawn for each body of [`planar_biped`], in its body frame: centre and half
+/// extents (m). The torso, thighs and shins are the uniform boxes whose inertias the model
+/// uses (length along y, the square cross-sections of [`WIDTHS`], centred at the centre of
+/// mass); a foot is laid along x from heel to toe and reaches from the ankle down to the
+/// sole ([`ANKLE_HEIGHT`]), [`WIDTHS`]`[3]` across (for drawing: its inertia is the box of
+/// the same length and width along y, whose moment about z is the same up to the height).
+pub fn link_boxes() -> [(DVec3, DVec3); 7] {
+    let leg = |length: f64, width: f64| {
+        (DVec3::new(0.0, -length / 2.0, 0.0), DVec3::new(width, length, width) / 2.0)
+    };
+    let foot = (
+        DVec3::new(FOOT_LENGTH / 2.0 - HEEL, -ANKLE_HEIGHT / 2.0, 0.0),
+        DVec3::new(FOOT_LENGTH, ANKLE_HEIGHT, WIDTHS[3]) / 2.0,
+    );
+    let [thigh, shin] = [leg(THIGH_LENGTH, WIDTHS[1]), leg(SHIN_LENGTH, WIDTHS[2])];
+    let torso = (
+        DVec3::new(0.0, TORSO_LENGTH / 2.0, 0.0),
+        DVec3::new(WIDTHS[0], TORSO_LENGTH, WIDTHS[0]) / 2.0,
+    );
+    [torso, thigh, shin, foot, thigh, shin, foot]
+}
+
 /// Inertia (kg m², about the centre) of a uniform box of `mass` (kg), `length` along y and a
 /// square cross-section of side `width` (m).
 fn box_inertia(mass: f64, length: f64, width: f64) -> DMat3 {
@@ -70,27 +95,27 @@ pub fn planar_biped(settings: Settings) -> Result<Model> {
     let down = |l: f64| DVec3::new(0.0, -l, 0.0);
     let torso = Body {
         com: DVec3::new(0.0, TORSO_LENGTH / 2.0, 0.0),
-        inertia: box_inertia(70.0, TORSO_LENGTH, 0.2),
+        inertia: box_inertia(70.0, TORSO_LENGTH, WIDTHS[0]),
         ..link("torso", None, Joint::Planar, DVec3::ZERO, 70.0)
     };
     model.add_body(torso)?;
     for side in ["right", "left"] {
         let thigh = Body {
             com: down(THIGH_LENGTH / 2.0),
-            inertia: box_inertia(5.0, THIGH_LENGTH, 0.1),
+            inertia: box_inertia(5.0, THIGH_LENGTH, WIDTHS[1]),
             ..link(&format!("{side}_thigh"), Some(TORSO), hinge, DVec3::ZERO, 5.0)
         };
         let t = model.add_body(thigh)?;
         let shin = Body {
             com: down(SHIN_LENGTH / 2.0),
-            inertia: box_inertia(4.0, SHIN_LENGTH, 0.08),
+            inertia: box_inertia(4.0, SHIN_LENGTH, WIDTHS[2]),
             ..link(&format!("{side}_shin"), Some(t), hinge, down(THIGH_LENGTH), 4.0)
         };
         let s = model.add_body(shin)?;
         let y = -(ANKLE_HEIGHT - SOLE_RADIUS);
         let foot = Body {
             com: DVec3::new(FOOT_LENGTH / 2.0 - HEEL, -ANKLE_HEIGHT / 2.0, 0.0),
-            inertia: box_inertia(1.0, FOOT_LENGTH, 0.06),
+            inertia: box_inertia(1.0, FOOT_LENGTH, WIDTHS[3]),
             shape: Some(Capsule {
                 a: DVec3::new(-HEEL, y, 0.0),
                 b: DVec3::new(FOOT_LENGTH - HEEL, y, 0.0),
@@ -106,4 +131,24 @@ pub fn planar_biped(settings: Settings) -> Result<Model> {
 /// Height of the hips (m) of the straight biped with its soles on y = 0.
 pub fn hip_height() -> f64 {
     THIGH_LENGTH + SHIN_LENGTH + ANKLE_HEIGHT
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_drawn_boxes_are_the_inertia_boxes_and_the_feet_reach_the_sole() {
+        let model = planar_biped(Settings::default()).unwrap();
+        for (body, (centre, half)) in model.bodies().iter().zip(link_boxes()) {
+            if body.name.ends_with("foot") {
+                assert!((centre.y - half.y + ANKLE_HEIGHT).abs() < 1e-15);
+                assert!((centre.x - half.x + HEEL).abs() < 1e-15);
+                continue;
+            }
+            assert!((centre - body.com).length() < 1e-15, "{}", body.name);
+            let inertia = box_inertia(body.mass, 2.0 * half.y, 2.0 * half.x);
+            assert!(inertia.abs_diff_eq(body.inertia, 1e-15), "{}", body.name);
+        }
+    }
 }

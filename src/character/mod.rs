@@ -36,7 +36,7 @@ mod solver;
 pub mod spatial;
 mod state;
 
-pub use biped::{hip_height, planar_biped, LEFT, RIGHT, TORSO};
+pub use biped::{hip_height, link_boxes, planar_biped, LEFT, RIGHT, TORSO};
 pub use dynamics::Tree;
 pub use joints::{difference, integrate};
 pub use model::{Body, Capsule, Integrator, Joint, Limits, Model, Servo, ServoMode, Settings};

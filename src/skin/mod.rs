@@ -33,7 +33,7 @@ pub use weights::proximity_weights;
 
 use crate::error::{Error, Result};
 use crate::rotation::quat_from_wxyz;
-use blend::Transform;
+use blend::{Dual, Matrix, Transform};
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 
@@ -139,7 +139,7 @@ impl Skin {
         let joints = self.bones();
         check_pose(positions, orientations, joints, "positions")?;
         let poses = positions.len() / joints.max(1);
-        let (v, k) = (self.rest.len(), self.k);
+        let v = self.rest.len();
         if out.len() != poses * v {
             return Err(Error::invalid(
                 "out",
@@ -150,22 +150,59 @@ impl Skin {
         for (i, s) in skinning.iter_mut().enumerate() {
             *s = s.then(&self.bind_inverse[i % joints]);
         }
+        match method {
+            Method::Linear => {
+                let m: Vec<Matrix> = skinning.iter().map(Matrix::from).collect();
+                self.each_vertex(&m, joints, out, blend::linear);
+            }
+            Method::DualQuaternion => {
+                let d: Vec<Dual> = skinning.iter().map(Dual::from).collect();
+                self.each_vertex(&d, joints, out, blend::dual_quaternion);
+            }
+        }
+        Ok(())
+    }
+
+    /// `out[p V + v] = blend(skinning of pose p, influences of v, rest[v])` for every pose `p`
+    /// and vertex `v`, in parallel over blocks of rows (the same bits on any thread count).
+    /// Four influences per vertex (the default, and glTF's one set) get a loop compiled for
+    /// exactly four.
+    fn each_vertex<T: Sync>(
+        &self,
+        skinning: &[T],
+        joints: usize,
+        out: &mut [[f64; 3]],
+        blend: impl Fn(&[T], &[u32], &[f64], [f64; 3]) -> [f64; 3] + Sync,
+    ) {
+        if self.k == 4 {
+            self.rows::<T, 4>(skinning, joints, out, &blend);
+        } else {
+            self.rows::<T, 0>(skinning, joints, out, &blend);
+        }
+    }
+
+    /// [`Skin::each_vertex`] with `K` influences per vertex (`K = 0`: `self.k`).
+    fn rows<T: Sync, const K: usize>(
+        &self,
+        skinning: &[T],
+        joints: usize,
+        out: &mut [[f64; 3]],
+        blend: &(impl Fn(&[T], &[u32], &[f64], [f64; 3]) -> [f64; 3] + Sync),
+    ) {
         const BLOCK: usize = 1024;
+        let (v, k) = (self.rest.len(), if K == 0 { self.k } else { K });
         out.par_chunks_mut(BLOCK).enumerate().for_each(|(c, rows)| {
-            for (r, row) in rows.iter_mut().enumerate() {
-                let (pose, vertex) = ((c * BLOCK + r) / v, (c * BLOCK + r) % v);
+            let (mut pose, mut vertex) = ((c * BLOCK) / v, (c * BLOCK) % v);
+            for row in rows {
                 let s = &skinning[pose * joints..(pose + 1) * joints];
                 let span = vertex * k..(vertex + 1) * k;
-                let (bones, weights) = (&self.bones[span.clone()], &self.weights[span]);
-                let x = DVec3::from_array(self.rest[vertex]);
-                *row = match method {
-                    Method::Linear => blend::linear(s, bones, weights, x),
-                    Method::DualQuaternion => blend::dual_quaternion(s, bones, weights, x),
+                *row = blend(s, &self.bones[span.clone()], &self.weights[span], self.rest[vertex]);
+                vertex += 1;
+                if vertex == v {
+                    (pose, vertex) = (pose + 1, 0);
                 }
-                .to_array();
             }
         });
-        Ok(())
     }
 }
 

@@ -1,6 +1,6 @@
 """Scene.export: a recorded scene (cloth, rigid bodies, an animated sphere) written as glTF and
-USD, read back with pygltflib and pxr: each frame's cloth vertices and bodies' positions are
-the ones recorded."""
+USD, read back with pygltflib and pxr: each frame's cloth vertices and bodies' transforms are
+the ones recorded (positions and rotations of the bodies within 1e-6)."""
 
 from __future__ import annotations
 
@@ -27,15 +27,27 @@ def recorded():
     scene.add(c)
     world = rigid.World()
     world.add_ground()
-    world.add_body(rigid.Box([0.1, 0.1, 0.1]), mass=1.0, position=(0.5, 0.5, 0.0))
+    world.add_body(
+        rigid.Box([0.1, 0.2, 0.3]),
+        mass=1.0,
+        position=(0.5, 0.5, 0.0),
+        angular_velocity=(1.0, 2.0, 3.0),  # tumbling: every frame has its own rotation
+    )
     scene.add(world)
     path = anim.Track([0.0, 1.0], [[0.0, 0.4, 0.0], [0.2, 0.5, 0.1]])
     scene.add(AnimatedSphere(0.2, path))
     scene.record("animation")
     scene.record("cloth", lambda: c.positions)
-    scene.record("box", lambda: world.positions[0])
+    scene.record("box", lambda: np.r_[world.positions[0], world.orientations[0]])
     scene.run(frames=6, progress=False)
     return scene
+
+
+def _rotation(q):
+    """The rotation matrix of ``(w, x, y, z)``, by scipy."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(q, scalar_first=True).as_matrix()
 
 
 def test_the_glb_holds_what_the_scene_recorded(recorded, tmp_path):
@@ -55,8 +67,9 @@ def test_the_glb_holds_what_the_scene_recorded(recorded, tmp_path):
     for k in range(6):
         got = base + np.einsum("t,tvi->vi", w[k], targets)
         assert np.abs(got - recorded.records["cloth"][k]).max() < 1e-5
-        g = world_matrices(doc, box, k)[node]
-        assert np.abs(g[:3, 3] - recorded.records["box"][k]).max() < 1e-6
+        g = world_matrices(doc, box, k)[node]  # the node's transform of frame k
+        assert np.abs(g[:3, 3] - recorded.records["box"][k][:3]).max() < 1e-6
+        assert np.abs(g[:3, :3] - _rotation(recorded.records["box"][k][3:])).max() < 1e-6
 
 
 def test_the_usd_holds_what_the_scene_recorded(recorded, tmp_path):
@@ -72,7 +85,8 @@ def test_the_usd_holds_what_the_scene_recorded(recorded, tmp_path):
         code = k + 1.0
         assert np.abs(np.array(points.Get(code)) - recorded.records["cloth"][k]).max() < 1e-5
         m = np.array(xform.ComputeLocalToWorldTransform(code)).T
-        assert np.abs(m[:3, 3] - recorded.records["box"][k]).max() < 1e-6
+        assert np.abs(m[:3, 3] - recorded.records["box"][k][:3]).max() < 1e-6
+        assert np.abs(m[:3, :3] - _rotation(recorded.records["box"][k][3:])).max() < 1e-6
 
 
 def test_export_needs_a_recording_and_a_known_format(tmp_path):

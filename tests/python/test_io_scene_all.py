@@ -1,7 +1,7 @@
 """Scene.export of every system: particles (born and dying), a fluid and its surface, a rod,
 hair, a crowd, a flock, a motion-captured character and a biped, recorded for a few frames,
-written as glTF and USD and read back with pygltflib and pxr. Each frame's points, polylines
-and meshes, evaluated in the test from the file (morph targets, the STEP visibility of
+written as glTF and USD and read back with pygltflib and pxr. Each frame's points, polylines,
+meshes and rigid frames (the biped's links, as node transforms within 1e-6), evaluated in the test from the file (morph targets, the STEP visibility of
 per-frame nodes, USD time samples), are the ones the test saw after that frame."""
 
 from __future__ import annotations
@@ -16,7 +16,8 @@ pygltflib = pytest.importorskip("pygltflib")
 pxr = pytest.importorskip("pxr")
 importlib.import_module("pxr.UsdGeom")
 
-from test_io_gltf import read  # noqa: E402
+from scipy.spatial.transform import Rotation  # noqa: E402
+from test_io_gltf import read, world_matrices  # noqa: E402
 
 import kinema  # noqa: E402
 from kinema import character, mocap, particles  # noqa: E402
@@ -64,13 +65,22 @@ def recorded():
         seen["hair"].append(np.array(hair.positions).reshape(-1, 3))
         seen["crowd"].append(np.c_[crowd.positions[:, 0], np.zeros(2), crowd.positions[:, 1]])
         seen["flock"].append(np.c_[flock.positions, np.zeros(2)])
-        seen["biped"].append(np.array(biped.positions()))
+        seen["biped"].append(np.c_[biped.positions(), biped.orientations()])
         seen["joints"].append(walker.joints(s.time))
 
     scene.run(frames=FRAMES, progress=False, on_frame=look)
     sizes = {len(p) for p in seen["ps"]}
     assert len(sizes) > 1, "the particles' count should change while recording"
     return scene, seen, walker
+
+
+def _frame(state):
+    """The 4x4 matrix of a body frame ``(x, y, z, w, qx, qy, qz)`` (kinema's quaternion order),
+    computed with scipy."""
+    m = np.eye(4)
+    m[:3, :3] = Rotation.from_quat(state[3:], scalar_first=True).as_matrix()
+    m[:3, 3] = state[:3]
+    return m
 
 
 def _morphed(doc, name):
@@ -125,8 +135,18 @@ def test_every_system_round_trips_through_glb(recorded, tmp_path):
     assert not np.any(pairs[:, 1] % 5 == 0)
     frames, _, _ = _morphed(doc, "agents5")
     np.testing.assert_allclose(frames, np.array(seen["flock"]), atol=1e-5)
-    frames, _, _ = _morphed(doc, "agents6")
-    np.testing.assert_allclose(frames, np.array(seen["biped"]), atol=1e-5)
+    for b, name in enumerate(character.Biped().names):  # each link a node moved rigidly
+        anim = next(a for a in doc.animations if a.name == f"biped6_{name}")
+        node = anim.channels[0].target.node
+        for k in range(FRAMES):
+            np.testing.assert_allclose(
+                world_matrices(doc, anim, k)[node], _frame(seen["biped"][k][b]), atol=1e-6
+            )
+        box = doc.meshes[doc.nodes[node].mesh].primitives[0]
+        v = read(doc, box.attributes.POSITION).astype(np.float64)
+        centre, half = character.Biped.link_boxes()[b]
+        np.testing.assert_allclose(v.min(axis=0), centre - half, atol=1e-7)
+        np.testing.assert_allclose(v.max(axis=0), centre + half, atol=1e-7)
     frames, _, indices = _morphed(doc, "character7")
     bones = walker._bones.reshape(-1)
     np.testing.assert_allclose(frames, np.array(seen["joints"])[:, bones], atol=1e-5)
@@ -159,7 +179,8 @@ def test_every_system_round_trips_through_usd(recorded, tmp_path):
     rod = geom.BasisCurves(stage.GetPrimAtPath("/kinema/mesh0"))
     hair = geom.BasisCurves(stage.GetPrimAtPath("/kinema/mesh1"))
     crowd = geom.Points(stage.GetPrimAtPath("/kinema/mesh2"))
-    bones = geom.BasisCurves(stage.GetPrimAtPath("/kinema/mesh5"))
+    bones = geom.BasisCurves(stage.GetPrimAtPath("/kinema/mesh4"))
+    links = [geom.Xformable(stage.GetPrimAtPath(f"/kinema/body{b}")) for b in range(7)]
     assert list(hair.GetCurveVertexCountsAttr().Get()) == [5] * 4
     assert hair.GetTypeAttr().Get() == geom.Tokens.linear
     assert list(bones.GetCurveVertexCountsAttr().Get()) == [2] * len(walker._bones)
@@ -179,6 +200,9 @@ def test_every_system_round_trips_through_usd(recorded, tmp_path):
         np.testing.assert_allclose(at(crowd), seen["crowd"][k], atol=1e-5)
         joints = np.array(seen["joints"][k])[walker._bones.reshape(-1)]
         np.testing.assert_allclose(at(bones), joints, atol=1e-5)
+        for b, link in enumerate(links):
+            m = np.array(link.ComputeLocalToWorldTransform(code)).T
+            np.testing.assert_allclose(m, _frame(seen["biped"][k][b]), atol=1e-6)
 
 
 def test_the_glb_plays_back_every_system_frame_by_frame(recorded, tmp_path):

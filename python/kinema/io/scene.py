@@ -4,16 +4,17 @@
 of every system it holds. What has a fixed size goes in the record ``"animation"`` (one row
 per frame, like any other record): every cloth's vertex positions, every rigid body's position
 and orientation, every animated sphere's centre, every rod's and hair's vertices, every crowd's
-and flock's agents, every biped's body frames, every motion-captured character's joints. What
+and flock's agents, every biped's body frames (positions and orientations), every motion-captured character's joints. What
 changes size is kept beside it, one entry per frame: the live particles of a particle or
 constrained system, a fluid's particles and its surface mesh (``Fluid.surface_mesh()`` at its
 default resolution, computed every frame while recording).
 
 ``scene.export(path)`` writes them in metres and seconds (see :mod:`kinema.io.gltf` and
 :mod:`kinema.io.usd`): a cloth as a deforming mesh; a rigid body (its shape's mesh, as
-:mod:`kinema.plot` draws it) and an animated sphere as rigid tracks; rods and hair as
-polylines; a character's bones as line segments; crowds (on the ground, ``(x, 0, z)``), flocks
-(2-D ones at ``z = 0``) and bipeds (the 7 body frames) as points; particles and fluids as points
+:mod:`kinema.plot` draws it), an animated sphere and each link of a biped (its box,
+:meth:`kinema.character.Biped.link_boxes`) as rigid tracks; rods and hair as
+polylines; a character's bones as line segments; crowds (on the ground, ``(x, 0, z)``) and
+flocks (2-D ones at ``z = 0``) as points; particles and fluids as points
 and a fluid's surface as a mesh, all of whose sizes change from frame to frame.
 """
 
@@ -51,7 +52,7 @@ def _width(s: Any) -> int | None:
     if isinstance(s, (crowd.Crowd, flock.Flock)):
         return 3 * len(s.positions)
     if isinstance(s, character.Biped):
-        return int(np.asarray(s.positions()).size)
+        return 7 * len(s.names)
     if isinstance(s, Character):
         return 3 * len(s.joints(0.0))
     return None
@@ -83,7 +84,7 @@ def _row_part(scene: Any, s: Any) -> np.ndarray:
     if isinstance(s, (crowd.Crowd, flock.Flock)):
         return _lifted(s).ravel()
     if isinstance(s, character.Biped):
-        return np.asarray(s.positions()).ravel()
+        return np.c_[s.positions(), s.orientations()].ravel()
     if isinstance(s, Character):
         return np.asarray(s.joints(scene.time)).ravel()
     return np.asarray(s.positions).ravel()
@@ -125,7 +126,7 @@ def frame_state(scene: Any) -> np.ndarray:
 
 def _fixed_tracks(scene: Any, rows: np.ndarray, out: SceneTracks) -> None:
     """The rigid tracks and fixed-size sequences of the record ``rows`` into ``out``."""
-    from kinema import _geometry, cloth, rigid, rods
+    from kinema import _geometry, character, cloth, rigid, rods
     from kinema.scene import AnimatedSphere, Character
 
     rigid_tracks, sequences, _ = out
@@ -144,6 +145,12 @@ def _fixed_tracks(scene: Any, rows: np.ndarray, out: SceneTracks) -> None:
                 v, t = _geometry.body_mesh(shape)
                 x, q = states[:, b, :3], states[:, b, 3:]
                 rigid_tracks.append(RigidTrack(v, t, times, x, q, f"body{i}_{b}"))
+        elif isinstance(s, character.Biped):
+            states = block.reshape(f, -1, 7)
+            for b, (name, (centre, half)) in enumerate(zip(s.names, s.link_boxes(), strict=True)):
+                v, t = _geometry.box(half)
+                x, q = states[:, b, :3], states[:, b, 3:]
+                rigid_tracks.append(RigidTrack(v + centre, t, times, x, q, f"biped{i}_{name}"))
         elif isinstance(s, AnimatedSphere):
             v, t = _geometry.uv_sphere(float(s.radius))
             q = np.tile([1.0, 0.0, 0.0, 0.0], (f, 1))

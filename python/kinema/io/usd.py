@@ -8,8 +8,8 @@ per second.
   per frame) and the ``Mesh`` bound to it (``UsdSkelBindingAPI``: ``jointIndices`` and
   ``jointWeights`` of ``k`` influences per vertex, and ``skel:skinningMethod`` set to the skin's
   method: ``dualQuaternion`` or ``classicLinear``, so USD shows what kinema computed);
-- :class:`kinema.io.RigidTrack`: an ``Xform`` with time-sampled translate and orient, holding
-  the mesh;
+- :class:`kinema.io.RigidTrack`: an ``Xform`` with time-sampled translate and orient (both
+  double precision), holding the mesh;
 - :class:`kinema.io.MeshSequence`: a ``Mesh`` (triangles), ``BasisCurves`` (``linear``, one
   curve per strand: rods, hair) or ``Points`` (crowds, flocks) whose ``points`` are
   time-sampled (one sample per frame);
@@ -130,10 +130,12 @@ def _add_rigid(pxr: Any, stage: Any, path: str, track: RigidTrack, rate: float) 
     q = np.asarray(track.orientations, dtype=np.float64).reshape(len(x), 4)
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     xform = pxr.UsdGeom.Xform.Define(stage, path)
-    translate, orient = xform.AddTranslateOp(), xform.AddOrientOp()
+    # Double precision: a float orient of a small turn loses ~1e-5 (USD takes its angle by acos).
+    translate = xform.AddTranslateOp()
+    orient = xform.AddOrientOp(pxr.UsdGeom.XformOp.PrecisionDouble)
     for k, time in enumerate(t):
         translate.Set(pxr.Gf.Vec3d(*x[k]), time)
-        orient.Set(pxr.Gf.Quatf(*map(float, q[k])), time)
+        orient.Set(pxr.Gf.Quatd(*map(float, q[k])), time)
     _mesh(pxr, stage, f"{path}/mesh", np.asarray(track.vertices, np.float64), track.triangles)
 
 
