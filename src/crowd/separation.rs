@@ -14,8 +14,8 @@
 //! overlap each along the line of their centres (equal masses), an obstacle (infinite mass)
 //! pushes the agent alone, away from the nearest point of its edges. The constraints are
 //! swept in a fixed order (pairs by first then second index, obstacles after the pairs), so
-//! the result does not depend on the thread count; the velocities are left as ORCA chose
-//! them.
+//! the result does not depend on the thread count. The solver then adds each moved agent's
+//! correction over the step to its velocity (position-based dynamics' velocity update).
 
 use super::lp::det;
 use super::metrics::{self, EPSILON};

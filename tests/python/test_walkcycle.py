@@ -33,9 +33,7 @@ def stance_speeds(cycle: WalkCycle, speed: float, by_distance: bool = True) -> l
     heading = np.array([0.6, 0.8])
     positions = np.array([3.0, -2.0]) + np.outer(speed * t, heading)
     played = speed * t if by_distance else cycle.speed * t
-    frames = np.stack(
-        [cycle.pose(positions[k], heading, played[k])[0] for k in range(len(t))]
-    )
+    frames = np.stack([cycle.pose(positions[k], heading, played[k])[0] for k in range(len(t))])
     out = []
     for name in ("lfoot", "rfoot"):
         foot = frames[:, cycle.joint_names.index(name)]
@@ -46,7 +44,7 @@ def stance_speeds(cycle: WalkCycle, speed: float, by_distance: bool = True) -> l
 
 
 def test_cycle_is_one_gait_cycle_of_the_clip(cycle: WalkCycle, clip: tuple) -> None:
-    sk, motion = clip
+    motion = clip[1]
     # The clip walks 4.16 m in 517 frames (0.965 m/s); a slow walk's gait cycle is 1-1.6 s.
     assert 1.0 < cycle.period < 1.6
     assert abs(cycle.speed - 0.965) < 0.03
