@@ -14,7 +14,7 @@ agents crossing a square at 0.1 agents per m² against RVO2's `do_step` alone (t
 setting its preferred velocities outside the timer), and 2-D boids at 0.5 per m² against a
 numpy reference with scipy's cKDTree neighbours (`boids_reference`, the same rules).
 
-Run: python bench/bench_crowd.py [--agents 250] [--steps 4000] [--orca 1000 10000]
+Run: python bench/bench_crowd.py [--agents 250] [--steps 6000] [--orca 1000 10000]
 [--boids 10000 100000 1000000]
 """
 
@@ -211,7 +211,7 @@ def orca_speed(n: int, steps: int) -> tuple[float, float | None]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--agents", type=int, default=250)
-    ap.add_argument("--steps", type=int, default=4000)
+    ap.add_argument("--steps", type=int, default=6000)
     ap.add_argument("--orca", type=int, nargs="*", default=[1000, 10_000])
     ap.add_argument("--boids", type=int, nargs="*", default=[10_000, 100_000, 1_000_000])
     args = ap.parse_args()
