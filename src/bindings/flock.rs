@@ -135,7 +135,7 @@ impl Flock {
                 Behaviour::Avoid { shape, horizon: tail[0], clearance: tail[1] }
             }
             "follow" => {
-                if values.len() < 2 || (values.len() - 2) % 3 != 0 {
+                if values.len() < 2 || !(values.len() - 2).is_multiple_of(3) {
                     return Err(
                         Error::invalid("values", "expected 3 numbers a point, then 2").into()
                     );
