@@ -2,7 +2,8 @@
 //! arrive stops at its target without overshoot (seek overshoots), pursue intercepts a
 //! straight-moving target sooner than seek, flee and evade head away from the (predicted)
 //! threat, wander is seeded and stays in its plane, obstacle avoidance keeps boids out of a
-//! sphere in their path (which they enter without it).
+//! sphere in their path (which they enter without it), path following brings boids onto a
+//! bent path and keeps them within its radius round the corner.
 
 use glam::DVec3;
 use kinema::flock::{Behaviour, Flock, Settings, Steering};
@@ -27,7 +28,7 @@ fn on(behaviour: Behaviour, boids: [u32; 2]) -> Steering {
 fn flock(settings: Settings, p: &[DVec3], v: &[DVec3], steering: &[Steering]) -> Flock {
     let mut f = Flock::new(settings, p, v).unwrap();
     for s in steering {
-        f.add_steering(*s).unwrap();
+        f.add_steering(s.clone()).unwrap();
     }
     f
 }
@@ -111,7 +112,7 @@ fn flee_and_evade_accelerate_away_from_the_predicted_threat() {
         (Behaviour::Evade(1), DVec3::new(-1.0, -1.0, 0.0).normalize()),
         (Behaviour::Flee(p[1]), DVec3::new(-1.0, 0.0, 0.0)),
     ] {
-        let mut f = flock(quiet(), &p, &v, &[on(behaviour, [0, 1])]);
+        let mut f = flock(quiet(), &p, &v, &[on(behaviour.clone(), [0, 1])]);
         f.step(dt, 1).unwrap();
         // The desired velocity is 2 m/s away; from rest the steering is clamped to 2 m/s².
         let got = f.state().velocities()[0];
@@ -176,4 +177,59 @@ fn bad_steering_is_named() {
     let before = f.state().clone();
     assert!(f.step(0.1, 1).unwrap_err().to_string().contains("target"));
     assert_eq!(*f.state(), before);
+}
+
+/// An L-shaped path (50 m along +x, then 50 m along +y), radius 1 m, lookahead 1 s: five
+/// boids starting 6-10 m off it, some flying the wrong way, join it within 15 s, then stay
+/// within the radius plus the turning overshoot `v² / a_max` = 2 m (speed 2 m/s, force
+/// 2 m/s²) while going round the corner, and progress along it; without the behaviour they
+/// fly straight on.
+#[test]
+fn path_following_joins_the_path_and_stays_within_its_radius() {
+    let path = vec![DVec3::ZERO, DVec3::new(50.0, 0.0, 0.0), DVec3::new(50.0, 50.0, 0.0)];
+    let segment = |p: DVec3, a: DVec3, b: DVec3| {
+        let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+        (p - (a + t * (b - a))).length()
+    };
+    let distance = |p: DVec3| segment(p, path[0], path[1]).min(segment(p, path[1], path[2]));
+    let p: Vec<DVec3> = (0..5).map(|i| DVec3::new(2.0 * i as f64, 6.0 + i as f64, 0.0)).collect();
+    let v: Vec<DVec3> =
+        (0..5).map(|i| DVec3::new(if i % 2 == 0 { 1.0 } else { -1.0 }, 0.0, 0.0)).collect();
+    let follow = Behaviour::Follow { path: path.clone(), radius: 1.0, lookahead: 1.0 };
+    let mut f = flock(quiet(), &p, &v, &[on(follow, [0, 5])]);
+    let mut worst: f64 = 0.0;
+    for step in 0..1000 {
+        f.step(0.05, 1).unwrap();
+        if step >= 300 {
+            for &q in f.state().positions() {
+                worst = worst.max(distance(q));
+            }
+        }
+    }
+    assert!(worst < 1.0 + 2.0, "left the path by {worst} m");
+    // 50 s at up to 2 m/s: all have turned the corner and gone up the second leg.
+    for &q in f.state().positions() {
+        assert!(q.y > 20.0 && (q.x - 50.0).abs() < 3.0, "{q}");
+    }
+    let mut plain = flock(quiet(), &p, &v, &[]);
+    plain.step(0.05, 1000).unwrap();
+    assert!(plain.state().positions().iter().all(|q| (q.y - 6.0).abs() < 5.0));
+}
+
+#[test]
+fn path_following_rejects_bad_paths() {
+    let mut f = flock(quiet(), &[DVec3::ZERO], &[DVec3::X], &[]);
+    for (path, radius, arg) in [
+        (vec![DVec3::ZERO], 1.0, "path"),
+        (vec![DVec3::ZERO, DVec3::ZERO], 1.0, "path"),
+        (vec![DVec3::ZERO, DVec3::X], 0.0, "radius"),
+        (vec![DVec3::ZERO, DVec3::new(f64::NAN, 0.0, 0.0)], 1.0, "path"),
+    ] {
+        let err = f
+            .add_steering(on(Behaviour::Follow { path, radius, lookahead: 1.0 }, [0, 1]))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(arg), "{err}");
+    }
+    assert!(f.model().steering().is_empty());
 }

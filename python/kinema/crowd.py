@@ -45,6 +45,8 @@ class Crowd:
     velocity a ``perturbation`` (m/s) in a direction hashed from ``seed``, the step and the
     agent, which breaks exactly symmetric deadlocks (0 turns it off). ``navigation`` (m, or
     ``None``: off) turns on the global layer with that clearance (:meth:`set_navigation`).
+    After each ORCA step, overlapping agents are pushed apart and out of obstacles (a
+    position-based projection, Müller et al. 2007), so no two agents overlap after a step.
     """
 
     def __init__(

@@ -120,6 +120,7 @@ class Flock:
         radius: float = 1.0,
         seed: int = 0,
         shape: Any = None,
+        path: Any = None,
         horizon: float = 1.0,
         clearance: float = 0.0,
         weight: float = 1.0,
@@ -137,7 +138,11 @@ class Flock:
           direction drawn each step from ``seed`` (deterministic; in-plane for a 2-D flock);
         - ``"avoid"``: steer sideways from ``shape`` (a :mod:`kinema.geometry` shape) when the
           straight path within ``horizon`` (s) comes closer than ``clearance`` (m), straight
-          out when already closer.
+          out when already closer;
+        - ``"follow"``: follow the polyline ``path`` ``(M, 2)`` / ``(M, 3)`` (m, as the
+          flock's positions), ``radius`` (m) its half-width: the position predicted
+          ``horizon`` (s) ahead is projected onto the path; within ``radius`` and moving
+          forwards, no correction, else seek the path's point ``radius`` farther along.
 
         Each gives a desired velocity; its steering is that minus the velocity, at most
         ``max_force``; the weighted sum with the flocking rules is at most ``max_force``."""
@@ -158,6 +163,11 @@ class Flock:
                 raise ValueError("shape: avoid needs a shape")
             shape_kind, params = shape_params(shape)
             values = [*params, real(horizon, "horizon"), real(clearance, "clearance")]
+        elif kind == "follow":
+            if path is None:
+                raise ValueError("path: follow needs a path")
+            points = _rows(path, "path", self._dim).ravel().tolist()
+            values = [*points, real(radius, "radius"), real(horizon, "horizon")]
         first, end = (0, len(self)) if boids is None else boids
         self._f.add_steering(
             kind,

@@ -86,7 +86,8 @@ impl Flock {
     /// Add a steering behaviour of `kind` — "seek", "flee" (`values`: target 3, m),
     /// "arrive" (target 3, slow radius, m), "pursue", "evade" (`boid`), "wander" (distance,
     /// radius in m, `seed`, `planar`), "avoid" (`shape` and its parameters, then horizon in
-    /// s and clearance in m) — with `weight`, acting on boids `first..end`.
+    /// s and clearance in m), "follow" (the path's points, 3 numbers each, then radius in m
+    /// and lookahead in s) — with `weight`, acting on boids `first..end`.
     #[allow(clippy::too_many_arguments)]
     fn add_steering(
         &mut self,
@@ -132,6 +133,16 @@ impl Flock {
             "avoid" => {
                 let (shape, tail) = super::geometry::shape(shape, &values, 2)?;
                 Behaviour::Avoid { shape, horizon: tail[0], clearance: tail[1] }
+            }
+            "follow" => {
+                if values.len() < 2 || !(values.len() - 2).is_multiple_of(3) {
+                    return Err(
+                        Error::invalid("values", "expected 3 numbers a point, then 2").into()
+                    );
+                }
+                let (points, tail) = values.split_at(values.len() - 2);
+                let path = points.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2])).collect();
+                Behaviour::Follow { path, radius: tail[0], lookahead: tail[1] }
             }
             _ => return Err(Error::invalid("kind", "unknown steering behaviour").into()),
         };

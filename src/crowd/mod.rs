@@ -27,6 +27,7 @@ pub mod metrics;
 mod model;
 mod navigation;
 mod orca;
+mod separation;
 mod snapshot;
 mod social;
 mod solver;

@@ -9,6 +9,7 @@
 use super::metrics::{self, Collisions};
 use super::navigation::Search;
 use super::orca::{self, Scratch};
+use super::separation::Separation;
 use super::social::{self, Agents};
 use super::{Kind, Model, SocialForce, State};
 use crate::error::{Error, Result};
@@ -46,6 +47,8 @@ pub struct Solver {
     start: Vec<DVec2>,
     /// The state at the start of the call, restored if a step fails.
     backup: State,
+    /// ORCA's position-level separation.
+    separation: Separation,
 }
 
 impl Solver {
@@ -184,6 +187,19 @@ impl Solver {
             });
         state.velocities.copy_from_slice(&self.next);
         state.positions.par_iter_mut().zip(&state.velocities).for_each(|(p, v)| *p += *v * dt);
+        if self.separation.separate(model, &mut state.positions) > 0 {
+            // Position-based dynamics' velocity update (Müller et al. 2007, §3.1, step 12)
+            // for the agents the separation moved.
+            let (start, next) = (&self.start, &self.next);
+            state.velocities.par_iter_mut().zip(&state.positions).enumerate().for_each(
+                |(i, (v, p))| {
+                    let moved = *p - (start[i] + next[i] * dt);
+                    if moved != DVec2::ZERO {
+                        *v = next[i] + moved / dt;
+                    }
+                },
+            );
+        }
         self.fallbacks.iter().sum()
     }
 

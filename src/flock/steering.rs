@@ -1,6 +1,6 @@
 //! Steering behaviours of Reynolds (1999, "Steering behaviors for autonomous characters"),
 //! composable as weighted forces on top of the flocking rules: seek, flee, arrive, pursue,
-//! evade, wander and obstacle avoidance against the shared collision shapes
+//! evade, wander, path following and obstacle avoidance against the shared collision shapes
 //! ([`crate::geometry::Shape`]). Each gives a desired velocity `d`; its steering is
 //! `d - v`, at most `max_force` long (the velocity relaxes to the desired one in 1 s, as the
 //! flocking rules do), weighted and summed with the others, the sum again at most
@@ -12,7 +12,7 @@ use crate::geometry::Shape;
 use glam::DVec3;
 
 /// One steering behaviour (Reynolds 1999; positions in m, times in s).
-#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub enum Behaviour {
     /// Towards `target` at the maximum speed.
     Seek(DVec3),
@@ -54,10 +54,23 @@ pub enum Behaviour {
         /// Distance (m) to keep from the surface.
         clearance: f64,
     },
+    /// Follow the polyline `path` (Reynolds 1999, "path following"): the boid's position
+    /// predicted `lookahead` (s) ahead at its velocity is projected onto the path; while
+    /// that projection is within `radius` (m) and the boid moves forwards along the path, no
+    /// correction; else seek the path's point `radius` farther along than the projection (its
+    /// last point at the end).
+    Follow {
+        /// The path's points, in order (m; at least two, consecutive ones distinct).
+        path: Vec<DVec3>,
+        /// Half-width of the path (m).
+        radius: f64,
+        /// How far ahead (s) the position is predicted.
+        lookahead: f64,
+    },
 }
 
 /// A weighted behaviour acting on the boids `boids[0]..boids[1]`.
-#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
 pub struct Steering {
     /// The behaviour.
     pub behaviour: Behaviour,
@@ -78,25 +91,40 @@ impl Steering {
         if self.boids[0] > self.boids[1] {
             return Err(Error::invalid("boids", "first must not exceed end"));
         }
-        let ok = match self.behaviour {
-            Behaviour::Seek(t) | Behaviour::Flee(t) => finite(t),
+        let ok = match &self.behaviour {
+            Behaviour::Seek(t) | Behaviour::Flee(t) => finite(*t),
             Behaviour::Arrive { target, slow_radius } => {
-                if !positive(slow_radius) {
+                if !positive(*slow_radius) {
                     return Err(Error::invalid("slow_radius", "must be finite and > 0"));
                 }
-                finite(target)
+                finite(*target)
             }
             Behaviour::Pursue(_) | Behaviour::Evade(_) => true,
             Behaviour::Wander { distance, radius, .. } => {
-                if !(distance.is_finite() && distance >= 0.0 && positive(radius)) {
+                if !(distance.is_finite() && *distance >= 0.0 && positive(*radius)) {
                     return Err(Error::invalid("radius", "distance >= 0 and radius > 0 needed"));
                 }
                 true
             }
             Behaviour::Avoid { shape, horizon, clearance } => {
                 shape.checked()?;
-                if !(positive(horizon) && clearance.is_finite() && clearance >= 0.0) {
+                if !(positive(*horizon) && clearance.is_finite() && *clearance >= 0.0) {
                     return Err(Error::invalid("horizon", "horizon > 0, clearance >= 0 needed"));
+                }
+                true
+            }
+            Behaviour::Follow { path, radius, lookahead } => {
+                if path.len() < 2
+                    || path.windows(2).any(|w| w[0] == w[1])
+                    || !path.iter().all(|p| finite(*p))
+                {
+                    return Err(Error::invalid(
+                        "path",
+                        "needs at least two finite points, consecutive ones distinct",
+                    ));
+                }
+                if !(positive(*radius) && lookahead.is_finite() && *lookahead >= 0.0) {
+                    return Err(Error::invalid("radius", "radius > 0, lookahead >= 0 needed"));
                 }
                 true
             }
@@ -147,6 +175,9 @@ pub(super) fn force(set: &Settings, behaviour: &Behaviour, state: &State, i: usi
         q + u * ((q - p).length() / set.max_speed)
     };
     match *behaviour {
+        Behaviour::Follow { ref path, radius, lookahead } => {
+            follow(set, path, radius, lookahead, p, v)
+        }
         Behaviour::Seek(t) => towards(set, full(set, t - p), v),
         Behaviour::Flee(t) => towards(set, full(set, p - t), v),
         Behaviour::Arrive { target, slow_radius } => {
@@ -166,6 +197,44 @@ pub(super) fn force(set: &Settings, behaviour: &Behaviour, state: &State, i: usi
             avoid(set, &shape, horizon, clearance, p, v)
         }
     }
+}
+
+/// Path following (Reynolds 1999; see [`Behaviour::Follow`]).
+fn follow(
+    set: &Settings,
+    path: &[DVec3],
+    radius: f64,
+    lookahead: f64,
+    p: DVec3,
+    v: DVec3,
+) -> DVec3 {
+    let ahead = p + v * lookahead;
+    // The nearest point of the path to the predicted position: segment k, parameter t.
+    let (mut best, mut k, mut t) = (f64::INFINITY, 0, 0.0);
+    for (j, w) in path.windows(2).enumerate() {
+        let ab = w[1] - w[0];
+        let s = ((ahead - w[0]).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+        let d2 = (ahead - (w[0] + s * ab)).length_squared();
+        if d2 < best {
+            (best, k, t) = (d2, j, s);
+        }
+    }
+    let tangent = (path[k + 1] - path[k]).normalize();
+    if best <= radius * radius && v.dot(tangent) > 0.0 {
+        return DVec3::ZERO;
+    }
+    // `radius` farther along the path from the projection.
+    let mut left = radius + t * (path[k + 1] - path[k]).length();
+    let mut target = path[path.len() - 1];
+    for w in path[k..].windows(2) {
+        let l = (w[1] - w[0]).length();
+        if left <= l {
+            target = w[0] + (w[1] - w[0]) * (left / l);
+            break;
+        }
+        left -= l;
+    }
+    towards(set, full(set, target - p), v)
 }
 
 /// Obstacle avoidance (Reynolds 1999): if the boid is within `clearance` of `shape`, straight

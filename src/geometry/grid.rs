@@ -11,6 +11,9 @@
 //! bucket give no duplicates). The lists are found in one parallel pass over chunks of query
 //! points, each chunk appending to its own buffer (Ihmsen et al.'s compact storage, one pass
 //! instead of count-then-fill), so lists and their order do not depend on the thread count.
+//! Points all in one layer of cells along z (crowds and 2-D flocks, lifted to `z = 0`) visit
+//! only the 9 cells of their layer: the other 18 hold none of them but hash to buckets that
+//! may hold other points.
 //! Buffers only grow: a rebuild of the same size allocates nothing.
 
 use glam::DVec3;
@@ -40,6 +43,9 @@ pub struct Grid {
     ends: Vec<u32>,
     /// The neighbours of every chunk of `CHUNK` query points, concatenated per chunk.
     lists: Vec<Vec<u32>>,
+    /// Every point lies in one layer of cells along z (points on a plane `z = const`, as
+    /// crowds and 2-D flocks): the layers above and below are not visited.
+    planar: bool,
 }
 
 fn cell_of(p: DVec3, inv_h: f64) -> [i64; 3] {
@@ -72,6 +78,8 @@ impl Grid {
             *c = cell_of(*p, inv_h);
             *b = hash(*c, mask);
         });
+        let layer = self.cell.first().map_or(0, |c| c[2]);
+        self.planar = self.cell.par_iter().all(|c| c[2] == layer);
         // Counting sort by bucket.
         self.start.clear();
         self.start.resize(buckets + 1, 0);
@@ -124,10 +132,12 @@ impl Grid {
     }
 
     /// Append to `out` every point `j ≠ i` closer than `h` to point `i` at `p`, cell by cell
-    /// (z, y, x outer to inner), by index within a cell.
+    /// (z, y, x outer to inner; only the own layer when the points are planar), by index
+    /// within a cell.
     fn visit(&self, p: DVec3, i: usize, h: f64, mask: u64, out: &mut Vec<u32>) {
         let (c, h2) = (self.cell[i], h * h);
-        for dz in -1..=1 {
+        let layers = if self.planar { 0..=0 } else { -1..=1 };
+        for dz in layers {
             for dy in -1..=1 {
                 for dx in -1..=1 {
                     let cc = [c[0].wrapping_add(dx), c[1].wrapping_add(dy), c[2].wrapping_add(dz)];

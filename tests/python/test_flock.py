@@ -99,3 +99,60 @@ def test_same_bits_on_one_and_two_threads() -> None:
     finally:
         kinema.set_num_threads(old)
     assert np.array_equal(out[0], out[1])
+
+
+def _bench_crowd():  # type: ignore[no-untyped-def]
+    """bench/bench_crowd.py, whose numpy/cKDTree boids are the benchmark's peer."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "bench" / "bench_crowd.py"
+    spec = importlib.util.spec_from_file_location("bench_crowd", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_boids_match_an_independent_numpy_ckdtree_implementation() -> None:
+    """The benchmark's reference (numpy, scipy's cKDTree, the same rules written again)
+    agrees with kinema to rounding over 10 steps of 400 boids at the defaults."""
+    bench = _bench_crowd()
+    p, v = bench.boid_field(400)
+    f = Flock(p, v)
+    f.step(0.05, 10)
+    rp, rv = bench.boids_reference(p, v, 0.05, 10)
+    assert np.abs(f.positions - p).max() > 0.1  # they moved
+    np.testing.assert_allclose(f.positions, rp, atol=1e-12)
+    np.testing.assert_allclose(f.velocities, rv, atol=1e-12)
+
+
+def test_a_million_boids_step() -> None:
+    """The extreme of issue #25: 10⁶ boids (2-D, 0.5 per m²) take a step, finite, within the
+    speed limit, each moving at most max_speed · dt."""
+    rng = np.random.default_rng(5)
+    n = 1_000_000
+    side = (n / 0.5) ** 0.5
+    p = rng.uniform(0, side, (n, 2))
+    f = Flock(p, rng.uniform(-1, 1, (n, 2)))
+    f.step(0.05, 2)
+    assert np.isfinite(f.positions).all() and np.isfinite(f.velocities).all()
+    assert np.linalg.norm(f.velocities, axis=1).max() <= 2.0 + 1e-12
+    assert np.linalg.norm(f.positions - p, axis=1).max() <= 2 * 2.0 * 0.05 + 1e-9
+
+
+def test_follow_keeps_boids_on_a_path() -> None:
+    """Path following (Reynolds 1999) from Python: boids 5 m off a straight path join it and
+    fly along it; a path of one point is refused, naming the argument."""
+    p = np.array([[0.0, 5.0], [3.0, -5.0], [6.0, 4.0]])
+    v = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0]])
+    quiet = dict(separation=0.0, alignment=0.0, cohesion=0.0, max_force=2.0)
+    f = Flock(p, v, **quiet)
+    f.add_behaviour("follow", path=[[0.0, 0.0], [200.0, 0.0]], radius=0.5, horizon=1.0)
+    f.step(0.05, 400)
+    assert np.abs(f.positions[:, 1]).max() < 0.5 + 2.0, f.positions
+    assert (f.positions[:, 0] > 20.0).all(), f.positions
+    with pytest.raises(ValueError, match="path"):
+        f.add_behaviour("follow", path=[[0.0, 0.0]])
+    with pytest.raises(ValueError, match="path"):
+        f.add_behaviour("follow", path=[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
