@@ -174,7 +174,6 @@ pub struct Repulsion {
     /// The distance `d` the centrelines keep (m), typically twice the strand radius.
     pub thickness: f64,
     /// Coulomb's friction coefficient `μ` between strands (≥ 0; 0, the default, for none).
-    #[serde(default)]
     pub friction: f64,
 }
 

@@ -102,7 +102,6 @@ pub struct Hair {
     repulsion: Repulsion,
     /// The head as a moving collider: a ball in the head's frame and its slot in the
     /// model's colliders (which it occupies at the head's pose of the step).
-    #[serde(default)]
     head_ball: Option<(usize, Sphere)>,
     #[serde(skip)]
     work: Work,
