@@ -11,7 +11,7 @@ use kinema::rods::{template, End, Hair, Material, Model, Repulsion, Rod, Setting
 const HAIR: Material =
     Material { youngs_modulus: 1e9, shear_modulus: 4e8, density: 1300.0, radius: [1e-4; 2] };
 
-const OFF: Repulsion = Repulsion { stiffness: 0.0, thickness: 0.0 };
+const OFF: Repulsion = Repulsion { stiffness: 0.0, thickness: 0.0, friction: 0.0 };
 
 /// `count` points on the cap of the unit-less sphere of radius `r` about `+y` within 60°,
 /// with their outward normals (a Fibonacci spiral).
@@ -84,7 +84,8 @@ fn turning_head_carries_the_roots() {
 fn run_on(threads: usize) -> Vec<DVec3> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     pool.install(|| {
-        let mut hair = groomed(70, 0.005, Repulsion { stiffness: 1e2, thickness: 2e-3 });
+        let mut hair =
+            groomed(70, 0.005, Repulsion { stiffness: 1e2, thickness: 2e-3, friction: 0.0 });
         hair.set_head(DQuat::from_rotation_x(0.6), DVec3::ZERO).unwrap();
         hair.step(1.0 / 60.0, 20).unwrap();
         assert!(hair.stats.iterations > 0);
@@ -144,9 +145,9 @@ fn crossing(repulsion: Repulsion) -> (f64, f64) {
 #[test]
 fn repulsion_keeps_crossing_strands_apart() {
     let thickness = 2e-3;
-    let (closest, above) = crossing(Repulsion { stiffness: 0.0, thickness });
+    let (closest, above) = crossing(Repulsion { stiffness: 0.0, thickness, friction: 0.0 });
     println!("without: closest {closest:e} m, height at the crossing {above:e} m");
-    let (closest2, above2) = crossing(Repulsion { stiffness: 1e4, thickness });
+    let (closest2, above2) = crossing(Repulsion { stiffness: 1e4, thickness, friction: 0.0 });
     println!("with repulsion: closest {closest2:e} m, height at the crossing {above2:e} m");
     assert!(closest2 > 0.9 * thickness, "{closest2:e}");
     assert!(above2 > 0.9 * thickness, "{above2:e}");
@@ -164,7 +165,7 @@ fn bad_hair_arguments_are_named() {
     assert!(err(Hair::groom(&points, &normals, -0.1, 4, 0.0, HAIR, s, OFF)).contains("length"));
     assert!(err(Hair::groom(&points, &normals, 0.1, 0, 0.0, HAIR, s, OFF)).contains("segments"));
     assert!(err(Hair::groom(&points, &normals, 0.1, 4, f64::NAN, HAIR, s, OFF)).contains("curl"));
-    let bad = Repulsion { stiffness: -1.0, thickness: 1e-3 };
+    let bad = Repulsion { stiffness: -1.0, thickness: 1e-3, friction: 0.0 };
     let e = err(Hair::groom(&points, &normals, 0.1, 4, 0.0, HAIR, s, bad));
     assert!(e.contains("repulsion_stiffness"), "{e}");
     let mut hair = groomed(3, 0.0, OFF);
@@ -182,7 +183,7 @@ fn demo_hair(tolerance: f64) -> (Vec<DVec3>, f64, f64) {
     let (points, normals) = scalp(60, 0.1);
     let material = Material { shear_modulus: 1e9 / 3.0, ..HAIR };
     let settings = Settings { tolerance, ..Settings::default() };
-    let repulsion = Repulsion { stiffness: 10.0, thickness: 2e-4 };
+    let repulsion = Repulsion { stiffness: 10.0, thickness: 2e-4, friction: 0.0 };
     let mut hair =
         Hair::groom(&points, &normals, 0.12, 16, 0.01, material, settings, repulsion).unwrap();
     let (mut iterations, mut halvings) = (0, 0);
@@ -213,4 +214,71 @@ fn few_newton_iterations_per_hair_step() {
     println!("{iterations:.2} iterations, {halvings:.2} halvings per strand step; {worst:e} m");
     assert!(worst < 1e-6, "{worst:e}");
     assert!(iterations < 10.0 && halvings < 0.5, "{iterations} {halvings}");
+}
+
+/// FNV-1a over the bits of `values`.
+fn fingerprint(values: impl IntoIterator<Item = f64>) -> u64 {
+    values.into_iter().fold(0xcbf2_9ce4_8422_2325, |h: u64, v| {
+        (h ^ v.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+/// Without friction between strands (`μ = 0`) the repulsion is what it was before friction
+/// existed, bitwise: the fingerprints of the 70 dense strands turned by the head and of the
+/// pressed crossing strands were recorded from the code before friction was added
+/// (`print_old_fingerprints` run at commit 7145366).
+#[test]
+fn zero_strand_friction_is_the_old_repulsion_bitwise() {
+    let dense = run_on(1);
+    let (closest, lowest) = crossing(Repulsion { stiffness: 1e4, thickness: 2e-3, ..OFF });
+    assert_eq!(fingerprint(dense.iter().flat_map(|p| p.to_array())), DENSE_BEFORE_FRICTION);
+    assert_eq!(fingerprint([closest, lowest]), CROSSING_BEFORE_FRICTION);
+}
+const DENSE_BEFORE_FRICTION: u64 = 0xb269_7479_56ab_655b;
+const CROSSING_BEFORE_FRICTION: u64 = 0xc749_14ac_c510_ca10;
+
+/// Soft hair that hangs (15 cm in 16 segments, `r = 50 µm`, `E = 1 GPa`) from 60 roots on the
+/// upper cap (60°) of a 10 cm head, the head turned (±0.7 rad), nodded (±0.3 rad) and moved
+/// sideways (±3 cm) for 1 s at 1/60 s: the deepest any non-root vertex's centreline gets
+/// inside the head ball (m).
+fn deepest_in_head(collider: bool) -> f64 {
+    let (points, normals) = scalp(60, 0.1);
+    let material = Material {
+        youngs_modulus: 1e9,
+        shear_modulus: 1e9 / 3.0,
+        density: 1300.0,
+        radius: [5e-5; 2],
+    };
+    let settings = Settings { tolerance: 1e-8, max_iterations: 300, ..Settings::default() };
+    let mut hair = Hair::groom(&points, &normals, 0.15, 16, 0.0, material, settings, OFF).unwrap();
+    if collider {
+        let ball = kinema::geometry::Sphere { center: DVec3::ZERO, radius: 0.1 };
+        hair.set_head_collider(ball).unwrap();
+    }
+    let mut deepest: f64 = f64::NEG_INFINITY;
+    for k in 1..=60 {
+        let t = k as f64 / 60.0;
+        let yaw = 0.7 * (std::f64::consts::TAU * t / 2.0).sin();
+        let pitch = 0.3 * (std::f64::consts::TAU * t / 1.3).sin();
+        let head = DQuat::from_rotation_y(yaw) * DQuat::from_rotation_x(pitch);
+        let shift = DVec3::new(0.03 * (std::f64::consts::TAU * t).sin(), 0.0, 0.0);
+        hair.set_head(head, shift).unwrap();
+        hair.step(1.0 / 60.0, 1).unwrap_or_else(|e| panic!("collider {collider}, step {k}: {e}"));
+        for s in hair.states() {
+            for x in &s.positions()[2..] {
+                deepest = deepest.max(0.1 - (*x - shift).length());
+            }
+        }
+    }
+    deepest
+}
+
+/// The head as a moving collider: with it no strand's centreline gets inside the turning,
+/// nodding head (deepest measured below); without it hanging strands fall centimetres into it.
+#[test]
+fn head_collider_keeps_strands_out_of_the_moving_head() {
+    let (with, without) = (deepest_in_head(true), deepest_in_head(false));
+    println!("deepest inside the head: with the collider {with:e} m, without {without:e} m");
+    assert!(with < 1e-4, "{with:e}");
+    assert!(without > 1e-2, "{without:e}");
 }

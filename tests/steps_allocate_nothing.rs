@@ -268,8 +268,8 @@ fn character_scenes() -> Vec<(String, usize)> {
     vec![("character, ragdoll".into(), allocations(120, || body.step(1.0 / 480.0, 4).unwrap()))]
 }
 
-/// A hair of 100 curly strands on a turning head (repulsion active, several tasks), and a rod
-/// on a plane with friction.
+/// A hair of 100 curly strands on a turning head (repulsion with friction between strands
+/// active, the head a collider, several tasks), and a rod on a plane with friction.
 fn rod_scenes() -> Vec<(String, usize)> {
     use kinema::rods::{Collider, Hair, Material, Repulsion, Rod, Settings};
     let material =
@@ -278,10 +278,11 @@ fn rod_scenes() -> Vec<(String, usize)> {
         .map(|i| DVec3::new((i % 10) as f64 * 0.05 - 0.25, 1.0, (i / 10) as f64 * 0.05 - 0.25))
         .collect();
     let points: Vec<DVec3> = normals.iter().map(|n| 0.1 * n.normalize()).collect();
-    let repulsion = Repulsion { stiffness: 1e2, thickness: 2e-4 };
+    let repulsion = Repulsion { stiffness: 1e2, thickness: 2e-4, friction: 0.3 };
     let settings = Settings::default();
     let mut hair =
         Hair::groom(&points, &normals, 0.05, 16, 0.004, material, settings, repulsion).unwrap();
+    hair.set_head_collider(geometry::Sphere { center: DVec3::ZERO, radius: 0.1 }).unwrap();
     let mut angle = 0.0;
     let mut turn = || {
         angle += 0.05;

@@ -60,6 +60,9 @@ class Rod:
     ``contact_stiffness`` (N/m) is the stiffness of the contact penalty against colliders (a
     resting vertex sinks by its load over it); ``friction_velocity`` (m/s) the sliding speed
     below which friction acts as a stiff spring (static friction creeps slower than it).
+    ``closed=True`` makes a ring (N >= 3 points, N edges: the last point joins the first);
+    its rest shape is naturally curved (an O-ring) unless :meth:`straighten` is called, and
+    :meth:`twist_ring` twists it.
     """
 
     def __init__(
@@ -77,6 +80,7 @@ class Rod:
         max_iterations: int = 100,
         contact_stiffness: float = 1e4,
         friction_velocity: float = 1e-3,
+        closed: bool = False,
     ) -> None:
         pts = _floats(points, "points")
         if pts.ndim != 2 or pts.shape[1] != 3:
@@ -108,6 +112,7 @@ class Rod:
             max_iterations,
             real(contact_stiffness, "contact_stiffness"),
             real(friction_velocity, "friction_velocity"),
+            _flag(closed, "closed"),
         )
 
     @classmethod
@@ -164,6 +169,17 @@ class Rod:
         it by the rod's radius, with Coulomb friction ``collider.friction`` (default 0;
         restitution and velocity are not used: rod contacts are inelastic, the shape static)."""
         self._r.add_collider(*_collider_params(collider))
+
+    def straighten(self) -> None:
+        """Make the rod naturally straight and untwisted: the rest curvatures and twists become
+        zero, the points only its initial shape (a straight wire bent into it, as Michell's
+        ring)."""
+        self._r.straighten()
+
+    def twist_ring(self, angle: float) -> None:
+        """Twist a ring (``closed=True``) by ``angle`` (rad) more, spread evenly over its edges
+        (the material at the seam turned by ``angle``; the link grows by ``angle / 2π``)."""
+        self._r.twist_ring(real(angle, "angle"))
 
     def pin(self, index: int) -> None:
         """Hold vertex ``index`` (negative counts from the end) where it is."""
@@ -267,6 +283,18 @@ class Hair:
         """Add a static collision shape for every strand (as :meth:`Rod.add_collider`)."""
         self._h.add_collider(*_collider_params(collider))
 
+    def set_head_collider(self, ball: Sphere) -> None:
+        """Make the head a moving collider: ``ball`` (a :class:`kinema.geometry.Sphere`, m, where
+        it is with the head at rest) moves with the head, and the strands' vertices keep out of
+        it by their radius (the penalty of ``contact_stiffness``; frictionless), the ball at the
+        head's pose at the end of each step. Replaces the head ball set before."""
+        if not isinstance(ball, Sphere):
+            raise TypeError(f"ball: expected a kinema.geometry.Sphere, got {type(ball).__name__}")
+        _, p = _collider_params(ball)
+        if p[-1] != 0.0:
+            raise ValueError("friction: the head collider is frictionless; leave it None")
+        self._h.set_head_collider(p[:3], p[3])
+
     def step(self, dt: float, steps: int = 1) -> None:
         """Advance ``steps`` steps of ``dt`` seconds; on a :class:`kinema.SimulationError` every
         strand and the head are as they were."""
@@ -313,6 +341,7 @@ def groom(
     friction_velocity: float = 1e-3,
     repulsion_stiffness: float = 0.0,
     thickness: float | None = None,
+    strand_friction: float = 0.0,
 ) -> Hair:
     """Grow a :class:`Hair`: one strand from each scalp point ``points`` ``(S, 3)`` (m, the
     head at rest) along ``normals`` ``(S, 3)`` (made unit): ``segments`` edges over the arc
@@ -321,7 +350,9 @@ def groom(
     turned from ``+z`` onto each normal by the shortest arc. The material is that of
     :class:`Rod` (defaults: human hair, ``E = 1 GPa``, ``r = 50 µm``, ``ρ = 1300 kg/m³``).
     ``repulsion_stiffness`` (N/m, 0 for none) penalises centrelines of different strands
-    closer than ``thickness`` (m, default twice the radius)."""
+    closer than ``thickness`` (m, default twice the radius), with Coulomb friction
+    ``strand_friction`` between them (lagged, on the relative tangential motion of the closest
+    points)."""
     pts, nrm = _floats(points, "points"), _floats(normals, "normals")
     for a, name in ((pts, "points"), (nrm, "normals")):
         if a.ndim != 2 or a.shape[1] != 3:
@@ -347,6 +378,7 @@ def groom(
             real(friction_velocity, "friction_velocity"),
             real(repulsion_stiffness, "repulsion_stiffness"),
             2.0 * r if thickness is None else real(thickness, "thickness"),
+            real(strand_friction, "strand_friction"),
         )
     )
 
@@ -383,6 +415,13 @@ def sphere_cap(
     phi = np.pi * (3.0 - np.sqrt(5.0)) * k
     normals = rho[:, None] * (np.cos(phi)[:, None] * x + np.sin(phi)[:, None] * y) + h[:, None] * z
     return np.asarray(as_vector3(center, "center")) + r * normals, normals
+
+
+def _flag(value: object, name: str) -> bool:
+    """A boolean argument (``TypeError`` naming ``name`` otherwise)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name}: expected True or False, got {type(value).__name__}")
+    return bool(value)
 
 
 def _floats(value: object, name: str) -> np.ndarray:

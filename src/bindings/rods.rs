@@ -7,8 +7,9 @@ use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::error::Error;
+use crate::geometry::Sphere;
 use crate::rods::{
-    Collider, End, Hair as HairCore, Integrator, Material, Motion, Repulsion, Rod as Core,
+    Collider, End, Hair as HairCore, Integrator, Material, Model, Motion, Repulsion, Rod as Core,
     Settings, State, Stats,
 };
 use crate::snapshot::Snapshot;
@@ -42,7 +43,8 @@ impl Rod {
     /// `m1` and `m2`), `youngs_modulus` and `shear_modulus` (Pa), `density` (kg/m³), twist
     /// angles `twist` (N - 1, rad) or none, `gravity` (m/s²), `integrator` ("implicit" or
     /// "symplectic"), Newton `tolerance` and `max_iterations`, the contact penalty's
-    /// `contact_stiffness` (N/m) and friction's `friction_velocity` (m/s).
+    /// `contact_stiffness` (N/m) and friction's `friction_velocity` (m/s); `closed` for a
+    /// ring (the last point joined to the first).
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -58,6 +60,7 @@ impl Rod {
         max_iterations: Int,
         contact_stiffness: f64,
         friction_velocity: f64,
+        closed: bool,
     ) -> PyResult<Self> {
         let points: Vec<DVec3> =
             rows::<3>(&points, "points", &[3])?.iter().map(|p| DVec3::from_array(*p)).collect();
@@ -70,7 +73,12 @@ impl Rod {
             contact_stiffness,
             friction_velocity,
         )?;
-        Ok(Rod { rod: Core::new(&points, material, settings, twist.as_deref())?, saved: None })
+        let model = if closed {
+            Model::closed(&points, material, settings)?
+        } else {
+            Model::new(&points, material, settings)?
+        };
+        Ok(Rod { rod: Core::from_model(model, twist.as_deref())?, saved: None })
     }
 
     /// Keep a copy of the state and stats (the scene's undo point).
@@ -112,6 +120,16 @@ impl Rod {
     fn add_collider(&mut self, kind: &str, p: Vec<f64>) -> PyResult<()> {
         let (shape, t) = super::geometry::shape(kind, &p, 1)?;
         Ok(self.rod.model_mut().add_collider(Collider { shape, friction: t[0] })?)
+    }
+
+    /// Make the rod naturally straight and untwisted ([`kinema::rods::Model::straighten`]).
+    fn straighten(&mut self) {
+        self.rod.model_mut().straighten();
+    }
+
+    /// Twist a ring by `angle` (rad) more, spread evenly ([`kinema::rods::State::twist_ring`]).
+    fn twist_ring(&mut self, angle: f64) -> PyResult<()> {
+        Ok(self.rod.twist_ring(angle)?)
     }
 
     /// Hold vertex `index` where it is.
@@ -263,7 +281,8 @@ impl Hair {
 
     /// Strands grown from the scalp `points` (S, 3) along `normals` (S, 3): `length` (m),
     /// `segments` edges, helix radius `curl` (m); the material and settings as for `Rod`;
-    /// the repulsion's `repulsion_stiffness` (N/m, 0 for none) and `thickness` (m).
+    /// the repulsion's `repulsion_stiffness` (N/m, 0 for none) and `thickness` (m), and
+    /// Coulomb's `strand_friction` between strands.
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -283,6 +302,7 @@ impl Hair {
         friction_velocity: f64,
         repulsion_stiffness: f64,
         thickness: f64,
+        strand_friction: f64,
     ) -> PyResult<Self> {
         let vectors = |a: &PyReadonlyArrayDyn<'_, f64>, name: &str| -> PyResult<Vec<DVec3>> {
             Ok(rows::<3>(a, name, &[3])?.iter().map(|p| DVec3::from_array(*p)).collect())
@@ -297,7 +317,8 @@ impl Hair {
             contact_stiffness,
             friction_velocity,
         )?;
-        let repulsion = Repulsion { stiffness: repulsion_stiffness, thickness };
+        let repulsion =
+            Repulsion { stiffness: repulsion_stiffness, thickness, friction: strand_friction };
         let segments = segments.range("segments", 1, 1 << 20)?;
         let hair = HairCore::groom(
             &points, &normals, length, segments, curl, material, settings, repulsion,
@@ -331,6 +352,13 @@ impl Hair {
     fn add_collider(&mut self, kind: &str, p: Vec<f64>) -> PyResult<()> {
         let (shape, t) = super::geometry::shape(kind, &p, 1)?;
         Ok(self.hair.add_collider(Collider { shape, friction: t[0] })?)
+    }
+
+    /// Make the head a moving frictionless collider: the ball of `center` (m, in the head's
+    /// frame) and `radius` (m).
+    fn set_head_collider(&mut self, center: [f64; 3], radius: f64) -> PyResult<()> {
+        let ball = Sphere { center: DVec3::from_array(center), radius };
+        Ok(self.hair.set_head_collider(ball)?)
     }
 
     /// Advance `steps` steps of `dt` seconds (GIL released, strands in parallel).

@@ -17,6 +17,10 @@
 //! strand: a linearised penalty keeping their centrelines [`Repulsion::thickness`] apart,
 //! implicit in the strand stepped and lagged in the other.
 //!
+//! **The head as a collider** ([`Hair::set_head_collider`]): a ball in the head's frame,
+//! one of the model's colliders, moved to the head's pose of every step before the strands
+//! are stepped (so it is implicit in the step, like the roots).
+//!
 //! Strands are stepped in parallel (rayon) in fixed tasks of [`STRANDS_PER_TASK`] strands, one
 //! [`Solver`] per task; a strand's step reads only its own state and its obstacles, so the
 //! result is bitwise the same on any number of threads. Nothing is allocated once the first
@@ -28,6 +32,7 @@ use super::{End, Material, Model, Settings, Solver, State, Stats};
 use crate::error::{Error, Result};
 use crate::geometry::grid::Grid;
 use crate::geometry::segment::closest_points_of_segments;
+use crate::geometry::{Shape, Sphere};
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 
@@ -95,6 +100,9 @@ pub struct Hair {
     head: Pose,
     goal: Option<Pose>,
     repulsion: Repulsion,
+    /// The head as a moving collider: a ball in the head's frame and its slot in the
+    /// model's colliders (which it occupies at the head's pose of the step).
+    head_ball: Option<(usize, Sphere)>,
     #[serde(skip)]
     work: Work,
     /// What the last step did, summed over the strands.
@@ -128,6 +136,7 @@ impl Hair {
             head: (DQuat::IDENTITY, DVec3::ZERO),
             goal: None,
             repulsion: repulsion.checked()?,
+            head_ball: None,
             work: Work::default(),
             stats: Stats::default(),
         })
@@ -224,6 +233,7 @@ impl Hair {
             a.clone_from(b);
         }
         (self.head, self.goal, self.stats) = (head, from.goal, from.stats);
+        self.place_head_ball(head);
     }
 
     /// Add a static collision shape for every strand ([`Model::add_collider`]).
@@ -232,6 +242,37 @@ impl Hair {
     /// Those of [`Model::add_collider`].
     pub fn add_collider(&mut self, collider: super::Collider) -> Result<()> {
         self.model.add_collider(collider)
+    }
+
+    /// Make the head a frictionless moving collider for every strand: the ball `ball` (m, in
+    /// the head's frame, i.e. where it is at the identity pose) moves with the head, and each
+    /// step keeps the strands' vertices out of it by their radius as a static collider does
+    /// (`contact.rs`: the penalty of the model's `contact_stiffness`), with the ball where the
+    /// head is at the end of the step (implicit). The root edges are clamped and exempt.
+    /// Replaces the head ball set before.
+    ///
+    /// # Errors
+    /// A bad ball (`center`, `radius`: [`Shape::checked`]).
+    pub fn set_head_collider(&mut self, ball: Sphere) -> Result<()> {
+        let collider = super::Collider { shape: Shape::Sphere(ball), friction: 0.0 }.checked()?;
+        let slot = match self.head_ball {
+            Some((slot, _)) => slot,
+            None => {
+                self.model.add_collider(collider)?;
+                self.model.colliders.len() - 1
+            }
+        };
+        self.head_ball = Some((slot, ball));
+        self.place_head_ball(self.head);
+        Ok(())
+    }
+
+    /// Put the head ball (if any) where the head is at `pose`.
+    fn place_head_ball(&mut self, pose: Pose) {
+        if let Some((slot, ball)) = self.head_ball {
+            let center = pose.0 * ball.center + pose.1;
+            self.model.colliders[slot].shape = Shape::Sphere(Sphere { center, ..ball });
+        }
     }
 
     /// Set the repulsion for the later steps.
@@ -277,6 +318,7 @@ impl Hair {
                 for (s, b) in self.states.iter_mut().zip(&self.work.backup) {
                     s.clone_from(b);
                 }
+                self.place_head_ball(self.head);
                 return Err(e);
             }
         }
@@ -311,6 +353,7 @@ impl Hair {
                 let (rotation, translation) = (head.0 * p.0, head.0 * p.1 + head.1);
                 state.move_clamp(&self.model, End::First, rotation, translation)?;
             }
+            self.place_head_ball(head);
         }
         self.find_obstacles();
         let (model, repulsion) = (&self.model, self.repulsion);
@@ -364,7 +407,7 @@ impl Hair {
             let reach = 2.0 * self.repulsion.thickness;
             work.grid.build(&work.midpoints, work.midpoints.len(), longest + reach);
         }
-        let (states, grid, reach) = (&self.states, &work.grid, 2.0 * self.repulsion.thickness);
+        let (states, grid, thickness) = (&self.states, &work.grid, self.repulsion.thickness);
         work.tasks.par_iter_mut().enumerate().for_each(|(t, task)| {
             task.obstacles.clear();
             task.offsets.clear();
@@ -372,7 +415,7 @@ impl Hair {
             let first = t * STRANDS_PER_TASK;
             for s in first..(first + STRANDS_PER_TASK).min(states.len()) {
                 if active {
-                    near(states, grid, s, n, reach, &mut task.obstacles);
+                    near(states, grid, s, n, thickness, &mut task.obstacles);
                 }
                 task.offsets.push(task.obstacles.len());
             }
@@ -381,8 +424,15 @@ impl Hair {
 }
 
 /// Push the obstacles of strand `s` (`n` edges): for each of its edges, every edge of
-/// another strand closer than `reach` (m) on `grid` (midpoints, strand-major).
-fn near(states: &[State], grid: &Grid, s: usize, n: usize, reach: f64, out: &mut Vec<Obstacle>) {
+/// another strand closer than twice the `thickness` (m) on `grid` (midpoints, strand-major).
+fn near(
+    states: &[State],
+    grid: &Grid,
+    s: usize,
+    n: usize,
+    thickness: f64,
+    out: &mut Vec<Obstacle>,
+) {
     let x = &states[s].positions;
     for a in 0..n {
         for &m in grid.neighbours(s * n + a) {
@@ -393,12 +443,23 @@ fn near(states: &[State], grid: &Grid, s: usize, n: usize, reach: f64, out: &mut
             let y = &states[other].positions;
             let (p, q) = closest_points_of_segments(x[a], x[a + 1], y[b], y[b + 1]);
             let d = (p - q).length();
-            if d >= reach || d == 0.0 {
+            if d >= 2.0 * thickness || d == 0.0 {
                 continue;
             }
-            let e = x[a + 1] - x[a];
-            let t = ((p - x[a]).dot(e) / e.length_squared()).clamp(0.0, 1.0);
-            out.push(Obstacle { edge: a, s: t, point: q, normal: (p - q) / d });
+            let along = |from: DVec3, to: DVec3, at: DVec3| {
+                let e = to - from;
+                ((at - from).dot(e) / e.length_squared()).clamp(0.0, 1.0)
+            };
+            let (t, u) = (along(x[a], x[a + 1], p), along(y[b], y[b + 1], q));
+            let v = &states[other].velocities;
+            out.push(Obstacle {
+                edge: a,
+                s: t,
+                point: q,
+                normal: (p - q) / d,
+                velocity: (1.0 - u) * v[b] + u * v[b + 1],
+                gap: d - thickness,
+            });
         }
     }
 }
@@ -421,6 +482,13 @@ pub(super) fn validate(hair: &Hair) -> Result<()> {
         "the strands' first ends must be clamped".into()
     })?;
     hair.repulsion.checked()?;
+    check(
+        hair.head_ball.is_none_or(|(slot, _)| {
+            matches!(hair.model.colliders.get(slot), Some(c) if matches!(c.shape, Shape::Sphere(_)))
+        }),
+        "head_ball",
+        || "not a ball among the model's colliders".into(),
+    )?;
     hair.states.iter().try_for_each(|s| s.validate(&hair.model))
 }
 

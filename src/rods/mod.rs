@@ -77,7 +77,15 @@ impl Rod {
         settings: Settings,
         twists: Option<&[f64]>,
     ) -> Result<Self> {
-        let model = Model::new(points, material, settings)?;
+        Rod::from_model(Model::new(points, material, settings)?, twists)
+    }
+
+    /// A rod of `model` (open or closed, [`Model::closed`]) at rest, twisted by `twists`
+    /// (rad per edge) if given.
+    ///
+    /// # Errors
+    /// Those of [`State::set_twists`].
+    pub fn from_model(model: Model, twists: Option<&[f64]>) -> Result<Self> {
         let mut state = State::new(&model);
         if let Some(t) = twists {
             state.set_twists(t)?;
@@ -114,6 +122,14 @@ impl Rod {
     /// Those of [`State::move_clamp`].
     pub fn move_clamp(&mut self, end: End, rotation: DQuat, translation: DVec3) -> Result<()> {
         self.state.move_clamp(&self.model, end, rotation, translation)
+    }
+
+    /// Twist a closed rod by `angle` (rad) more, spread evenly ([`State::twist_ring`]).
+    ///
+    /// # Errors
+    /// Those of [`State::twist_ring`].
+    pub fn twist_ring(&mut self, angle: f64) -> Result<()> {
+        self.state.twist_ring(&self.model, angle)
     }
 
     /// Advance `steps` steps of `dt` seconds ([`Solver::step`]).

@@ -36,7 +36,7 @@
 //! tangent from its reference director, parallel-transported there, to the goal's `m1`.
 
 use super::band::Band;
-use super::contact::{friction, lag, penalty, repel, Lagged, Obstacle, Repulsion};
+use super::contact::{friction, lag, penalty, repel, rub, Lagged, Obstacle, Repulsion};
 use super::energy::elastic;
 use super::frames::{signed_angle, transport, Frames};
 use super::model::Integrator;
@@ -107,7 +107,8 @@ pub struct Solver {
 type Among<'a> = (&'a [Obstacle], Repulsion);
 
 /// No obstacles.
-const NO_OBSTACLES: Among<'static> = (&[], Repulsion { stiffness: 0.0, thickness: 0.0 });
+const NO_OBSTACLES: Among<'static> =
+    (&[], Repulsion { stiffness: 0.0, thickness: 0.0, friction: 0.0 });
 
 /// Which minimisation a Newton solve does.
 #[derive(Clone, Copy)]
@@ -296,8 +297,8 @@ impl Solver {
         }
         if !model.colliders.is_empty() {
             lag(model, &work.positions, &mut self.lagged);
-            self.start.clone_from(&work.positions);
         }
+        self.start.clone_from(&work.positions);
     }
 
     /// Set the held values of a clamped edge `1/remaining` of the way to `goal`: its two
@@ -384,7 +385,13 @@ impl Solver {
         }
         if !among.0.is_empty() {
             let band = if hess { Some(&mut self.band) } else { None };
-            let repulsion = repel(among.0, among.1, &self.x, &mut self.grad, band);
+            let mut repulsion = repel(among.0, among.1, &self.x, &mut self.grad, band);
+            if let Goal::Step(h) = goal {
+                let (eps, band) =
+                    (model.settings.friction_velocity * h, hess.then_some(&mut self.band));
+                let (x, x0) = (&self.x, &self.start);
+                repulsion += rub(among.0, among.1, x, x0, h, eps, &mut self.grad, band);
+            }
             phi += repulsion;
             self.scale += repulsion;
         }

@@ -249,3 +249,72 @@ def test_bad_clamp_and_collider_arguments_name_the_argument() -> None:
             call()
     with pytest.raises(TypeError, match=r"^collider"):
         rod.add_collider(SECRET)  # type: ignore[arg-type]
+
+
+def ring(edges: int = 24, g: float = 5e5) -> Rod:
+    """A naturally straight ring of 1 m circumference (``r = 1 cm``, ``E = 1 MPa``) in the
+    ``xy`` plane, no gravity (Michell's ring)."""
+    phi = 2 * np.pi * np.arange(edges) / edges
+    points = np.c_[np.cos(phi), np.sin(phi), np.zeros(edges)] / (2 * np.pi)
+    rod = Rod(points, **{**SOFT, "shear_modulus": g, "gravity": (0, 0, 0)}, closed=True)
+    rod.straighten()
+    return rod
+
+
+def twisted_ring(tw: float, g: float = 5e5) -> Rod:
+    """The ring twisted to ``tw`` (rad) quasi-statically, in turns under a quarter turn."""
+    rod = ring(g=g)
+    turns = int(np.ceil(tw / 1.5))
+    for _ in range(turns):
+        rod.twist_ring(tw / turns)
+        rod.step(0.02, 5)
+    return rod
+
+
+def test_a_twisted_ring_holds_its_twist_evenly() -> None:
+    """A ring twisted by 4 rad stays planar, its twist angles step by ``Tw / n`` and its energy
+    grows by ``C Tw² / (2 L)`` less the discrete twist–bend coupling (docs/rods.md)."""
+    rod, still = twisted_ring(4.0), ring()
+    assert len(rod.twists) == 24 and len(rod) == 24
+    assert np.abs(rod.positions[:, 2]).max() < 1e-12
+    np.testing.assert_allclose(np.diff(rod.twists), 4.0 / 24, atol=1e-9)
+    c, bend = rod.stiffness["twisting"], still.energy()
+    length = 24 * np.sin(np.pi / 24) / np.pi  # the 24-gon's perimeter
+    want = c * 16.0 / (2.0 * length) - bend * np.sin(4.0 / 48) ** 2
+    assert abs((rod.energy() - bend) / want - 1.0) < 1e-6
+
+
+def michell_unstable(tw: float) -> bool:
+    """Whether the ring twisted to ``tw`` leaves its plane (by 1 cm within 6 s) after a push in
+    its two-wave mode (0.1 s of a force of 0.1 mN per vertex)."""
+    rod = twisted_ring(tw)
+    for i, p in enumerate(rod.positions):
+        rod.set_force(i, (0, 0, 1e-4 * np.cos(2 * np.arctan2(p[1], p[0]))))
+    rod.step(0.02, 5)
+    for i in range(len(rod)):
+        rod.set_force(i, (0, 0, 0))
+    for _ in range(60):
+        rod.step(0.02, 5)
+        if np.abs(rod.positions[:, 2]).max() > 1e-2:
+            return True
+    return False
+
+
+def test_a_twisted_ring_buckles_past_michells_twist() -> None:
+    """Michell (1889): a naturally straight ring with ``B = C`` is stable below
+    ``Tw_c = 2π √3 B / C`` and buckles above it: stable at 0.9 Tw_c, unstable at 1.1 Tw_c
+    (24 edges; the Rust test bisects the threshold to within 5 %)."""
+    twc = 2 * np.pi * np.sqrt(3)
+    assert not michell_unstable(0.9 * twc)
+    assert michell_unstable(1.1 * twc)
+
+
+def test_ring_arguments_are_checked() -> None:
+    with pytest.raises(ValueError, match="points"):
+        Rod(np.eye(3)[:2], closed=True)
+    with pytest.raises(TypeError, match="closed"):
+        Rod(np.eye(3), closed="yes")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="model"):
+        Rod(np.eye(3)).twist_ring(1.0)
+    with pytest.raises(ValueError, match="angle"):
+        ring().twist_ring(float("nan"))
