@@ -242,15 +242,27 @@ pub fn lanes2<const A: usize, const B: usize, const O: usize>(
     if a.len() != out.len() || b.len() != out.len() {
         return Err(Error::invalid("out", "must have as many rows as the inputs"));
     }
-    let arch = pulp::Arch::new();
     let chunks: Vec<Result<usize>> = out
         .par_chunks_mut(CHUNK)
         .zip(a.par_chunks(CHUNK))
         .zip(b.par_chunks(CHUNK))
         .enumerate()
-        .map(|(c, ((out, a), b))| arch.dispatch(LaneChunk { start: c * CHUNK, a, b, out, kernel }))
+        .map(|(c, ((out, a), b))| vectorize(LaneChunk { start: c * CHUNK, a, b, out, kernel }))
         .collect();
     chunks.into_iter().sum()
+}
+
+/// `op` compiled for AVX2 where the CPU has it, else for the best instruction set `pulp`
+/// finds. Not AVX-512: there LLVM turns the lane kernels' gathering of interleaved rows into
+/// gather and scatter instructions, which made the quaternion product 2.5x slower than with
+/// AVX2 on an AVX-512 machine (AMD EPYC, docs/performance-notes.md).
+#[inline(always)]
+fn vectorize<Op: pulp::WithSimd>(op: Op) -> Op::Output {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(simd) = pulp::x86::V3::try_new() {
+        return pulp::Simd::vectorize(simd, op);
+    }
+    pulp::Arch::new().dispatch(op)
 }
 
 /// A [`LaneKernel`] as a [`PairKernel`] whose second rows are empty.
