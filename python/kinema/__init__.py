@@ -10,7 +10,8 @@ emitters), :mod:`kinema.constraints` (rods, beads and user constraints), :mod:`k
 (boids), :mod:`kinema.rods` (discrete elastic rods), :mod:`kinema.character` (articulated
 characters, ragdolls), :mod:`kinema.anim`
 (keyframe tracks and easing), :mod:`kinema.mocap` (ASF/AMC and BVH motion capture, motion
-editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.skin` (skinning, a body mesh for any skeleton), :mod:`kinema.io` (export to glTF and
+editing), :mod:`kinema.ik` (inverse kinematics), :mod:`kinema.skin` (skinning, a body mesh for any skeleton),
+:mod:`kinema.walkcycle` (crowd agents posed by a walk clip), :mod:`kinema.io` (export to glTF and
 USD), :mod:`kinema.view` (a viewer in the browser), :mod:`kinema.scene` (scenes coupling them,
 checkpoints), :mod:`kinema.scenefile` (scenes from TOML), :mod:`kinema.sweep` (parameter sweeps on
 Dask), :mod:`kinema.plot` (pictures and animations), :mod:`kinema.demos` and the ``kinema`` command line (:mod:`kinema.cli`).
@@ -100,6 +101,7 @@ _SUBMODULES = frozenset(
         "sweep",
         "transform",
         "view",
+        "walkcycle",
     }
 )
 
