@@ -240,14 +240,7 @@ pub(super) fn repel(
             }
         }
         if let Some(band) = band.as_deref_mut() {
-            let nn = k * DMat3::from_cols(n * n.x, n * n.y, n * n.z);
-            add_block(band, 4 * a, &(w[0] * w[0] * nn));
-            add_block(band, 4 * (a + 1), &(w[1] * w[1] * nn));
-            for r in 0..3 {
-                for c in 0..3 {
-                    band.add(4 * (a + 1) + r, 4 * a + c, w[0] * w[1] * nn.col(c)[r]);
-                }
-            }
+            add_edge_point(band, a, w, &(k * DMat3::from_cols(n * n.x, n * n.y, n * n.z)));
         }
     }
     energy
@@ -285,16 +278,22 @@ pub(super) fn rub(
             }
         }
         if let Some(band) = band.as_deref_mut() {
-            add_block(band, 4 * a, &(w[0] * w[0] * hess));
-            add_block(band, 4 * (a + 1), &(w[1] * w[1] * hess));
-            for r in 0..3 {
-                for c in 0..3 {
-                    band.add(4 * (a + 1) + r, 4 * a + c, w[0] * w[1] * hess.col(c)[r]);
-                }
-            }
+            add_edge_point(band, a, w, &hess);
         }
     }
     energy
+}
+
+/// Add the Hessian `w wᵀ ⊗ h` of a term on the point `w[0] x[a] + w[1] x[a + 1]` of edge `a`
+/// whose Hessian in that point is `h`.
+fn add_edge_point(band: &mut Band, a: usize, w: [f64; 2], h: &DMat3) {
+    add_block(band, 4 * a, &(w[0] * w[0] * *h));
+    add_block(band, 4 * (a + 1), &(w[1] * w[1] * *h));
+    for r in 0..3 {
+        for c in 0..3 {
+            band.add(4 * (a + 1) + r, 4 * a + c, w[0] * w[1] * h.col(c)[r]);
+        }
+    }
 }
 
 /// Add the symmetric 3×3 block `h` at rows and columns `k..k + 3`.
