@@ -184,7 +184,13 @@ struct ToEuler<'a> {
 
 impl LaneKernel<4, 3> for ToEuler<'_> {
     #[inline(always)]
-    fn block(&self, first: usize, qs: &[[f64; 4]], os: &mut [[f64; 3]]) -> Result<usize> {
+    fn block<S: pulp::Simd>(
+        &self,
+        _: S,
+        first: usize,
+        qs: &[[f64; 4]],
+        os: &mut [[f64; 3]],
+    ) -> Result<usize> {
         let mut locked = 0;
         let mut fast = qs.len() == LANES;
         let mut h = [[0.0; LANES]; 3];

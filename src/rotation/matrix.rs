@@ -54,7 +54,13 @@ struct ToMatrices;
 
 impl LaneKernel<4, 9> for ToMatrices {
     #[inline(always)]
-    fn block(&self, first: usize, qs: &[[f64; 4]], os: &mut [[f64; 9]]) -> Result<usize> {
+    fn block<S: pulp::Simd>(
+        &self,
+        _: S,
+        first: usize,
+        qs: &[[f64; 4]],
+        os: &mut [[f64; 9]],
+    ) -> Result<usize> {
         if qs.len() == LANES {
             let c = by_component(qs);
             let mut off = [0.0; LANES];

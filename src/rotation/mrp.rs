@@ -2,23 +2,26 @@
 //! Space Systems", 2003, sec. 3.8): finite for every rotation, norm at most 1 on the
 //! shorter-angle representation.
 
-use crate::batch::{by_component, lanes, LaneKernel, Output, LANES};
+use crate::batch::{by_component, by_vector, lanes, on_row, LaneKernel, Output, LANES};
 use crate::error::{ensure_finite, Result};
 use crate::rotation::{quat_from_wxyz, quat_to_wxyz};
 use glam::{DQuat, DVec3};
 
 /// The MRPs of `q` taken with `w >= 0` (angle in `[0, π]`, so `|p| <= 1`): `v / (1 + w)`.
 pub fn quat_to_mrp(q: DQuat) -> [f64; 3] {
-    to_mrp([q.w, q.x, q.y, q.z])
+    on_row([q.w, q.x, q.y, q.z], to_mrp)
 }
 
-/// [`quat_to_mrp`] on the components `(w, x, y, z)` of a unit quaternion: the arithmetic
-/// that the row function and the lanes of [`quats_to_mrps`] share.
+/// [`quat_to_mrp`] on the components `[w, x, y, z]` of unit quaternions, one vector of
+/// `simd`'s lanes each: the arithmetic that the row function (`pulp::Scalar`) and the lanes
+/// of [`quats_to_mrps`] share.
 #[inline(always)]
-fn to_mrp([w, x, y, z]: [f64; 4]) -> [f64; 3] {
-    let sign = if w < 0.0 { -1.0 } else { 1.0 };
-    let s = 1.0 / (1.0 + sign * w);
-    [sign * x * s, sign * y * s, sign * z * s]
+fn to_mrp<S: pulp::Simd>(simd: S, [w, x, y, z]: [S::f64s; 4]) -> [S::f64s; 3] {
+    let one = simd.splat_f64s(1.0);
+    let sign =
+        simd.select_f64s(simd.less_than_f64s(w, simd.splat_f64s(0.0)), simd.splat_f64s(-1.0), one);
+    let s = simd.div_f64s(one, simd.add_f64s(one, simd.mul_f64s(sign, w)));
+    [x, y, z].map(|v| simd.mul_f64s(simd.mul_f64s(sign, v), s))
 }
 
 /// The rotation of MRPs `p` (any finite 3-vector; `p` and its shadow `-p/|p|²` give the same
@@ -35,7 +38,7 @@ pub fn quat_from_mrp(p: &[f64; 3]) -> Result<DQuat> {
         let u = v / v.length();
         return quat_from_mrp(&(-u / v.length()).to_array());
     }
-    let [w, x, y, z] = from_mrp(p, n2);
+    let [w, x, y, z] = on_row([p[0], p[1], p[2], n2], from_mrp);
     Ok(DQuat::from_xyzw(x, y, z, w))
 }
 
@@ -44,15 +47,25 @@ fn squared_norm(p: &[f64; 3]) -> f64 {
     p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
 }
 
-/// [`quat_from_mrp`] of `p` with its finite squared norm `n2`, as `(w, x, y, z)`: the
-/// arithmetic that the row function and the lanes of [`mrps_to_quats`] share (the result
-/// normalised once more, so that it is unit to rounding).
+/// [`quat_from_mrp`] of MRPs by component `[x, y, z]` with their finite squared norm `n2`,
+/// one vector of `simd`'s lanes each, as `(w, x, y, z)`: the arithmetic that the row function
+/// (`pulp::Scalar`) and the lanes of [`mrps_to_quats`] share (the result normalised once more,
+/// so that it is unit to rounding; separate multiplies and adds, no fused multiply-add).
 #[inline(always)]
-fn from_mrp(p: &[f64; 3], n2: f64) -> [f64; 4] {
-    let s = 1.0 / (1.0 + n2);
-    let q = [(1.0 - n2) * s, 2.0 * s * p[0], 2.0 * s * p[1], 2.0 * s * p[2]];
-    let inv = 1.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    q.map(|c| c * inv)
+fn from_mrp<S: pulp::Simd>(simd: S, [x, y, z, n2]: [S::f64s; 4]) -> [S::f64s; 4] {
+    let one = simd.splat_f64s(1.0);
+    let s = simd.div_f64s(one, simd.add_f64s(one, n2));
+    let two_s = simd.mul_f64s(simd.splat_f64s(2.0), s);
+    let q = [
+        simd.mul_f64s(simd.sub_f64s(one, n2), s),
+        simd.mul_f64s(two_s, x),
+        simd.mul_f64s(two_s, y),
+        simd.mul_f64s(two_s, z),
+    ];
+    let sq = |v| simd.mul_f64s(v, v);
+    let norm2 = simd.add_f64s(simd.add_f64s(simd.add_f64s(sq(q[0]), sq(q[1])), sq(q[2])), sq(q[3]));
+    let inv = simd.div_f64s(one, simd.sqrt_f64s(norm2));
+    q.map(|c| simd.mul_f64s(c, inv))
 }
 
 /// [`quat_to_mrp`] of every row of `quats` (`(w, x, y, z)`, taken by [`quat_from_wxyz`]) into
@@ -71,7 +84,13 @@ struct ToMrps;
 
 impl LaneKernel<4, 3> for ToMrps {
     #[inline(always)]
-    fn block(&self, first: usize, qs: &[[f64; 4]], os: &mut [[f64; 3]]) -> Result<usize> {
+    fn block<S: pulp::Simd>(
+        &self,
+        simd: S,
+        first: usize,
+        qs: &[[f64; 4]],
+        os: &mut [[f64; 3]],
+    ) -> Result<usize> {
         if qs.len() == LANES {
             let c = by_component(qs);
             let mut unit = [false; LANES];
@@ -82,13 +101,7 @@ impl LaneKernel<4, 3> for ToMrps {
                 unit[k] = (n2 - 1.0).abs() <= 4.0 * f64::EPSILON;
             }
             if unit.iter().all(|&u| u) {
-                let mut p = [[0.0; LANES]; 3];
-                for k in 0..LANES {
-                    let m = to_mrp([c[0][k], c[1][k], c[2][k], c[3][k]]);
-                    for (lane, v) in p.iter_mut().zip(m) {
-                        lane[k] = v;
-                    }
-                }
+                let p = by_vector(simd, &c, |q| to_mrp(simd, q));
                 for (k, o) in os.iter_mut().enumerate() {
                     *o = [p[0][k], p[1][k], p[2][k]];
                 }
@@ -118,7 +131,13 @@ struct FromMrps;
 
 impl LaneKernel<3, 4> for FromMrps {
     #[inline(always)]
-    fn block(&self, first: usize, ps: &[[f64; 3]], os: &mut [[f64; 4]]) -> Result<usize> {
+    fn block<S: pulp::Simd>(
+        &self,
+        simd: S,
+        first: usize,
+        ps: &[[f64; 3]],
+        os: &mut [[f64; 4]],
+    ) -> Result<usize> {
         if ps.len() == LANES {
             let c = by_component(ps);
             let mut n2 = [0.0; LANES];
@@ -127,13 +146,8 @@ impl LaneKernel<3, 4> for FromMrps {
             }
             // A finite squared norm has finite components: the row function's first branch.
             if n2.iter().all(|n| n.is_finite()) {
-                let mut q = [[0.0; LANES]; 4];
-                for k in 0..LANES {
-                    let r = from_mrp(&[c[0][k], c[1][k], c[2][k]], n2[k]);
-                    for (lane, v) in q.iter_mut().zip(r) {
-                        lane[k] = v;
-                    }
-                }
+                let [x, y, z] = c;
+                let q = by_vector(simd, &[x, y, z, n2], |p| from_mrp(simd, p));
                 for (k, o) in os.iter_mut().enumerate() {
                     *o = [q[0][k], q[1][k], q[2][k], q[3][k]];
                 }

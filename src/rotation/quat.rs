@@ -58,7 +58,13 @@ struct Normalize {
 
 impl LaneKernel<4, 4> for Normalize {
     #[inline(always)]
-    fn block(&self, first: usize, qs: &[[f64; 4]], os: &mut [[f64; 4]]) -> Result<usize> {
+    fn block<S: pulp::Simd>(
+        &self,
+        _: S,
+        first: usize,
+        qs: &[[f64; 4]],
+        os: &mut [[f64; 4]],
+    ) -> Result<usize> {
         if qs.len() == LANES && !self.canonical {
             let c = by_component(qs);
             let mut n2 = [0.0; LANES];
@@ -146,8 +152,9 @@ struct Multiply;
 
 impl PairKernel<4, 4, 4> for Multiply {
     #[inline(always)]
-    fn block(
+    fn block<S: pulp::Simd>(
         &self,
+        _: S,
         first: usize,
         a: &[[f64; 4]],
         b: &[[f64; 4]],

@@ -64,7 +64,13 @@ struct FromRotvecs;
 
 impl LaneKernel<3, 4> for FromRotvecs {
     #[inline(always)]
-    fn block(&self, first: usize, vs: &[[f64; 3]], os: &mut [[f64; 4]]) -> Result<usize> {
+    fn block<S: pulp::Simd>(
+        &self,
+        _: S,
+        first: usize,
+        vs: &[[f64; 3]],
+        os: &mut [[f64; 4]],
+    ) -> Result<usize> {
         if vs.len() == LANES {
             let c = by_component(vs);
             let mut theta = [0.0; LANES];
