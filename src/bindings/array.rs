@@ -5,7 +5,7 @@
 //! a batch of `n` items of shape `row_shape` is viewed as `&[[f64; N]]` with
 //! `N = product(row_shape)`. Results are written straight into new numpy arrays.
 
-use super::error::detached;
+use super::error::detached_on;
 use crate::error::Error;
 use numpy::ndarray::IxDyn;
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
@@ -63,7 +63,10 @@ pub fn zeroed<const N: usize>(out: &mut Unwritten<N>) -> &mut [[f64; N]] {
 }
 
 /// A new numpy array of shape `(n, *row_shape)` whose rows `fill` writes with the GIL
-/// released; errors map to Python exceptions (see [`detached`]). `fill` must initialise every
+/// released; errors map to Python exceptions (see [`detached_on`]). Fewer rows than one
+/// parallel chunk ([`crate::batch::CHUNK`]) are written on the calling thread: handing them
+/// to the pool chosen by `set_num_threads` cost about 22 µs a call (a getter of 8 masses),
+/// 100 times the work. `fill` must initialise every
 /// row when it succeeds: through the kernels of [`crate::batch`] (which write every row of an
 /// [`crate::batch::Output`]) or after [`zeroed`]. The array is not zeroed first, so results
 /// cost one pass over memory, not two.
@@ -88,6 +91,6 @@ pub fn compute<'py, const N: usize>(
     // and referenced by nothing else while this slice lives; they are only written through it.
     let rows =
         unsafe { std::slice::from_raw_parts_mut(array.data().cast::<[MaybeUninit<f64>; N]>(), n) };
-    detached(py, || fill(rows))?;
+    detached_on(py, n >= crate::batch::CHUNK, || fill(rows))?;
     Ok(array)
 }
