@@ -63,6 +63,13 @@ impl<const O: usize> Output<O> for [[MaybeUninit<f64>; O]] {}
 impl<const O: usize> Output<O> for Vec<[f64; O]> {}
 impl<const O: usize, const K: usize> Output<O> for [[f64; O]; K] {}
 
+/// The rows of `out`, to be written (every one, on success) and never read.
+pub(crate) fn write_only<const O: usize>(
+    out: &mut (impl Output<O> + ?Sized),
+) -> &mut [[MaybeUninit<f64>; O]] {
+    out.write_only()
+}
+
 /// `value` as a row of [`Output`].
 #[inline(always)]
 fn written<const O: usize>(value: [f64; O]) -> [MaybeUninit<f64>; O] {
@@ -297,7 +304,7 @@ pub fn lanes2<const A: usize, const B: usize, const O: usize>(
 /// gather and scatter instructions, which made the quaternion product 2.5x slower than with
 /// AVX2 on an AVX-512 machine (AMD EPYC, docs/performance-notes.md).
 #[inline(always)]
-fn vectorize<Op: pulp::WithSimd>(op: Op) -> Op::Output {
+pub(crate) fn vectorize<Op: pulp::WithSimd>(op: Op) -> Op::Output {
     #[cfg(target_arch = "x86_64")]
     if let Some(simd) = pulp::x86::V3::try_new() {
         return pulp::Simd::vectorize(simd, op);

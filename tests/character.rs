@@ -523,3 +523,41 @@ fn a_limp_ragdoll_falls_and_rests_on_the_ground() {
         .fold(f64::INFINITY, f64::min);
     assert!(lowest > -0.02, "deepest penetration {lowest} m");
 }
+
+/// The bits of everything a step changes: coordinates, rates, targets, torques, time.
+fn bits(s: &State) -> (Vec<u64>, u64, usize) {
+    let values = s.q().iter().chain(s.qd()).chain(s.targets()).chain(s.torques());
+    (values.map(|v| v.to_bits()).collect(), s.time().to_bits(), s.pushes().len())
+}
+
+#[test]
+fn a_ragdoll_that_diverges_mid_call_is_put_back_bit_for_bit() {
+    let text = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
+    let skeleton = kinema::mocap::parse_asf(&text, "07-walk.asf").unwrap();
+    let options = RagdollOptions {
+        scale: skeleton.metres_per_unit(),
+        clearance: 0.3,
+        ..RagdollOptions::default()
+    };
+    let mut r = ArticulatedBody::new(ragdoll(&skeleton, &options, Settings::default()).unwrap());
+    r.step(1.0 / 480.0, 60).unwrap();
+    // An absurd explicit PD servo on every hinge and ball joint, aimed at the current pose:
+    // stable for no step (kd dt / I far above 2), so the state explodes within a few steps.
+    r.model_mut().settings.servo_mode = ServoMode::Explicit;
+    for b in 1..r.model().bodies().len() {
+        if matches!(r.model().bodies()[b].joint, Joint::Revolute { .. } | Joint::Ball) {
+            let servo = Servo { kp: 1e9, kd: 1e9, max_torque: f64::INFINITY };
+            r.model_mut().set_servo(b, Some(servo)).unwrap();
+        }
+    }
+    let (model, state) = r.parts_mut();
+    let q = state.q().to_vec();
+    state.set_targets(model, &q).unwrap();
+    let before = bits(r.state());
+    let err = r.step(1.0 / 480.0, 100).unwrap_err();
+    assert!(
+        matches!(err, kinema::Error::Diverged { step, .. } if step > 0),
+        "expected a divergence after the first step, got {err}"
+    );
+    assert_eq!(bits(r.state()), before, "the failed call left the state changed");
+}

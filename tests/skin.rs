@@ -151,6 +151,50 @@ fn results_are_the_same_bits_on_one_and_two_threads() {
     assert_eq!(bits(run(1)), bits(run(2)));
 }
 
+/// A pose of `n` bones from a seed: positions in [-1, 1)³, rotations of any sign.
+fn pose(n: usize, seed: u64) -> (Vec<[f64; 3]>, Vec<[f64; 4]>) {
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    };
+    let p = (0..n).map(|_| [next(), next(), next()]).collect();
+    let q = (0..n).map(|_| [next(), next(), next(), next()]).collect();
+    (p, q)
+}
+
+#[test]
+fn poses_skinned_eight_at_a_time_have_the_bits_of_poses_skinned_alone() {
+    // Poses are skinned in SIMD lanes by blocks of eight; the poses of a last, partial block
+    // one at a time. 11 poses: the block of 8, then 3 alone, each compared with the same pose
+    // skinned in a call of its own (a partial block of one), with 4 influences of mixed signs.
+    let rest = tube(9, 12, 0.1);
+    let joints = 6;
+    let bones: Vec<u32> = (0..rest.len() * 4).map(|i| ((i * 7 + i / 4) % joints) as u32).collect();
+    let weights: Vec<f64> = (0..rest.len() * 4).map(|i| ((i * 5) % 11) as f64 + 0.5).collect();
+    let bind = pose(joints, 99);
+    let origins: Vec<usize> = (0..joints).collect();
+    let skin = Skin::new(&rest, 4, &bones, &weights, &origins, &bind.0, &bind.1).unwrap();
+    let (mut p, mut q) = (Vec::new(), Vec::new());
+    for f in 0..11 {
+        let (pf, qf) = pose(joints, f);
+        p.extend(pf);
+        q.extend(qf);
+    }
+    let bits = |v: &[[f64; 3]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for m in [Method::Linear, Method::DualQuaternion] {
+        let all = deform(&skin, &p, &q, m);
+        for f in 0..11 {
+            let span = f * joints..(f + 1) * joints;
+            let alone = deform(&skin, &p[span.clone()], &q[span], m);
+            let rows = &all[f * rest.len()..(f + 1) * rest.len()];
+            assert_eq!(bits(rows), bits(&alone), "{m:?}, pose {f}");
+        }
+    }
+}
+
 #[test]
 fn bad_input_names_the_argument() {
     let rest = [[0.0; 3]];

@@ -220,7 +220,9 @@ class Scene:
         Systems: :class:`kinema.particles.ParticleSystem`, :class:`kinema.cloth.Cloth`,
         :class:`kinema.rigid.World`, :class:`kinema.fluid.Fluid` (its walls only, no
         colliders yet), :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
-        obstacles only), :class:`kinema.character.Biped` (its own ground, no colliders),
+        obstacles only), :class:`kinema.character.Biped` and
+        :class:`kinema.character.ArticulatedBody` (a :class:`~kinema.character.Ragdoll` too;
+        their own ground, no colliders),
         :class:`kinema.rods.Rod` and :class:`kinema.rods.Hair` (their own static colliders
         only; move a hair's head with ``set_head`` between frames),
         :class:`kinema.constraints.ConstrainedSystem` (which steps
@@ -252,13 +254,14 @@ class Scene:
                 _crowd.Crowd,
                 _flock.Flock,
                 _character.Biped,
+                _character.ArticulatedBody,
                 _rods.Rod,
                 _rods.Hair,
             ),
         ):
             raise ValueError(
                 "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, Fluid, "
-                "Crowd, Flock, Biped, Rod, Hair, AnimatedSphere or Character, "
+                "Crowd, Flock, Biped, ArticulatedBody, Rod, Hair, AnimatedSphere or Character, "
                 f"got {type(item).__name__}"
             )
         self._entries.append(_Entry(item, dict(options)))
@@ -637,6 +640,8 @@ def _checkpoint(entry: _Entry) -> Callable[[], None]:
         cores = [obj._c]
     elif isinstance(obj, _character.Biped):
         cores = [obj._w]
+    elif isinstance(obj, _character.ArticulatedBody):
+        cores = [obj._b]
     elif isinstance(obj, _rods.Rod):
         cores = [obj._r]
     elif isinstance(obj, _rods.Hair):

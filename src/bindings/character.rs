@@ -115,6 +115,8 @@ impl ArticulatedModel {
 #[pyclass(module = "kinema._kinema")]
 pub struct ArticulatedBody {
     body: Core,
+    /// The state at the last `_mark` (a scene's undo point).
+    saved: Option<State>,
 }
 
 #[pymethods]
@@ -127,7 +129,7 @@ impl ArticulatedBody {
     /// The object stored by `__reduce__`.
     #[staticmethod]
     fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { body: Core::from_snapshot(data)? })
+        Ok(Self { body: Core::from_snapshot(data)?, saved: None })
     }
 
     /// The body of `model` (copied) in its zero pose.
@@ -136,7 +138,7 @@ impl ArticulatedBody {
         if model.model.bodies().is_empty() {
             return Err(Error::invalid("model", "has no bodies").into());
         }
-        Ok(ArticulatedBody { body: Core::new(model.model.clone()) })
+        Ok(ArticulatedBody { body: Core::new(model.model.clone()), saved: None })
     }
 
     /// The ragdoll of an ASF `skeleton` (see `kinema.character.Ragdoll.from_skeleton`).
@@ -155,7 +157,8 @@ impl ArticulatedBody {
         let scale = scale.unwrap_or_else(|| sk.metres_per_unit());
         let options =
             RagdollOptions { density, scale, radius_ratio, min_radius, damping, clearance };
-        Ok(ArticulatedBody { body: Core::new(ragdoll(sk, &options, Settings::default())?) })
+        let body = Core::new(ragdoll(sk, &options, Settings::default())?);
+        Ok(ArticulatedBody { body, saved: None })
     }
 
     /// Change the settings (every argument as in `kinema.character.ArticulatedBody`).
@@ -214,6 +217,23 @@ impl ArticulatedBody {
         let steps = steps.count("steps")?;
         let body = &mut self.body;
         detached(py, || body.step(dt, steps))
+    }
+
+    /// Remember the state (a scene's undo point): coordinates, rates, time, targets, torques
+    /// and pushes.
+    fn _mark(&mut self) {
+        match &mut self.saved {
+            Some(state) => state.clone_from(self.body.state()),
+            None => self.saved = Some(self.body.state().clone()),
+        }
+    }
+
+    /// Put the state back as it was at the last [`ArticulatedBody::_mark`], in place (views
+    /// of `q` and `qd` stay valid).
+    fn _rollback(&mut self) {
+        if let Some(state) = &self.saved {
+            self.body.state_mut().clone_from(state);
+        }
     }
 
     /// Read-only view of the joint coordinates (nq,), updated in place by `step`.

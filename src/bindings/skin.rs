@@ -1,7 +1,7 @@
 //! `kinema.skin`: skinning of a bind-pose surface by a skeleton's joint frames.
 
 use super::args::Int;
-use super::array::{compute, rows, zeroed};
+use super::array::{compute, rows};
 use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use crate::error::Error;
@@ -83,7 +83,7 @@ impl PySkin {
         let q = rows::<4>(&orientations, "orientations", &[4])?;
         let poses = p.len() / self.skin.bones().max(1);
         let skin = &self.skin;
-        compute(py, poses * skin.vertices(), &[3], |out| skin.deform(p, q, m, zeroed(out)))
+        compute(py, poses * skin.vertices(), &[3], |out| skin.deform(p, q, m, out))
     }
 }
 

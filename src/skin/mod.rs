@@ -17,8 +17,9 @@
 //! [`capsule_union`] makes a body for any skeleton: capsules around its bones merged into one
 //! closed surface.
 //!
-//! Both are exact for a vertex with one bone (a rigid transform), and are computed in
-//! parallel over blocks of vertices, the same bits for any thread count. Units are those of
+//! Both are exact for a vertex with one bone (a rigid transform), and are computed with the
+//! poses in SIMD lanes, in parallel over blocks of poses × vertices, the same bits for any
+//! thread count. Units are those of
 //! the positions given (metres in kinema, file units for motion capture).
 
 mod blend;
@@ -31,11 +32,14 @@ pub use body::capsule_union;
 pub use heat::heat_weights;
 pub use weights::proximity_weights;
 
+use crate::batch::{self, vectorize, Output, LANES};
 use crate::error::{Error, Result};
 use crate::rotation::quat_from_wxyz;
-use blend::{Dual, Matrix, Transform};
+use blend::{Blend, Transform};
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
+use std::marker::PhantomData;
+use std::mem::MaybeUninit;
 
 /// How the bones' transforms are blended at a vertex (see the module docs).
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
@@ -124,18 +128,19 @@ impl Skin {
 
     /// The skinned vertices of every pose: `positions` and `orientations` hold one row per
     /// joint of each pose (`P` poses, as [`Skin::new`]'s bind pose), `out` receives `P V`
-    /// rows, pose by pose.
+    /// rows, pose by pose, each written once (a new buffer need not be initialised).
     ///
     /// # Errors
     /// [`Error::InvalidInput`] naming the argument: sizes that are not whole poses or do not
-    /// match `out`, non-finite values, a zero orientation.
+    /// match `out`, non-finite values, a zero orientation. `out` is then untouched.
     pub fn deform(
         &self,
         positions: &[[f64; 3]],
         orientations: &[[f64; 4]],
         method: Method,
-        out: &mut [[f64; 3]],
+        out: &mut (impl Output<3> + ?Sized),
     ) -> Result<()> {
+        let out = batch::write_only(out);
         let joints = self.bones();
         check_pose(positions, orientations, joints, "positions")?;
         let poses = positions.len() / joints.max(1);
@@ -146,63 +151,109 @@ impl Skin {
                 format!("has {} rows for {poses} poses of {v} vertices", out.len()),
             ));
         }
-        let mut skinning = frames(positions, orientations, &self.origins)?;
-        for (i, s) in skinning.iter_mut().enumerate() {
-            *s = s.then(&self.bind_inverse[i % joints]);
-        }
+        let skinning = frames(positions, orientations, &self.origins)?;
         match method {
-            Method::Linear => {
-                let m: Vec<Matrix> = skinning.iter().map(Matrix::from).collect();
-                self.each_vertex(&m, joints, out, blend::linear);
-            }
-            Method::DualQuaternion => {
-                let d: Vec<Dual> = skinning.iter().map(Dual::from).collect();
-                self.each_vertex(&d, joints, out, blend::dual_quaternion);
-            }
+            Method::Linear => self.each_vertex::<blend::Linear>(&skinning, out),
+            Method::DualQuaternion => self.each_vertex::<blend::DualQuaternion>(&skinning, out),
         }
         Ok(())
     }
 
-    /// `out[p V + v] = blend(skinning of pose p, influences of v, rest[v])` for every pose `p`
-    /// and vertex `v`, in parallel over blocks of rows (the same bits on any thread count).
-    /// Four influences per vertex (the default, and glTF's one set) get a loop compiled for
-    /// exactly four.
-    fn each_vertex<T: Sync>(
-        &self,
-        skinning: &[T],
-        joints: usize,
-        out: &mut [[f64; 3]],
-        blend: impl Fn(&[T], &[u32], &[f64], [f64; 3]) -> [f64; 3] + Sync,
-    ) {
-        if self.k == 4 {
-            self.rows::<T, 4>(skinning, joints, out, &blend);
+    /// `out[p V + v]` = the blend `B` of the bones' skinning transforms of pose `p` at vertex
+    /// `v`, for the bones' frames `posed` (`P J`, pose by pose).
+    ///
+    /// The transforms' numbers are laid out with the poses in lanes (`[f64; LANES]` per
+    /// block of [`LANES`] poses, bone and number), so that a vertex is skinned in eight
+    /// poses at once by SIMD arithmetic on contiguous loads, and the work is split over
+    /// blocks of poses × blocks of vertices, in parallel. The last block's poses (fewer than
+    /// eight) run one at a time through the same arithmetic, so every row has the same bits
+    /// on any thread count and in any block.
+    fn each_vertex<B: Blend>(&self, posed: &[Transform], out: &mut [[MaybeUninit<f64>; 3]]) {
+        const VERTICES: usize = 1024;
+        let (joints, v) = (self.bones(), self.rest.len());
+        if v == 0 {
+            return;
+        }
+        let blocks = posed.len().div_ceil(joints * LANES);
+        let mut table = vec![[0.0; LANES]; blocks * joints * B::VALUES];
+        for (i, s) in posed.iter().enumerate() {
+            let (pose, b) = (i / joints, i % joints);
+            let values = B::values(&s.then(&self.bind_inverse[b]));
+            let at = ((pose / LANES) * joints + b) * B::VALUES;
+            for (lanes, value) in table[at..at + B::VALUES].iter_mut().zip(values) {
+                lanes[pose % LANES] = value;
+            }
+        }
+        let mut tasks: Vec<Vertices<B>> = Vec::new();
+        for (block, rows) in out.chunks_mut(LANES * v).enumerate() {
+            let mut poses: Vec<_> = rows.chunks_mut(v).map(|p| p.chunks_mut(VERTICES)).collect();
+            for first in (0..v).step_by(VERTICES) {
+                let rows: Vec<_> = poses.iter_mut().filter_map(Iterator::next).collect();
+                let values = block * joints * B::VALUES..(block + 1) * joints * B::VALUES;
+                tasks.push(Vertices {
+                    skin: self,
+                    table: &table[values],
+                    first,
+                    rows,
+                    blend: PhantomData,
+                });
+            }
+        }
+        tasks.into_par_iter().for_each(vectorize);
+    }
+}
+
+/// One task of [`Skin::each_vertex`]: the vertices from `first` on, in up to [`LANES`] poses
+/// (`rows[p]`: the rows of pose `p` of the block), with the block's values `table`.
+struct Vertices<'a, B> {
+    skin: &'a Skin,
+    table: &'a [[f64; LANES]],
+    first: usize,
+    rows: Vec<&'a mut [[MaybeUninit<f64>; 3]]>,
+    blend: PhantomData<fn() -> B>,
+}
+
+impl<B: Blend> pulp::WithSimd for Vertices<'_, B> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        // Four influences (the default, and glTF's one set) get loops compiled for four.
+        if self.skin.k == 4 {
+            self.run::<4>();
         } else {
-            self.rows::<T, 0>(skinning, joints, out, &blend);
+            self.run::<0>();
         }
     }
+}
 
-    /// [`Skin::each_vertex`] with `K` influences per vertex (`K = 0`: `self.k`).
-    fn rows<T: Sync, const K: usize>(
-        &self,
-        skinning: &[T],
-        joints: usize,
-        out: &mut [[f64; 3]],
-        blend: &(impl Fn(&[T], &[u32], &[f64], [f64; 3]) -> [f64; 3] + Sync),
-    ) {
-        const BLOCK: usize = 1024;
-        let (v, k) = (self.rest.len(), if K == 0 { self.k } else { K });
-        out.par_chunks_mut(BLOCK).enumerate().for_each(|(c, rows)| {
-            let (mut pose, mut vertex) = ((c * BLOCK) / v, (c * BLOCK) % v);
-            for row in rows {
-                let s = &skinning[pose * joints..(pose + 1) * joints];
-                let span = vertex * k..(vertex + 1) * k;
-                *row = blend(s, &self.bones[span.clone()], &self.weights[span], self.rest[vertex]);
-                vertex += 1;
-                if vertex == v {
-                    (pose, vertex) = (pose + 1, 0);
+impl<B: Blend> Vertices<'_, B> {
+    /// The task with `K` influences per vertex (`K = 0`: the skin's `k`).
+    #[inline(always)]
+    fn run<const K: usize>(self) {
+        let Vertices { skin, table, first, mut rows, .. } = self;
+        let k = if K == 0 { skin.k } else { K };
+        let value = |b: u32, i: usize| &table[b as usize * B::VALUES + i];
+        let (mut lanes, mut one) = (vec![[0.0; LANES]; k], vec![[0.0; 1]; k]);
+        let n = rows.first().map_or(0, |r| r.len());
+        for j in 0..n {
+            let v = first + j;
+            let (bones, weights) = (&skin.bones[v * k..][..k], &skin.weights[v * k..][..k]);
+            let x = skin.rest[v];
+            if rows.len() == LANES {
+                let moved = B::blend(|b, i| *value(b, i), bones, weights, x, &mut lanes);
+                for (l, rows) in rows.iter_mut().enumerate() {
+                    let m = |i: usize| MaybeUninit::new(moved[i][l]);
+                    rows[j] = [m(0), m(1), m(2)];
+                }
+            } else {
+                for (l, rows) in rows.iter_mut().enumerate() {
+                    let moved = B::blend(|b, i| [value(b, i)[l]], bones, weights, x, &mut one);
+                    let m = |i: usize| MaybeUninit::new(moved[i][0]);
+                    rows[j] = [m(0), m(1), m(2)];
                 }
             }
-        });
+        }
     }
 }
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import subprocess
 import sys
@@ -39,6 +40,12 @@ def test_demo_writes_pictures_and_prints_numbers(name: str, tmp_path: Path):
     assert f"== demo {name}" in result.stdout
     pictures = list((tmp_path / "out").glob("*.png")) + list((tmp_path / "out").glob("*.gif"))
     assert pictures and all(p.stat().st_size > 1000 for p in pictures)
+    if name == "skin" and importlib.util.find_spec("pygltflib") is not None:
+        # The skinned walk is also written as glTF, and an independent reader opens it.
+        import pygltflib
+
+        gltf = pygltflib.GLTF2().load(str(tmp_path / "out" / "skin.glb"))
+        assert gltf.skins and gltf.animations and gltf.meshes
 
 
 def test_cli_info_and_bad_demo(tmp_path: Path):

@@ -3,6 +3,7 @@ Ctrl-C, damaged files, pickling of the main objects."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -20,7 +21,7 @@ import pytest
 
 import kinema
 import kinema.ode
-from kinema import anim, cloth, constraints, mocap, particles, rigid
+from kinema import anim, character, cloth, constraints, mocap, particles, rigid
 from kinema._checkpoint import _HEADER, _MAGIC
 from kinema.scene import (
     FORMAT_VERSION,
@@ -692,3 +693,53 @@ def test_rigid_colliders_use_the_bodys_own_friction(mu: float, slides: bool):
         assert moved == pytest.approx(0.5 * 9.81 * np.sin(tilt) * 0.25, rel=0.05)
     else:
         assert moved < 1e-6
+
+
+def _ragdoll_bits(r: character.ArticulatedBody) -> tuple[bytes, bytes, bytes, float]:
+    """The bits of a ragdoll's coordinates, rates and targets, and its time."""
+    return (r.q.tobytes(), r.qd.tobytes(), np.asarray(r.targets).tobytes(), r.time)
+
+
+def _absurd_servos(r: character.ArticulatedBody) -> None:
+    """Explicit PD servos far beyond their stability limit on every hinge and ball joint,
+    aimed at the current pose: the ragdoll diverges at its second step (of 1/480 s)."""
+    r.configure(servo_mode="explicit")
+    for b in range(1, len(r)):
+        with contextlib.suppress(ValueError):  # a fixed joint has no servo
+            r.set_servo(b, kp=1e9, kd=1e9)
+    r.targets = r.q
+
+
+def test_a_ragdolls_failed_frame_leaves_it_as_before():
+    # The ragdoll as the culprit (its own step diverges, in the second or a later substep of
+    # a frame) and as a bystander (rolled back by the scene when a spring pair stepped after
+    # it diverges): each time its coordinates, rates, targets and time are bitwise as before
+    # the frame, and views taken before stay valid.
+    sk = mocap.read_asf(DATA / "07-walk.asf")
+    scene = Scene(dt=1 / 120, substeps=4)
+    culprit = scene.add(character.Ragdoll.from_skeleton(sk, clearance=0.3))
+    scene.step(3)
+    _absurd_servos(culprit)
+    views, before, time = (culprit.q, culprit.qd), _ragdoll_bits(culprit), scene.time
+    with pytest.raises(kinema.SimulationError):
+        scene.step()
+    assert _ragdoll_bits(culprit) == before and scene.time == time
+    assert np.array_equal(views[0], culprit.q) and np.array_equal(views[1], culprit.qd)
+
+    scene = Scene(dt=1 / 120, substeps=2)
+    bystander = scene.add(character.Ragdoll.from_skeleton(sk, clearance=0.3))
+    pair = particles.ParticleSystem([[0.0, 3.0, 0.0], [1.0, 3.0, 0.0]])
+    pair.add(particles.Springs([[0, 1]], stiffness=1e12, rest=[0.5]))
+    scene.add(pair, method="explicit_euler")
+    for _ in range(100):
+        before, time = _ragdoll_bits(bystander), scene.time
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", StabilityWarning)
+                scene.step()
+        except kinema.SimulationError:
+            break
+    else:
+        pytest.fail("the spring pair never diverged")
+    assert time > 0 and scene.time == time
+    assert _ragdoll_bits(bystander) == before
