@@ -157,9 +157,11 @@ fn ode_solve_fixed<'py>(
     Ok((states, stepper.history.nfev, stepper.history.njev))
 }
 
-/// Adaptive solve with the embedded pair `method` ("dopri5", "dop853"); returns (times (M,),
-/// states (M, n), nfev, rejected).
+/// Adaptive solve with `method` ("dopri5", "dop853", "radau"; `jac(t, y) -> (n, n)` used by
+/// radau when given); returns (times (M,), states (M, n), (steps, nfev, rejected, njev, nlu)),
+/// the times being the accepted steps or `t_eval`.
 #[pyfunction]
+#[pyo3(signature = (f, method, y0, t0, t1, rtol, atol, max_steps, jac=None, t_eval=None))]
 #[allow(clippy::too_many_arguments)]
 fn ode_solve_adaptive<'py>(
     py: Python<'py>,
@@ -171,21 +173,27 @@ fn ode_solve_adaptive<'py>(
     rtol: f64,
     atol: f64,
     max_steps: Int,
-) -> PyResult<(Array<'py>, Array<'py>, usize, usize)> {
+    jac: Option<Bound<'py, PyAny>>,
+    t_eval: Option<PyReadonlyArrayDyn<'py, f64>>,
+) -> PyResult<(Array<'py>, Array<'py>, (usize, usize, usize, usize, usize))> {
     let max_steps = max_steps.count("max_steps")?;
     let method = Adaptive::parse(method)?;
-    let y0 = y0
-        .as_slice()
-        .map_err(|_| PyErr::from(Error::invalid("y0", "must be contiguous")))?
-        .to_vec();
+    let contiguous = |a: &PyReadonlyArrayDyn<'py, f64>, name: &str| {
+        a.as_slice()
+            .map(<[f64]>::to_vec)
+            .map_err(|_| PyErr::from(Error::invalid(name, "must be contiguous")))
+    };
+    let y0 = contiguous(&y0, "y0")?;
+    let t_eval = t_eval.as_ref().map(|a| contiguous(a, "t_eval")).transpose()?;
     let n = y0.len();
-    let mut system = PySystem { py, f, jac: None, n, error: None, jac_rows: Vec::new() };
-    let r = solve_adaptive(&mut system, method, &y0, t0, t1, rtol, atol, max_steps);
+    let mut system = PySystem { py, f, jac, n, error: None, jac_rows: Vec::new() };
+    let r =
+        solve_adaptive(&mut system, method, &y0, t0, t1, rtol, atol, max_steps, t_eval.as_deref());
     let sol = finish(&mut system, r)?;
     let m = sol.t.len();
     let t = numpy::PyArray1::from_vec(py, sol.t).to_dyn().clone();
     let y = numpy::PyArray1::from_vec(py, sol.y).reshape([m, n])?.to_dyn().clone();
-    Ok((t, y, sol.nfev, sol.rejected))
+    Ok((t, y, (sol.steps, sol.nfev, sol.rejected, sol.njev, sol.nlu)))
 }
 
 /// R(z) of `method` at points z given as (N, 2) rows (re, im); returns (N, 2).

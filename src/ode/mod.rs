@@ -5,8 +5,9 @@
 //! [`Method`]s, reading and updating a [`History`] (what carries from step to step: the method,
 //! the previous BDF2 step, the Newton settings), so that a system keeps the history in its
 //! state and the workspace in its solver ([`Stepper`] holds the two together);
-//! [`solve_adaptive`] runs an embedded pair with error control ([`Adaptive`]: Dormand–Prince
-//! 5(4), or DOP853 of order 8). Second-order methods (symplectic Euler, velocity Verlet) read the state as
+//! [`solve_adaptive`] runs an adaptive method with error control and dense output
+//! ([`Adaptive`]: Dormand–Prince 5(4), DOP853 of order 8, or the implicit Radau IIA of order
+//! 5 for stiff problems). Second-order methods (symplectic Euler, velocity Verlet) read the state as
 //! `y = [x; v]` with `f = [v; a(t, x, v)]`.
 //!
 //! Every method states its order and its stability function `R(z)` (the growth factor per step
@@ -20,6 +21,7 @@ mod adaptive;
 mod dop853;
 mod dopri5;
 mod history;
+mod radau;
 mod sparse;
 mod stability;
 mod stepper;
