@@ -112,6 +112,7 @@ fn adaptive_pairs_converge_at_their_order() {
                 tol * 1e-3,
                 100_000,
                 None,
+                &[],
             )
             .unwrap();
             let y = &sol.y[sol.y.len() - 2..];

@@ -1,7 +1,7 @@
 //! The adaptive methods beyond the explicit pairs' step control (tests/ode.rs): Radau IIA on
 //! linear, stiff and failing problems, and the dense output of every adaptive method.
 
-use kinema::ode::{solve_adaptive, Adaptive, AdaptiveSolution, OdeSystem};
+use kinema::ode::{solve_adaptive, Adaptive, AdaptiveSolution, Event, OdeSystem};
 use kinema::Error;
 use nalgebra::DMatrix;
 
@@ -95,9 +95,19 @@ fn radau_solves_a_stiff_linear_system_and_reuses_its_factors() {
     let y0 = [1.0, 1.0];
     for analytic in [true, false] {
         let mut sys = Stiff { lambda: 1e4, analytic };
-        let sol =
-            solve_adaptive(&mut sys, Adaptive::Radau, &y0, 0.0, 10.0, 1e-8, 1e-10, 10_000, None)
-                .unwrap();
+        let sol = solve_adaptive(
+            &mut sys,
+            Adaptive::Radau,
+            &y0,
+            0.0,
+            10.0,
+            1e-8,
+            1e-10,
+            10_000,
+            None,
+            &[],
+        )
+        .unwrap();
         let exact = sys.exact(10.0, y0);
         let err = (last(&sol, 2)[0] - exact[0]).abs().max((last(&sol, 2)[1] - exact[1]).abs());
         assert!(err < 1e-8, "analytic {analytic}: error {err}");
@@ -116,6 +126,7 @@ fn radau_solves_a_stiff_linear_system_and_reuses_its_factors() {
             1e-10,
             1_000_000,
             None,
+            &[],
         )
         .unwrap();
         assert!(explicit.steps > 50 * sol.steps, "{} against {}", explicit.steps, sol.steps);
@@ -138,6 +149,7 @@ fn radau_converges_at_order_five() {
             tol,
             100_000,
             None,
+            &[],
         )
         .unwrap();
         let y = last(&sol, 2);
@@ -165,6 +177,7 @@ fn radau_solves_robertson_in_hundreds_of_steps() {
         1e-12,
         100_000,
         Some(&[40.0, 1e5]),
+        &[],
     )
     .unwrap();
     assert!(sol.steps < 600, "{} steps", sol.steps);
@@ -190,6 +203,7 @@ fn radau_steps_through_van_der_pol_at_mu_1000() {
         1e-6,
         100_000,
         None,
+        &[],
     )
     .unwrap();
     assert!(sol.steps < 1000, "{} steps, {} rejected", sol.steps, sol.rejected);
@@ -210,8 +224,18 @@ fn radau_reports_newton_failure() {
             Ok(())
         }
     }
-    let r =
-        solve_adaptive(&mut Blowup, Adaptive::Radau, &[1.0], 0.0, 2.0, 1e-6, 1e-9, 100_000, None);
+    let r = solve_adaptive(
+        &mut Blowup,
+        Adaptive::Radau,
+        &[1.0],
+        0.0,
+        2.0,
+        1e-6,
+        1e-9,
+        100_000,
+        None,
+        &[],
+    );
     assert!(matches!(r, Err(Error::SolverFailed { .. } | Error::Diverged { .. })), "{r:?}");
 }
 
@@ -239,6 +263,7 @@ fn dense_output_converges_at_the_interpolants_order() {
                 tol,
                 100_000,
                 Some(&t_eval),
+                &[],
             )
             .unwrap();
             assert_eq!(sol.t, t_eval);
@@ -264,6 +289,7 @@ fn dense_output_converges_at_the_interpolants_order() {
             1e-6,
             100_000,
             None,
+            &[],
         )
         .unwrap();
         let at_steps = solve_adaptive(
@@ -276,6 +302,7 @@ fn dense_output_converges_at_the_interpolants_order() {
             1e-6,
             100_000,
             Some(&full.t),
+            &[],
         )
         .unwrap();
         assert_eq!(at_steps.y, full.y, "{method:?}");
@@ -291,7 +318,104 @@ fn dense_output_converges_at_the_interpolants_order() {
             1e-6,
             100,
             Some(&bad),
+            &[],
         );
         assert!(matches!(&r, Err(Error::InvalidInput { arg, .. }) if arg == "t_eval"), "{r:?}");
+    }
+}
+
+/// A ball dropped from `h` (`y = [x; v]`, `x'' = -g`) with the event `x = 0`.
+struct Ball;
+impl OdeSystem for Ball {
+    fn dim(&self) -> usize {
+        2
+    }
+    fn rhs(&mut self, _t: f64, y: &[f64], f: &mut [f64]) -> kinema::Result<()> {
+        f[0] = y[1];
+        f[1] = -9.81;
+        Ok(())
+    }
+    fn events(&mut self, _t: f64, y: &[f64], g: &mut [f64]) -> kinema::Result<()> {
+        g[0] = y[0];
+        Ok(())
+    }
+}
+
+/// The ball hits the ground at `√(2h/g)` to 1e-12 relative with every method (its path is
+/// a parabola, which every dense output represents exactly, so what is measured is the root
+/// finder), and the terminal event ends the run there, at height 0.
+#[test]
+fn a_terminal_event_stops_the_dropped_ball_at_the_ground() {
+    let exact = (2.0 * 10.0 / 9.81f64).sqrt();
+    for method in Adaptive::ALL {
+        let terminal = [Event { terminal: true, direction: -1.0 }];
+        let sol = solve_adaptive(
+            &mut Ball,
+            method,
+            &[10.0, 0.0],
+            0.0,
+            5.0,
+            1e-6,
+            1e-9,
+            1000,
+            None,
+            &terminal,
+        )
+        .unwrap();
+        let hit = sol.t_events[0][0];
+        assert!((hit - exact).abs() < 1e-12 * exact, "{method:?}: {hit} against {exact}");
+        assert!(sol.terminated && *sol.t.last().unwrap() == hit, "{method:?}");
+        assert!(last(&sol, 2)[0].abs() < 1e-10, "{method:?}: {:?}", last(&sol, 2));
+        let on = [Event { terminal: false, direction: -1.0 }];
+        let past =
+            solve_adaptive(&mut Ball, method, &[10.0, 0.0], 0.0, 5.0, 1e-6, 1e-9, 1000, None, &on)
+                .unwrap();
+        assert!(!past.terminated && *past.t.last().unwrap() == 5.0 && past.t_events[0].len() == 1);
+    }
+}
+
+/// `x = cos t` crosses zero at π/2 (falling), 3π/2 (rising) and 5π/2 (falling) in [0, 10]:
+/// `direction` keeps the falling, the rising, or all of them, each within the tolerance.
+#[test]
+fn event_direction_filters_crossings() {
+    struct Cos;
+    impl OdeSystem for Cos {
+        fn dim(&self) -> usize {
+            2
+        }
+        fn rhs(&mut self, t: f64, y: &[f64], f: &mut [f64]) -> kinema::Result<()> {
+            Oscillator.rhs(t, y, f)
+        }
+        fn events(&mut self, _t: f64, y: &[f64], g: &mut [f64]) -> kinema::Result<()> {
+            g.fill(y[0]);
+            Ok(())
+        }
+    }
+    let pi = std::f64::consts::PI;
+    let events = [-1.0, 1.0, 0.0].map(|direction| Event { terminal: false, direction });
+    for method in Adaptive::ALL {
+        let sol = solve_adaptive(
+            &mut Cos,
+            method,
+            &[1.0, 0.0],
+            0.0,
+            10.0,
+            1e-10,
+            1e-12,
+            100_000,
+            None,
+            &events,
+        )
+        .unwrap();
+        for (found, want) in sol.t_events.iter().zip([
+            vec![0.5 * pi, 2.5 * pi],
+            vec![1.5 * pi],
+            vec![0.5 * pi, 1.5 * pi, 2.5 * pi],
+        ]) {
+            assert_eq!(found.len(), want.len(), "{method:?}: {found:?}");
+            for (a, b) in found.iter().zip(&want) {
+                assert!((a - b).abs() < 1e-8, "{method:?}: {found:?}");
+            }
+        }
     }
 }

@@ -6,8 +6,9 @@
 
 use super::dop853::Dop853;
 use super::dopri5::Dopri5;
+use super::output::{Event, Output};
 use super::{radau, OdeSystem};
-use crate::error::{reserve, Error, Result};
+use crate::error::{Error, Result};
 
 /// An adaptive method of [`solve_adaptive`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -103,64 +104,6 @@ pub(super) trait Pair {
     fn interpolate(theta: f64, y: &[f64], d: &[Vec<f64>], out: &mut [f64]);
 }
 
-/// Where a run's solution goes: every accepted step, or the dense output at the times
-/// `t_eval` (checked: sorted, within the span).
-pub(super) struct Output<'a> {
-    t_eval: Option<&'a [f64]>,
-    next: usize,
-    buf: Vec<f64>,
-    sol: AdaptiveSolution,
-}
-
-impl<'a> Output<'a> {
-    /// An output starting at `(t0, y0)`.
-    fn new(t_eval: Option<&'a [f64]>, t0: f64, y0: &[f64]) -> Result<Self> {
-        let mut out =
-            Output { t_eval, next: 0, buf: vec![0.0; y0.len()], sol: AdaptiveSolution::default() };
-        out.accept(t0, y0, |_, _| {})?;
-        Ok(out)
-    }
-
-    /// Whether the step ending at `t` needs the dense output (a requested time before `t`).
-    fn wants_dense(&self, t: f64) -> bool {
-        self.t_eval.is_some_and(|te| te.get(self.next).is_some_and(|&s| s < t))
-    }
-
-    /// Record an accepted step ending at `(t, y)`: the step itself, or the requested times up
-    /// to `t`, those before `t` from `interp(time, out)`.
-    pub(super) fn accept(
-        &mut self,
-        t: f64,
-        y: &[f64],
-        mut interp: impl FnMut(f64, &mut [f64]),
-    ) -> Result<()> {
-        let Some(te) = self.t_eval else { return self.push(t, y) };
-        while let Some(&s) = te.get(self.next).filter(|&&s| s <= t) {
-            self.next += 1;
-            if s == t {
-                self.push(t, y)?;
-            } else {
-                let mut buf = std::mem::take(&mut self.buf);
-                interp(s, &mut buf);
-                let r = self.push(s, &buf);
-                self.buf = buf;
-                r?;
-            }
-        }
-        Ok(())
-    }
-
-    /// Append `(t, y)`: refused (naming the step bound) when it no longer fits in memory,
-    /// instead of the process being killed.
-    fn push(&mut self, t: f64, y: &[f64]) -> Result<()> {
-        reserve("max_steps", &mut self.sol.t, 1)?;
-        reserve("max_steps", &mut self.sol.y, y.len())?;
-        self.sol.t.push(t);
-        self.sol.y.extend_from_slice(y);
-        Ok(())
-    }
-}
-
 /// The solution of an adaptive run.
 #[derive(Clone, Debug, Default)]
 pub struct AdaptiveSolution {
@@ -179,12 +122,20 @@ pub struct AdaptiveSolution {
     pub njev: usize,
     /// LU factorisations of the pair of Newton matrices (Radau; 0 for the explicit pairs).
     pub nlu: usize,
+    /// Per event given, the times of its zeros found (in order).
+    pub t_events: Vec<Vec<f64>>,
+    /// Per event given, the states at those zeros, row after row.
+    pub y_events: Vec<Vec<f64>>,
+    /// Whether a terminal event stopped the run before `t1` (the last time is the event's).
+    pub terminated: bool,
 }
 
 /// Integrate from `t0` to `t1 > t0` with the adaptive `method`, keeping the local error per
 /// step below `atol + rtol |y|` (root-mean-square norm), using at most `max_steps` accepted
 /// steps; the solution at every accepted step, or at the times `t_eval` (non-decreasing,
-/// within `[t0, t1]`) from the method's dense output.
+/// within `[t0, t1]`) from the method's dense output. The zeros of the system's event
+/// functions ([`OdeSystem::events`], one per entry of `events`) are located on the dense output
+/// to 1e-12 relative in `t` (Illinois), and a terminal one ends the run there.
 ///
 /// The explicit pairs propagate the higher-order solution (local extrapolation), so at tight
 /// tolerances the observed order is the pair's [`Adaptive::order`].
@@ -203,11 +154,12 @@ pub fn solve_adaptive<S: OdeSystem>(
     atol: f64,
     max_steps: usize,
     t_eval: Option<&[f64]>,
+    events: &[Event],
 ) -> Result<AdaptiveSolution> {
     let n = sys.dim();
     check_arguments(n, y0, t0, t1, rtol, atol, t_eval)?;
     let tol = Tolerance { rtol, atol };
-    let mut out = Output::new(t_eval, t0, y0)?;
+    let mut out = Output::new(sys, t_eval, events, t0, y0)?;
     match method {
         Adaptive::Dopri5 => run::<Dopri5, S>(sys, &tol, y0, t0, t1, max_steps, &mut out)?,
         Adaptive::Dop853 => run::<Dop853, S>(sys, &tol, y0, t0, t1, max_steps, &mut out)?,
@@ -268,16 +220,21 @@ fn run<P: Pair, S: OdeSystem>(
         if err <= 1.0 {
             let t_old = t;
             t = if last { t1 } else { t + h };
-            let dense = out.wants_dense(t);
+            let dense = out.wants_dense(sys, t, &stage)?;
             if t < t1 || dense {
                 nfev += P::advance(sys, t, &stage, &mut k)?;
             }
             if dense {
                 nfev += P::dense(sys, t_old, h, &y, &stage, &mut k, &mut d)?;
             }
-            out.accept(t, &stage, |s, buf| P::interpolate((s - t_old) / h, &y, &d, buf))?;
+            let stop = out.accept(sys, t_old, t, &stage, |s, buf| {
+                P::interpolate((s - t_old) / h, &y, &d, buf);
+            })?;
             y.copy_from_slice(&stage);
             steps += 1;
+            if stop {
+                break;
+            }
         } else {
             out.sol.rejected += 1;
         }

@@ -21,6 +21,7 @@ mod adaptive;
 mod dop853;
 mod dopri5;
 mod history;
+mod output;
 mod radau;
 mod sparse;
 mod stability;
@@ -28,6 +29,7 @@ mod stepper;
 
 pub use adaptive::{solve_adaptive, Adaptive, AdaptiveSolution};
 pub use history::History;
+pub use output::Event;
 pub use sparse::SparseJacobian;
 pub use stability::{max_stable_dt, max_stable_dt_oscillator, stability_function};
 pub use stepper::{Stepper, Workspace};
@@ -64,6 +66,15 @@ pub trait OdeSystem {
     /// Whatever the system reports.
     fn sparse_jacobian(&mut self, _t: f64, _y: &[f64], _jac: &mut SparseJacobian) -> Result<bool> {
         Ok(false)
+    }
+    /// Write the values of the event functions `g_i(t, y)` into `g` (one per [`Event`] given
+    /// to [`solve_adaptive`], `g.len()` of them); the adaptive methods locate their zeros on
+    /// the dense output. Called only when events are given; the default writes nothing.
+    ///
+    /// # Errors
+    /// Whatever the system reports.
+    fn events(&mut self, _t: f64, _y: &[f64], _g: &mut [f64]) -> Result<()> {
+        Ok(())
     }
 }
 

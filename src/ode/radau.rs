@@ -13,7 +13,8 @@
 // The transformation matrices as published, with all their digits.
 #![allow(clippy::excessive_precision, clippy::unreadable_literal)]
 
-use super::adaptive::{Output, Tolerance};
+use super::adaptive::Tolerance;
+use super::output::Output;
 use super::OdeSystem;
 use crate::error::{Error, Result};
 use nalgebra::{Complex, DMatrix, DVector, LU};
@@ -384,12 +385,17 @@ pub(super) fn run<S: OdeSystem>(
                 q[j][i] = (0..3).map(|s| work.z[s][i] * k.p[s][j]).sum();
             }
         }
-        out.accept(t_new, &y_new, |tt, buf| {
+        out.wants_dense(sys, t_new, &y_new)?;
+        let stop = out.accept(sys, t, t_new, &y_new, |tt, buf| {
             let x = (tt - t) / h;
             for i in 0..n {
                 buf[i] = y[i] + x * (q[0][i] + x * (q[1][i] + x * q[2][i]));
             }
         })?;
+        if stop {
+            counts.steps = steps + 1;
+            return Ok(counts);
+        }
         let recompute_jac = iterations > 2 && rate > 1e-3;
         let mut factor = (safety * predict_factor(h, last, err_norm)).min(10.0);
         if !recompute_jac && factor < 1.2 {
