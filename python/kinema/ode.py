@@ -135,7 +135,17 @@ def solve(
     if method in ADAPTIVE:
         times = None if t_eval is None else _state(t_eval, "t_eval")
         t, states, _, t_ev, y_ev, _ = _kinema.ode_solve_adaptive(
-            f, method, y, t0, t1, real(rtol, "rtol"), real(atol, "atol"), max_steps, jac, times, specs
+            f,
+            method,
+            y,
+            t0,
+            t1,
+            real(rtol, "rtol"),
+            real(atol, "atol"),
+            max_steps,
+            jac,
+            times,
+            specs,
         )
         return (t, states) if events is None else (t, states, t_ev, y_ev)
     for name, value in [("t_eval", t_eval), ("events", events)]:

@@ -202,7 +202,8 @@ impl Work {
             if let Some(old) = norm_old {
                 rate = norm / old;
                 let remaining = (NEWTON_MAXITER - iter) as i32;
-                if !(rate < 1.0) || rate.powi(remaining) / (1.0 - rate) * norm > tol {
+                if rate.is_nan() || rate >= 1.0 || rate.powi(remaining) / (1.0 - rate) * norm > tol
+                {
                     return Ok((false, iter + 1, rate));
                 }
             }
