@@ -127,6 +127,8 @@ def solve(
     if jac is not None and not callable(jac):
         raise ValueError("jac: expected a callable jac(t, y) -> (n, n) or None")
     specs = []
+    if callable(events) or isinstance(events, str):
+        raise ValueError("events: expected a list of callables g(t, y) -> float")
     for g in events or ():
         if not callable(g):
             raise ValueError(f"events: expected callables g(t, y) -> float, got {g!r}")

@@ -164,6 +164,8 @@ def test_bad_events_are_refused():
     with pytest.raises(ValueError, match="events"):
         ode.solve(f, [1.0], (0.0, 1.0), method="dopri5", events=[1.0])
     with pytest.raises(ValueError, match="events"):
+        ode.solve(f, [1.0], (0.0, 1.0), method="dopri5", events=lambda t, y: y[0])
+    with pytest.raises(ValueError, match="events"):
         ode.solve(f, [1.0], (0.0, 1.0), dt=0.1, method="rk4", events=[lambda t, y: y[0]])
     with pytest.raises(ValueError, match="events"):
         ode.solve(f, [1.0], (0.0, 1.0), method="radau", events=[lambda t, y: np.nan])
