@@ -121,7 +121,7 @@ def work_precision(quick: bool) -> list[tuple[str, str, float, float, float]]:
             method="Radau" if stiff else "DOP853",
             rtol=1e-13,
             atol=1e-13,
-            jac=jac if stiff else None,
+            **({"jac": jac} if stiff else {}),
         ).y[:, -1]
         rtols = [1e-4, 1e-7, 1e-10] if quick else [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
         for ours, peer in WP_METHODS:
