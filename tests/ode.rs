@@ -111,6 +111,8 @@ fn adaptive_pairs_converge_at_their_order() {
                 tol,
                 tol * 1e-3,
                 100_000,
+                None,
+                &[],
             )
             .unwrap();
             let y = &sol.y[sol.y.len() - 2..];

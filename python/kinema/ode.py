@@ -1,5 +1,5 @@
-"""Time integration: fixed-step methods, adaptive Dormand–Prince pairs, and their stability
-analysis.
+"""Time integration: fixed-step methods, adaptive Dormand–Prince pairs and Radau IIA with
+dense output, and their stability analysis.
 
 Methods (``method=``), each with its order and stability function ``R(z)`` on ``y' = λy``:
 
@@ -16,11 +16,12 @@ name                          order  notes
 ``bdf2``                      2      A-stable two-step BDF (variable step)
 ``dopri5``                    5(4)   adaptive, ``rtol``/``atol`` instead of ``dt``
 ``dop853``                    8(5,3) adaptive (Hairer's DOP853), for tight tolerances
+``radau``                     5      adaptive, implicit (Hairer's RADAU5), for stiff problems
 ============================  =====  =============================================
 
 Sources: Hairer, Nørsett & Wanner, *Solving ODEs I* (explicit RK, Dormand & Prince 1980,
 Prince & Dormand 1981, §II.10 for DOP853);
-Hairer & Wanner, *Solving ODEs II* (implicit methods); Hairer, Lubich & Wanner, *Geometric
+Hairer & Wanner, *Solving ODEs II* (implicit methods, §IV.8 for Radau IIA); Hairer, Lubich & Wanner, *Geometric
 Numerical Integration* (symplectic methods). The integrators run in Rust; ``f`` is called from
 Rust once per stage, so for small systems the cost is dominated by the Python call.
 """
@@ -54,8 +55,9 @@ __all__ = [
 
 METHODS: dict[str, int] = {name: order for name, order, _, _ in _kinema.ode_methods()}
 """Fixed-step method names and their orders (see :data:`ADAPTIVE` for the adaptive ones)."""
-ADAPTIVE: dict[str, int] = {"dopri5": 5, "dop853": 8}
-"""Adaptive method names (embedded Runge–Kutta pairs) and the orders of their solutions."""
+ADAPTIVE: dict[str, int] = {"dopri5": 5, "dop853": 8, "radau": 5}
+"""Adaptive method names (the embedded Runge–Kutta pairs and Radau IIA) and the orders of
+their solutions."""
 METHODS_SECOND_ORDER = {name for name, _, _, second in _kinema.ode_methods() if second}
 
 
@@ -89,15 +91,29 @@ def solve(
     rtol: float = 1e-6,
     atol: float = 1e-9,
     max_steps: int = 1_000_000,
-) -> tuple[np.ndarray, np.ndarray]:
+    t_eval: Any = None,
+    events: Sequence[Callable[[float, np.ndarray], float]] | None = None,
+) -> tuple[Any, ...]:
     """Integrate ``y' = f(t, y)`` over ``t_span = (t0, t1)``; returns ``(t, y)``.
 
     Fixed-step methods need ``dt`` (s): ``ceil((t1 - t0) / dt)`` equal steps are taken so
-    that the last lands on ``t1``; ``t`` is ``(M,)`` and ``y`` is ``(M, n)``. ``method="dopri5"``
-    (scipy's ``RK45``) and ``method="dop853"`` (scipy's ``DOP853``) adapt the step to keep the local error below ``atol + rtol |y|`` and returns the accepted
-    steps. Either way at most ``max_steps`` steps are taken: a ``dt`` that needs more raises
-    ValueError naming ``dt`` before anything is allocated, the adaptive methods raise
-    ``kinema.SimulationError`` when it runs out. Implicit methods use ``jac(t, y) -> (n, n)`` when given, else finite differences.
+    that the last lands on ``t1``; ``t`` is ``(M,)`` and ``y`` is ``(M, n)``. The adaptive
+    methods ``"dopri5"`` (scipy's ``RK45``), ``"dop853"`` (scipy's ``DOP853``) and
+    ``"radau"`` (scipy's ``Radau``, implicit, for stiff problems) adapt the step to keep the
+    local error below ``atol + rtol |y|`` and return the accepted steps, or, with ``t_eval``
+    (non-decreasing times within ``t_span``), the solution at those times from the method's
+    dense output (orders 4, 7 and 3). Either way at most ``max_steps`` steps are taken: a
+    ``dt`` that needs more raises ValueError naming ``dt`` before anything is allocated, the
+    adaptive methods raise ``kinema.SimulationError`` when it runs out. Implicit methods
+    (fixed-step ones and ``radau``) use ``jac(t, y) -> (n, n)`` when given, else finite
+    differences.
+
+    ``events`` (adaptive methods only), as scipy's: functions ``g(t, y) -> float`` whose zeros
+    are located on the dense output to 1e-12 relative in ``t``; an attribute ``terminal``
+    (true: stop at the first zero, which becomes the last time returned) and ``direction``
+    (``> 0`` counts only zeros where ``g`` rises, ``< 0`` where it falls, ``0`` both). With
+    events the result is ``(t, y, t_events, y_events)``: per event the times ``(k,)`` and
+    states ``(k, n)`` of its zeros.
 
     Raises ValueError for bad arguments, ``kinema.SimulationError`` when the state diverges
     (naming the step and component) or Newton fails; exceptions raised by ``f`` propagate.
@@ -108,11 +124,35 @@ def solve(
         raise ValueError("f: expected a callable f(t, y)")
     if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
         raise ValueError(f"max_steps: expected a positive integer, got {max_steps!r}")
+    if jac is not None and not callable(jac):
+        raise ValueError("jac: expected a callable jac(t, y) -> (n, n) or None")
+    specs = []
+    if callable(events) or isinstance(events, str):
+        raise ValueError("events: expected a list of callables g(t, y) -> float")
+    for g in events or ():
+        if not callable(g):
+            raise ValueError(f"events: expected callables g(t, y) -> float, got {g!r}")
+        direction = real(getattr(g, "direction", 0.0), "events: direction")
+        specs.append((g, bool(getattr(g, "terminal", False)), direction))
     if method in ADAPTIVE:
-        t, states, _, _ = _kinema.ode_solve_adaptive(
-            f, method, y, t0, t1, real(rtol, "rtol"), real(atol, "atol"), max_steps
+        times = None if t_eval is None else _state(t_eval, "t_eval")
+        t, states, _, t_ev, y_ev, _ = _kinema.ode_solve_adaptive(
+            f,
+            method,
+            y,
+            t0,
+            t1,
+            real(rtol, "rtol"),
+            real(atol, "atol"),
+            max_steps,
+            jac,
+            times,
+            specs,
         )
-        return t, states
+        return (t, states) if events is None else (t, states, t_ev, y_ev)
+    for name, value in [("t_eval", t_eval), ("events", events)]:
+        if value is not None:
+            raise ValueError(f"{name}: only the adaptive methods ({', '.join(ADAPTIVE)}) take it")
     if method not in METHODS:
         raise ValueError(f"method: {method!r} is not one of {', '.join([*METHODS, *ADAPTIVE])}")
     if dt is None or not (real(dt, "dt") > 0 and math.isfinite(real(dt, "dt"))):

@@ -4,8 +4,8 @@ use super::args::Int;
 use super::array::{compute, rows};
 use crate::error::{filled, too_large, Error};
 use crate::ode::{
-    max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function, Adaptive, Method,
-    OdeSystem, Stepper,
+    max_stable_dt, max_stable_dt_oscillator, solve_adaptive, stability_function, Adaptive, Event,
+    Method, OdeSystem, Stepper,
 };
 use nalgebra::{Complex, DMatrix};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
@@ -19,6 +19,8 @@ struct PySystem<'py> {
     py: Python<'py>,
     f: Bound<'py, PyAny>,
     jac: Option<Bound<'py, PyAny>>,
+    /// Event functions `g(t, y) -> float`.
+    events: Vec<Bound<'py, PyAny>>,
     n: usize,
     error: Option<PyErr>,
     /// The Jacobian as `jac` returned it, row-major (kept between calls).
@@ -100,6 +102,20 @@ impl OdeSystem for PySystem<'_> {
         self.jac_rows = rows;
         result.map(|()| true)
     }
+    fn events(&mut self, t: f64, y: &[f64], g: &mut [f64]) -> crate::Result<()> {
+        let arr = PyArray1::from_slice(self.py, y);
+        for (e, out) in self.events.iter().zip(g.iter_mut()) {
+            match e.call1((t, arr.clone())).and_then(|r| r.extract::<f64>()) {
+                Ok(v) if v.is_finite() => *out = v,
+                Ok(v) => return Err(Error::invalid("events", format!("returned {v} at t = {t}"))),
+                Err(err) => {
+                    self.error = Some(err);
+                    return Err(Error::invalid("events", "raised an exception"));
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 fn finish<T>(system: &mut PySystem<'_>, result: crate::Result<T>) -> PyResult<T> {
@@ -138,7 +154,8 @@ fn ode_solve_fixed<'py>(
         )
         .into());
     }
-    let mut system = PySystem { py, f, jac, n, error: None, jac_rows: Vec::new() };
+    let mut system =
+        PySystem { py, f, jac, events: Vec::new(), n, error: None, jac_rows: Vec::new() };
     let mut stepper = Stepper::new(method, n)?;
     let h = (t1 - t0) / steps as f64;
     let len = steps.checked_add(1).and_then(|m| m.checked_mul(n));
@@ -157,9 +174,12 @@ fn ode_solve_fixed<'py>(
     Ok((states, stepper.history.nfev, stepper.history.njev))
 }
 
-/// Adaptive solve with the embedded pair `method` ("dopri5", "dop853"); returns (times (M,),
-/// states (M, n), nfev, rejected).
+/// Adaptive solve with `method` ("dopri5", "dop853", "radau"; `jac(t, y) -> (n, n)` used by
+/// radau when given); `events` are (g(t, y) -> float, terminal, direction). Returns (times
+/// (M,), states (M, n), (steps, nfev, rejected, njev, nlu), event times [(k_i,)], event
+/// states [(k_i, n)], terminated), the times being the accepted steps or `t_eval`.
 #[pyfunction]
+#[pyo3(signature = (f, method, y0, t0, t1, rtol, atol, max_steps, jac=None, t_eval=None, events=Vec::new()))]
 #[allow(clippy::too_many_arguments)]
 fn ode_solve_adaptive<'py>(
     py: Python<'py>,
@@ -171,22 +191,63 @@ fn ode_solve_adaptive<'py>(
     rtol: f64,
     atol: f64,
     max_steps: Int,
-) -> PyResult<(Array<'py>, Array<'py>, usize, usize)> {
+    jac: Option<Bound<'py, PyAny>>,
+    t_eval: Option<PyReadonlyArrayDyn<'py, f64>>,
+    events: Vec<(Bound<'py, PyAny>, bool, f64)>,
+) -> PyResult<Solution<'py>> {
     let max_steps = max_steps.count("max_steps")?;
     let method = Adaptive::parse(method)?;
-    let y0 = y0
-        .as_slice()
-        .map_err(|_| PyErr::from(Error::invalid("y0", "must be contiguous")))?
-        .to_vec();
+    let contiguous = |a: &PyReadonlyArrayDyn<'py, f64>, name: &str| {
+        a.as_slice()
+            .map(<[f64]>::to_vec)
+            .map_err(|_| PyErr::from(Error::invalid(name, "must be contiguous")))
+    };
+    let y0 = contiguous(&y0, "y0")?;
+    let t_eval = t_eval.as_ref().map(|a| contiguous(a, "t_eval")).transpose()?;
     let n = y0.len();
-    let mut system = PySystem { py, f, jac: None, n, error: None, jac_rows: Vec::new() };
-    let r = solve_adaptive(&mut system, method, &y0, t0, t1, rtol, atol, max_steps);
+    let specs: Vec<Event> =
+        events.iter().map(|&(_, terminal, direction)| Event { terminal, direction }).collect();
+    let events = events.into_iter().map(|(g, _, _)| g).collect();
+    let mut system = PySystem { py, f, jac, events, n, error: None, jac_rows: Vec::new() };
+    let r = solve_adaptive(
+        &mut system,
+        method,
+        &y0,
+        t0,
+        t1,
+        rtol,
+        atol,
+        max_steps,
+        t_eval.as_deref(),
+        &specs,
+    );
     let sol = finish(&mut system, r)?;
     let m = sol.t.len();
     let t = numpy::PyArray1::from_vec(py, sol.t).to_dyn().clone();
     let y = numpy::PyArray1::from_vec(py, sol.y).reshape([m, n])?.to_dyn().clone();
-    Ok((t, y, sol.nfev, sol.rejected))
+    let t_events = sol
+        .t_events
+        .into_iter()
+        .map(|v| numpy::PyArray1::from_vec(py, v).to_dyn().clone())
+        .collect();
+    let mut y_events = Vec::new();
+    for v in sol.y_events {
+        let k = v.len() / n.max(1);
+        y_events.push(numpy::PyArray1::from_vec(py, v).reshape([k, n])?.to_dyn().clone());
+    }
+    let counts = (sol.steps, sol.nfev, sol.rejected, sol.njev, sol.nlu);
+    Ok((t, y, counts, t_events, y_events, sol.terminated))
 }
+
+/// What `ode_solve_adaptive` returns.
+type Solution<'py> = (
+    Array<'py>,
+    Array<'py>,
+    (usize, usize, usize, usize, usize),
+    Vec<Array<'py>>,
+    Vec<Array<'py>>,
+    bool,
+);
 
 /// R(z) of `method` at points z given as (N, 2) rows (re, im); returns (N, 2).
 #[pyfunction]

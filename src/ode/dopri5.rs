@@ -31,6 +31,33 @@ const E: [f64; 7] = [
     -1.0 / 40.0,
 ];
 
+/// The continuous extension of order 4 (Dormand & Prince 1986, as in Hairer's `dopri5.f` and
+/// scipy's `RK45`): `y(t + θh) = y + h Σ_j (Σ_i k_i P_ij) θ^(j+1)`.
+const P: [[f64; 4]; 7] = [
+    [
+        1.0,
+        -8048581381.0 / 2820520608.0,
+        8663915743.0 / 2820520608.0,
+        -12715105075.0 / 11282082432.0,
+    ],
+    [0.0; 4],
+    [
+        0.0,
+        131558114200.0 / 32700410799.0,
+        -68118460800.0 / 10900136933.0,
+        87487479700.0 / 32700410799.0,
+    ],
+    [0.0, -1754552775.0 / 470086768.0, 14199869525.0 / 1410260304.0, -10690763975.0 / 1880347072.0],
+    [
+        0.0,
+        127303824393.0 / 49829197408.0,
+        -318862633887.0 / 49829197408.0,
+        701980252875.0 / 199316789632.0,
+    ],
+    [0.0, -282668133.0 / 205662961.0, 2019193451.0 / 616988883.0, -1453857185.0 / 822651844.0],
+    [0.0, 40617522.0 / 29380423.0, -110615467.0 / 29380423.0, 69997945.0 / 29380423.0],
+];
+
 /// Dormand–Prince 5(4) as a [`Pair`].
 pub(super) struct Dopri5;
 
@@ -72,5 +99,33 @@ impl Pair for Dopri5 {
     fn advance<S: OdeSystem>(_: &mut S, _: f64, _: &[f64], k: &mut [Vec<f64>]) -> Result<usize> {
         k.swap(0, 6);
         Ok(0)
+    }
+
+    const DENSE: usize = 4;
+
+    /// `d_j = h Σ_i k_i P_ij`; after [`Pair::advance`] the step's first stage is in `k[6]`
+    /// and its last in `k[0]`.
+    fn dense<S: OdeSystem>(
+        _: &mut S,
+        _: f64,
+        h: f64,
+        y: &[f64],
+        _: &[f64],
+        k: &mut [Vec<f64>],
+        d: &mut [Vec<f64>],
+    ) -> Result<usize> {
+        for i in 0..y.len() {
+            for j in 0..4 {
+                d[j][i] = h * (0..7).map(|s| P[s][j] * k[[6, 1, 2, 3, 4, 5, 0][s]][i]).sum::<f64>();
+            }
+        }
+        Ok(0)
+    }
+
+    fn interpolate(theta: f64, y: &[f64], d: &[Vec<f64>], out: &mut [f64]) {
+        for i in 0..y.len() {
+            out[i] =
+                y[i] + theta * (d[0][i] + theta * (d[1][i] + theta * (d[2][i] + theta * d[3][i])));
+        }
     }
 }

@@ -5,8 +5,9 @@
 //! [`Method`]s, reading and updating a [`History`] (what carries from step to step: the method,
 //! the previous BDF2 step, the Newton settings), so that a system keeps the history in its
 //! state and the workspace in its solver ([`Stepper`] holds the two together);
-//! [`solve_adaptive`] runs an embedded pair with error control ([`Adaptive`]: Dormand–Prince
-//! 5(4), or DOP853 of order 8). Second-order methods (symplectic Euler, velocity Verlet) read the state as
+//! [`solve_adaptive`] runs an adaptive method with error control and dense output
+//! ([`Adaptive`]: Dormand–Prince 5(4), DOP853 of order 8, or the implicit Radau IIA of order
+//! 5 for stiff problems). Second-order methods (symplectic Euler, velocity Verlet) read the state as
 //! `y = [x; v]` with `f = [v; a(t, x, v)]`.
 //!
 //! Every method states its order and its stability function `R(z)` (the growth factor per step
@@ -20,12 +21,15 @@ mod adaptive;
 mod dop853;
 mod dopri5;
 mod history;
+mod output;
+mod radau;
 mod sparse;
 mod stability;
 mod stepper;
 
 pub use adaptive::{solve_adaptive, Adaptive, AdaptiveSolution};
 pub use history::History;
+pub use output::Event;
 pub use sparse::SparseJacobian;
 pub use stability::{max_stable_dt, max_stable_dt_oscillator, stability_function};
 pub use stepper::{Stepper, Workspace};
@@ -62,6 +66,15 @@ pub trait OdeSystem {
     /// Whatever the system reports.
     fn sparse_jacobian(&mut self, _t: f64, _y: &[f64], _jac: &mut SparseJacobian) -> Result<bool> {
         Ok(false)
+    }
+    /// Write the values of the event functions `g_i(t, y)` into `g` (one per [`Event`] given
+    /// to [`solve_adaptive`], `g.len()` of them); the adaptive methods locate their zeros on
+    /// the dense output. Called only when events are given; the default writes nothing.
+    ///
+    /// # Errors
+    /// Whatever the system reports.
+    fn events(&mut self, _t: f64, _y: &[f64], _g: &mut [f64]) -> Result<()> {
+        Ok(())
     }
 }
 
