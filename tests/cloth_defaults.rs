@@ -58,6 +58,28 @@ fn hanging_cloth_at_the_defaults_stretches_by_3_percent() {
     }
 }
 
+/// Step subdivision measures a step's change of the stretch ratios on the positions it would
+/// commit, after the strain limit: at the pinned corners of a 64² sheet swinging at the 3 %
+/// limit the unlimited solve overshoots the limit by more than `max_strain_change` every step,
+/// which halved every step from 0.5 s on when the change was measured before the limit (the
+/// `bench/bench_cloth.py` scene: 2.00 substeps a step then, 1.67 now).
+#[test]
+fn a_sheet_swinging_at_the_strain_limit_is_not_halved_every_step() {
+    let n = 64;
+    let mesh = Mesh::grid(n, n, 1.0, 1.0, Triangulation::Alternating).unwrap();
+    let mut cloth = Cloth::new(mesh, Elasticity::BaraffWitkin, Material::default(), G).unwrap();
+    cloth.pin(&[0, n - 1], None).unwrap();
+    let options = SolveOptions::default();
+    cloth.step(1.0 / 60.0, 30, Method::ImplicitEuler, options).unwrap();
+    let mut whole = 0;
+    for _ in 0..6 {
+        cloth.step(1.0 / 60.0, 1, Method::ImplicitEuler, options).unwrap();
+        whole += usize::from(cloth.stats().substeps == 1);
+    }
+    assert!(max_edge_strain(&cloth, n) > 0.029, "not at the limit");
+    assert!(whole >= 2, "{whole} of 6 steps taken whole");
+}
+
 #[test]
 fn strain_limit_must_be_positive() {
     let mesh = Mesh::grid(3, 3, 1.0, 1.0, Triangulation::Alternating).unwrap();

@@ -280,8 +280,8 @@ class Cloth:
         relative error of ``Δv`` in the energy norm ``‖·‖_A``) or ``"cholesky"``. After the
         solve no edge stays longer than ``1 + max_strain`` times its rest length (strain
         limiting, Provot 1995; default 3 %, ``inf`` turns it off). An implicit step that changes any stretch
-        ratio by more than ``max_strain_change`` is redone as two half steps (Baraff & Witkin
-        §5; ``stats["substeps"]`` counts them; ``inf`` turns this off). On divergence a
+        ratio by more than ``max_strain_change`` (measured after the strain limit) is redone as
+        two half steps (Baraff & Witkin §5; ``stats["substeps"]`` counts them; ``inf`` turns this off). On divergence a
         :class:`kinema.SimulationError` names the step and vertex and the cloth stays at the
         last good step.
         """

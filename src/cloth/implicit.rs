@@ -59,11 +59,15 @@ impl Solver {
 
         let t3 = Instant::now();
         self.motion(model, state, h, h_eff);
+        // The change is measured on the positions the step would commit, after the strain
+        // limit: a stretch the limiter takes back is no change of the cloth's shape (before,
+        // a cloth hanging at the limit had every step halved: the unlimited solve overshoots
+        // the limit by more than `max_strain_change` at the pinned corners).
+        self.limit_strain(model, h_eff, options.max_strain);
         let strained = check
             && options.max_strain_change.is_finite()
             && strain_change(model, &state.x, &self.scratch.x_new) > options.max_strain_change;
         if !strained {
-            self.limit_strain(model, h_eff, options.max_strain);
             self.self_collide(model, state, h, options.max_strain, stats);
             let s = &self.scratch;
             let n = state.len();

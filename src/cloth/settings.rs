@@ -135,7 +135,8 @@ pub struct SolveOptions {
     /// PCG iteration limit.
     pub max_iterations: usize,
     /// The largest change of any stretch ratio (`‖w_u‖`, `‖w_v‖`, or `l/L` of a spring) one
-    /// step may make; a step that exceeds it is redone as two half steps (Baraff & Witkin §5:
+    /// step may make, measured on the positions it would commit (after the strain limit of
+    /// `max_strain`); a step that exceeds it is redone as two half steps (Baraff & Witkin §5:
     /// the step size is cut when a step stretches the cloth too much), down to `h / 32`.
     pub max_strain_change: f64,
     /// Strain limit: after the solve, no mesh edge is left longer than `1 + max_strain` times
