@@ -139,9 +139,11 @@ pub struct SolveOptions {
     /// `max_strain`); a step that exceeds it is redone as two half steps (Baraff & Witkin §5:
     /// the step size is cut when a step stretches the cloth too much), down to `h / 32`.
     pub max_strain_change: f64,
-    /// Strain limit: after the solve, no mesh edge is left longer than `1 + max_strain` times
-    /// its rest length (Provot 1995; up to 32 Gauss–Seidel sweeps over the edges a step;
-    /// default 0.03, `inf` turns it off).
+    /// Strain limit: after the solve, mesh edges longer than `1 + max_strain` times their rest
+    /// length are shortened to it (Provot 1995) in up to 32 Gauss–Seidel sweeps over the edges
+    /// a step; at large grids (128²) the sweeps end with some edges still longer, the rest
+    /// taken up in later steps (docs/cloth.md, "Strain limiting"). Default 0.03, `inf` turns
+    /// it off.
     pub max_strain: f64,
 }
 
