@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import numbers
 import os
+import pickle
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -84,6 +85,19 @@ def _run_batch(
             store.finish(task, row)
         rows.append(row)
     return rows
+
+
+def _run_packed(
+    build: Build,
+    run: Run,
+    tasks: list[tuple[str, dict[str, Any]]],
+    directory: str | None,
+) -> bytes:
+    """:func:`_run_batch` on a Dask worker, its rows returned pickled as one ``bytes``. Dask
+    sends a result's bytes as they are, but serialises a list of rows one row at a time on the
+    worker's event loop: 16 µs of CPU a row against 0.2 µs as bytes (900 rows through Dask's
+    ``dumps``, measured in one process, docs/sweep.md) — a few per cent of a tiny task."""
+    return pickle.dumps(_run_batch(build, run, tasks, True, directory), pickle.HIGHEST_PROTOCOL)
 
 
 def _outputs(out: Any) -> dict[str, Any]:
@@ -305,7 +319,7 @@ def _on_dask(
         pending = as_completed()
 
         def submit(batch: list[tuple[str, dict[str, Any]]], attempt: int) -> None:
-            future = client.submit(_run_batch, build, run, batch, True, directory, pure=False)
+            future = client.submit(_run_packed, build, run, batch, directory, pure=False)
             tries[future] = (batch, attempt)
             pending.add(future)
 
@@ -321,7 +335,7 @@ def _on_dask(
         for future in pending:
             batch, attempt = tries.pop(future)
             if future.status == "finished":
-                rows = future.result()
+                rows = pickle.loads(future.result())
                 timing[0] += sum(r["seconds"] for r in rows)
                 timing[1] += len(rows)
                 finished(rows, len(tries))
