@@ -52,12 +52,13 @@ impl Default for Material {
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LinearSolver {
     /// Prefiltered preconditioned conjugate gradient with the smoothed aggregation multigrid
-    /// preconditioner (Tamstorf, Jones & McCormick 2015; [`super::Solver`]'s default).
+    /// preconditioner (Tamstorf, Jones & McCormick 2015).
     Multigrid,
     /// Modified preconditioned conjugate gradient with the filter (Baraff & Witkin §5.3) and
     /// the block SSOR preconditioner.
     BlockSsor,
-    /// Sparse Cholesky (faer) of the filtered SPD system.
+    /// Sparse Cholesky (faer) of the filtered SPD system, exact to rounding ([`SolveOptions`]'
+    /// default: faster than multigrid PCG at tol 1e-6 at every measured size, 32² to 256²).
     Cholesky,
 }
 
@@ -150,7 +151,7 @@ pub struct SolveOptions {
 impl Default for SolveOptions {
     fn default() -> Self {
         SolveOptions {
-            solver: LinearSolver::Multigrid,
+            solver: LinearSolver::Cholesky,
             tol: 1e-6,
             max_iterations: 1000,
             max_strain_change: 0.01,

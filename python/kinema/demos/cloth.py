@@ -4,7 +4,7 @@ and folds onto itself, with self-collision (Bridson, Fedkiw & Anderson 2002).
 Writes ``cloth.gif`` (the fall and the folds, rendered with matplotlib) and ``cloth.png``
 (snapshots; per step the triangle pairs that intersect by the exact all-pairs test, the step
 time split into the cloth solve and self-collision, and the largest edge stretch). Implicit
-Euler with the default settings (multigrid PCG to tol 1e-6, strain limit 3 %), dt = 1/100 s.
+Euler with the default settings (sparse Cholesky, strain limit 3 %), dt = 1/100 s.
 """
 
 from __future__ import annotations
