@@ -1,4 +1,6 @@
-"""Integrators: work-precision tables of every kinema method on the built-in problems;
+"""Integrators: the spring chain stepped by ``ParticleSystem.step`` with every fixed-step method
+against vectorised numpy (and implicit Euler against scipy's sparse LU factorised once) at
+equal error; work-precision tables of every kinema method on the built-in problems;
 kinema's Dormand–Prince 5(4) against scipy.integrate.solve_ivp (RK45, DOP853, Radau) at the
 same tolerances; and the work-precision comparison at equal achieved error: kinema's dopri5,
 dop853 and radau against scipy's RK45, DOP853 and Radau on the Arenstorf orbit, Van der Pol
@@ -6,8 +8,9 @@ at mu = 1000 and a 100-particle spring chain, CPU time against the error of the 
 (measured against a reference at rtol 1e-13), a sweep of rtol for each, all in one process and
 on the same Python right-hand side.
 
-Run: python bench/bench_ode.py [--quick] [--figure PATH]
-(--quick: fewer tolerances in the sweep; --figure writes the work-precision plot, matplotlib.)
+Run: python bench/bench_ode.py [--quick] [--figure PATH] [--chain-only]
+(--quick: fewer tolerances in the sweep; --figure writes the work-precision plot, matplotlib;
+--chain-only: the fixed-step chain table alone.)
 """
 
 from __future__ import annotations
@@ -21,9 +24,12 @@ from functools import partial
 import numpy as np
 
 from kinema import ode
+from kinema.particles import ParticleSystem, Springs
 
 try:
     from scipy.integrate import solve_ivp
+    from scipy.sparse import bmat, diags, identity
+    from scipy.sparse.linalg import splu
 except ImportError:
     solve_ivp = None
 
@@ -79,6 +85,110 @@ def chain() -> tuple[Callable, np.ndarray, tuple[float, float], Callable]:
     y = [x; v], 200 unknowns), over 0.1 s: the problem of ode.PROBLEMS["spring_chain"]."""
     prob = ode._spring_chain(n=100, k=1e4)
     return prob.f, prob.y0, prob.t_span, prob.jac
+
+
+# The fixed-step chain: N unit masses on a line joined by springs of k = 1e4 N/m (rest length
+# 0: linear), the first tied to a wall, displaced by linspace(0, 0.1, N) m at zero velocity
+# and stepped over 0.1 s at dt = 1e-4 s (1000 steps): the linear chain of
+# ode.PROBLEMS["spring_chain"] at the size of a rope. kinema steps it as a ParticleSystem in 3-D
+# (a pinned particle for the wall, `Springs` between neighbours, positions = displacements; the
+# motion stays on the line); numpy steps the displacements u (N,) with the same
+# methods, vectorised; scipy's implicit Euler solves (I - h A) y1 = y0 with the sparse LU of
+# I - h A factorised once (A is constant). Errors are of the final displacements against the
+# exact solution (normal modes), so both sides' errors are shown at the same dt.
+CHAIN_K, CHAIN_T, CHAIN_DT = 1e4, 0.1, 1e-4
+CHAIN_METHODS = ["explicit_euler", "midpoint", "rk4", "symplectic_euler", "implicit_euler"]
+
+
+def chain_laplacian(n: int):
+    """The chain's stiffness pattern L (n x n, sparse): u'' = -k L u."""
+    main = np.full(n, 2.0)
+    main[-1] = 1.0
+    return diags([main, -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1], format="csc")
+
+
+def chain_exact(n: int) -> np.ndarray:
+    """The displacements at CHAIN_T from the normal modes of the linear chain."""
+    w2, modes = np.linalg.eigh(CHAIN_K * chain_laplacian(n).toarray())
+    u0 = np.linspace(0.0, 0.1, n)
+    return modes @ (np.cos(np.sqrt(w2) * CHAIN_T) * (modes.T @ u0))
+
+
+def chain_acceleration(u: np.ndarray) -> np.ndarray:
+    """-k L u, vectorised: the spring forces -k (u_i - u_(i-1)) with the wall at u_(-1) = 0."""
+    s = CHAIN_K * np.diff(u, prepend=0.0)
+    a = -s
+    a[:-1] += s[1:]
+    return a
+
+
+def chain_numpy(method: str, n: int, steps: int) -> np.ndarray:
+    """`steps` steps of `method` on the chain in numpy (scipy's sparse LU for implicit Euler)."""
+    h, acc = CHAIN_DT, chain_acceleration
+    u, v = np.linspace(0.0, 0.1, n), np.zeros(n)
+    if method == "implicit_euler":
+        a = bmat([[None, identity(n)], [-CHAIN_K * chain_laplacian(n), None]], format="csc")
+        lu = splu((identity(2 * n, format="csc") - h * a).tocsc())
+        y = np.concatenate([u, v])
+        for _ in range(steps):
+            y = lu.solve(y)
+        return y[:n]
+    for _ in range(steps):
+        if method == "explicit_euler":
+            u, v = u + h * v, v + h * acc(u)
+        elif method == "midpoint":
+            um, vm = u + 0.5 * h * v, v + 0.5 * h * acc(u)
+            u, v = u + h * vm, v + h * acc(um)
+        elif method == "rk4":
+            a1 = acc(u)
+            u2, v2 = u + 0.5 * h * v, v + 0.5 * h * a1
+            a2 = acc(u2)
+            u3, v3 = u + 0.5 * h * v2, v + 0.5 * h * a2
+            a3 = acc(u3)
+            u4, v4 = u + h * v3, v + h * a3
+            a4 = acc(u4)
+            u = u + h / 6 * (v + 2 * v2 + 2 * v3 + v4)
+            v = v + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
+        else:  # symplectic Euler
+            v = v + h * acc(u)
+            u = u + h * v
+    return u
+
+
+def chain_system(n: int) -> ParticleSystem:
+    """The chain as a ParticleSystem: a pinned wall particle at the origin and n unit masses
+    at x = u, joined by springs of rest length 0 (kinema's linear springs, f = -k d), so that
+    the positions are the displacements and the equations those of the linear chain."""
+    x = np.zeros((n + 1, 3))
+    x[1:, 0] = np.linspace(0.0, 0.1, n)
+    system = ParticleSystem(x, masses=np.r_[np.inf, np.ones(n)])
+    pairs = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1)
+    system.add(Springs(pairs, stiffness=CHAIN_K, rest=np.zeros(n)))
+    return system
+
+
+def chain_kinema(method: str, n: int, steps: int, per_call: int) -> np.ndarray:
+    """`steps` steps of `method` in calls of `per_call` steps; the final displacements."""
+    system = chain_system(n)
+    for _ in range(steps // per_call):
+        system.step(CHAIN_DT, per_call, method)
+    return system.positions[1:, 0].copy()
+
+
+def chain_table() -> list[tuple[int, str, float, float, float, float, float, float]]:
+    """(N, method, kinema error, numpy error, kinema µs/step in one call, in a call per step,
+    numpy µs/step, CPU) for the chain of 100 and 1000 masses."""
+    steps = round(CHAIN_T / CHAIN_DT)
+    rows = []
+    for n in [100, 1000]:
+        exact = chain_exact(n)
+        for method in CHAIN_METHODS:
+            t_one, u_k = cpu(partial(chain_kinema, method, n, steps, steps))
+            t_each, _ = cpu(partial(chain_kinema, method, n, steps, 1))
+            t_np, u_np = cpu(partial(chain_numpy, method, n, steps))
+            err_k, err_np = (float(np.max(np.abs(u - exact))) for u in (u_k, u_np))
+            rows.append((n, method, err_k, err_np, t_one, t_each, t_np))
+    return rows
 
 
 WP_PROBLEMS = {"arenstorf": arenstorf, "van_der_pol": van_der_pol, "chain": chain}
@@ -172,7 +282,30 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="fewer tolerances in the sweep")
     parser.add_argument("--figure", help="write the work-precision figure (png) here")
+    parser.add_argument("--chain-only", action="store_true", help="the chain table alone")
     args = parser.parse_args()
+    if solve_ivp is not None:
+        print(
+            f"## The spring chain, fixed steps: kinema ParticleSystem against numpy "
+            f"(k = {CHAIN_K:g} N/m, dt = {CHAIN_DT:g} s, {CHAIN_T:g} s, CPU time, one thread "
+            f"for numpy; implicit Euler against scipy's sparse LU factorised once)\n"
+        )
+        print(
+            "| N | method | kinema error | numpy error | kinema µs/step (one call) "
+            "| kinema µs/step (a call per step) | numpy µs/step | ratio (one call) "
+            "| ratio (a call per step) |"
+        )
+        print("|---:|---|---:|---:|---:|---:|---:|---:|---:|")
+        steps = round(CHAIN_T / CHAIN_DT)
+        for n, m, e_k, e_np, t_one, t_each, t_np in chain_table():
+            print(
+                f"| {n} | {m} | {e_k:.2e} | {e_np:.2e} | {1e6 * t_one / steps:.2f} "
+                f"| {1e6 * t_each / steps:.2f} | {1e6 * t_np / steps:.2f} "
+                f"| {t_np / t_one:.1f}x | {t_np / t_each:.1f}x |"
+            )
+        print()
+    if args.chain_only:
+        return
     if solve_ivp is not None:
         rows = work_precision(args.quick)
         print("## Work-precision at equal achieved error (CPU s against relative error)\n")

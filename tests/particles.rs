@@ -717,3 +717,45 @@ fn ages_are_added_when_read() {
     }
     assert!(s.alive().iter().any(|a| !a));
 }
+
+#[test]
+fn general_path_calls_leave_the_ages_pending_and_count_only_good_steps() {
+    // Springs (or any method but symplectic Euler) take the general path; without emitters
+    // its calls too leave the ages to their reader, bitwise each good step added in turn, and
+    // a call that fails counts the steps before the failure. The pinned particle stays, with
+    // its velocity.
+    let mut s = ParticleSystem::new(
+        &[DVec3::ZERO, DVec3::X],
+        &[DVec3::Z, DVec3::Y],
+        &[f64::INFINITY, 1.0],
+        2,
+    )
+    .unwrap();
+    s.add_force(Force::Springs {
+        pairs: vec![[0, 1]],
+        rest: vec![1.0],
+        stiffness: 100.0,
+        damping: 0.0,
+    })
+    .unwrap();
+    let mut expected = 0.0;
+    for (dt, steps, method) in [
+        (1e-3, 3, Method::Rk4),
+        (2e-3, 2, Method::ImplicitEuler),
+        (1e-3, 1, Method::SymplecticEuler),
+    ] {
+        s.step(dt, steps, method).unwrap();
+        (0..steps).for_each(|_| expected += dt);
+    }
+    assert!(s.ages().iter().all(|a| a.to_bits() == expected.to_bits()), "{:?}", s.ages());
+    // Its velocity too: symplectic Euler's drift `x += h v` does not move it.
+    assert_eq!(pos(&s, 0), DVec3::ZERO);
+    assert_eq!(vel(&s, 0), DVec3::Z);
+    // Quadratic drag on 1e100 m/s: the first explicit Euler step is finite, the second not.
+    let mut s = one(DVec3::ZERO, DVec3::new(1e100, 0.0, 0.0));
+    s.add_force(Force::Drag { linear: 0.0, quadratic: 1e10, wind: DVec3::ZERO }).unwrap();
+    let err = s.step(0.1, 5, Method::ExplicitEuler).unwrap_err();
+    assert!(matches!(err, kinema::Error::Diverged { step: 1, .. }), "{err}");
+    assert_eq!(s.ages()[0].to_bits(), 0.1f64.to_bits());
+    assert!(vel(&s, 0).x.is_finite());
+}

@@ -133,6 +133,7 @@ def ode_solve_fixed(
     steps: int,
     method: str,
     jac: Callable[[float, _F64], Any] | None = None,
+    vectorized: bool = False,
 ) -> tuple[_F64, int, int]: ...
 def ode_solve_adaptive(
     f: Callable[[float, _F64], Any],
@@ -146,6 +147,7 @@ def ode_solve_adaptive(
     jac: Callable[[float, _F64], Any] | None = None,
     t_eval: _F64 | None = None,
     events: list[tuple[Callable[[float, _F64], float], bool, float]] = ...,
+    vectorized: bool = False,
 ) -> tuple[_F64, _F64, tuple[int, int, int, int, int], list[_F64], list[_F64], bool]: ...
 def ode_stability_function(method: str, z: _F64) -> _F64: ...
 def ode_max_stable_dt(method: str, eigenvalues: _F64) -> float: ...

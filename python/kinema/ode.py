@@ -93,6 +93,7 @@ def solve(
     max_steps: int = 1_000_000,
     t_eval: Any = None,
     events: Sequence[Callable[[float, np.ndarray], float]] | None = None,
+    vectorized: bool = False,
 ) -> tuple[Any, ...]:
     """Integrate ``y' = f(t, y)`` over ``t_span = (t0, t1)``; returns ``(t, y)``.
 
@@ -106,7 +107,10 @@ def solve(
     ``dt`` that needs more raises ValueError naming ``dt`` before anything is allocated, the
     adaptive methods raise ``kinema.SimulationError`` when it runs out. Implicit methods
     (fixed-step ones and ``radau``) use ``jac(t, y) -> (n, n)`` when given, else finite
-    differences.
+    differences. With ``vectorized=True`` (scipy's meaning) ``f`` also accepts ``y`` of shape
+    ``(n, k)``, k states as columns, and returns ``(n, k)``: the finite differences then
+    evaluate all ``n`` columns of the Jacobian in one call of ``f`` instead of ``n`` (the
+    stages of the Runge–Kutta methods depend on each other and are called one by one).
 
     ``events`` (adaptive methods only), as scipy's: functions ``g(t, y) -> float`` whose zeros
     are located on the dense output to 1e-12 relative in ``t``; an attribute ``terminal``
@@ -124,6 +128,8 @@ def solve(
         raise ValueError("f: expected a callable f(t, y)")
     if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
         raise ValueError(f"max_steps: expected a positive integer, got {max_steps!r}")
+    if not isinstance(vectorized, bool | np.bool_):
+        raise ValueError(f"vectorized: expected a bool, got {vectorized!r}")
     if jac is not None and not callable(jac):
         raise ValueError("jac: expected a callable jac(t, y) -> (n, n) or None")
     specs = []
@@ -148,6 +154,7 @@ def solve(
             jac,
             times,
             specs,
+            bool(vectorized),
         )
         return (t, states) if events is None else (t, states, t_ev, y_ev)
     for name, value in [("t_eval", t_eval), ("events", events)]:
@@ -164,7 +171,7 @@ def solve(
             f"max_steps={max_steps}; raise dt or max_steps"
         )
     steps = max(1, math.ceil(count - 1e-9))
-    states, _, _ = _kinema.ode_solve_fixed(f, y, t0, t1, steps, method, jac)
+    states, _, _ = _kinema.ode_solve_fixed(f, y, t0, t1, steps, method, jac, bool(vectorized))
     return np.linspace(t0, t1, steps + 1), states
 
 

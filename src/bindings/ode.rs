@@ -25,6 +25,8 @@ struct PySystem<'py> {
     error: Option<PyErr>,
     /// The Jacobian as `jac` returned it, row-major (kept between calls).
     jac_rows: Vec<f64>,
+    /// `f` also takes `y` of shape `(n, k)` (k states as columns) and returns `(n, k)`.
+    vectorized: bool,
 }
 
 impl PySystem<'_> {
@@ -81,6 +83,16 @@ fn as_float_array<'py>(
     Ok(a.call_method0("ravel")?.cast_into::<PyArrayDyn<f64>>()?)
 }
 
+/// `numpy.asarray(r, "float64")`, read-only, whatever its dimensions.
+fn as_float_array2<'py>(
+    py: Python<'py>,
+    r: Bound<'py, PyAny>,
+) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
+    let np = py.import("numpy")?;
+    let a = np.call_method1("asarray", (r, "float64"))?;
+    Ok(a.cast_into::<PyArrayDyn<f64>>()?.try_readonly()?)
+}
+
 impl OdeSystem for PySystem<'_> {
     fn dim(&self) -> usize {
         self.n
@@ -88,6 +100,45 @@ impl OdeSystem for PySystem<'_> {
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> crate::Result<()> {
         let f = self.f.clone();
         self.call(&f, t, y, dydt, "f")
+    }
+    fn rhs_many(&mut self, t: f64, ys: &[f64], dydt: &mut [f64]) -> crate::Result<()> {
+        let n = self.n.max(1);
+        if !self.vectorized {
+            for (y, d) in ys.chunks_exact(n).zip(dydt.chunks_exact_mut(n)) {
+                self.rhs(t, y, d)?;
+            }
+            return Ok(());
+        }
+        let (py, k) = (self.py, ys.len() / n);
+        // The states one after another are the (n, k) matrix of columns in Fortran order.
+        let result = PyArray1::from_slice(py, ys)
+            .reshape([k, n])
+            .and_then(|a| a.getattr("T"))
+            .and_then(|a| self.f.call1((t, a)))
+            .and_then(|r| as_float_array2(py, r));
+        let values = match result {
+            Ok(values) => values,
+            Err(e) => {
+                self.error = Some(e);
+                return Err(Error::invalid("f", "raised an exception"));
+            }
+        };
+        let view = values.as_array();
+        if view.shape() != [n, k] {
+            return Err(Error::invalid(
+                "f",
+                format!(
+                    "vectorized: called with y of shape ({n}, {k}), returned shape {:?}",
+                    view.shape()
+                ),
+            ));
+        }
+        for (j, d) in dydt.chunks_exact_mut(n).enumerate() {
+            for (i, v) in d.iter_mut().enumerate() {
+                *v = view[[i, j]];
+            }
+        }
+        Ok(())
     }
     fn jacobian(&mut self, t: f64, y: &[f64], jac: &mut DMatrix<f64>) -> crate::Result<bool> {
         let Some(j) = self.jac.clone() else { return Ok(false) };
@@ -128,7 +179,7 @@ fn finish<T>(system: &mut PySystem<'_>, result: crate::Result<T>) -> PyResult<T>
 /// Fixed-step solve of y' = f(t, y) from t0 with `steps` steps of (t1 - t0)/steps; returns the
 /// states (steps + 1, n) and the counts (nfev, njev).
 #[pyfunction]
-#[pyo3(signature = (f, y0, t0, t1, steps, method, jac=None))]
+#[pyo3(signature = (f, y0, t0, t1, steps, method, jac=None, vectorized=false))]
 #[allow(clippy::too_many_arguments)]
 fn ode_solve_fixed<'py>(
     py: Python<'py>,
@@ -139,6 +190,7 @@ fn ode_solve_fixed<'py>(
     steps: Int,
     method: &str,
     jac: Option<Bound<'py, PyAny>>,
+    vectorized: bool,
 ) -> PyResult<(Array<'py>, usize, usize)> {
     let steps = steps.count("steps")?;
     let method = Method::parse(method)?;
@@ -154,8 +206,16 @@ fn ode_solve_fixed<'py>(
         )
         .into());
     }
-    let mut system =
-        PySystem { py, f, jac, events: Vec::new(), n, error: None, jac_rows: Vec::new() };
+    let mut system = PySystem {
+        py,
+        f,
+        jac,
+        events: Vec::new(),
+        n,
+        error: None,
+        jac_rows: Vec::new(),
+        vectorized,
+    };
     let mut stepper = Stepper::new(method, n)?;
     let h = (t1 - t0) / steps as f64;
     let len = steps.checked_add(1).and_then(|m| m.checked_mul(n));
@@ -179,7 +239,7 @@ fn ode_solve_fixed<'py>(
 /// (M,), states (M, n), (steps, nfev, rejected, njev, nlu), event times [(k_i,)], event
 /// states [(k_i, n)], terminated), the times being the accepted steps or `t_eval`.
 #[pyfunction]
-#[pyo3(signature = (f, method, y0, t0, t1, rtol, atol, max_steps, jac=None, t_eval=None, events=Vec::new()))]
+#[pyo3(signature = (f, method, y0, t0, t1, rtol, atol, max_steps, jac=None, t_eval=None, events=Vec::new(), vectorized=false))]
 #[allow(clippy::too_many_arguments)]
 fn ode_solve_adaptive<'py>(
     py: Python<'py>,
@@ -194,6 +254,7 @@ fn ode_solve_adaptive<'py>(
     jac: Option<Bound<'py, PyAny>>,
     t_eval: Option<PyReadonlyArrayDyn<'py, f64>>,
     events: Vec<(Bound<'py, PyAny>, bool, f64)>,
+    vectorized: bool,
 ) -> PyResult<Solution<'py>> {
     let max_steps = max_steps.count("max_steps")?;
     let method = Adaptive::parse(method)?;
@@ -208,7 +269,8 @@ fn ode_solve_adaptive<'py>(
     let specs: Vec<Event> =
         events.iter().map(|&(_, terminal, direction)| Event { terminal, direction }).collect();
     let events = events.into_iter().map(|(g, _, _)| g).collect();
-    let mut system = PySystem { py, f, jac, events, n, error: None, jac_rows: Vec::new() };
+    let mut system =
+        PySystem { py, f, jac, events, n, error: None, jac_rows: Vec::new(), vectorized };
     let r = solve_adaptive(
         &mut system,
         method,

@@ -46,6 +46,22 @@ pub trait OdeSystem {
     /// # Errors
     /// Whatever the system reports (e.g. an exception in a Python callback).
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<()>;
+    /// Write `f(t, y_j)` for several states at once: `ys` holds them one after another
+    /// (state `j` at `ys[j dim..(j + 1) dim]`) and `dydt` receives the derivatives in the same
+    /// layout. The finite-difference Jacobians of the implicit methods evaluate all their
+    /// columns in one call; the default calls [`OdeSystem::rhs`] for each state, and a system
+    /// that evaluates many states at once for less (a vectorised Python function, as scipy's
+    /// `vectorized=True`) overrides it.
+    ///
+    /// # Errors
+    /// Whatever the system reports.
+    fn rhs_many(&mut self, t: f64, ys: &[f64], dydt: &mut [f64]) -> Result<()> {
+        let n = self.dim().max(1);
+        for (y, d) in ys.chunks_exact(n).zip(dydt.chunks_exact_mut(n)) {
+            self.rhs(t, y, d)?;
+        }
+        Ok(())
+    }
     /// Write the Jacobian `∂f/∂y` (dim x dim) into `jac` and return `true`, or return `false`
     /// when the system has no analytic Jacobian (implicit methods then use finite differences).
     ///

@@ -16,7 +16,7 @@
 use super::adaptive::Tolerance;
 use super::output::Output;
 use super::OdeSystem;
-use crate::error::{Error, Result};
+use crate::error::{filled, Error, Result};
 use nalgebra::{Complex, DMatrix, DVector, LU};
 
 /// Newton iterations per attempt before the step is retried (with a fresh Jacobian, then half
@@ -93,6 +93,10 @@ struct Work {
     rhs_complex: DVector<Complex<f64>>,
     stage: Vec<f64>,
     scale: Vec<f64>,
+    /// The states of the finite-difference columns and their derivatives (`n²` values each,
+    /// sized at the first difference Jacobian of a run).
+    columns: Vec<f64>,
+    derivatives: Vec<f64>,
 }
 
 impl Work {
@@ -110,16 +114,25 @@ impl Work {
         if sys.jacobian(t, y, &mut self.jac)? {
             return Ok(());
         }
-        self.stage.copy_from_slice(y);
-        for j in 0..self.n {
-            let d = (f64::EPSILON * y[j].abs().max(1e-5)).sqrt();
-            self.stage[j] = y[j] + d;
-            sys.rhs(t, &self.stage, &mut self.f[0])?;
-            counts.nfev += 1;
-            for i in 0..self.n {
-                self.jac[(i, j)] = (self.f[0][i] - fy[i]) / d;
+        // All the columns' states `y + d_j e_j` in one evaluation (OdeSystem::rhs_many).
+        let n = self.n;
+        let step = |j: usize| (f64::EPSILON * y[j].abs().max(1e-5)).sqrt();
+        for buffer in [&mut self.columns, &mut self.derivatives] {
+            if buffer.is_empty() {
+                *buffer = filled("y0", n * n, 0.0)?;
             }
-            self.stage[j] = y[j];
+        }
+        for (j, column) in self.columns.chunks_exact_mut(n).enumerate() {
+            column.copy_from_slice(y);
+            column[j] = y[j] + step(j);
+        }
+        sys.rhs_many(t, &self.columns, &mut self.derivatives)?;
+        counts.nfev += n;
+        for (j, fj) in self.derivatives.chunks_exact(n).enumerate() {
+            let d = step(j);
+            for i in 0..n {
+                self.jac[(i, j)] = (fj[i] - fy[i]) / d;
+            }
         }
         Ok(())
     }
@@ -262,6 +275,8 @@ pub(super) fn run<S: OdeSystem>(
         rhs_complex: DVector::zeros(n),
         stage: vec![0.0; n],
         scale: vec![0.0; n],
+        columns: Vec::new(),
+        derivatives: Vec::new(),
     };
     let newton_tol = (10.0 * f64::EPSILON / tol.rtol).max(tol.rtol.sqrt().min(0.03));
     let mut y = y0.to_vec();

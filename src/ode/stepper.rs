@@ -55,6 +55,10 @@ pub struct Workspace {
     jac: DMatrix<f64>,
     lu: Vec<f64>,
     pivots: Vec<usize>,
+    /// The states of the finite-difference columns and their derivatives (`n²` values each,
+    /// sized at the first difference Jacobian of a dimension).
+    columns: Vec<f64>,
+    derivatives: Vec<f64>,
     sparse: SparseNewton,
     /// Numeric LU factorisations of the iteration matrix so far (sparse or dense), for the
     /// callers' statistics; no step reads it.
@@ -72,6 +76,8 @@ impl Default for Workspace {
             jac: DMatrix::zeros(0, 0),
             lu: Vec::new(),
             pivots: Vec::new(),
+            columns: Vec::new(),
+            derivatives: Vec::new(),
             sparse: SparseNewton::default(),
             factorizations: 0,
         }
@@ -488,16 +494,24 @@ impl Workspace {
         }
         let n = self.n;
         self.eval(hist, sys, t, 3, Some(y))?;
-        self.stage.copy_from_slice(y);
-        for j in 0..n {
-            let d = f64::EPSILON.sqrt() * y[j].abs().max(1.0);
-            self.stage[j] = y[j] + d;
-            hist.nfev += 1;
-            sys.rhs(t, &self.stage, &mut self.k[1])?;
-            for i in 0..n {
-                self.jac[(i, j)] = (self.k[1][i] - self.k[3][i]) / d;
+        // All the columns' states `y + d_j e_j` in one evaluation (OdeSystem::rhs_many).
+        let step = |j: usize| f64::EPSILON.sqrt() * y[j].abs().max(1.0);
+        for buffer in [&mut self.columns, &mut self.derivatives] {
+            if buffer.len() != n * n {
+                *buffer = filled("y0", n * n, 0.0)?;
             }
-            self.stage[j] = y[j];
+        }
+        for (j, column) in self.columns.chunks_exact_mut(n).enumerate() {
+            column.copy_from_slice(y);
+            column[j] = y[j] + step(j);
+        }
+        hist.nfev += n;
+        sys.rhs_many(t, &self.columns, &mut self.derivatives)?;
+        for (j, fj) in self.derivatives.chunks_exact(n).enumerate() {
+            let d = step(j);
+            for i in 0..n {
+                self.jac[(i, j)] = (fj[i] - self.k[3][i]) / d;
+            }
         }
         Ok(())
     }

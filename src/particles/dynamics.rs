@@ -67,11 +67,30 @@ impl Dynamics<'_> {
     fn single_forces(&self, x: &[f64], v: &[f64], dx: &mut [f64], f: &mut [f64]) {
         let (all_forces, mass, alive, external) =
             (self.forces, self.mass, self.alive, self.external);
+        // Without forces on single particles (springs alone, say) the pass is two copies: the
+        // sum below would add zeros, whose sign and bits are those of the copy (0 + x = x for
+        // every x but -0, and a sum that starts at +0 never yields -0).
+        let local = all_forces.iter().any(Force::acts_alone);
         dx.par_chunks_mut(3 * CHUNK).zip(f.par_chunks_mut(3 * CHUNK)).enumerate().for_each(
             |(c, (dxc, fc))| {
+                let (start, len) = (3 * c * CHUNK, dxc.len());
+                dxc.copy_from_slice(&v[start..start + len]);
+                if !local {
+                    match external.is_empty() {
+                        true => fc.fill(0.0),
+                        // `0 + e` as the sum below (which turns -0 into +0).
+                        false => fc
+                            .iter_mut()
+                            .zip(&external[start..start + len])
+                            .for_each(|(f, e)| *f = 0.0 + e),
+                    }
+                    for k in (0..fc.len() / 3).filter(|&k| !alive[c * CHUNK + k]) {
+                        fc[3 * k..3 * k + 3].fill(0.0);
+                    }
+                    return;
+                }
                 for k in 0..dxc.len() / 3 {
                     let i = c * CHUNK + k;
-                    dxc[3 * k..3 * k + 3].copy_from_slice(&v[3 * i..3 * i + 3]);
                     let acc = if alive[i] {
                         particle_force(all_forces, at(x, i), at(v, i), mass[i])
                             + external_force(external, i)

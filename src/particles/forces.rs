@@ -138,6 +138,16 @@ fn check_springs(
 }
 
 impl Force {
+    /// Whether this force acts on each particle alone (gravity, drag, damping, attractor,
+    /// vortex, turbulence) rather than between particles (springs, repulsion, all-pairs
+    /// gravity).
+    pub(super) fn acts_alone(&self) -> bool {
+        !matches!(
+            self,
+            Force::Springs { .. } | Force::NeighborRepulsion { .. } | Force::NBodyGravity { .. }
+        )
+    }
+
     /// Check the parameters against a system of `n` particles.
     ///
     /// # Errors

@@ -120,13 +120,6 @@ impl Model {
 
     /// Whether a force acts between particles (springs, repulsion, all-pairs gravity).
     pub(super) fn pairwise(&self) -> bool {
-        self.forces.iter().any(|f| {
-            matches!(
-                f,
-                Force::Springs { .. }
-                    | Force::NeighborRepulsion { .. }
-                    | Force::NBodyGravity { .. }
-            )
-        })
+        self.forces.iter().any(|f| !f.acts_alone())
     }
 }

@@ -14,9 +14,12 @@ use rayon::prelude::*;
 /// Steps states of a particle [`Model`] (see the module docs).
 #[derive(Clone, Debug, Default)]
 pub struct Solver {
-    /// The state at the start of the current step of the general path (`6 capacity` values):
-    /// restored when the step fails, and read by pinned and dead slots and by the contacts.
+    /// The state at the start of the current step of the general path (`6 capacity` values),
+    /// which the contacts read; kept only when the model has colliders.
     pub(super) backup: Vec<f64>,
+    /// The pinned and dead slots at the start of the current step of the general path, with
+    /// their positions and velocities: a step leaves them exactly as they were.
+    pub(super) still: Vec<(usize, [f64; 6])>,
     /// What a call of the explicit kernel restores when one of its steps fails.
     pub(super) rollback: Rollback,
     /// The hash grid's (cell key, slot) pairs, rebuilt by every evaluation that needs them.
@@ -44,6 +47,7 @@ impl Solver {
     pub fn new(model: &Model) -> Result<Self> {
         let mut solver = Solver::default();
         reserve("capacity", &mut solver.cells, model.n)?;
+        reserve("capacity", &mut solver.still, model.n)?;
         Ok(solver)
     }
 
@@ -152,32 +156,59 @@ impl Solver {
 
 impl Step<'_> {
     /// `steps` steps of the general path (any method through [`Workspace::step`]), each
-    /// followed by the collisions, the ageing and the emission; a failed step restores the
-    /// state it started from and forgets the multistep history.
+    /// followed by the collisions, the ageing and the emission; a failed step leaves the
+    /// state it started from ([`Workspace::step`] writes nothing when it fails, and nothing
+    /// after it can fail) and forgets the multistep history. Without emitters no slot is born
+    /// or dies (only emitted particles have finite lifespans), so the ages are advanced after
+    /// the call, as the explicit kernel does.
     fn general_steps(&mut self, dt: f64, steps: usize, gravity: DVec3, sparse: bool) -> Result<()> {
         self.state.summary.state = None;
         self.state.settle_ages();
+        let age_each_step = !self.model.emitters.is_empty();
+        let n = self.model.n;
         for s in 0..steps {
-            // Keep a copy of the state to restore.
-            let (backup, y) = (&mut self.solver.backup, &self.state.y);
-            backup.resize(y.len(), 0.0);
-            backup
-                .par_chunks_mut(6 * CHUNK)
-                .zip(y.par_chunks(6 * CHUNK))
-                .for_each(|(b, y)| b.copy_from_slice(y));
+            if self.model.colliders.is_empty() {
+                // Only the slots that stay put need their state kept.
+                let (still, state) = (&mut self.solver.still, &*self.state);
+                let (x, v) = state.y.split_at(3 * n);
+                still.clear();
+                still.extend((0..n).filter(|&i| !state.alive[i] || state.inv_mass[i] == 0.0).map(
+                    |i| {
+                        let mut kept = [0.0; 6];
+                        kept[..3].copy_from_slice(&x[3 * i..3 * i + 3]);
+                        kept[3..].copy_from_slice(&v[3 * i..3 * i + 3]);
+                        (i, kept)
+                    },
+                ));
+            } else {
+                // The contacts read the state the step started from.
+                let (backup, y) = (&mut self.solver.backup, &self.state.y);
+                backup.resize(y.len(), 0.0);
+                backup
+                    .par_chunks_mut(6 * CHUNK)
+                    .zip(y.par_chunks(6 * CHUNK))
+                    .for_each(|(b, y)| b.copy_from_slice(y));
+            }
             if let Err(e) = self.one_step(dt, gravity, sparse) {
-                self.state.y.copy_from_slice(&self.solver.backup);
+                if !age_each_step {
+                    self.state.age_pending = (dt, s);
+                }
                 self.state.state_changed();
                 return Err(match e {
                     Error::Diverged { index, reason, .. } => {
-                        Error::Diverged { step: s, index: index % self.model.n, reason }
+                        Error::Diverged { step: s, index: index % n, reason }
                     }
                     other => other,
                 });
             }
-            self.age(dt);
+            if age_each_step {
+                self.age(dt);
+            }
             self.state.time += dt;
             self.emit(dt);
+        }
+        if !age_each_step {
+            self.state.age_pending = (dt, steps);
         }
         Ok(())
     }
@@ -211,10 +242,17 @@ impl Step<'_> {
         // x' = v' = 0, which the Newton solve of the implicit methods meets only to rounding
         // and which the drifts of the second-order methods (x += h v) do not read.
         let (xs, vs) = state.y.split_at_mut(3 * n);
-        let (xb, vb) = solver.backup.split_at(3 * n);
-        for i in (0..n).filter(|&i| !state.alive[i] || state.inv_mass[i] == 0.0) {
-            xs[3 * i..3 * i + 3].copy_from_slice(&xb[3 * i..3 * i + 3]);
-            vs[3 * i..3 * i + 3].copy_from_slice(&vb[3 * i..3 * i + 3]);
+        if self.model.colliders.is_empty() {
+            for (i, kept) in &solver.still {
+                xs[3 * i..3 * i + 3].copy_from_slice(&kept[..3]);
+                vs[3 * i..3 * i + 3].copy_from_slice(&kept[3..]);
+            }
+        } else {
+            let (xb, vb) = solver.backup.split_at(3 * n);
+            for i in (0..n).filter(|&i| !state.alive[i] || state.inv_mass[i] == 0.0) {
+                xs[3 * i..3 * i + 3].copy_from_slice(&xb[3 * i..3 * i + 3]);
+                vs[3 * i..3 * i + 3].copy_from_slice(&vb[3 * i..3 * i + 3]);
+            }
         }
         // The integrator checked the state; projection and impulses keep finite values finite.
         self.collide(dt, gravity);

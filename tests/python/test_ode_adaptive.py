@@ -171,3 +171,35 @@ def test_bad_events_are_refused():
         ode.solve(f, [1.0], (0.0, 1.0), method="radau", events=[lambda t, y: np.nan])
     with pytest.raises(ZeroDivisionError):
         ode.solve(f, [1.0], (0.0, 1.0), method="dop853", events=[lambda t, y: 1 / 0])
+
+
+@pytest.mark.parametrize(
+    ("method", "dt"), [("radau", None), ("implicit_euler", 1.0), ("bdf2", 1.0)]
+)
+def test_vectorized_differences_are_one_call_and_the_unvectorised_result(method, dt):
+    # Van der Pol at mu = 1000 written elementwise, so that a column of (n, k) is computed with
+    # the same operations as a state alone: the vectorised finite-difference Jacobian (one
+    # call of f per Jacobian) gives bitwise the solution of the column-by-column one.
+    mu, shapes = 1000.0, []
+
+    def f(t, y):
+        shapes.append(np.shape(y))
+        return np.array([y[1], mu * (1 - y[0] ** 2) * y[1] - y[0]])
+
+    kw = {"rtol": 1e-6, "atol": 1e-6} if dt is None else {"dt": dt}
+    _, plain = ode.solve(f, [2.0, 0.0], (0.0, 30.0), method=method, **kw)
+    calls_plain = len(shapes)
+    shapes.clear()
+    _, vec = ode.solve(f, [2.0, 0.0], (0.0, 30.0), method=method, vectorized=True, **kw)
+    np.testing.assert_array_equal(vec, plain)
+    columns = [s for s in shapes if s != (2,)]
+    assert columns and all(s == (2, 2) for s in columns), set(shapes)
+    # Each Jacobian took one call instead of two.
+    assert len(shapes) == calls_plain - len(columns), (len(shapes), calls_plain, len(columns))
+
+
+def test_vectorized_right_hand_sides_that_return_a_bad_shape_are_refused():
+    with pytest.raises(ValueError, match="vectorized"):
+        ode.solve(lambda t, y: np.zeros(2), [1.0, 0.0], (0.0, 1.0), method="radau", vectorized=True)
+    with pytest.raises(ValueError, match="vectorized"):
+        ode.solve(lambda t, y: -y, [1.0], (0.0, 1.0), method="radau", vectorized="yes")
