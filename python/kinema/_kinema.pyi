@@ -434,6 +434,8 @@ class Rod:
         max_iterations: int,
         contact_stiffness: float,
         friction_velocity: float,
+        inextensible: bool,
+        quasistatic_twist: bool,
         closed: bool,
     ) -> Rod: ...
     def clamp(self, last: bool) -> None: ...
@@ -483,6 +485,8 @@ class Hair:
         max_iterations: int,
         contact_stiffness: float,
         friction_velocity: float,
+        inextensible: bool,
+        quasistatic_twist: bool,
         repulsion_stiffness: float,
         thickness: float,
         strand_friction: float,
