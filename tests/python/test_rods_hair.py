@@ -199,8 +199,9 @@ def test_hair_demo_moves_the_head_by_the_cmu_walk(tmp_path: Path) -> None:
     joint = skeleton.joint_names.index("head")
     rotations, translations = demo.head_motion(np.array([0.0, 1.0]))
     np.testing.assert_allclose(translations[0], 0.0, atol=1e-15)
-    relative = Rotation.from_quat(orientations[120, joint]) * Rotation.from_quat(
-        orientations[0, joint]
-    ).inv()
+    relative = (
+        Rotation.from_quat(orientations[120, joint])
+        * Rotation.from_quat(orientations[0, joint]).inv()
+    )
     assert relative.approx_equal(rotations[1], atol=1e-12)
     assert relative.magnitude() > 0.02
