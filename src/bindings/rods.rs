@@ -235,6 +235,7 @@ impl Rod {
 }
 
 /// The rod settings from their Python arguments (the integrator by name).
+#[allow(clippy::too_many_arguments)] // one per setting, as Python passes them
 fn settings(
     gravity: [f64; 3],
     integrator: &str,
