@@ -205,3 +205,18 @@ def test_hair_demo_moves_the_head_by_the_cmu_walk(tmp_path: Path) -> None:
     )
     assert relative.approx_equal(rotations[1], atol=1e-12)
     assert relative.magnitude() > 0.02
+
+
+def test_groom_passes_the_inextensible_and_quasistatic_twist_settings() -> None:
+    # The stiff strands stretch by 5e-7 under their weight and the turning head; inextensible
+    # ones hold their groomed edge lengths to the tolerance (1e-8), with the quasi-static
+    # twist too.
+    strains = []
+    for inextensible in (False, True):
+        h = hair(8, inextensible=inextensible, quasistatic_twist=True)
+        rest = np.linalg.norm(np.diff(h.positions, axis=1), axis=2)
+        h.set_head(Rotation.from_rotvec([0.0, 0.3, 0.0]))
+        h.step(1 / 60, 10)
+        edges = np.linalg.norm(np.diff(h.positions, axis=1), axis=2)
+        strains.append(float(np.max(np.abs(edges / rest - 1.0))))
+    assert strains[0] > 1e-7 and strains[1] < 1e-8, strains
