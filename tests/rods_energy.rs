@@ -3,7 +3,7 @@
 //! twisted), invariance under rigid motions, and a straight untwisted rod at rest.
 
 use glam::{DMat3, DQuat, DVec3};
-use kinema::rods::{elastic, Band, Frames, Material, Model, Rod, Settings, State};
+use kinema::rods::{elastic, elastic_energy, Band, Frames, Material, Model, Rod, Settings, State};
 use proptest::prelude::*;
 
 const MATERIAL: Material =
@@ -138,6 +138,21 @@ proptest! {
         let (g, h) = check_derivatives(seed, n);
         prop_assert!(g < 1e-6, "gradient relative error {g:e}");
         prop_assert!(h < 1e-6, "Hessian relative error {h:e}");
+    }
+
+    /// The energy alone (`elastic_energy`, what the solver's line search and predictor
+    /// evaluate) is bitwise the value of `elastic`, so skipping the derivatives changes no
+    /// step's result.
+    #[test]
+    fn the_energy_alone_is_bitwise_the_value_with_derivatives(seed in any::<u64>(), n in 2usize..9) {
+        let c = case(seed, n);
+        let x: Vec<DVec3> = (0..=n).map(|i| DVec3::from_slice(&c.q[4 * i..])).collect();
+        let theta: Vec<f64> = (0..n).map(|j| c.q[4 * j + 3]).collect();
+        let mut frames = Frames::default();
+        prop_assert!(frames.update(&x, &theta, &c.base_tangents, &c.base_reference, &c.base_twist, 0.0));
+        let alone = elastic_energy(&c.model, &frames, &theta);
+        prop_assert_eq!(alone.to_bits(), eval(&c, &c.q, None).0.to_bits());
+        prop_assert!(alone > 0.0);
     }
 }
 

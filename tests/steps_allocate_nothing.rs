@@ -269,7 +269,8 @@ fn character_scenes() -> Vec<(String, usize)> {
 }
 
 /// A hair of 100 curly strands on a turning head (repulsion with friction between strands
-/// active, the head a collider, several tasks), and a rod on a plane with friction.
+/// active, the head a collider, several tasks), a rod on a plane with friction, and a pinned
+/// inextensible rod with the quasi-static twist.
 fn rod_scenes() -> Vec<(String, usize)> {
     use kinema::rods::{Collider, Hair, Material, Repulsion, Rod, Settings};
     let material =
@@ -296,6 +297,13 @@ fn rod_scenes() -> Vec<(String, usize)> {
     rod.model_mut().add_collider(Collider { shape: plane, friction: 0.3 }).unwrap();
     found
         .push(("rods, rod on a plane".into(), allocations(3, || rod.step(1.0 / 60.0, 2).unwrap())));
+    let constrained = Settings { inextensible: true, quasistatic_twist: true, ..settings };
+    let mut rod = Rod::new(&points, material, constrained, None).unwrap();
+    rod.model_mut().pin(0).unwrap();
+    found.push((
+        "rods, inextensible rod with the quasi-static twist".into(),
+        allocations(3, || rod.step(1.0 / 60.0, 2).unwrap()),
+    ));
     found
 }
 

@@ -436,6 +436,8 @@ class Rod:
         max_iterations: int,
         contact_stiffness: float,
         friction_velocity: float,
+        inextensible: bool,
+        quasistatic_twist: bool,
         closed: bool,
     ) -> Rod: ...
     def clamp(self, last: bool) -> None: ...
@@ -485,6 +487,8 @@ class Hair:
         max_iterations: int,
         contact_stiffness: float,
         friction_velocity: float,
+        inextensible: bool,
+        quasistatic_twist: bool,
         repulsion_stiffness: float,
         thickness: float,
         strand_friction: float,

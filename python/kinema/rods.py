@@ -60,7 +60,11 @@ class Rod:
     ``contact_stiffness`` (N/m) is the stiffness of the contact penalty against colliders (a
     resting vertex sinks by its load over it); ``friction_velocity`` (m/s) the sliding speed
     below which friction acts as a stiff spring (static friction creeps slower than it).
-    ``closed=True`` makes a ring (N >= 3 points, N edges: the last point joins the first);
+    ``inextensible=True`` holds every edge at its rest length (to ``tolerance``) by a fast
+    projection after each step (Goldenthal et al. 2007) instead of leaving it to the stiff
+    stretching alone; ``quasistatic_twist=True`` gives the twists no inertia, so each implicit
+    step minimises the energy over them given the centreline (Bergou et al. 2008, sec. 6;
+    implicit integrator only). ``closed=True`` makes a ring (N >= 3 points, N edges: the last point joins the first);
     its rest shape is naturally curved (an O-ring) unless :meth:`straighten` is called, and
     :meth:`twist_ring` twists it.
     """
@@ -80,6 +84,8 @@ class Rod:
         max_iterations: int = 100,
         contact_stiffness: float = 1e4,
         friction_velocity: float = 1e-3,
+        inextensible: bool = False,
+        quasistatic_twist: bool = False,
         closed: bool = False,
     ) -> None:
         pts = _floats(points, "points")
@@ -112,6 +118,8 @@ class Rod:
             max_iterations,
             real(contact_stiffness, "contact_stiffness"),
             real(friction_velocity, "friction_velocity"),
+            _flag(inextensible, "inextensible"),
+            _flag(quasistatic_twist, "quasistatic_twist"),
             _flag(closed, "closed"),
         )
 
@@ -339,6 +347,8 @@ def groom(
     max_iterations: int = 100,
     contact_stiffness: float = 1e4,
     friction_velocity: float = 1e-3,
+    inextensible: bool = False,
+    quasistatic_twist: bool = False,
     repulsion_stiffness: float = 0.0,
     thickness: float | None = None,
     strand_friction: float = 0.0,
@@ -352,7 +362,7 @@ def groom(
     ``repulsion_stiffness`` (N/m, 0 for none) penalises centrelines of different strands
     closer than ``thickness`` (m, default twice the radius), with Coulomb friction
     ``strand_friction`` between them (lagged, on the relative tangential motion of the closest
-    points)."""
+    points). ``inextensible`` and ``quasistatic_twist`` are those of :class:`Rod`."""
     pts, nrm = _floats(points, "points"), _floats(normals, "normals")
     for a, name in ((pts, "points"), (nrm, "normals")):
         if a.ndim != 2 or a.shape[1] != 3:
@@ -376,6 +386,8 @@ def groom(
             max_iterations,
             real(contact_stiffness, "contact_stiffness"),
             real(friction_velocity, "friction_velocity"),
+            _flag(inextensible, "inextensible"),
+            _flag(quasistatic_twist, "quasistatic_twist"),
             real(repulsion_stiffness, "repulsion_stiffness"),
             2.0 * r if thickness is None else real(thickness, "thickness"),
             real(strand_friction, "strand_friction"),

@@ -43,8 +43,9 @@ impl Rod {
     /// `m1` and `m2`), `youngs_modulus` and `shear_modulus` (Pa), `density` (kg/m³), twist
     /// angles `twist` (N - 1, rad) or none, `gravity` (m/s²), `integrator` ("implicit" or
     /// "symplectic"), Newton `tolerance` and `max_iterations`, the contact penalty's
-    /// `contact_stiffness` (N/m) and friction's `friction_velocity` (m/s); `closed` for a
-    /// ring (the last point joined to the first).
+    /// `contact_stiffness` (N/m) and friction's `friction_velocity` (m/s), `inextensible`
+    /// (edge lengths held by projection) and `quasistatic_twist` (twists without inertia);
+    /// `closed` for a ring (the last point joined to the first).
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -60,6 +61,8 @@ impl Rod {
         max_iterations: Int,
         contact_stiffness: f64,
         friction_velocity: f64,
+        inextensible: bool,
+        quasistatic_twist: bool,
         closed: bool,
     ) -> PyResult<Self> {
         let points: Vec<DVec3> =
@@ -72,6 +75,8 @@ impl Rod {
             max_iterations,
             contact_stiffness,
             friction_velocity,
+            inextensible,
+            quasistatic_twist,
         )?;
         let model = if closed {
             Model::closed(&points, material, settings)?
@@ -230,6 +235,7 @@ impl Rod {
 }
 
 /// The rod settings from their Python arguments (the integrator by name).
+#[allow(clippy::too_many_arguments)] // one per setting, as Python passes them
 fn settings(
     gravity: [f64; 3],
     integrator: &str,
@@ -237,6 +243,8 @@ fn settings(
     max_iterations: Int,
     contact_stiffness: f64,
     friction_velocity: f64,
+    inextensible: bool,
+    quasistatic_twist: bool,
 ) -> PyResult<Settings> {
     let integrator = match integrator {
         "implicit" => Integrator::ImplicitEuler,
@@ -250,6 +258,8 @@ fn settings(
         max_iterations: max_iterations.range("max_iterations", 1, MAX_ITERATIONS)?,
         contact_stiffness,
         friction_velocity,
+        inextensible,
+        quasistatic_twist,
     })
 }
 
@@ -282,7 +292,8 @@ impl Hair {
     /// Strands grown from the scalp `points` (S, 3) along `normals` (S, 3): `length` (m),
     /// `segments` edges, helix radius `curl` (m); the material and settings as for `Rod`;
     /// the repulsion's `repulsion_stiffness` (N/m, 0 for none) and `thickness` (m), and
-    /// Coulomb's `strand_friction` between strands.
+    /// Coulomb's `strand_friction` between strands; `inextensible` and `quasistatic_twist` as
+    /// for `Rod`.
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -300,6 +311,8 @@ impl Hair {
         max_iterations: Int,
         contact_stiffness: f64,
         friction_velocity: f64,
+        inextensible: bool,
+        quasistatic_twist: bool,
         repulsion_stiffness: f64,
         thickness: f64,
         strand_friction: f64,
@@ -316,6 +329,8 @@ impl Hair {
             max_iterations,
             contact_stiffness,
             friction_velocity,
+            inextensible,
+            quasistatic_twist,
         )?;
         let repulsion =
             Repulsion { stiffness: repulsion_stiffness, thickness, friction: strand_friction };

@@ -32,7 +32,7 @@ mod state;
 
 pub use band::Band;
 pub use contact::{Collider, Repulsion};
-pub use energy::{curvature, elastic, stretch, twist, Local, Stencil, STENCIL};
+pub use energy::{curvature, elastic, elastic_energy, stretch, twist, Local, Stencil, STENCIL};
 pub use frames::{curvature_binormal, directors, reference_twist, transport, Frames};
 pub use hair::{template, Hair, Motion, Pose, STRANDS_PER_TASK};
 pub use model::{End, Integrator, Material, Model, Settings};

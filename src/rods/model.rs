@@ -53,6 +53,16 @@ pub struct Settings {
     /// Friction's sliding-speed threshold `ε_v` (m/s, default 1e-3): below it friction is a
     /// stiff spring (a held contact creeps slower than `ε_v`), above it Coulomb's `μ λ`.
     pub friction_velocity: f64,
+    /// Whether the edges keep their rest lengths exactly (default false: stiff stretching
+    /// alone). Each step is followed by a fast projection onto the edge-length constraints
+    /// (Goldenthal, Harmon, Fattal, Bercovier & Grinspun 2007, "Efficient simulation of
+    /// inextensible cloth", sec. 4), the velocities taking the correction over the step.
+    pub inextensible: bool,
+    /// Whether the twist angles are quasi-static (default false: they have their inertia):
+    /// each implicit step minimises the energy over the free twists given the centreline
+    /// (Bergou et al. 2008, sec. 6: the twist's inertia is negligible), done by giving them
+    /// no inertia in the step's minimisation. Only with implicit Euler.
+    pub quasistatic_twist: bool,
 }
 
 impl Default for Settings {
@@ -64,6 +74,8 @@ impl Default for Settings {
             max_iterations: 100,
             contact_stiffness: 1e4,
             friction_velocity: 1e-3,
+            inextensible: false,
+            quasistatic_twist: false,
         }
     }
 }
@@ -164,6 +176,12 @@ impl Settings {
         }
         if self.max_iterations == 0 {
             return Err(Error::invalid("max_iterations", "must be at least 1"));
+        }
+        if self.quasistatic_twist && self.integrator != Integrator::ImplicitEuler {
+            return Err(Error::invalid(
+                "quasistatic_twist",
+                "needs the implicit integrator (symplectic Euler cannot step a twist without inertia)",
+            ));
         }
         validate_settings(self.contact_stiffness, self.friction_velocity)
     }

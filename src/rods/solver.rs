@@ -37,7 +37,7 @@
 
 use super::band::Band;
 use super::contact::{friction, lag, penalty, repel, rub, Lagged, Obstacle, Repulsion};
-use super::energy::elastic;
+use super::energy::{elastic, elastic_energy};
 use super::frames::{signed_angle, transport, Frames};
 use super::model::Integrator;
 use super::{Model, State, Stats};
@@ -100,6 +100,8 @@ pub struct Solver {
     scale: f64,
     /// The state's ring seam twist (rad, [`State::twist_ring`]).
     seam: f64,
+    /// The edge-length projection's multipliers, one per edge ([`Solver::project`]).
+    multipliers: Vec<f64>,
 }
 
 /// The obstacles of other strands near this one during a step, with their repulsion
@@ -109,6 +111,18 @@ type Among<'a> = (&'a [Obstacle], Repulsion);
 /// No obstacles.
 const NO_OBSTACLES: Among<'static> =
     (&[], Repulsion { stiffness: 0.0, thickness: 0.0, friction: 0.0 });
+
+/// What an evaluation of `Φ` computes.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Need {
+    /// `Φ` alone (the elastic part without derivatives; the gradient buffer is then not
+    /// meaningful): the predictor, the line search, the commit.
+    Value,
+    /// `Φ` and its gradient (symplectic Euler).
+    Gradient,
+    /// `Φ`, its gradient and its Hessian in the band (a Newton iteration).
+    Hessian,
+}
 
 /// Which minimisation a Newton solve does.
 #[derive(Clone, Copy)]
@@ -224,13 +238,12 @@ impl Solver {
         if !state.frames_into(&mut self.frames, &mut self.base) {
             return f64::NAN;
         }
-        self.grad.clear();
-        self.grad.resize(model.dofs(), 0.0);
-        elastic(model, &self.frames, &state.twists, &mut self.grad, None)
+        elastic_energy(model, &self.frames, &state.twists)
     }
 
     /// The elastic forces `−∂E/∂x` on the vertices (N) and torques `−∂E/∂θ` on the twist
-    /// angles (N m) of `state`, into `forces` (`V`) and `torques` (`n`).
+    /// angles (N m) of `state`, into `forces` (`V`) and `torques` (`n`); NaN when an edge
+    /// has collapsed.
     pub fn elastic_forces(
         &mut self,
         model: &Model,
@@ -238,8 +251,14 @@ impl Solver {
         forces: &mut Vec<DVec3>,
         torques: &mut Vec<f64>,
     ) {
-        self.energy(model, state);
         let n = model.edges();
+        self.grad.clear();
+        self.grad.resize(model.dofs(), 0.0);
+        if state.frames_into(&mut self.frames, &mut self.base) {
+            elastic(model, &self.frames, &state.twists, &mut self.grad, None);
+        } else {
+            self.grad.fill(f64::NAN);
+        }
         forces.clear();
         let vertices = 0..model.vertices();
         forces.extend(vertices.map(|i| -DVec3::from_slice(&self.grad[4 * i..4 * i + 3])));
@@ -280,6 +299,11 @@ impl Solver {
                 self.q0[4 * i + 3] = work.twists[i];
                 self.target[4 * i + 3] = work.twists[i] + h.unwrap_or(0.0) * work.twist_rates[i];
                 self.mass[4 * i + 3] = model.inertias[i];
+                if model.settings.quasistatic_twist {
+                    // No inertia: the step minimises the energy over the twists.
+                    self.target[4 * i + 3] = work.twists[i];
+                    self.mass[4 * i + 3] = 0.0;
+                }
                 self.force[4 * i + 3] = 0.0;
             }
         }
@@ -330,17 +354,18 @@ impl Solver {
         self.base_twist.clone_from(&self.frames.reference_twist);
     }
 
-    /// `Φ` at `q` (`Goal`), its gradient into `grad` and, with `hess`, its Hessian into the
-    /// band (fixed rows and columns replaced by the identity). `None` when the
-    /// configuration is unusable (a collapsed edge, a half turn, a non-finite value).
+    /// `Φ` at `q` (`Goal`) and what `need` asks for besides: its gradient into `grad`, its
+    /// Hessian into the band (fixed rows and columns replaced by the identity). `None` when
+    /// the configuration is unusable (a collapsed edge, a half turn, a non-finite value).
     fn evaluate(
         &mut self,
         model: &Model,
         trial: bool,
         goal: Goal,
-        hess: bool,
+        need: Need,
         among: Among<'_>,
     ) -> Option<f64> {
+        let hess = need == Need::Hessian;
         let n = model.edges();
         let q = if trial { &self.trial } else { &self.q };
         if !q.iter().all(|v| v.is_finite()) {
@@ -366,8 +391,12 @@ impl Solver {
         } else if hess {
             self.band.reset(q.len(), HALF_BANDWIDTH);
         }
-        let band = if hess { Some(&mut self.band) } else { None };
-        let mut phi = elastic(model, &self.frames, &self.theta, &mut self.grad, band);
+        let mut phi = if need == Need::Value {
+            elastic_energy(model, &self.frames, &self.theta)
+        } else {
+            let band = if hess { Some(&mut self.band) } else { None };
+            elastic(model, &self.frames, &self.theta, &mut self.grad, band)
+        };
         self.scale = phi.abs();
         if !model.colliders.is_empty() {
             let band = if hess { Some(&mut self.band) } else { None };
@@ -474,8 +503,9 @@ impl Solver {
         let tol = model.settings.tolerance;
         for _ in 0..model.settings.max_iterations {
             stats.iterations += 1;
-            let phi =
-                self.evaluate(model, false, goal, true, among).ok_or_else(|| diverged(&self.q))?;
+            let phi = self
+                .evaluate(model, false, goal, Need::Hessian, among)
+                .ok_or_else(|| diverged(&self.q))?;
             // From here on Φ is the energy with frames transported from this iterate, whose
             // exact gradient and Hessian are the analytic ones just evaluated, so the Newton
             // direction descends it. Rebasing leaves Φ at this iterate unchanged, so Φ
@@ -495,6 +525,9 @@ impl Solver {
             if small {
                 for k in 0..self.q.len() {
                     self.q[k] += self.dir[k];
+                }
+                if model.settings.inextensible && h.is_some() {
+                    self.project(model)?;
                 }
                 return self.commit(model, work, goal, among);
             }
@@ -517,7 +550,7 @@ impl Solver {
     /// are at their goals in both.
     fn predict(&mut self, model: &Model, h: f64, among: Among<'_>) {
         for (k, fixed) in fixed_dofs(model).enumerate() {
-            self.trial[k] = if fixed {
+            self.trial[k] = if fixed || self.mass[k] == 0.0 {
                 self.target[k]
             } else {
                 self.target[k] + h * h * self.force[k] / self.mass[k]
@@ -537,8 +570,8 @@ impl Solver {
             }
         }
         let goal = Goal::Step(h);
-        let start = self.evaluate(model, false, goal, false, among);
-        let predicted = self.evaluate(model, true, goal, false, among);
+        let start = self.evaluate(model, false, goal, Need::Value, among);
+        let predicted = self.evaluate(model, true, goal, Need::Value, among);
         if predicted.is_some_and(|p| start.is_none_or(|s| p < s)) {
             self.q.copy_from_slice(&self.trial);
         }
@@ -569,7 +602,8 @@ impl Solver {
                     self.curve_trial(model, alpha);
                 }
                 let bound = phi + ARMIJO * alpha * slope;
-                if self.evaluate(model, true, goal, false, among).is_some_and(|t| t <= bound) {
+                if self.evaluate(model, true, goal, Need::Value, among).is_some_and(|t| t <= bound)
+                {
                     self.q.copy_from_slice(&self.trial);
                     return Ok(());
                 }
@@ -605,6 +639,85 @@ impl Solver {
         }
     }
 
+    /// Move the positions in `q` onto the edge-length constraints `C_j = (|e_j|² − l̄_j²) /
+    /// (2 l̄_j) = 0` by fast projection (Goldenthal et al. 2007, sec. 4, algorithm 1): each
+    /// iteration solves `(∇C W ∇Cᵀ) δλ = C` (`W` the inverse masses, zero for pinned
+    /// vertices; tridiagonal, cyclic for a ring) and moves `x −= W ∇Cᵀ δλ`, the
+    /// mass-weighted least change to first order, until no edge is strained by more than
+    /// the Newton `tolerance`. An edge whose two vertices are held is left out.
+    ///
+    /// # Errors
+    /// Not converged within `max_iterations` ([`Error::SolverFailed`]).
+    fn project(&mut self, model: &Model) -> Result<()> {
+        let (n, vertices) = (model.edges(), model.vertices());
+        let weight = |i: usize| if model.pinned[i] { 0.0 } else { 1.0 / model.masses[i] };
+        let at = |q: &[f64], i: usize| DVec3::from_slice(&q[4 * i..4 * i + 3]);
+        self.multipliers.resize(n, 0.0);
+        for _ in 0..model.settings.max_iterations {
+            let mut worst: f64 = 0.0;
+            if model.closed {
+                self.band.reset_folded(n, 2, 1);
+            } else {
+                self.band.reset(n, 1);
+            }
+            for j in 0..n {
+                let (a, b) = (j, (j + 1) % vertices);
+                let l = model.rest_lengths[j];
+                let e = at(&self.q, b) - at(&self.q, a);
+                let g = e / l;
+                let c = (e.length_squared() - l * l) / (2.0 * l);
+                worst = worst.max(c.abs() / l);
+                let diagonal = g.length_squared() * (weight(a) + weight(b));
+                if diagonal == 0.0 {
+                    self.band.hold(j);
+                    self.multipliers[j] = 0.0;
+                    continue;
+                }
+                self.band.add(j, j, diagonal);
+                self.multipliers[j] = c;
+                if j + 1 < n {
+                    let next = (at(&self.q, (b + 1) % vertices) - at(&self.q, b))
+                        / model.rest_lengths[j + 1];
+                    if weight(b) > 0.0 {
+                        self.band.add(j + 1, j, -g.dot(next) * weight(b));
+                    }
+                }
+            }
+            if model.closed && weight(0) > 0.0 {
+                let last = (at(&self.q, 0) - at(&self.q, n - 1)) / model.rest_lengths[n - 1];
+                let first = (at(&self.q, 1) - at(&self.q, 0)) / model.rest_lengths[0];
+                self.band.add(n - 1, 0, -last.dot(first) * weight(0));
+            }
+            if worst <= model.settings.tolerance {
+                return Ok(());
+            }
+            if !worst.is_finite() || self.band.factor().is_err() {
+                break;
+            }
+            self.band.solve(&mut self.multipliers);
+            self.dir.fill(0.0);
+            for j in 0..n {
+                let (a, b) = (j, (j + 1) % vertices);
+                let push = (at(&self.q, b) - at(&self.q, a))
+                    * (self.multipliers[j] / model.rest_lengths[j]);
+                for r in 0..3 {
+                    self.dir[4 * a + r] += weight(a) * push[r];
+                    self.dir[4 * b + r] -= weight(b) * push[r];
+                }
+            }
+            for i in 0..vertices {
+                for r in 0..3 {
+                    self.q[4 * i + r] += self.dir[4 * i + r];
+                }
+            }
+        }
+        Err(Error::SolverFailed {
+            reason:
+                "the edge-length projection did not converge (lower dt or raise max_iterations)"
+                    .into(),
+        })
+    }
+
     /// Write the converged `q` into `work`: positions, twists, frames, and (for a step of
     /// `h`) the velocities `(q − q0) / h`.
     fn commit(
@@ -614,7 +727,7 @@ impl Solver {
         goal: Goal,
         among: Among<'_>,
     ) -> Result<()> {
-        self.evaluate(model, false, goal, false, among).ok_or_else(|| diverged(&self.q))?;
+        self.evaluate(model, false, goal, Need::Value, among).ok_or_else(|| diverged(&self.q))?;
         let n = model.edges();
         for i in 0..model.vertices() {
             let x = DVec3::from_slice(&self.q[4 * i..4 * i + 3]);
@@ -646,7 +759,8 @@ impl Solver {
         self.load(model, work, Some(0.0), remaining);
         self.q.copy_from_slice(&self.q0);
         let among = NO_OBSTACLES;
-        self.evaluate(model, false, Goal::Static, false, among).ok_or_else(|| diverged(&self.q))?;
+        self.evaluate(model, false, Goal::Static, Need::Gradient, among)
+            .ok_or_else(|| diverged(&self.q))?;
         for (k, pinned) in fixed_dofs(model).enumerate() {
             let (i, r) = (k / 4, k % 4);
             let rate = if r < 3 { &mut work.velocities[i][r] } else { &mut work.twist_rates[i] };
@@ -656,6 +770,16 @@ impl Solver {
             } else {
                 *rate += h * (-self.grad[k] / self.mass[k]);
                 self.q[k] += h * *rate;
+            }
+        }
+        if model.settings.inextensible {
+            self.trial.copy_from_slice(&self.q);
+            self.project(model)?;
+            for i in 0..model.vertices() {
+                for r in 0..3 {
+                    let k = 4 * i + r;
+                    work.velocities[i][r] += (self.q[k] - self.trial[k]) / h;
+                }
             }
         }
         self.commit(model, work, Goal::Static, among)

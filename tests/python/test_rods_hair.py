@@ -5,12 +5,13 @@ arguments."""
 from __future__ import annotations
 
 import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import kinema
-from kinema import Rotation, Scene
+from kinema import Rotation, Scene, mocap
 from kinema.geometry import Plane, Sphere
 from kinema.rods import Hair, Rod, groom, sphere_cap
 
@@ -175,3 +176,47 @@ def test_strand_friction_is_pickled_and_zero_friction_changes_nothing() -> None:
     for h in (c, d):
         h.step(1 / 60, 3)
     assert np.array_equal(c.positions, d.positions)
+
+
+def test_hair_demo_moves_the_head_by_the_cmu_walk(tmp_path: Path) -> None:
+    # `kinema demo hair` (quick): the head is posed by the CMU walk's head joint, the roots
+    # sit on that pose, the head turns, nods and travels, and the hair stays out of it.
+    from kinema.demos import hair as demo
+
+    out = demo.run(tmp_path, quick=True)
+    assert out["roots off the CMU head pose (m)"] < 1e-12  # type: ignore[operator]
+    assert out["head turn range (deg)"] > 3.0  # type: ignore[operator]
+    assert out["head nod range (deg)"] > 1.0  # type: ignore[operator]
+    assert out["head travel (cm)"] > 1.0  # type: ignore[operator]
+    assert out["vertices inside the head"] == 0
+    assert out["largest stretch (%)"] < 0.01  # type: ignore[operator]
+    assert (tmp_path / "hair.gif").stat().st_size > 1000
+    # The poses are the head joint's: at the capture's first frame the identity, and the
+    # rotation at 1 s is the joint's orientation then relative to frame 0.
+    skeleton = mocap.read_asf(mocap.SAMPLE_DIR / "07-walk.asf")
+    motion = mocap.read_amc(mocap.SAMPLE_DIR / "07_05-walk.amc", skeleton)
+    _, orientations = skeleton.forward_kinematics(motion)
+    joint = skeleton.joint_names.index("head")
+    rotations, translations = demo.head_motion(np.array([0.0, 1.0]))
+    np.testing.assert_allclose(translations[0], 0.0, atol=1e-15)
+    relative = (
+        Rotation.from_quat(orientations[120, joint])
+        * Rotation.from_quat(orientations[0, joint]).inv()
+    )
+    assert relative.approx_equal(rotations[1], atol=1e-12)
+    assert relative.magnitude() > 0.02
+
+
+def test_groom_passes_the_inextensible_and_quasistatic_twist_settings() -> None:
+    # The stiff strands stretch by 5e-7 under their weight and the turning head; inextensible
+    # ones hold their groomed edge lengths to the tolerance (1e-8), with the quasi-static
+    # twist too.
+    strains = []
+    for inextensible in (False, True):
+        h = hair(8, inextensible=inextensible, quasistatic_twist=True)
+        rest = np.linalg.norm(np.diff(h.positions, axis=1), axis=2)
+        h.set_head(Rotation.from_rotvec([0.0, 0.3, 0.0]))
+        h.step(1 / 60, 10)
+        edges = np.linalg.norm(np.diff(h.positions, axis=1), axis=2)
+        strains.append(float(np.max(np.abs(edges / rest - 1.0))))
+    assert strains[0] > 1e-7 and strains[1] < 1e-8, strains
