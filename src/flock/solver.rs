@@ -121,12 +121,12 @@ fn flocking(set: &Settings, cos_half: f64, cells: &Cells, s: usize) -> DVec3 {
         let (d2, dot) = (d.length_squared(), d.dot(v));
         let (front, q, r) = (dot >= 0.0, dot * dot, c2 * d2);
         let seen = near & (sees_all | if ahead { front & (q >= r) } else { front | (q <= r) });
-        let w = if seen { 1.0 } else { 0.0 };
+        let w = f64::from(u8::from(seen));
         count += w;
         velocity += w * cells.velocities[t];
         offset += w * d;
-        let push = if seen & (d2 > 0.0) & (d2 < separation2) { 1.0 / d2 } else { 0.0 };
-        away -= push * d;
+        let close = f64::from(u8::from(seen & (d2 > 0.0) & (d2 < separation2)));
+        away -= (close / d2.max(f64::MIN_POSITIVE)) * d;
     });
     if count == 0.0 {
         return DVec3::ZERO;
