@@ -1,17 +1,19 @@
 //! Flocks: Reynolds' boids (1987, "Flocks, herds, and schools: a distributed behavioral
 //! model") — separation, alignment and cohesion with weights, a neighbour radius and a field
 //! of view — as steering forces bounded by a maximum force and speed (Reynolds 1999,
-//! "Steering behaviors for autonomous characters"), in 2-D or 3-D. Neighbours come from the
-//! shared hashed uniform grid (`geometry::grid`), rebuilt every step; the step is parallel
-//! and bitwise the same on any number of threads. Reynolds' (1999) steering behaviours
+//! "Steering behaviors for autonomous characters"), in 2-D or 3-D. The boids are sorted by
+//! grid cell every step and swept in that order over their neighbours' cells (`cells.rs`),
+//! without neighbour lists; the step is parallel and bitwise the same on any number of
+//! threads. Reynolds' (1999) steering behaviours
 //! (seek, flee, arrive, pursue, evade, wander, obstacle avoidance against the shared shapes)
 //! add as weighted forces ([`Steering`], `steering.rs`).
 //!
 //! The flock is split as every system of kinema is: a [`Model`] (the settings), a [`State`]
-//! (positions, velocities, time) and a [`Solver`] (grid and accelerations), so one model and
+//! (positions, velocities, time) and a [`Solver`] (cells and accelerations), so one model and
 //! one solver can advance several states. [`Flock`] is the three together. [`polarisation`]
 //! is the order parameter of Vicsek et al. (1995).
 
+mod cells;
 mod model;
 mod snapshot;
 mod solver;
