@@ -15,6 +15,7 @@
 //! contiguous ranges, and consecutive boids read nearly the same ones. The order depends on
 //! the positions alone, not on the thread count. Buffers only grow.
 
+use crate::geometry::grid::cell_of;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -49,11 +50,6 @@ pub(super) struct Cells {
     planar: bool,
     /// The widened box has at most as many cells as there are buckets: one cell a bucket.
     dense: bool,
-}
-
-fn cell_of(p: DVec3, inv_h: f64) -> [i64; 3] {
-    // `as` saturates, so absurd positions give wrong cells, never a panic.
-    [(p.x * inv_h).floor() as i64, (p.y * inv_h).floor() as i64, (p.z * inv_h).floor() as i64]
 }
 
 impl Cells {
@@ -197,18 +193,7 @@ impl Cells {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn random_points(n: usize, seed: u64, scale: f64) -> Vec<DVec3> {
-        let mut s = seed;
-        let mut next = move || {
-            s = s.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = s;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-        };
-        (0..n).map(|_| DVec3::new(next(), next(), next()) * scale - scale / 2.0).collect()
-    }
+    use crate::geometry::grid::random_points;
 
     /// Every pair closer than `h` once, against brute force: rows sharing buckets, 3-D,
     /// planar, with coincident and far-away points (a sparse box whose cells share buckets),

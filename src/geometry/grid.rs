@@ -48,7 +48,9 @@ pub struct Grid {
     planar: bool,
 }
 
-fn cell_of(p: DVec3, inv_h: f64) -> [i64; 3] {
+/// The cell of point `p` (m) in a grid of cells of size `1 / inv_h` (m) with a corner at the
+/// origin (also the flock's cells, `flock/cells.rs`).
+pub(crate) fn cell_of(p: DVec3, inv_h: f64) -> [i64; 3] {
     // `as` saturates, so absurd positions give wrong cells, never a panic.
     [(p.x * inv_h).floor() as i64, (p.y * inv_h).floor() as i64, (p.z * inv_h).floor() as i64]
 }
@@ -169,21 +171,24 @@ impl Grid {
     }
 }
 
+/// `n` points uniform in the cube of side `scale` around the origin, from a splitmix64
+/// stream seeded by `seed` (for the tests of this module and of the flock's cells).
+#[cfg(test)]
+pub(crate) fn random_points(n: usize, seed: u64, scale: f64) -> Vec<DVec3> {
+    let mut s = seed;
+    let mut next = move || {
+        s = s.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = s;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..n).map(|_| DVec3::new(next(), next(), next()) * scale - scale / 2.0).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn random_points(n: usize, seed: u64, scale: f64) -> Vec<DVec3> {
-        let mut s = seed;
-        let mut next = move || {
-            s = s.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = s;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-        };
-        (0..n).map(|_| DVec3::new(next(), next(), next()) * scale - scale / 2.0).collect()
-    }
 
     #[test]
     fn matches_brute_force() {
