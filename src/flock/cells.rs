@@ -15,7 +15,7 @@
 //! contiguous ranges, and consecutive boids read nearly the same ones. The order depends on
 //! the positions alone, not on the thread count. Buffers only grow.
 
-use crate::geometry::grid::cell_of;
+use crate::geometry::grid::{cell_of, sort_by_bucket};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -98,28 +98,11 @@ impl Cells {
         let this = &*self;
         bucket.par_iter_mut().zip(&this.cell).for_each(|(b, c)| *b = this.bucket_of(*c));
         self.bucket = bucket;
-        // Counting sort by bucket.
-        self.start.clear();
-        self.start.resize(buckets + 1, 0);
-        for &b in &self.bucket {
-            self.start[b as usize + 1] += 1;
-        }
-        for k in 0..buckets {
-            self.start[k + 1] += self.start[k];
-        }
-        self.order.resize(n, 0);
         self.rank.resize(n, 0);
-        for (i, &b) in self.bucket.iter().enumerate() {
-            let slot = &mut self.start[b as usize];
-            self.order[*slot as usize] = i as u32;
-            self.rank[i] = *slot;
-            *slot += 1;
-        }
-        // The scatter advanced each start to the next bucket's start: shift back.
-        for k in (1..=buckets).rev() {
-            self.start[k] = self.start[k - 1];
-        }
-        self.start[0] = 0;
+        let rank = &mut self.rank;
+        sort_by_bucket(&self.bucket, buckets, &mut self.start, &mut self.order, |i, slot| {
+            rank[i] = slot;
+        });
         self.positions.resize(n, DVec3::ZERO);
         self.velocities.resize(n, DVec3::ZERO);
         self.cells.resize(n, [0; 3]);

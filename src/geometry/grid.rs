@@ -55,6 +55,39 @@ pub(crate) fn cell_of(p: DVec3, inv_h: f64) -> [i64; 3] {
     [(p.x * inv_h).floor() as i64, (p.y * inv_h).floor() as i64, (p.z * inv_h).floor() as i64]
 }
 
+/// Counting sort of the items `0..bucket.len()` by their `bucket` (of `buckets`), stable (by
+/// index within a bucket): `sorted` gets the items in order and `start[b]` the first slot of
+/// bucket `b` (`buckets + 1` entries); `placed(i, slot)` is called as item `i` takes `slot`.
+/// Also the flock's cells (`flock/cells.rs`). Buffers only grow.
+pub(crate) fn sort_by_bucket(
+    bucket: &[u32],
+    buckets: usize,
+    start: &mut Vec<u32>,
+    sorted: &mut Vec<u32>,
+    mut placed: impl FnMut(usize, u32),
+) {
+    start.clear();
+    start.resize(buckets + 1, 0);
+    for &b in bucket {
+        start[b as usize + 1] += 1;
+    }
+    for k in 0..buckets {
+        start[k + 1] += start[k];
+    }
+    sorted.resize(bucket.len(), 0);
+    for (i, &b) in bucket.iter().enumerate() {
+        let slot = &mut start[b as usize];
+        sorted[*slot as usize] = i as u32;
+        placed(i, *slot);
+        *slot += 1;
+    }
+    // The scatter advanced each start to the next bucket's start: shift back.
+    for k in (1..=buckets).rev() {
+        start[k] = start[k - 1];
+    }
+    start[0] = 0;
+}
+
 fn hash(c: [i64; 3], mask: u64) -> u32 {
     let h = (c[0] as u64).wrapping_mul(73_856_093)
         ^ (c[1] as u64).wrapping_mul(19_349_663)
@@ -82,26 +115,7 @@ impl Grid {
         });
         let layer = self.cell.first().map_or(0, |c| c[2]);
         self.planar = self.cell.par_iter().all(|c| c[2] == layer);
-        // Counting sort by bucket.
-        self.start.clear();
-        self.start.resize(buckets + 1, 0);
-        for &b in &self.bucket {
-            self.start[b as usize + 1] += 1;
-        }
-        for k in 0..buckets {
-            self.start[k + 1] += self.start[k];
-        }
-        self.sorted.resize(n, 0);
-        for (i, &b) in self.bucket.iter().enumerate() {
-            let slot = &mut self.start[b as usize];
-            self.sorted[*slot as usize] = i as u32;
-            *slot += 1;
-        }
-        // The scatter advanced each start to the next bucket's start: shift back.
-        for k in (1..=buckets).rev() {
-            self.start[k] = self.start[k - 1];
-        }
-        self.start[0] = 0;
+        sort_by_bucket(&self.bucket, buckets, &mut self.start, &mut self.sorted, |_, _| {});
         self.sorted_points.resize(n, DVec3::ZERO);
         self.sorted_cells.resize(n, [0; 3]);
         let cell = &self.cell;
