@@ -25,6 +25,7 @@ mod contact;
 mod energy;
 mod frames;
 mod hair;
+mod inextensible;
 mod model;
 mod snapshot;
 mod solver;

@@ -39,6 +39,7 @@ use super::band::Band;
 use super::contact::{friction, lag, penalty, repel, rub, Lagged, Obstacle, Repulsion};
 use super::energy::{elastic, elastic_energy};
 use super::frames::{signed_angle, transport, Frames};
+use super::inextensible::project;
 use super::model::Integrator;
 use super::{Model, State, Stats};
 use crate::error::{Error, Result};
@@ -100,7 +101,7 @@ pub struct Solver {
     scale: f64,
     /// The state's ring seam twist (rad, [`State::twist_ring`]).
     seam: f64,
-    /// The edge-length projection's multipliers, one per edge ([`Solver::project`]).
+    /// The edge-length projection's multipliers, one per edge ([`project`]).
     multipliers: Vec<f64>,
 }
 
@@ -527,7 +528,13 @@ impl Solver {
                     self.q[k] += self.dir[k];
                 }
                 if model.settings.inextensible && h.is_some() {
-                    self.project(model)?;
+                    project(
+                        model,
+                        &mut self.q,
+                        &mut self.band,
+                        &mut self.multipliers,
+                        &mut self.dir,
+                    )?;
                 }
                 return self.commit(model, work, goal, among);
             }
@@ -639,85 +646,6 @@ impl Solver {
         }
     }
 
-    /// Move the positions in `q` onto the edge-length constraints `C_j = (|e_j|² − l̄_j²) /
-    /// (2 l̄_j) = 0` by fast projection (Goldenthal et al. 2007, sec. 4, algorithm 1): each
-    /// iteration solves `(∇C W ∇Cᵀ) δλ = C` (`W` the inverse masses, zero for pinned
-    /// vertices; tridiagonal, cyclic for a ring) and moves `x −= W ∇Cᵀ δλ`, the
-    /// mass-weighted least change to first order, until no edge is strained by more than
-    /// the Newton `tolerance`. An edge whose two vertices are held is left out.
-    ///
-    /// # Errors
-    /// Not converged within `max_iterations` ([`Error::SolverFailed`]).
-    fn project(&mut self, model: &Model) -> Result<()> {
-        let (n, vertices) = (model.edges(), model.vertices());
-        let weight = |i: usize| if model.pinned[i] { 0.0 } else { 1.0 / model.masses[i] };
-        let at = |q: &[f64], i: usize| DVec3::from_slice(&q[4 * i..4 * i + 3]);
-        self.multipliers.resize(n, 0.0);
-        for _ in 0..model.settings.max_iterations {
-            let mut worst: f64 = 0.0;
-            if model.closed {
-                self.band.reset_folded(n, 2, 1);
-            } else {
-                self.band.reset(n, 1);
-            }
-            for j in 0..n {
-                let (a, b) = (j, (j + 1) % vertices);
-                let l = model.rest_lengths[j];
-                let e = at(&self.q, b) - at(&self.q, a);
-                let g = e / l;
-                let c = (e.length_squared() - l * l) / (2.0 * l);
-                worst = worst.max(c.abs() / l);
-                let diagonal = g.length_squared() * (weight(a) + weight(b));
-                if diagonal == 0.0 {
-                    self.band.hold(j);
-                    self.multipliers[j] = 0.0;
-                    continue;
-                }
-                self.band.add(j, j, diagonal);
-                self.multipliers[j] = c;
-                if j + 1 < n {
-                    let next = (at(&self.q, (b + 1) % vertices) - at(&self.q, b))
-                        / model.rest_lengths[j + 1];
-                    if weight(b) > 0.0 {
-                        self.band.add(j + 1, j, -g.dot(next) * weight(b));
-                    }
-                }
-            }
-            if model.closed && weight(0) > 0.0 {
-                let last = (at(&self.q, 0) - at(&self.q, n - 1)) / model.rest_lengths[n - 1];
-                let first = (at(&self.q, 1) - at(&self.q, 0)) / model.rest_lengths[0];
-                self.band.add(n - 1, 0, -last.dot(first) * weight(0));
-            }
-            if worst <= model.settings.tolerance {
-                return Ok(());
-            }
-            if !worst.is_finite() || self.band.factor().is_err() {
-                break;
-            }
-            self.band.solve(&mut self.multipliers);
-            self.dir.fill(0.0);
-            for j in 0..n {
-                let (a, b) = (j, (j + 1) % vertices);
-                let push = (at(&self.q, b) - at(&self.q, a))
-                    * (self.multipliers[j] / model.rest_lengths[j]);
-                for r in 0..3 {
-                    self.dir[4 * a + r] += weight(a) * push[r];
-                    self.dir[4 * b + r] -= weight(b) * push[r];
-                }
-            }
-            for i in 0..vertices {
-                for r in 0..3 {
-                    self.q[4 * i + r] += self.dir[4 * i + r];
-                }
-            }
-        }
-        Err(Error::SolverFailed {
-            reason:
-                "the edge-length projection did not converge (lower dt or raise max_iterations)"
-                    .into(),
-        })
-    }
-
     /// Write the converged `q` into `work`: positions, twists, frames, and (for a step of
     /// `h`) the velocities `(q − q0) / h`.
     fn commit(
@@ -774,7 +702,7 @@ impl Solver {
         }
         if model.settings.inextensible {
             self.trial.copy_from_slice(&self.q);
-            self.project(model)?;
+            project(model, &mut self.q, &mut self.band, &mut self.multipliers, &mut self.dir)?;
             for i in 0..model.vertices() {
                 for r in 0..3 {
                     let k = 4 * i + r;
