@@ -7,7 +7,8 @@ dynamics in O(n); the CRBA and RNEA for stable PD), semi-implicit Euler or RK4, 
 as stiff one-sided springs, penalty ground contact on the plane y = 0 with friction, PD or
 stable PD servos (Tan, Liu & Turk 2011) and timed pushes. :meth:`Ragdoll.from_skeleton`
 builds a limp ragdoll from an ASF skeleton. :class:`Biped` is the planar 7-link biped of
-SIMBICON (Yin, Loken & van de Panne 2007) walking under its controller.
+SIMBICON (Yin, Loken & van de Panne 2007) walking under its controller, or with ``dims=3``
+its 3-D biped (ball hips and ankles) under 3-D SIMBICON.
 
 Coordinates ``q``: per joint, a hinge angle (rad), a ball joint's quaternion ``(w, x, y,
 z)``, a free joint's position (m) and quaternion; rates ``qd``: hinge rate, a ball joint's
@@ -352,8 +353,12 @@ _WALK = {  # the defaults of kinema::character::Gait (the paper's walk, Table 1)
 }
 
 
+_CORONAL = {"coronal_cd": 0.0, "coronal_cv": 0.4, "coronal_swing_hip": 0.0}
+
+
 class Biped:
-    """The planar SIMBICON biped walking (Yin, Loken & van de Panne 2007; docs/character.md).
+    """A SIMBICON biped walking (Yin, Loken & van de Panne 2007; docs/character.md): planar
+    (``dims=2``, the default) or 3-D (``dims=3``).
 
     Seven links in the x–y plane (x forward, y up): a torso on a planar root, and per leg a
     thigh, a shin and a foot on hinges about z, with the paper's masses and lengths; feet
@@ -367,16 +372,31 @@ class Biped:
     (rad s/m), ``torso`` (rad from vertical, negative leans forward), ``swing_hip`` (rad,
     world frame, positive forward), ``swing_knee``, ``swing_ankle``, ``stance_knee``,
     ``stance_ankle`` (rad, relative; a bent knee is negative). ``duration`` (s); ``kp``
-    (N m/rad), ``kd`` (N m s/rad) of the joints, ``torso_kp``, ``torso_kd`` of the torso;
+    (N m/rad), ``kd`` (N m s/rad) of the joints, ``torso_kp``, ``torso_kd`` of the torso
+    (default 300 and 30; 1000 and 100 with ``dims=3``);
     ``max_torque`` (N m) per joint. The defaults are the paper's walk (Table 1; 1.14 m/s).
     ``speed``: initial forward speed (m/s). ``contact_frequency`` (rad/s) and ``friction``
     of the ground (see :class:`ArticulatedBody`). ``slope`` (rad, positive climbs): the
     ground stays y = 0 and gravity turns by it; the controller takes the vertical from
     gravity and the swing hip's target from the ground's normal. The knees and ankles are
-    stable PD servos: step with ``dt`` ≤ 2e-3 s (it walks up to 3.5e-3 s).
+    stable PD servos: step with ``dt`` ≤ 2e-3 s (it walks up to 3.5e-3 s; ``dims=3``: 1e-3 s,
+    it falls at 2e-3 s).
 
     Coordinates ``q`` (9,): torso ``x, y`` (m, at the hips) and angle (rad), then hip, knee
     and ankle angles of the right leg, then of the left.
+
+    ``dims=3``: the 3-D biped of §5 of the paper (x forward, y up, z to the right): the torso
+    on a free root, ball hips 0.2 m apart, hinge knees, ball ankles, each foot a heel and a
+    toe half with a capsule across the sole (nine bodies: torso, then right and left thigh,
+    shin, foot, toes). The same gait keywords act in the sagittal plane; the coronal plane
+    has its own balance feedback, the swing thigh's sideways angle ``coronal_swing_hip·(±1)
+    + coronal_cd·d_z + coronal_cv·v_z`` (rad, rad/m, rad s/m; positive puts the foot to +z;
+    ``coronal_swing_hip`` abducts). The torso's world orientation (upright, heading +x) is
+    servoed through the stance hip, which so holds the twist. Coordinates ``q`` (25,): the
+    torso's position (m) and quaternion ``(w, x, y, z)``, then per leg the hip's quaternion,
+    the knee's angle, the ankle's quaternion; rates ``qd`` (20,). The coronal keywords are
+    refused with ``dims=2``. One class for both: the controller, its gait keywords and
+    every method are the same; only the model differs.
     """
 
     def __init__(
@@ -385,18 +405,30 @@ class Biped:
         duration: float = 0.3,
         kp: float = 300.0,
         kd: float = 30.0,
-        torso_kp: float = 300.0,
-        torso_kd: float = 30.0,
+        torso_kp: float | None = None,
+        torso_kd: float | None = None,
         max_torque: float = 400.0,
         speed: float = 0.3,
         contact_frequency: float = 200.0,
         friction: float = 1.0,
         slope: float = 0.0,
+        dims: int = 2,
         **pose: Any,
     ) -> None:
-        unknown = sorted(set(pose) - set(_POSE))
+        unknown = sorted(set(pose) - set(_POSE) - set(_CORONAL))
         if unknown:
             raise TypeError(f"unexpected keyword arguments: {', '.join(unknown)}")
+        dims = _index(dims, "dims")
+        if dims not in (2, 3):
+            raise ValueError(f"dims: expected 2 or 3, got {dims}")
+        given = sorted(set(pose) & set(_CORONAL))
+        if dims == 2 and given:
+            raise TypeError(f"{given[0]}: only for dims=3")
+        coronal = [real(pose.pop(n, v), n) for n, v in _CORONAL.items()]
+        if torso_kp is None:
+            torso_kp = 300.0 if dims == 2 else 1000.0
+        if torso_kd is None:
+            torso_kd = 30.0 if dims == 2 else 100.0
         values = []
         for name in _POSE:
             pair = pose.get(name, _WALK[name])
@@ -414,15 +446,22 @@ class Biped:
                 (max_torque, "max_torque"),
             )
         ]
-        self._w = _kinema.Walker(
-            lift,
-            strike,
-            control,
+        ground = (
             real(speed, "speed"),
             real(contact_frequency, "contact_frequency"),
             real(friction, "friction"),
             real(slope, "slope"),
         )
+        self._w: Any
+        if dims == 2:
+            self._w = _kinema.Walker(lift, strike, control, *ground)
+        else:
+            self._w = _kinema.Walker3d(lift, strike, control, coronal, *ground)
+
+    @property
+    def dims(self) -> int:
+        """2 for the planar biped, 3 for the 3-D one."""
+        return 3 if isinstance(self._w, _kinema.Walker3d) else 2
 
     @property
     def gait(self) -> dict[str, Any]:
@@ -431,6 +470,8 @@ class Biped:
         out: dict[str, Any] = {n: (a, b) for n, a, b in zip(_POSE, lift, strike, strict=True)}
         names = ("duration", "kp", "kd", "torso_kp", "torso_kd", "max_torque")
         out.update(zip(names, control, strict=True))
+        if self.dims == 3:
+            out.update(zip(_CORONAL, self._w.coronal(), strict=True))
         return out
 
     def step(self, dt: float, steps: int = 1) -> None:
@@ -473,12 +514,13 @@ class Biped:
 
     @property
     def q(self) -> np.ndarray:
-        """Read-only view of the coordinates (9,), updated in place by :meth:`step`."""
+        """Read-only view of the coordinates (9,; 25, with ``dims=3``), updated in place by
+        :meth:`step`."""
         return self._w.q
 
     @property
     def qd(self) -> np.ndarray:
-        """Read-only view of the rates (9,)."""
+        """Read-only view of the rates (9,; 20, with ``dims=3``)."""
         return self._w.qd
 
     @property
@@ -488,26 +530,29 @@ class Biped:
 
     @property
     def names(self) -> list[str]:
-        """Body names: torso, then right and left thigh, shin, foot."""
+        """Body names: torso, then right and left thigh, shin, foot (and toes, ``dims=3``)."""
         return self._w.names()
 
     def positions(self) -> np.ndarray:
-        """World positions (m) of the body frames (7, 3): the hips (torso and thighs), knees
-        (shins), ankles (feet)."""
+        """World positions (m) of the body frames (7, 3; 9, 3 with ``dims=3``): the hips
+        (torso and thighs; the torso's between the hips in 3-D), knees (shins), ankles (feet
+        and toes)."""
         return self._w.positions()
 
     def orientations(self) -> np.ndarray:
-        """World orientations of the body frames (7, 4) as ``(w, x, y, z)``: turns about z by
-        the torso's angle plus the joint angles down the leg."""
+        """World orientations of the body frames (7, 4; 9, 4 with ``dims=3``) as ``(w, x, y,
+        z)``."""
         return self._w.orientations()
 
-    @staticmethod
-    def link_boxes() -> list[tuple[np.ndarray, np.ndarray]]:
+    def link_boxes(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """The box drawn for each body, in its body frame: ``(centre (3,), half extents (3,))``
         (m). The torso, thighs and shins are the uniform boxes of the model's inertias
-        (length along y); a foot is laid along x from heel to toe and reaches from the ankle
-        down to the sole."""
-        return [(np.array(c), np.array(h)) for c, h in _kinema.Walker.link_boxes()]
+        (length along y); a foot is laid along x from heel to toe (in 3-D its heel half and
+        its toe half) and reaches from the ankle down to the sole."""
+        return [(np.array(c), np.array(h)) for c, h in self._w.link_boxes()]
 
     def __repr__(self) -> str:
-        return f"Biped(time={self.time:.4g} s, x={self.com[0]:.3g} m, steps={self.steps})"
+        return (
+            f"Biped(dims={self.dims}, time={self.time:.4g} s, x={self.com[0]:.3g} m, "
+            f"steps={self.steps})"
+        )

@@ -381,11 +381,50 @@ pub struct Walker {
     saved: Option<(State, Phase)>,
 }
 
+/// A gait from its `lift` and `strike` poses and `[duration, kp, kd, torso_kp, torso_kd,
+/// max_torque]`.
+pub(super) fn gait(lift: [f64; 8], strike: [f64; 8], control: [f64; 6]) -> Gait {
+    let [duration, kp, kd, torso_kp, torso_kd, max_torque] = control;
+    Gait {
+        lift: pose(lift),
+        strike: pose(strike),
+        duration,
+        kp,
+        kd,
+        torso_kp,
+        torso_kd,
+        max_torque,
+    }
+}
+
+/// The settings of a walker: the default settings with the ground's `contact_frequency`
+/// (rad/s) and `friction`, and gravity turned about z by `slope` (rad, positive climbs +x).
+pub(super) fn walker_settings(
+    contact_frequency: f64,
+    friction: f64,
+    slope: f64,
+) -> PyResult<Settings> {
+    if !(slope.is_finite() && slope.abs() < std::f64::consts::FRAC_PI_2) {
+        return Err(Error::invalid("slope", "must be finite and within ±π/2").into());
+    }
+    let g = Settings::default().gravity.length();
+    let gravity = DVec3::new(-g * slope.sin(), -g * slope.cos(), 0.0);
+    let settings = Settings { contact_frequency, friction, gravity, ..Settings::default() };
+    settings_check(&settings)?;
+    Ok(settings)
+}
+
 /// A pose from its eight values `[cd, cv, torso, swing_hip, swing_knee, swing_ankle,
 /// stance_knee, stance_ankle]`.
 fn pose(v: [f64; 8]) -> Pose {
     let [cd, cv, torso, swing_hip, swing_knee, swing_ankle, stance_knee, stance_ankle] = v;
     Pose { cd, cv, torso, swing_hip, swing_knee, swing_ankle, stance_knee, stance_ankle }
+}
+
+/// A gait as `(lift, strike, [duration, kp, kd, torso_kp, torso_kd, max_torque])`.
+pub(super) fn gait_values(g: &Gait) -> ([f64; 8], [f64; 8], [f64; 6]) {
+    let control = [g.duration, g.kp, g.kd, g.torso_kp, g.torso_kd, g.max_torque];
+    (pose_values(&g.lift), pose_values(&g.strike), control)
 }
 
 fn pose_values(p: &Pose) -> [f64; 8] {
@@ -438,32 +477,14 @@ impl Walker {
         friction: f64,
         slope: f64,
     ) -> PyResult<Self> {
-        let [duration, kp, kd, torso_kp, torso_kd, max_torque] = control;
-        let gait = Gait {
-            lift: pose(lift),
-            strike: pose(strike),
-            duration,
-            kp,
-            kd,
-            torso_kp,
-            torso_kd,
-            max_torque,
-        };
-        if !(slope.is_finite() && slope.abs() < std::f64::consts::FRAC_PI_2) {
-            return Err(Error::invalid("slope", "must be finite and within ±π/2").into());
-        }
-        let g = Settings::default().gravity.length();
-        let gravity = DVec3::new(-g * slope.sin(), -g * slope.cos(), 0.0);
-        let settings = Settings { contact_frequency, friction, gravity, ..Settings::default() };
-        settings_check(&settings)?;
+        let (gait, settings) =
+            (gait(lift, strike, control), walker_settings(contact_frequency, friction, slope)?);
         Ok(Walker { walker: WalkerCore::new(settings, gait, speed)?, saved: None })
     }
 
     /// The gait: `(lift, strike, [duration, kp, kd, torso_kp, torso_kd, max_torque])`.
     fn gait(&self) -> ([f64; 8], [f64; 8], [f64; 6]) {
-        let g = &self.walker.gait;
-        let control = [g.duration, g.kp, g.kd, g.torso_kp, g.torso_kd, g.max_torque];
-        (pose_values(&g.lift), pose_values(&g.strike), control)
+        gait_values(&self.walker.gait)
     }
 
     /// Advance `steps` steps of `dt` seconds (GIL released).

@@ -8,6 +8,7 @@ use pyo3::prelude::*;
 mod anim;
 mod args;
 mod array;
+mod biped3d;
 mod character;
 mod cloth;
 mod constraints;
@@ -84,6 +85,7 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     flock::register(m)?;
     rods::register(m)?;
     character::register(m)?;
+    biped3d::register(m)?;
     anim::register(m)?;
     mocap::register(m)?;
     ik::register(m)?;

@@ -242,7 +242,8 @@ impl Walker {
         let (start, phase) = (self.state.clone(), self.phase);
         for _ in 0..steps {
             let tree = self.solver.kinematics(&self.model, &self.state);
-            advance(&mut self.phase, &self.gait, &self.model, tree);
+            let down = touches(&self.model, tree, legs(self.phase.state).0[2]);
+            advance(&mut self.phase, &self.gait, down);
             control(&self.gait, &self.phase, &self.model, tree, &mut self.state);
             if let Err(e) = self.solver.step(&self.model, &mut self.state, dt, 1) {
                 (self.state, self.phase) = (start, phase);
@@ -286,10 +287,7 @@ fn joint_servo(gait: &Gait) -> Servo {
 /// A gravity without a component in the x–y plane (`gravity`); those of
 /// [`planar_biped`] and [`Model::set_servo`].
 pub(super) fn walker_model(settings: Settings, gait: &Gait) -> Result<Model> {
-    let g = settings.gravity;
-    if g.x.hypot(g.y).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-        return Err(Error::invalid("gravity", "must have a component in the x-y plane"));
-    }
+    check_gravity(&settings)?;
     let mut model = planar_biped(settings)?;
     for body in SERVOED {
         model.set_servo(body, Some(joint_servo(gait)))?;
@@ -297,16 +295,28 @@ pub(super) fn walker_model(settings: Settings, gait: &Gait) -> Result<Model> {
     Ok(model)
 }
 
+/// A walker's gravity must have a component in the x–y plane (its vertical).
+///
+/// # Errors
+/// Otherwise (`gravity`).
+pub(super) fn check_gravity(settings: &Settings) -> Result<()> {
+    let g = settings.gravity;
+    if g.x.hypot(g.y).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return Err(Error::invalid("gravity", "must have a component in the x-y plane"));
+    }
+    Ok(())
+}
+
 /// The upward vertical (against gravity) and the forward horizontal, unit vectors in the
 /// x–y plane, and the angle (rad, about z) of the vertical from the y axis.
-fn vertical(model: &Model) -> (DVec3, DVec3, f64) {
+pub(super) fn vertical(model: &Model) -> (DVec3, DVec3, f64) {
     let g = model.settings.gravity;
     let up = DVec3::new(-g.x, -g.y, 0.0).normalize();
     (up, DVec3::new(up.y, -up.x, 0.0), (-up.x).atan2(up.y))
 }
 
 /// Whether body `foot`'s capsule reaches below the ground plane.
-fn touches(model: &Model, tree: &Tree, foot: usize) -> bool {
+pub(super) fn touches(model: &Model, tree: &Tree, foot: usize) -> bool {
     let Some(c) = model.bodies()[foot].shape else { return false };
     let (pos, rot) = (tree.positions()[foot], tree.orientations()[foot]);
     [c.a, c.b].iter().any(|&e| (pos + rot * e).y < c.radius)
@@ -321,12 +331,12 @@ fn legs(state: u8) -> ([usize; 3], [usize; 3]) {
     }
 }
 
-/// The FSM's transitions (§3.1) at the state of the last kinematics in `tree`.
-fn advance(phase: &mut Phase, gait: &Gait, model: &Model, tree: &Tree) {
-    let (swing, _) = legs(phase.state);
+/// The FSM's transitions (§3.1): states 0 and 2 end after `gait.duration`, states 1 and 3
+/// when the swing foot is `down` (touches the ground).
+pub(super) fn advance(phase: &mut Phase, gait: &Gait, down: bool) {
     let next = match phase.state {
         0 | 2 => phase.time >= gait.duration,
-        _ => touches(model, tree, swing[2]),
+        _ => down,
     };
     if next {
         if phase.state % 2 == 1 {

@@ -3,7 +3,8 @@
 
 use super::model::Joint;
 use super::simbicon::SERVOED;
-use super::{planar_biped, ArticulatedBody, Model, State, Walker};
+use super::simbicon3d::SERVOED_3D;
+use super::{biped3d, planar_biped, ArticulatedBody, Model, State, Walker, Walker3d};
 use crate::error::Result;
 use crate::snapshot::{check, finite, Snapshot, Stamped};
 
@@ -77,6 +78,26 @@ impl Snapshot for Walker {
         check(rebuilt == self.model, "model", || "not the planar biped".into())?;
         self.model.check_settings()?;
         self.gait.check()?;
+        let phase_ok = self.phase.state < 4 && self.phase.time.is_finite();
+        check(phase_ok, "phase", || "state beyond 3 or a non-finite time".into())?;
+        self.state.validate(&self.model)
+    }
+}
+
+impl Snapshot for Walker3d {
+    const TAG: &'static str = "Walker3d";
+
+    /// The model must be the 3-D biped of its settings with servos at the knees and ankles
+    /// only; the gait, coronal feedback, state and phase valid.
+    fn validate(&self) -> Result<()> {
+        let mut rebuilt = biped3d(self.model.settings)?;
+        for body in SERVOED_3D {
+            rebuilt.set_servo(body, self.model.bodies()[body].servo)?;
+        }
+        check(rebuilt == self.model, "model", || "not the 3-D biped".into())?;
+        self.model.check_settings()?;
+        self.gait.check()?;
+        self.coronal.check()?;
         let phase_ok = self.phase.state < 4 && self.phase.time.is_finite();
         check(phase_ok, "phase", || "state beyond 3 or a non-finite time".into())?;
         self.state.validate(&self.model)

@@ -144,7 +144,7 @@ def test_every_system_round_trips_through_glb(recorded, tmp_path):
             )
         box = doc.meshes[doc.nodes[node].mesh].primitives[0]
         v = read(doc, box.attributes.POSITION).astype(np.float64)
-        centre, half = character.Biped.link_boxes()[b]
+        centre, half = character.Biped().link_boxes()[b]
         np.testing.assert_allclose(v.min(axis=0), centre - half, atol=1e-7)
         np.testing.assert_allclose(v.max(axis=0), centre + half, atol=1e-7)
     frames, _, indices = _morphed(doc, "character7")

@@ -1,0 +1,286 @@
+//! SIMBICON in 3-D (Yin, Loken & van de Panne 2007, §5 "3D walking") on the biped of
+//! [`super::biped3d`]: the planar controller's finite-state machine, poses and gains
+//! ([`Gait`], [`super::simbicon`]) in the sagittal plane, and balance feedback applied
+//! independently in the coronal plane ([`Coronal`]).
+//!
+//! - **Swing hip** (eq. 1 in each plane): the swing thigh's target orientation in the world
+//!   is `R_z(θ_s) R_x(−θ_c)` with `θ_s = θ_s0 + c_d d_s + c_v v_s` (sagittal, from the
+//!   ground's normal, positive forward) and `θ_c = ±θ_c0 + c_dc d_c + c_vc v_c` (coronal,
+//!   positive moves the foot to +z, the right; `θ_c0` abducts: + for the right leg, − for
+//!   the left). `d` is the horizontal vector from the stance ankle to the centre of mass,
+//!   `v` the centre of mass's velocity, in the directions forward (`_s`) and z (`_c`).
+//!   The target has no twist: the swing thigh keeps facing forward.
+//! - **Torso** and **stance hip** (§3.2, in 3-D): the torso is servoed in the world frame
+//!   towards `R_z(α + θ_torso)` (upright against gravity, heading +x, `θ_torso` the pose's
+//!   lean), `τ_torso = k_p log(R̄ Rᵀ) − k_d ω` (world vectors); the swing hip's torque is
+//!   the same PD on the swing thigh's world orientation, `τ_B`; the stance hip takes
+//!   `τ_A = −τ_torso − τ_B` (world), so that the hips apply `τ_torso` to the torso. The
+//!   torso's yaw is part of `τ_torso`: the stance hip holds the twist (the heading).
+//! - Hip torques are clamped to `±max_torque` per component in the thigh's axes. Knees
+//!   (hinges) and ankles (ball joints, target `R_z(θ)`, no roll or twist) are servos of the
+//!   model, stable PD by default, with the gait's gains.
+//!
+//! The heading is fixed (+x): `d`, `v` and the targets are in world axes. Slopes as in the
+//! planar walker: gravity turned about z by the slope, the swing hip's sagittal target from
+//! the ground's normal, the torso's from the vertical.
+
+use super::biped3d::{biped3d, LEFT_3D, RIGHT_3D, TORSO_3D};
+use super::dynamics::Tree;
+use super::model::{Model, Servo, Settings};
+use super::simbicon::{advance, check_gravity, touches, vertical, Gait, Phase};
+use super::solver::Solver;
+use super::spatial::angular;
+use super::state::State;
+use crate::error::{Error, Result};
+use crate::rotation::quat_to_rotvec;
+use glam::{DQuat, DVec3};
+
+/// Coronal balance of the 3-D walk (the same in every FSM state). The default (`c_d` = 0,
+/// `c_v` = 0.4 rad s/m, no abduction) is ours, chosen on a grid (`c_d` ∈ {−0.5, 0, 0.3},
+/// `c_v` ∈ {0.4, …, 0.8}, `θ_c0` ∈ {−0.05, 0, 0.05}) as the one that walked 20 s and
+/// survived the most pushes at dt = 1e-3 s.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Coronal {
+    /// Feedback on the stance ankle's lateral distance to the centre of mass (rad/m).
+    pub cd: f64,
+    /// Feedback on the centre of mass's lateral velocity (rad s/m).
+    pub cv: f64,
+    /// The swing thigh's nominal abduction `θ_c0` (rad, positive outwards).
+    pub swing_hip: f64,
+}
+
+impl Default for Coronal {
+    fn default() -> Self {
+        Coronal { cd: 0.0, cv: 0.4, swing_hip: 0.0 }
+    }
+}
+
+impl Gait {
+    /// The 3-D walk: the paper's 2-D gait ([`Gait::default`]) with a stiffer torso servo
+    /// (`torso_kp` = 1000 N m/rad, `torso_kd` = 100 N m s/rad): at 300 the torso rolls by
+    /// 0.27 rad towards the swing leg within 0.3 s and the biped falls sideways (measured).
+    pub fn default_3d() -> Gait {
+        Gait { torso_kp: 1000.0, torso_kd: 100.0, ..Gait::default() }
+    }
+}
+
+impl Coronal {
+    /// Check every value.
+    ///
+    /// # Errors
+    /// A non-finite value (named).
+    pub fn check(&self) -> Result<()> {
+        for (name, v) in [
+            ("coronal_cd", self.cd),
+            ("coronal_cv", self.cv),
+            ("coronal_swing_hip", self.swing_hip),
+        ] {
+            if !v.is_finite() {
+                return Err(Error::invalid(name, "must be finite"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The 3-D biped walking under SIMBICON: model, state, controller phase, gait (sagittal
+/// poses and gains) and coronal feedback, and a solver.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
+pub struct Walker3d {
+    pub(super) model: Model,
+    pub(super) state: State,
+    pub(super) phase: Phase,
+    /// The gait (free to change between steps).
+    pub gait: Gait,
+    /// The coronal balance feedback (free to change between steps).
+    pub coronal: Coronal,
+    #[serde(skip)]
+    solver: Solver,
+    /// The state at the start of [`Walker3d::step`] (to put back on error).
+    #[serde(skip)]
+    start: Option<State>,
+}
+
+/// The bodies whose joints are servos of the model (knees and ankles).
+pub(super) const SERVOED_3D: [usize; 4] = [RIGHT_3D[1], RIGHT_3D[2], LEFT_3D[1], LEFT_3D[2]];
+
+impl Walker3d {
+    /// The biped standing straight with its soles on the ground (sunk by the contact
+    /// springs' rest depth), moving forward (+x) at `speed` (m/s), under `gait` and
+    /// `coronal`, in FSM state 0, with `settings`.
+    ///
+    /// # Errors
+    /// A gait or coronal feedback that their `check` refuses; a non-finite `speed`
+    /// (`speed`); a gravity without a component in the x–y plane (`gravity`).
+    pub fn new(settings: Settings, gait: Gait, coronal: Coronal, speed: f64) -> Result<Self> {
+        gait.check()?;
+        coronal.check()?;
+        if !speed.is_finite() {
+            return Err(Error::invalid("speed", "must be finite"));
+        }
+        check_gravity(&settings)?;
+        let mut model = biped3d(settings)?;
+        let servo = joint_servo(&gait);
+        for body in SERVOED_3D {
+            model.set_servo(body, Some(servo))?;
+        }
+        let mut state = State::new(&model);
+        let mut q = model.neutral();
+        q[1] = super::biped::hip_height() - 0.002;
+        state.set_q(&model, &q)?;
+        let mut qd = vec![0.0; model.nv()];
+        qd[3] = speed;
+        state.set_qd(&qd)?;
+        let solver = Solver::new(&model);
+        Ok(Walker3d { model, state, phase: Phase::default(), gait, coronal, solver, start: None })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The biped's state (coordinates as [`biped3d`]'s).
+    pub fn state(&self) -> &State {
+        &self.state
+    }
+
+    /// The model and the state, mutable (to push, or to set coordinates).
+    pub fn parts_mut(&mut self) -> (&Model, &mut State) {
+        (&self.model, &mut self.state)
+    }
+
+    /// The controller's phase.
+    pub fn phase(&self) -> Phase {
+        self.phase
+    }
+
+    /// Put back a state and phase saved from this walker (a scene's undo).
+    pub fn restore(&mut self, state: &State, phase: Phase) {
+        self.state.clone_from(state);
+        self.phase = phase;
+    }
+
+    /// Advance `steps` steps of `dt` seconds: each runs the FSM's transitions, the
+    /// controller's torques and targets, then one solver step.
+    ///
+    /// # Errors
+    /// An invalid gait or coronal feedback (named); those of [`Solver::step`]. On error the
+    /// state and the phase are as before the call.
+    pub fn step(&mut self, dt: f64, steps: usize) -> Result<()> {
+        self.gait.check()?;
+        self.coronal.check()?;
+        let servo = joint_servo(&self.gait);
+        if self.model.bodies()[SERVOED_3D[0]].servo != Some(servo) {
+            for body in SERVOED_3D {
+                self.model.set_servo(body, Some(servo))?;
+            }
+        }
+        let mut start = self.start.take().unwrap_or_else(|| self.state.clone());
+        start.clone_from(&self.state);
+        let phase = self.phase;
+        let mut result = Ok(());
+        for _ in 0..steps {
+            let tree = self.solver.kinematics(&self.model, &self.state);
+            let (swing, _, _) = legs(self.phase.state);
+            let down = foot_down(&self.model, tree, swing);
+            advance(&mut self.phase, &self.gait, down);
+            control(self);
+            if let Err(e) = self.solver.step(&self.model, &mut self.state, dt, 1) {
+                self.state.clone_from(&start);
+                self.phase = phase;
+                result = Err(e);
+                break;
+            }
+            self.phase.time += dt;
+        }
+        self.start = Some(start);
+        result
+    }
+
+    /// Centre of mass (m, world).
+    pub fn com(&mut self) -> DVec3 {
+        self.solver.kinematics(&self.model, &self.state).com(&self.model)
+    }
+
+    /// Whether each foot (right, left; heel or toes) touches the ground.
+    pub fn feet_in_contact(&mut self) -> [bool; 2] {
+        let tree = self.solver.kinematics(&self.model, &self.state);
+        [foot_down(&self.model, tree, RIGHT_3D), foot_down(&self.model, tree, LEFT_3D)]
+    }
+
+    /// The kinematics of the current state.
+    pub fn kinematics(&mut self) -> &mut Tree {
+        self.solver.kinematics(&self.model, &self.state)
+    }
+}
+
+/// The servo of every knee and ankle under `gait`.
+fn joint_servo(gait: &Gait) -> Servo {
+    Servo { kp: gait.kp, kd: gait.kd, max_torque: gait.max_torque }
+}
+
+/// Whether the heel or the toes of `leg` touch the ground.
+fn foot_down(model: &Model, tree: &Tree, leg: [usize; 4]) -> bool {
+    touches(model, tree, leg[2]) || touches(model, tree, leg[3])
+}
+
+/// The legs as (swing, stance) in FSM state `state`, and the swing side's sign (+1: the
+/// right leg, at +z).
+fn legs(state: u8) -> ([usize; 4], [usize; 4], f64) {
+    if state < 2 {
+        (RIGHT_3D, LEFT_3D, 1.0)
+    } else {
+        (LEFT_3D, RIGHT_3D, -1.0)
+    }
+}
+
+/// The world-frame PD torque (N m) turning a body of orientation `rot` and world angular
+/// velocity `omega` towards `target`.
+fn servo_world(kp: f64, kd: f64, target: DQuat, rot: DQuat, omega: DVec3) -> DVec3 {
+    kp * DVec3::from_array(quat_to_rotvec(target * rot.conjugate())) - kd * omega
+}
+
+/// A world torque on body `rot`'s joint as joint torques (body axes), clamped per
+/// component to `±limit`; returns them and the world torque they make.
+fn clamp_joint(world: DVec3, rot: DQuat, limit: f64) -> (DVec3, DVec3) {
+    let local = (rot.conjugate() * world).clamp(DVec3::splat(-limit), DVec3::splat(limit));
+    (local, rot * local)
+}
+
+/// SIMBICON's controls in 3-D into the walker's state: the hips' torques, and the knees'
+/// and ankles' servo targets, at the state of its last kinematics.
+fn control(w: &mut Walker3d) {
+    let (gait, coronal, model) = (&w.gait, &w.coronal, &w.model);
+    let tree = w.solver.tree();
+    let pose = if w.phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
+    let (swing, stance, side) = legs(w.phase.state);
+    let (_, ahead, tilt) = vertical(model);
+    let vel = tree.momentum(model).1 / model.mass();
+    let r = tree.com(model) - tree.positions()[stance[2]];
+    let sagittal = pose.swing_hip + pose.cd * r.dot(ahead) + pose.cv * vel.dot(ahead);
+    let lateral = side * coronal.swing_hip + coronal.cd * r.z + coronal.cv * vel.z;
+    let thigh_target = DQuat::from_rotation_z(sagittal) * DQuat::from_rotation_x(-lateral);
+    let torso_target = DQuat::from_rotation_z(tilt + pose.torso);
+    let rot = tree.orientations();
+    let omega = |i: usize| rot[i] * angular(&tree.v[i]);
+    let torso =
+        servo_world(gait.torso_kp, gait.torso_kd, torso_target, rot[TORSO_3D], omega(TORSO_3D));
+    let swing_world = servo_world(gait.kp, gait.kd, thigh_target, rot[swing[0]], omega(swing[0]));
+    let (swing_tau, swing_world) = clamp_joint(swing_world, rot[swing[0]], gait.max_torque);
+    let (stance_tau, _) = clamp_joint(-torso - swing_world, rot[stance[0]], gait.max_torque);
+    let state = &mut w.state;
+    state.torques.fill(0.0);
+    for (body, tau) in [(swing[0], swing_tau), (stance[0], stance_tau)] {
+        let iv = model.starts(body).1;
+        state.torques[iv..iv + 3].copy_from_slice(&tau.to_array());
+    }
+    for (body, angle) in [(swing[1], pose.swing_knee), (stance[1], pose.stance_knee)] {
+        state.targets[model.starts(body).0] = angle;
+    }
+    for (body, angle) in [(swing[2], pose.swing_ankle), (stance[2], pose.stance_ankle)] {
+        let t = DQuat::from_rotation_z(angle);
+        let iq = model.starts(body).0;
+        state.targets[iq..iq + 4].copy_from_slice(&[t.w, t.x, t.y, t.z]);
+    }
+}
