@@ -1,9 +1,11 @@
-"""Biped demo: the planar SIMBICON walker (Yin, Loken & van de Panne 2007) on flat ground.
+"""Biped demo: the 3-D SIMBICON walker (Yin, Loken & van de Panne 2007, §5) on flat ground.
 
-Writes ``biped.gif`` (the stick figure walking, pushed from behind at t = 4 s with 350 N for
-0.2 s, and recovering) and ``biped.png`` (the centre of mass's speed and height, the foot
-contacts). Prints the walking speed, the steps taken and the largest push survived of a
-sweep (a push at 4 s to the torso for 0.2 s, from behind and from the front). dt = 1e-3 s.
+Writes ``biped.gif`` (the 3-D biped walking, seen from the side and from the front, pushed
+from its left side (+z) at t = 4 s with 100 N for 0.2 s, and recovering) and ``biped.png``
+(the centre of mass's forward speed, its sideways position, the foot contacts). Prints the
+walking speed, the steps taken and the largest push survived of a sweep (a push at 4 s to
+the torso for 0.2 s) by the 3-D walker from the side and by the planar walker from behind
+and from the front (the planar walker's own figure is gone; its numbers stay). dt = 1e-3 s.
 """
 
 from __future__ import annotations
@@ -17,48 +19,75 @@ from kinema.character import Biped
 
 DT = 1e-3
 FRAME = 1.0 / 30.0  # s between recorded frames
+SIDE_PUSH = 100.0  # N, the GIF's push from the side (survived at 4 phases, docs/character.md)
 
 
-def walk(seconds: float, push: float = 0.0, at: float = 4.0) -> tuple[Biped, dict[str, Any]]:
-    """Walk ``seconds`` s; ``push``: a force (N, +x forward) on the torso for 0.2 s at ``at``
-    s. Returns the biped and its record per frame (joint positions, COM, contacts)."""
-    b = Biped()
+def walk(
+    seconds: float, push: Any = 0.0, at: float = 4.0, dims: int = 2
+) -> tuple[Biped, dict[str, Any]]:
+    """Walk ``seconds`` s; ``push``: a force (N: a number along +x, or 3 values) on the torso
+    for 0.2 s at ``at`` s. Returns the biped and its record per frame (joint positions, COM,
+    contacts)."""
+    b = Biped(dims=dims)
     per = round(FRAME / DT)
-    log: dict[str, list[Any]] = {"joints": [], "com": [], "feet": [], "fell": [False]}
+    log: dict[str, list[Any]] = {"joints": [], "rot": [], "com": [], "feet": [], "fell": [False]}
     for k in range(round(seconds / FRAME)):
-        if push and k == round(at / FRAME):
+        if np.any(push) and k == round(at / FRAME):
             b.push(push, 0.2)
         b.step(DT, per)
         log["joints"].append(b.positions())
+        log["rot"].append(b.orientations())
         log["com"].append(b.com)
         log["feet"].append(b.feet_in_contact)
-        if b.q[1] < 0.7 or abs(b.q[2]) > 0.8:
+        if b.q[1] < 0.7 or _tilt(b) > 0.8:
             log["fell"] = [True]
             break
     return b, log
 
 
-def largest_push(sign: float, forces: list[float], seconds: float) -> float:
-    """The largest of ``forces`` (N, in increasing order) survived in direction ``sign``."""
+def _tilt(b: Biped) -> float:
+    """The torso's angle from the vertical (rad)."""
+    if b.dims == 2:
+        return abs(float(b.q[2]))
+    _, x, _, z = b.q[3:7]
+    return float(np.arccos(np.clip(1.0 - 2.0 * (x * x + z * z), -1.0, 1.0)))
+
+
+def largest_push(
+    direction: tuple[float, float, float], forces: list[float], seconds: float, dims: int
+) -> float:
+    """The largest of ``forces`` (N, in increasing order) survived along ``direction``."""
     best = 0.0
     for f in forces:
-        if walk(seconds, sign * f)[1]["fell"][0]:
+        if walk(seconds, np.multiply(f, direction), dims=dims)[1]["fell"][0]:
             break
         best = f
     return best
 
 
-def _figure(pose: np.ndarray, x0: float, ax: Any) -> None:
-    hip = pose[0]
-    ax.plot([hip[0], hip[0]], [hip[1], hip[1] + 0.48], "k-", lw=5)
-    for leg, colour in ((pose[1:4], "tab:red"), (pose[4:7], "tab:blue")):
-        pts = np.vstack([hip, leg[1], leg[2]])
-        ax.plot(pts[:, 0], pts[:, 1], "-o", color=colour, lw=3, ms=3)
-        ax.plot([leg[2][0] - 0.05, leg[2][0] + 0.15], [leg[2][1] - 0.07] * 2, color=colour)
-    ax.axhline(0.0, color="0.5")
-    ax.set_xlim(x0 - 1.0, x0 + 1.0)
-    ax.set_ylim(-0.1, 1.6)
-    ax.set_aspect("equal")
+def _rotate(q: np.ndarray, v: list[float]) -> np.ndarray:
+    """``v`` turned by the unit quaternion ``q = (w, x, y, z)``."""
+    w, u = q[0], np.asarray(q[1:])
+    t = 2.0 * np.cross(u, v)
+    return np.asarray(v) + w * t + np.cross(u, t)
+
+
+def _figure(pose: np.ndarray, rot: np.ndarray, centre: np.ndarray, axes: Any) -> None:
+    """The 3-D biped's links as lines (hip, knee, ankle, toe) and its torso, seen from the
+    side (x–y) and from the front (z–y)."""
+    up = _rotate(rot[0], [0.0, 0.48, 0.0])
+    hips = [pose[1], pose[5]]
+    for ax, (i, lo, hi) in zip(axes, ((0, -1.0, 1.0), (2, -0.6, 0.6)), strict=True):
+        ax.plot([pose[0][i], pose[0][i] + up[i]], [pose[0][1], pose[0][1] + up[1]], "k-", lw=5)
+        ax.plot([hips[0][i], hips[1][i]], [hips[0][1], hips[1][1]], "k-", lw=3)
+        for leg, colour in (((1, 2, 3), "tab:red"), ((5, 6, 7), "tab:blue")):
+            toe = pose[leg[2]] + _rotate(rot[leg[2]], [0.15, -0.05, 0.0])
+            pts = np.vstack([pose[leg[0]], pose[leg[1]], pose[leg[2]], toe])
+            ax.plot(pts[:, i], pts[:, 1], "-o", color=colour, lw=3, ms=3)
+        ax.axhline(0.0, color="0.5")
+        ax.set_xlim(centre[i] + lo, centre[i] + hi)
+        ax.set_ylim(-0.1, 1.6)
+        ax.set_aspect("equal")
 
 
 def run(out_dir: Path, quick: bool) -> dict[str, object]:
@@ -70,22 +99,26 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     seconds = 5.0 if quick else 10.0
-    b, log = walk(seconds, push=350.0)
+    side = (0.0, 0.0, SIDE_PUSH)
+    b, log = walk(seconds, push=side, dims=3)
     com = np.array(log["com"])
     t = FRAME * np.arange(1, len(com) + 1)
     half = len(t) // 2
     speed = (com[-1, 0] - com[half, 0]) / (t[-1] - t[half])
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, axes = plt.subplots(1, 2, figsize=(8, 4), gridspec_kw={"width_ratios": [2, 1.2]})
     every = 2 if quick else 1
     poses = log["joints"][::every]
+    rots = log["rot"][::every]
 
     def frame(k: int) -> None:
-        ax.clear()
-        _figure(poses[k], poses[k][0][0], ax)
+        for ax in axes:
+            ax.clear()
+        _figure(poses[k], rots[k], poses[k][0], axes)
         now = (k * every + 1) * FRAME
-        pushed = " (pushed)" if 4.0 <= now < 4.2 else ""
-        ax.set_title(f"SIMBICON, t = {now:.2f} s{pushed}")
+        pushed = f" (pushed {SIDE_PUSH:.0f} N from the side)" if 4.0 <= now < 4.2 else ""
+        axes[0].set_title(f"3-D SIMBICON, t = {now:.2f} s{pushed}", fontsize=9)
+        axes[1].set_title("front view", fontsize=9)
 
     gif = out_dir / "biped.gif"
     FuncAnimation(fig, frame, frames=len(poses)).save(gif, writer=PillowWriter(fps=15))
@@ -94,8 +127,8 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.5))
     v = np.gradient(com[:, 0], t)
     axes[0].plot(t, v, label="COM speed (m/s)")
-    axes[0].plot(t, com[:, 1], label="COM height (m)")
-    axes[0].axvspan(4.0, 4.2, color="0.85", label="350 N push")
+    axes[0].plot(t, com[:, 2], label="COM sideways, +z (m)")
+    axes[0].axvspan(4.0, 4.2, color="0.85", label=f"{SIDE_PUSH:.0f} N push (+z)")
     axes[0].set_xlabel("time (s)")
     axes[0].legend(fontsize=8)
     feet = np.array(log["feet"], dtype=float)
@@ -109,13 +142,18 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
     plt.close(fig)
 
     forces = [350.0] if quick else [100.0 * k for k in range(2, 11)]
+    sides = [100.0] if quick else [50.0 * k for k in range(1, 7)]
     sweep_seconds = 5.0 if quick else 7.0
     return {
         "seconds": seconds,
         "fell": log["fell"][0],
         "speed_m_per_s": round(float(speed), 3),
         "steps": b.steps,
-        "largest_push_from_behind_N": largest_push(1.0, forces, sweep_seconds),
-        "largest_push_from_the_front_N": largest_push(-1.0, forces, sweep_seconds),
+        "3d_largest_push_from_the_left_N": largest_push((0, 0, 1), sides, sweep_seconds, 3),
+        "3d_largest_push_from_the_right_N": largest_push((0, 0, -1), sides, sweep_seconds, 3),
+        "planar_largest_push_from_behind_N": largest_push((1, 0, 0), forces, sweep_seconds, 2),
+        "planar_largest_push_from_the_front_N": largest_push(
+            (-1, 0, 0), forces, sweep_seconds, 2
+        ),
         "files": [str(gif), str(png)],
     }
