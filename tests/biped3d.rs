@@ -107,10 +107,9 @@ fn without_coronal_feedback_the_3d_walk_falls_sideways() {
     assert!(w.com.last().unwrap().z.abs() > 0.2, "fell sideways: {:?}", w.com.last());
 }
 
-/// The largest pushes survived, found by `cargo test --test biped3d -- --ignored` (0.2 s on
-/// the torso at t = 4.0, 4.2, 4.4, 4.6 s, walking on to t = 7 s): from the front 250 N at
-/// each of the four phases, from the right (−z) 100 N at two, from the left (+z) 100 N at
-/// all four, from behind not 100 N.
+/// Two phases of the sweep of `bench/bench_biped.py --pushes` (0.2 s on the torso at
+/// t = 4.0 … 4.6 s): from the front it survives 250–450 N, from the left (+z) 100–250 N
+/// at these two phases (docs/character.md).
 #[test]
 fn pushes_from_the_front_and_the_side_are_survived() {
     for at in [4.0, 4.4] {

@@ -152,8 +152,6 @@ def run(out_dir: Path, quick: bool) -> dict[str, object]:
         "3d_largest_push_from_the_left_N": largest_push((0, 0, 1), sides, sweep_seconds, 3),
         "3d_largest_push_from_the_right_N": largest_push((0, 0, -1), sides, sweep_seconds, 3),
         "planar_largest_push_from_behind_N": largest_push((1, 0, 0), forces, sweep_seconds, 2),
-        "planar_largest_push_from_the_front_N": largest_push(
-            (-1, 0, 0), forces, sweep_seconds, 2
-        ),
+        "planar_largest_push_from_the_front_N": largest_push((-1, 0, 0), forces, sweep_seconds, 2),
         "files": [str(gif), str(png)],
     }
