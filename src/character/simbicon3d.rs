@@ -284,3 +284,38 @@ fn control(w: &mut Walker3d) {
         state.targets[iq..iq + 4].copy_from_slice(&[t.w, t.x, t.y, t.z]);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_hips_apply_the_torso_servo_torque_to_the_torso() {
+        let settings = Settings { contact_frequency: 200.0, ..Settings::default() };
+        let mut w = Walker3d::new(settings, Gait::default_3d(), Coronal::default(), 0.3).unwrap();
+        let mut checked = 0;
+        for _ in 0..2000 {
+            w.step(1e-3, 1).unwrap();
+            w.solver.kinematics(&w.model, &w.state);
+            control(&mut w);
+            let (tree, model, gait) = (w.solver.tree(), &w.model, &w.gait);
+            let rot = tree.orientations();
+            let pose = if w.phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
+            let omega = rot[TORSO_3D] * angular(&tree.v[TORSO_3D]);
+            let target = DQuat::from_rotation_z(pose.torso);
+            let torso = servo_world(gait.torso_kp, gait.torso_kd, target, rot[TORSO_3D], omega);
+            let joint = |b: usize| {
+                let iv = model.starts(b).1;
+                DVec3::from_slice(&w.state.torques()[iv..iv + 3])
+            };
+            let (right, left) = (joint(RIGHT_3D[0]), joint(LEFT_3D[0]));
+            if right.abs().max(left.abs()).max_element() >= gait.max_torque {
+                continue;
+            }
+            let on_torso = -(rot[RIGHT_3D[0]] * right) - rot[LEFT_3D[0]] * left;
+            assert!((on_torso - torso).length() < 1e-9, "{on_torso} vs {torso}");
+            checked += 1;
+        }
+        assert!(checked > 1500, "{checked} unclamped steps");
+    }
+}
