@@ -122,6 +122,11 @@ class Crowd:
         ``goals`` ``(N, 2)`` (m). Agents may start overlapping, even on one point."""
         self._c.add_agents(_points(positions, "positions"), _points(goals, "goals"))
 
+    def set_goals(self, goals: Any) -> None:
+        """Give the agents new goals ``(N, 2)`` (m), one per agent (e.g. every step, to steer
+        them through a door: ``bench/bench_bottleneck.py``)."""
+        self._c.set_goals(_points(goals, "goals"))
+
     def add_obstacle(self, polygon: Any) -> None:
         """Add a static obstacle: a polygon ``(K, 2)`` (m) listed counterclockwise (agents
         stay outside; clockwise keeps them inside), or two points: a wall segment."""

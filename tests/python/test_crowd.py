@@ -97,6 +97,13 @@ def test_bad_agents_and_steps_name_the_argument_and_change_nothing() -> None:
     np.testing.assert_array_equal(c.positions, before)
     with pytest.raises(ValueError, match="positions"):
         c.add_agents([[5.0, 5.0]], [[6.0, 6.0]])  # a view was taken
+    goals = c.goals.copy()
+    for bad in ([[1.0, 1.0], [2.0, 2.0]], [[np.inf, 0.0]], [[1.0, 1.0, 1.0]]):
+        with pytest.raises(ValueError, match="goals"):
+            c.set_goals(bad)
+    np.testing.assert_array_equal(c.goals, goals)
+    c.set_goals([[-3.0, 4.0]])  # the view shows the new goal
+    np.testing.assert_array_equal(c.goals, [[-3.0, 4.0]])
 
 
 def test_pickle_round_trip_continues_bitwise() -> None:
