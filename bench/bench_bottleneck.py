@@ -19,7 +19,8 @@ Every agent walks to the nearest point of the door's far side narrowed by its ra
 jamb (Helbing et al.: e⁰ points to the exit), then straight on (`door_goals`; the
 same set-up as `tests/crowd_bottleneck.rs`, which runs it at reduced size).
 
-Run: python bench/bench_bottleneck.py [--agents 150] [--panic 200] [--no-plot]
+Run: python bench/bench_bottleneck.py [--quick] [--agents 150] [--panic 200] [--no-plot]
+(--quick: 40 agents in each, no plot: a smoke run, not the figures.)
 """
 
 from __future__ import annotations
@@ -175,7 +176,10 @@ def main() -> None:
     ap.add_argument("--agents", type=int, default=150)
     ap.add_argument("--panic", type=int, default=200)
     ap.add_argument("--no-plot", action="store_true")
+    ap.add_argument("--quick", action="store_true")
     a = ap.parse_args()
+    if a.quick:
+        a.agents, a.panic, a.no_plot = 40, 40, True
     flows(a.agents, not a.no_plot)
     panic(a.panic)
 
