@@ -16,8 +16,8 @@ speed, which bounds only the fastest pushes), at full size:
    and for all of them to leave.
 
 Every agent walks to the nearest point of the door's far side narrowed by its radius at each
-jamb (Helbing et al.: e⁰ points to the exit), then straight on (`door_goals`; the
-same set-up as `tests/crowd_bottleneck.rs`, which runs it at reduced size).
+jamb (Helbing et al.: e⁰ points to the exit), then straight on (`kinema.crowd.door_goals`;
+the same set-up as `tests/crowd_bottleneck.rs`, which runs it at reduced size).
 
 Run: python bench/bench_bottleneck.py [--quick] [--agents 150] [--panic 200] [--no-plot]
 (--quick: 40 agents in each, no plot: a smoke run, not the figures.)
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinema.crowd import Crowd, crossings, flow_rate
+from kinema.crowd import Crowd, crossings, door_goals, flow_rate
 
 # Jülich bottleneck experiments (Liddle, Seyfried, Steffen, Klingsch, Rupprecht, Winkens &
 # Boltes 2011, arXiv:1105.1532): width (m) and flow 150 / (t_last - t_first) (1/s).
@@ -50,18 +50,6 @@ LIDDLE_2011 = np.array(
     ]
 )
 DT = 0.05
-
-
-def door_goals(p: np.ndarray, half: float, radius: float) -> np.ndarray:
-    """Goals 100 m away towards the nearest point of the door's far side ``x = 0.2, |y| ≤
-    half - radius`` for agents not yet through (``x < 0.2``), straight on (+x) after."""
-    a = max(half - radius, 0.0)
-    to = np.stack([0.2 - p[:, 0], np.clip(p[:, 1], -a, a) - p[:, 1]], axis=1)
-    length = np.linalg.norm(to, axis=1)
-    inside = (p[:, 0] < 0.2) & (length > 1e-9)
-    e = np.tile([1.0, 0.0], (len(p), 1))
-    e[inside] = to[inside] / length[inside, None]
-    return p + 100.0 * e
 
 
 def evacuate(
@@ -97,14 +85,15 @@ def evacuate(
     start += np.random.default_rng(seed).uniform(-0.1, 0.1, start.shape)
     c.add_agents(start, start)
     frames = [start]
+    far_side = [[0.2, half], [0.2, -half]]
     while len(frames) * DT < seconds:
-        c.set_goals(door_goals(c.positions, half, radius))
+        c.set_goals(door_goals(c.positions, far_side, radius))
         c.step(DT)
         frames.append(c.positions.copy())
         if np.all(frames[-1][:, 0] > 0.2):
             break
     t = np.arange(len(frames)) * DT
-    return crossings(np.array(frames), t, [[0.2, half], [0.2, -half]])
+    return crossings(np.array(frames), t, far_side)
 
 
 def steady(times: np.ndarray, drop: int = 10) -> float:

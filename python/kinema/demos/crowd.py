@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from kinema.crowd import Crowd, crossings, flow_rate
+from kinema.crowd import Crowd, crossings, door_goals, flow_rate
 from kinema.flock import Flock
 from kinema.geometry import Sphere
 
@@ -93,12 +93,17 @@ def _bottleneck(out_dir: Path, quick: bool) -> dict[str, object]:
         [[-1.0 - 0.7 * (k // side), -0.7 * (side - 1) / 2 + 0.7 * (k % side)] for k in range(n)]
     )
     c.add_agents(grid + rng.uniform(-0.05, 0.05, grid.shape), np.tile([6.0, 0.0], (n, 1)))
+    # Every step: to the nearest point of the door (e⁰ points to the exit, Helbing et al.),
+    # then to (6, 0) once through.
+    door_line = [[0.0, half], [0.0, -half]]
     frames, times = [], []
     for _ in range(300 if quick else 600):
+        goals = door_goals(c.positions, door_line, 0.25)
+        goals[c.positions[:, 0] > 0.0] = [6.0, 0.0]
+        c.set_goals(goals)
         c.step(0.1)
         frames.append(c.positions.copy())
         times.append(c.time)
-    door_line = [[0.0, half], [0.0, -half]]
     found = crossings(np.array(frames), np.array(times), door_line)
     _gif(
         frames[::4], 0.25, walls, f"social forces, {door} m door", out_dir / "crowd_bottleneck.gif"
