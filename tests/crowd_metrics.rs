@@ -1,8 +1,8 @@
-//! Crowd metrics on hand-built trajectories with known answers, and social forces through a
-//! door (a bottleneck): everyone exits a wide door, and the flow grows with the width.
+//! Crowd metrics on hand-built trajectories with known answers (the bottleneck flow of social
+//! forces against experiments is in `crowd_bottleneck.rs`).
 
 use glam::DVec2;
-use kinema::crowd::{metrics, Crowd, Kind, Model, Settings, SocialForce};
+use kinema::crowd::{metrics, Model, Settings};
 
 fn v(x: f64, y: f64) -> DVec2 {
     DVec2::new(x, y)
@@ -72,58 +72,4 @@ fn flow_through_a_door_of_known_crossings() {
     assert_eq!(c, vec![1.0, 2.0, 3.0, 4.0]);
     assert_eq!(metrics::flow_rate(&c), Some(1.0));
     assert!(metrics::crossings(&refs, &times, v(1.0, 1.0), v(1.0, 1.0)).is_err());
-}
-
-/// Agents on a grid in the room `x < 0` leave through a door of `width` (m) in the wall
-/// `x = 0`, to goals far beyond it; returns (agents out, flow in agents/s).
-fn bottleneck(width: f64, agents: usize, steps: usize) -> (usize, Option<f64>, Vec<DVec2>) {
-    let sf = SocialForce::default();
-    let settings = Settings {
-        radius: 0.25,
-        max_speed: 2.0,
-        preferred_speed: 1.34,
-        neighbour_distance: 2.0,
-        goal_tolerance: 0.5,
-        kind: Kind::SocialForce(sf),
-        ..Settings::rvo2_circle()
-    };
-    let mut crowd = Crowd::new(settings).unwrap();
-    let h = width / 2.0;
-    // Two wall segments with the door between them (thin counterclockwise rectangles).
-    for (lo, hi) in [(h, 10.0), (-10.0, -h)] {
-        crowd.add_obstacle(&[v(0.0, lo), v(0.2, lo), v(0.2, hi), v(0.0, hi)]).unwrap();
-    }
-    let cols = 10;
-    let p: Vec<DVec2> = (0..agents)
-        .map(|i| v(-1.0 - 0.7 * (i / cols) as f64, -3.15 + 0.7 * (i % cols) as f64))
-        .collect();
-    let g: Vec<DVec2> = p.iter().map(|q| v(20.0, q.y * 0.2)).collect();
-    crowd.add_agents(&p, &g).unwrap();
-    let dt = 0.05;
-    let mut frames = vec![crowd.state().positions().to_vec()];
-    for _ in 0..steps {
-        crowd.step(dt, 1).unwrap();
-        frames.push(crowd.state().positions().to_vec());
-    }
-    let refs: Vec<&[DVec2]> = frames.iter().map(|f| f.as_slice()).collect();
-    let times: Vec<f64> = (0..frames.len()).map(|k| k as f64 * dt).collect();
-    let c = metrics::crossings(&refs, &times, v(0.2, h), v(0.2, -h)).unwrap();
-    (c.len(), metrics::flow_rate(&c), crowd.state().positions().to_vec())
-}
-
-#[test]
-fn bottleneck_flow_grows_with_door_width() {
-    let n = 100;
-    let mut flows = Vec::new();
-    for width in [0.8, 1.2, 1.6, 2.0, 2.4] {
-        let (out, flow, _) = bottleneck(width, n, 1200);
-        eprintln!("door {width:.1} m: {out} of {n} out, flow {flow:?} /s");
-        flows.push((width, out, flow.unwrap_or(0.0)));
-    }
-    let (out, _, left) = bottleneck(2.4, n, 2400);
-    let inside: Vec<&DVec2> = left.iter().filter(|p| p.x < 0.2).collect();
-    assert_eq!(out, n, "everyone exits the widest door in 120 s: {inside:?}");
-    for w in flows.windows(2) {
-        assert!(w[1].2 > w[0].2, "flow must grow with width: {flows:?}");
-    }
 }

@@ -7,7 +7,8 @@ with goals (:meth:`Crowd.add_agents`), then ``step`` it. Coordinates are 2-D in 
 ground (world ``x`` and ``z``). ``positions``, ``velocities`` and ``goals`` are read-only
 numpy views of the Rust state, updated in place; once one was taken no more agents can be
 added. :meth:`Crowd.metrics` reports collisions, times to goal and path lengths, and
-:func:`flow_rate` the flow through a door from crossing times. See docs/crowd.md.
+:func:`flow_rate` the flow through a door from crossing times; :func:`door_goals` gives goals
+that lead agents out through a door. See docs/crowd.md.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 from kinema import _kinema
 from kinema._array import as_batch, real
 
-__all__ = ["Crowd", "crossings", "flow_rate"]
+__all__ = ["Crowd", "crossings", "door_goals", "flow_rate"]
 
 
 def _points(value: object, name: str) -> np.ndarray:
@@ -122,6 +123,11 @@ class Crowd:
         ``goals`` ``(N, 2)`` (m). Agents may start overlapping, even on one point."""
         self._c.add_agents(_points(positions, "positions"), _points(goals, "goals"))
 
+    def set_goals(self, goals: Any) -> None:
+        """Give the agents new goals ``(N, 2)`` (m), one per agent (e.g. every step, to steer
+        them through a door: ``bench/bench_bottleneck.py``)."""
+        self._c.set_goals(_points(goals, "goals"))
+
     def add_obstacle(self, polygon: Any) -> None:
         """Add a static obstacle: a polygon ``(K, 2)`` (m) listed counterclockwise (agents
         stay outside; clockwise keeps them inside), or two points: a wall segment."""
@@ -193,6 +199,37 @@ def crossings(frames: Any, times: Any, door: Any) -> np.ndarray:
     if d.shape != (2, 2):
         raise ValueError(f"door: expected shape (2, 2), got {d.shape}")
     return _kinema.crowd_crossings(f, t, d[0].tolist(), d[1].tolist())
+
+
+def door_goals(positions: Any, door: Any, radius: float, reach: float = 100.0) -> np.ndarray:
+    """Goals ``(N, 2)`` (m) that lead agents at ``positions`` ``(N, 2)`` (m) out through the
+    door segment ``((x0, y0), (x1, y1))`` (m) from its right to its left (as
+    :func:`crossings` counts them): ``reach`` m along the direction to the nearest point of
+    the door narrowed by ``radius`` (m) at each end for agents on its right, along its left
+    normal for those through. Set them every step (:meth:`Crowd.set_goals`): the desired
+    direction then points to the exit, as in Helbing, Farkas & Vicsek 2000."""
+    p = _points(positions, "positions")
+    if not np.isfinite(p).all():
+        raise ValueError("positions: contains NaN or infinity")
+    d = np.asarray(door, dtype=np.float64)
+    if d.shape != (2, 2) or not np.isfinite(d).all():
+        raise ValueError(f"door: expected two finite points, shape (2, 2), got {d.shape}")
+    length = float(np.linalg.norm(d[1] - d[0]))
+    if length == 0.0:
+        raise ValueError("door: its two points coincide")
+    u = (d[1] - d[0]) / length
+    normal = np.array([-u[1], u[0]])
+    r = real(radius, "radius")
+    if not (np.isfinite(r) and r >= 0.0):
+        raise ValueError("radius: must be finite and >= 0")
+    r = min(r, length / 2)
+    s = np.clip((p - d[0]) @ u, r, length - r)
+    to = d[0] + s[:, None] * u - p
+    dist = np.linalg.norm(to, axis=1)
+    before = ((p - d[0]) @ normal < 0.0) & (dist > 1e-9)
+    e = np.tile(normal, (len(p), 1))
+    e[before] = to[before] / dist[before, None]
+    return p + reach * e
 
 
 def flow_rate(times: Any) -> float:

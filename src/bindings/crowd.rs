@@ -129,6 +129,11 @@ impl Crowd {
         Ok(self.crowd.add_agents(&p, &g)?)
     }
 
+    /// Give the agents new goals (N, 2) in m, one per agent (views stay valid).
+    fn set_goals(&mut self, goals: PyReadonlyArrayDyn<'_, f64>) -> PyResult<()> {
+        Ok(self.crowd.state_mut().set_goals(&points(&goals, "goals")?)?)
+    }
+
     /// Add a static obstacle polygon (K, 2) in m (counterclockwise; two points: a wall).
     fn add_obstacle(&mut self, polygon: PyReadonlyArrayDyn<'_, f64>) -> PyResult<()> {
         Ok(self.crowd.add_obstacle(&points(&polygon, "polygon")?)?)

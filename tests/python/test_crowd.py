@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import kinema
-from kinema.crowd import Crowd, crossings, flow_rate
+from kinema.crowd import Crowd, crossings, door_goals, flow_rate
 
 
 def circle(n: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -97,6 +97,13 @@ def test_bad_agents_and_steps_name_the_argument_and_change_nothing() -> None:
     np.testing.assert_array_equal(c.positions, before)
     with pytest.raises(ValueError, match="positions"):
         c.add_agents([[5.0, 5.0]], [[6.0, 6.0]])  # a view was taken
+    goals = c.goals.copy()
+    for bad in ([[1.0, 1.0], [2.0, 2.0]], [[np.inf, 0.0]], [[1.0, 1.0, 1.0]]):
+        with pytest.raises(ValueError, match="goals"):
+            c.set_goals(bad)
+    np.testing.assert_array_equal(c.goals, goals)
+    c.set_goals([[-3.0, 4.0]])  # the view shows the new goal
+    np.testing.assert_array_equal(c.goals, [[-3.0, 4.0]])
 
 
 def test_pickle_round_trip_continues_bitwise() -> None:
@@ -143,3 +150,24 @@ def test_time_gap_slows_a_dense_social_force_crowd() -> None:
 
     assert speed(0.0) > 1.2
     assert speed(0.2) < 0.9 * speed(0.0)
+
+
+def test_door_goals_point_to_the_narrowed_door_then_through_it() -> None:
+    # The door from (0, 1) to (0, -1): its left (where agents go) is +x. Radius 0.25: the
+    # opening aimed at is y in [-0.75, 0.75].
+    door = [[0.0, 1.0], [0.0, -1.0]]
+    p = np.array([[-2.0, 0.5], [-3.0, 4.75], [-1.0, -3.75], [0.5, 3.0]])
+    g = door_goals(p, door, 0.25, reach=10.0)
+    e = (g - p) / 10.0
+    np.testing.assert_allclose(e[0], [1.0, 0.0], atol=1e-15)  # in front: straight at it
+    np.testing.assert_allclose(e[1], [0.6, -0.8], atol=1e-15)  # to the upper end (0, 0.75)
+    np.testing.assert_allclose(e[2], [1 / np.sqrt(10), 3 / np.sqrt(10)], atol=1e-15)
+    np.testing.assert_allclose(e[3], [1.0, 0.0], atol=1e-15)  # through: along the normal
+    # A door narrower than two radii is aimed at its middle.
+    np.testing.assert_allclose(door_goals([[-1.0, 1.0]], door, 2.0, reach=np.sqrt(2)), [[0, 0]])
+    with pytest.raises(ValueError, match="door"):
+        door_goals(p, [[0.0, 0.0], [0.0, 0.0]], 0.25)
+    with pytest.raises(ValueError, match="radius"):
+        door_goals(p, door, -1.0)
+    with pytest.raises(ValueError, match="positions"):
+        door_goals([[np.nan, 0.0]], door, 0.25)

@@ -1,7 +1,8 @@
-"""Crowd demo: ORCA's circle crossing (van den Berg et al. 2011, RVO2's example) and a
-social-force bottleneck evacuation through a door (Helbing, Farkas & Vicsek 2000) as GIFs,
-and a flock of boids steering round spheres to a goal (Reynolds 1999) as a picture; with
-the numbers: collisions, mean time to goal, flow through the door."""
+"""Crowd demo: ORCA's circle crossing (van den Berg et al. 2011, RVO2's example), a
+social-force bottleneck evacuation through a door (Helbing, Farkas & Vicsek 2000) and ORCA
+agents drawn as a CMU walk cycle (kinema.walkcycle) as GIFs, and a flock of boids steering
+round spheres to a goal (Reynolds 1999) as a picture; with the numbers: collisions, mean
+time to goal, flow through the door."""
 
 from __future__ import annotations
 
@@ -10,9 +11,11 @@ from typing import Any
 
 import numpy as np
 
-from kinema.crowd import Crowd, crossings, flow_rate
+from kinema import mocap
+from kinema.crowd import Crowd, crossings, door_goals, flow_rate
 from kinema.flock import Flock
 from kinema.geometry import Sphere
+from kinema.walkcycle import WalkCycle
 
 
 def _gif(frames: list[np.ndarray], radius: float, walls: list[Any], title: str, path: Path) -> None:
@@ -93,12 +96,17 @@ def _bottleneck(out_dir: Path, quick: bool) -> dict[str, object]:
         [[-1.0 - 0.7 * (k // side), -0.7 * (side - 1) / 2 + 0.7 * (k % side)] for k in range(n)]
     )
     c.add_agents(grid + rng.uniform(-0.05, 0.05, grid.shape), np.tile([6.0, 0.0], (n, 1)))
+    # Every step: to the nearest point of the door (e⁰ points to the exit, Helbing et al.),
+    # then to (6, 0) once through.
+    door_line = [[0.0, half], [0.0, -half]]
     frames, times = [], []
     for _ in range(300 if quick else 600):
+        goals = door_goals(c.positions, door_line, 0.25)
+        goals[c.positions[:, 0] > 0.0] = [6.0, 0.0]
+        c.set_goals(goals)
         c.step(0.1)
         frames.append(c.positions.copy())
         times.append(c.time)
-    door_line = [[0.0, half], [0.0, -half]]
     found = crossings(np.array(frames), np.array(times), door_line)
     _gif(
         frames[::4], 0.25, walls, f"social forces, {door} m door", out_dir / "crowd_bottleneck.gif"
@@ -108,6 +116,55 @@ def _bottleneck(out_dir: Path, quick: bool) -> dict[str, object]:
         "bottleneck: agents out": f"{found.size} of {n}",
         "bottleneck: flow (1/s)": round(flow_rate(found), 2),
         "bottleneck: wall penetrations": m["obstacle_collisions"],
+    }
+
+
+def _walkers(out_dir: Path, quick: bool) -> dict[str, object]:
+    """ORCA agents crossing a circle, drawn as the CMU 07_05 walk cycle played by the
+    distance each has walked (kinema.walkcycle), preferred speed the clip's own."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    skeleton = mocap.read_asf(mocap.SAMPLE_DIR / "07-walk.asf")
+    cycle = WalkCycle(skeleton, mocap.read_amc(mocap.SAMPLE_DIR / "07_05-walk.amc", skeleton))
+    n = 6 if quick else 12
+    c = Crowd("orca", radius=0.3, preferred_speed=cycle.speed, perturbation=0.05)
+    a = np.arange(n) * 2 * np.pi / n
+    start = 5.0 * np.stack([np.cos(a), np.sin(a)], axis=1)
+    c.add_agents(start, -start)
+    poses = []  # (frames, agents, joints, 3)
+    for _ in range(140 if quick else 200):
+        c.step(0.1)
+        poses.append(cycle.pose(c.positions, c.velocities, c.metrics()["path_lengths"]))
+    bones = [(j, int(p)) for j, p in enumerate(skeleton.parents) if p >= 0]
+    fig = plt.figure(figsize=(5.0, 4.0))
+    ax = fig.add_subplot(projection="3d")
+
+    def draw(k: int) -> None:
+        ax.cla()
+        for joints in poses[k]:
+            for j, p in bones:
+                # World (x, y up, z) drawn as (x, z, y) so that up is up in the picture.
+                ax.plot(*joints[[j, p]][:, [0, 2, 1]].T, "k-", lw=0.8)
+        ax.set_xlim(-6, 6)
+        ax.set_ylim(-6, 6)
+        ax.set_zlim(0, 2)
+        ax.set_box_aspect((12, 12, 2), zoom=2.2)
+        ax.view_init(elev=30, azim=-60)
+        ax.set_axis_off()
+        ax.set_title(f"ORCA crossing, CMU 07_05 walk cycle, t = {0.1 * (k + 1):.1f} s")
+
+    FuncAnimation(fig, draw, frames=range(0, len(poses), 4)).save(
+        out_dir / "crowd_walkers.gif", writer=PillowWriter(fps=5)
+    )
+    plt.close(fig)
+    m = c.metrics()
+    return {
+        "walkers: agents arrived": f"{m['arrived']} of {n}",
+        "walkers: walk cycle speed (m/s)": round(cycle.speed, 3),
     }
 
 
@@ -148,6 +205,11 @@ def _flock(out_dir: Path, quick: bool) -> dict[str, object]:
 
 
 def run(out_dir: Path, quick: bool) -> dict[str, object]:
-    """Run the three scenes, write ``crowd_circle.gif``, ``crowd_bottleneck.gif`` and
-    ``flock.png``, and return their numbers."""
-    return {**_circle(out_dir, quick), **_bottleneck(out_dir, quick), **_flock(out_dir, quick)}
+    """Run the four scenes, write ``crowd_circle.gif``, ``crowd_bottleneck.gif``,
+    ``crowd_walkers.gif`` and ``flock.png``, and return their numbers."""
+    return {
+        **_circle(out_dir, quick),
+        **_bottleneck(out_dir, quick),
+        **_walkers(out_dir, quick),
+        **_flock(out_dir, quick),
+    }
