@@ -36,17 +36,6 @@ const LIDDLE_2011: [(f64, f64); 10] = [
     (2.5, 5.547),
 ];
 
-/// Goals that make agents walk to the nearest point of the far side `x = 0.2` of a door of
-/// half-width `h` narrowed by `r` at each jamb, then straight on: 100 m along that direction.
-fn door_goals(positions: &[DVec2], h: f64, r: f64, goals: &mut [DVec2]) {
-    let a = (h - r).max(0.0);
-    for (g, p) in goals.iter_mut().zip(positions) {
-        let to = v(0.2, p.y.clamp(-a, a)) - *p;
-        let e = if p.x < 0.2 && to.length() > 1e-9 { to / to.length() } else { v(1.0, 0.0) };
-        *g = *p + 100.0 * e;
-    }
-}
-
 /// A uniform number in [-1, 1) from `seed` and `i` (splitmix64).
 fn jitter(seed: u64, i: u64) -> f64 {
     let mut z = seed
@@ -98,7 +87,9 @@ fn evacuate(
     let mut goals = p.clone();
     let mut frames = vec![p];
     while (frames.len() as f64) * dt < seconds {
-        door_goals(crowd.state().positions(), h, r, &mut goals);
+        // The far side x = 0.2, from y = h to -h: agents at x < 0.2 are on its right.
+        metrics::door_goals(crowd.state().positions(), v(0.2, h), v(0.2, -h), r, 100.0, &mut goals)
+            .unwrap();
         crowd.state_mut().set_goals(&goals).unwrap();
         crowd.step(dt, 1).unwrap();
         frames.push(crowd.state().positions().to_vec());
@@ -154,23 +145,30 @@ fn bottleneck_flow_grows_with_width_as_in_the_experiments() {
 }
 
 /// "Faster is slower" (Helbing et al. 2000, Fig. 1c, 200 agents, minimum near 1.5 m/s), at
-/// reduced size: 100 agents of radius 0.3 m (Helbing's 0.25–0.35 m) through a 1 m door, two
-/// seeds. Walking faster empties the room sooner up to 3 m/s (measured: 89.9 and 88.2 s at
-/// 1.5 m/s, 68.8 and 70.7 s at 3 m/s), but at 5 m/s the agents press into the door and clog
-/// it (74.8 and 74.5 s). Full size (200 agents, 0.6–5 m/s) in `bench/bench_bottleneck.py`.
+/// reduced size: 100 agents of radius 0.3 m (Helbing's 0.25–0.35 m) through a 1 m door, the
+/// mean over four seeds of the time the last one leaves. Walking faster empties the room
+/// sooner up to 3 m/s, but at 5 m/s the agents press into the door and clog it. One run is
+/// chaotic (a change in the last bits of the goals moved seed 0 at 5 m/s from 74.8 to 69.9 s),
+/// so the test holds the mean (measured, seeds 0–3: 97.7, 93.3, 89.0, 97.8 s at 1.5 m/s; 68.8,
+/// 68.0, 69.1, 63.5 at 3; 69.9, 77.0, 81.6, 71.1 at 5: means 94.5, 67.4, 74.9). Full size
+/// (200 agents, 0.6–5 m/s) in `bench/bench_bottleneck.py`.
 #[test]
 fn faster_is_slower_at_a_narrow_door() {
-    for seed in [0, 1] {
-        let last = |speed: f64| {
-            let c = evacuate(1.0, 100, 0.3, speed, seed, 200.0, 0.0);
-            assert_eq!(c.len(), 100, "seed {seed}, {speed} m/s: {} out", c.len());
-            c[99]
-        };
-        let (calm, fast, panic) = (last(1.5), last(3.0), last(5.0));
-        eprintln!("seed {seed}: all out after {calm:.1} s at 1.5 m/s, {fast:.1} s at 3, {panic:.1} s at 5");
-        assert!(fast < 0.9 * calm, "seed {seed}: {fast} against {calm}");
-        assert!(panic > 1.03 * fast, "seed {seed}: {panic} against {fast}");
-    }
+    let mean_last = |speed: f64| {
+        const SEEDS: u64 = 4;
+        (0..SEEDS)
+            .map(|seed| {
+                let c = evacuate(1.0, 100, 0.3, speed, seed, 200.0, 0.0);
+                assert_eq!(c.len(), 100, "seed {seed}, {speed} m/s: {} out", c.len());
+                c[99]
+            })
+            .sum::<f64>()
+            / SEEDS as f64
+    };
+    let (calm, fast, panic) = (mean_last(1.5), mean_last(3.0), mean_last(5.0));
+    eprintln!("mean time all out: {calm:.1} s at 1.5 m/s, {fast:.1} s at 3, {panic:.1} s at 5");
+    assert!(fast < 0.9 * calm, "{fast} against {calm}");
+    assert!(panic > 1.05 * fast, "{panic} against {fast}");
 }
 
 /// With the time gap 0.065 s that gives Weidmann's fundamental diagram (docs/crowd.md), the

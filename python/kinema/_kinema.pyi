@@ -246,6 +246,9 @@ class Crowd:
     def stats(self) -> dict[str, int]: ...
 
 def crowd_crossings(frames: _F64, times: _F64, a: list[float], b: list[float]) -> _F64: ...
+def crowd_door_goals(
+    positions: _F64, a: list[float], b: list[float], radius: float, reach: float
+) -> _F64: ...
 
 # --- fluid ---
 @final

@@ -208,28 +208,13 @@ def door_goals(positions: Any, door: Any, radius: float, reach: float = 100.0) -
     the door narrowed by ``radius`` (m) at each end for agents on its right, along its left
     normal for those through. Set them every step (:meth:`Crowd.set_goals`): the desired
     direction then points to the exit, as in Helbing, Farkas & Vicsek 2000."""
-    p = _points(positions, "positions")
-    if not np.isfinite(p).all():
-        raise ValueError("positions: contains NaN or infinity")
+    p = np.ascontiguousarray(positions, dtype=np.float64)
     d = np.asarray(door, dtype=np.float64)
-    if d.shape != (2, 2) or not np.isfinite(d).all():
-        raise ValueError(f"door: expected two finite points, shape (2, 2), got {d.shape}")
-    length = float(np.linalg.norm(d[1] - d[0]))
-    if length == 0.0:
-        raise ValueError("door: its two points coincide")
-    u = (d[1] - d[0]) / length
-    normal = np.array([-u[1], u[0]])
-    r = real(radius, "radius")
-    if not (np.isfinite(r) and r >= 0.0):
-        raise ValueError("radius: must be finite and >= 0")
-    r = min(r, length / 2)
-    s = np.clip((p - d[0]) @ u, r, length - r)
-    to = d[0] + s[:, None] * u - p
-    dist = np.linalg.norm(to, axis=1)
-    before = ((p - d[0]) @ normal < 0.0) & (dist > 1e-9)
-    e = np.tile(normal, (len(p), 1))
-    e[before] = to[before] / dist[before, None]
-    return p + reach * e
+    if d.shape != (2, 2):
+        raise ValueError(f"door: expected two points, shape (2, 2), got {d.shape}")
+    return _kinema.crowd_door_goals(
+        p, d[0].tolist(), d[1].tolist(), real(radius, "radius"), real(reach, "reach")
+    )
 
 
 def flow_rate(times: Any) -> float:

@@ -258,6 +258,28 @@ fn crowd_crossings<'py>(
     out1(py, &found)
 }
 
+/// Goals (N, 2) in m that lead agents at `positions` (N, 2) out through the door `a`–`b`
+/// (m); `crate::crowd::metrics::door_goals`.
+#[pyfunction]
+fn crowd_door_goals<'py>(
+    py: Python<'py>,
+    positions: PyReadonlyArrayDyn<'py, f64>,
+    a: [f64; 2],
+    b: [f64; 2],
+    radius: f64,
+    reach: f64,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let p = points(&positions, "positions")?;
+    let (a, b) = (DVec2::from_array(a), DVec2::from_array(b));
+    let mut goals = vec![DVec2::ZERO; p.len()];
+    crate::crowd::metrics::door_goals(&p, a, b, radius, reach, &mut goals)?;
+    compute::<2>(py, goals.len(), &[2], |out| {
+        let out = zeroed(out);
+        out.iter_mut().zip(&goals).for_each(|(o, g)| *o = g.to_array());
+        Ok(())
+    })
+}
+
 fn points_shaped(
     arr: &PyReadonlyArrayDyn<'_, f64>,
     arg: &str,
@@ -272,5 +294,6 @@ fn points_shaped(
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(crowd_crossings, m)?)?;
+    m.add_function(wrap_pyfunction!(crowd_door_goals, m)?)?;
     m.add_class::<Crowd>()
 }

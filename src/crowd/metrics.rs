@@ -246,6 +246,50 @@ pub fn crossings(frames: &[&[DVec2]], times: &[f64], a: DVec2, b: DVec2) -> Resu
     Ok(found)
 }
 
+/// Goals (m) that lead agents at `positions` (m) out through the door `a`–`b` (m) from its
+/// right to its left (as [`crossings`] counts them): `reach` m along the direction to the
+/// nearest point of the door narrowed by `radius` (m, at most half the door) at each end for
+/// agents on its right, along its left normal for those on its left or in it. Set every step,
+/// the desired direction points to the exit, as in Helbing, Farkas & Vicsek (2000).
+///
+/// # Errors
+/// `positions` not finite; `a` and `b` equal or not finite (`door`); `radius` negative or not
+/// finite; `reach` not positive and finite; `goals` not one per position. Nothing is written then.
+pub fn door_goals(
+    positions: &[DVec2],
+    a: DVec2,
+    b: DVec2,
+    radius: f64,
+    reach: f64,
+    goals: &mut [DVec2],
+) -> Result<()> {
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(Error::invalid("positions", "contains NaN or infinity").at(i));
+    }
+    if !a.is_finite() || !b.is_finite() || a == b {
+        return Err(Error::invalid("door", "must be two distinct finite points"));
+    }
+    if !(radius.is_finite() && radius >= 0.0) {
+        return Err(Error::invalid("radius", "must be finite and >= 0"));
+    }
+    if !(reach.is_finite() && reach > 0.0) {
+        return Err(Error::invalid("reach", "must be finite and > 0"));
+    }
+    if goals.len() != positions.len() {
+        return Err(Error::invalid("goals", "expected one goal per position"));
+    }
+    let length = (b - a).length();
+    let (u, r) = ((b - a) / length, radius.min(length / 2.0));
+    let left = u.perp();
+    for (g, &p) in goals.iter_mut().zip(positions) {
+        let to = a + (p - a).dot(u).clamp(r, length - r) * u - p;
+        let dist = to.length();
+        let e = if (p - a).dot(left) < 0.0 && dist > 1e-9 { to / dist } else { left };
+        *g = p + reach * e;
+    }
+    Ok(())
+}
+
 /// Where along the move `p → q` (a fraction in `[0, 1)`) it crosses the segment `a`–`b`
 /// from right to left, if it does.
 pub fn crossing(p: DVec2, q: DVec2, a: DVec2, b: DVec2) -> Option<f64> {
