@@ -24,9 +24,10 @@ import numpy as np
 from kinema.sweep import store
 from kinema.sweep.design import RESERVED, SHAPE, check, integer, key
 
-# A batch of tasks aims at this many seconds of work, so Dask's cost per submitted task (a few
-# milliseconds of scheduling, messages and, here, writing its Parquet file) stays a few per cent.
-_BATCH_SECONDS = 0.5
+# A batch of tasks aims at this many seconds of work, so Dask's cost per submitted batch (its
+# messages, scheduling and the worker's bookkeeping: 10-25 ms of worker CPU, docs/sweep.md) stays
+# under a per cent of the work.
+_BATCH_SECONDS = 2.0
 # Batches kept in flight per worker: enough to hide the round trip. A batch is at most
 # _BATCH_SECONDS of work and at most an equal share of what is left among the batches in
 # flight, so the last batches (the tail, when workers run out of work) stay short.
@@ -185,7 +186,7 @@ def sweep(
     ``LocalCluster``, dask-jobqueue on Slurm/PBS, Kubernetes...); ``"serial"`` runs every task in
     this process, in order, with no Dask. On Dask workers kinema's own thread pool is set to one
     thread (the workers are the parallelism). Tiny tasks are sent in batches sized from the
-    measured time per task (about half a second of work per batch, at most an equal share of
+    measured time per task (about two seconds of work per batch, at most an equal share of
     what is left among the batches in flight); the numbers never depend on batching or order.
 
     ``checkpoint_dir``: a directory (made if missing) where each finished batch is written as a
