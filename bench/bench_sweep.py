@@ -8,9 +8,11 @@ All in one process, one after the other, on a machine that may be busy (ratios m
    compared with the serial time, with the workers' time outside the tasks against the time
    inside them, both as wall time (2 x wall - the tasks' own seconds) and as CPU time (the
    worker processes' CPU time, every thread, less the CPU time of the thread that ran the
-   tasks while in them; a busy machine does not inflate it), and the workers' CPU time beyond
-   what a plain ``for`` loop over the same tasks costs in this process (its thread's CPU time):
-   the sweep's own overhead, since the loop also pays for freeing each system and its rows;
+   tasks while in them; a busy machine does not inflate it); and the same CPU time outside the
+   tasks in two plain processes running a plain ``for`` loop over half the tasks each at the
+   same time (their loop thread's CPU time less the tasks'): such a loop pays for calling
+   ``build``, freeing each system and the clock reads too, so the difference is the sweep's own
+   cost per task;
 2. speed-up: ``--tasks`` cloth tasks (a 16x16 Baraff-Witkin cloth, 40 implicit steps, a
    stiffness x dt grid) run (a) in a plain loop in this process, (b) on a two-process
    ``multiprocessing.Pool`` started beforehand (one task at a time from its shared queue), (c)
@@ -78,13 +80,23 @@ def nothing_run(i: int) -> dict[str, int]:
     return {"i": i}
 
 
-def plain_loop(design: list[dict]) -> float:
-    """CPU seconds of this thread running ``chain_run(chain_build(**p))`` for every ``p``: the
-    tiny tasks without any sweep around them."""
+def _plain_loop(design: list[dict]) -> float:
+    """CPU seconds of this thread outside the tasks while running ``chain_run(chain_build(**p))``
+    for every ``p``: the tiny tasks without any sweep around them."""
+    inside = 0.0
     cpu = time.thread_time()
     for p in design:
-        chain_run(chain_build(**p))
-    return time.thread_time() - cpu
+        inside += chain_run(chain_build(**p))["cpu"]
+    return time.thread_time() - cpu - inside
+
+
+def plain_loops(design: list[dict]) -> float:
+    """CPU seconds outside the tasks of two plain processes running :func:`_plain_loop` over
+    half of ``design`` each, at the same time (as the sweep's two workers run)."""
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(2, initializer=_one_thread) as pool:
+        pool.map(time.sleep, [1.0, 1.0], chunksize=1)  # both started and imported kinema
+        return sum(pool.map(_plain_loop, [design[0::2], design[1::2]], chunksize=1))
 
 
 def _one_thread() -> None:
@@ -149,17 +161,17 @@ def main() -> None:
     worker_cpu = sum(t - worker_cpu[w] for w, t in client.run(time.process_time).items())
     busy = batched["seconds"].sum()  # worker wall time inside build + run
     busy_cpu = batched["cpu"].sum()  # the same, CPU time
-    plain = plain_loop(chains)
+    plain_outside = plain_loops(chains)
     print(
         f"{len(chains)} tasks of {serial / len(chains) * 1e3:.2f} ms: serial {serial:.2f} s, "
         f"2 workers {dask:.2f} s, speed-up {serial / dask:.2f}; worker time outside the "
         f"tasks (batched): wall {(2 * dask - busy) / busy * 100:.1f} % of the time in them "
         f"({(2 * dask - busy) / len(chains) * 1e6:.0f} µs per task), CPU "
         f"{(worker_cpu - busy_cpu) / busy_cpu * 100:.1f} % "
-        f"({(worker_cpu - busy_cpu) / len(chains) * 1e6:.0f} µs per task); beyond a plain loop "
-        f"({plain / len(chains) * 1e3:.3f} ms a task, CPU): "
-        f"{(worker_cpu - plain) / plain * 100:.1f} % ({(worker_cpu - plain) / len(chains) * 1e6:.0f} "
-        "µs per task)"
+        f"({(worker_cpu - busy_cpu) / len(chains) * 1e6:.0f} µs per task); in plain loops "
+        f"{plain_outside / busy_cpu * 100:.1f} % ({plain_outside / len(chains) * 1e6:.0f} µs); "
+        f"the sweep's own cost {(worker_cpu - busy_cpu - plain_outside) / busy_cpu * 100:.1f} % "
+        f"({(worker_cpu - busy_cpu - plain_outside) / len(chains) * 1e6:.0f} µs per task)"
     )
 
     t0 = time.perf_counter()
