@@ -9,6 +9,7 @@ mod anim;
 mod args;
 mod array;
 mod character;
+mod character_tracking;
 mod cloth;
 mod constraints;
 mod crowd;
@@ -84,6 +85,7 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     flock::register(m)?;
     rods::register(m)?;
     character::register(m)?;
+    character_tracking::register(m)?;
     anim::register(m)?;
     mocap::register(m)?;
     ik::register(m)?;
