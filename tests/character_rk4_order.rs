@@ -38,9 +38,8 @@ fn spin(dt: f64) -> Vec<f64> {
 #[test]
 fn rk4_is_fourth_order_on_a_tumbling_free_body() {
     let reference = spin(1e-4);
-    let error = |dt: f64| {
-        spin(dt).iter().zip(&reference).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
-    };
+    let error =
+        |dt: f64| spin(dt).iter().zip(&reference).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
     let (e4, e2) = (error(4e-3), error(2e-3));
     let order = (e4 / e2).log2();
     assert!((3.6..4.4).contains(&order), "observed order {order} ({e4:.2e}, {e2:.2e})");

@@ -8,8 +8,9 @@ use super::mocap::{PyBvhSkeleton, PySkeleton};
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::character::{
-    link_boxes, ragdoll, ragdoll_bvh, ArticulatedBody as Core, Body, Capsule, Gait, Integrator, Joint, Limits,
-    Model, Phase, Pose, RagdollOptions, Servo, ServoMode, Settings, State, Walker as WalkerCore,
+    link_boxes, ragdoll, ragdoll_bvh, ArticulatedBody as Core, Body, Capsule, Gait, Integrator,
+    Joint, Limits, Model, Phase, Pose, RagdollOptions, Servo, ServoMode, Settings, State,
+    Walker as WalkerCore,
 };
 use crate::error::Error;
 use crate::snapshot::Snapshot;

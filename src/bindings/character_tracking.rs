@@ -5,9 +5,7 @@ use super::args::Int;
 use super::array::{compute, zeroed};
 use super::error::detached;
 use super::mocap::{PyMotion, PySkeleton};
-use crate::character::{
-    FrameReport, RagdollOptions, Settings, Tracker as Core, TrackingOptions,
-};
+use crate::character::{FrameReport, RagdollOptions, Settings, Tracker as Core, TrackingOptions};
 use glam::DVec3;
 use numpy::PyArrayDyn;
 use pyo3::prelude::*;

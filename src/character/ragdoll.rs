@@ -189,7 +189,9 @@ pub fn ragdoll_bvh(
             None => DVec3::new(origins[i].x, origins[i].y + o.clearance - lowest, origins[i].z),
             Some(_) => j.offset * o.scale,
         };
-        model.add_body(body(&j.name, j.parent, joint, offset, shapes[i], o.density, None, o.damping))?;
+        model.add_body(body(
+            &j.name, j.parent, joint, offset, shapes[i], o.density, None, o.damping,
+        ))?;
     }
     Ok(model)
 }
