@@ -176,8 +176,8 @@ impl Solver {
             coordinate_rates(model, &sq, &sqd, &mut vel[k]);
             self.accelerations(model, state, &sq, &sqd, dt, &mut acc[k]);
         }
-        for j in 0..nv {
-            state.qd[j] += dt * (0..4).map(|k| B[k] * acc[k][j]).sum::<f64>();
+        for (j, v) in state.qd.iter_mut().enumerate() {
+            *v += dt * (0..4).map(|k| B[k] * acc[k][j]).sum::<f64>();
         }
         for (j, r) in sq.iter_mut().enumerate() {
             *r = (0..4).map(|k| B[k] * vel[k][j]).sum();
