@@ -401,6 +401,37 @@ class Walker3d:
     def names(self) -> list[str]: ...
 
 @final
+class Tracker:
+    def __new__(
+        cls,
+        skeleton: AsfSkeleton,
+        motion: AmcMotion,
+        ragdoll: list[float],
+        scale: float | None,
+        kp: float,
+        kd: float,
+        max_torque: float,
+        assist_frequency: float,
+        assist_damping: float,
+        substeps: int,
+    ) -> Tracker: ...
+    def step(self, frames: int) -> _F64: ...
+    @property
+    def q(self) -> list[float]: ...
+    @property
+    def reference_q(self) -> list[float]: ...
+    @property
+    def frame(self) -> int: ...
+    @property
+    def time(self) -> float: ...
+    @property
+    def loop_span(self) -> tuple[int, int]: ...
+    @property
+    def mass(self) -> float: ...
+    def names(self) -> list[str]: ...
+    def positions(self) -> _F64: ...
+
+@final
 class ArticulatedBody:
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]: ...
     @staticmethod
@@ -411,6 +442,16 @@ class ArticulatedBody:
         skeleton: AsfSkeleton,
         density: float,
         scale: float | None,
+        radius_ratio: float,
+        min_radius: float,
+        damping: float,
+        clearance: float,
+    ) -> ArticulatedBody: ...
+    @staticmethod
+    def ragdoll_bvh(
+        skeleton: BvhSkeleton,
+        density: float,
+        scale: float,
         radius_ratio: float,
         min_radius: float,
         damping: float,

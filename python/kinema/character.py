@@ -6,9 +6,10 @@ free (6 DOF), planar (x, y, turn about z) and fixed joints, built body by body (
 dynamics in O(n); the CRBA and RNEA for stable PD), semi-implicit Euler or RK4, joint limits
 as stiff one-sided springs, penalty ground contact on the plane y = 0 with friction, PD or
 stable PD servos (Tan, Liu & Turk 2011) and timed pushes. :meth:`Ragdoll.from_skeleton`
-builds a limp ragdoll from an ASF skeleton. :class:`Biped` is the planar 7-link biped of
-SIMBICON (Yin, Loken & van de Panne 2007) walking under its controller, or with ``dims=3``
-its 3-D biped (ball hips and ankles) under 3-D SIMBICON.
+builds a limp ragdoll from an ASF or BVH skeleton; :class:`Tracker` makes the ragdoll of a
+CMU skeleton follow a clip with PD servos and a measured root assistance. :class:`Biped`
+is the planar 7-link biped of SIMBICON (Yin, Loken & van de Panne 2007) walking under its
+controller, or with ``dims=3`` its 3-D biped (ball hips and ankles) under 3-D SIMBICON.
 
 Coordinates ``q``: per joint, a hinge angle (rad), a ball joint's quaternion ``(w, x, y,
 z)``, a free joint's position (m) and quaternion; rates ``qd``: hinge rate, a ball joint's
@@ -26,7 +27,7 @@ import numpy as np
 from kinema import _kinema
 from kinema._array import as_vector3, real
 
-__all__ = ["ArticulatedBody", "Biped", "Model", "Ragdoll"]
+__all__ = ["ArticulatedBody", "Biped", "Model", "Ragdoll", "Tracker"]
 
 _JOINTS = ("revolute", "ball", "free", "planar", "fixed")
 
@@ -302,29 +303,52 @@ class Ragdoll(ArticulatedBody):
         clearance: float = 0.0,
         **settings: Any,
     ) -> Ragdoll:
-        """The ragdoll of an ASF ``skeleton`` (:func:`kinema.mocap.read_asf`).
+        """The ragdoll of an ASF skeleton (:func:`kinema.mocap.read_asf`) or a BVH skeleton
+        (:func:`kinema.mocap.read_bvh`).
 
-        The root is a free sphere; every bone a capsule from its base to its tip of radius
-        ``max(min_radius, radius_ratio × length)`` (m) and ``density`` (kg/m³), hinged
+        ASF: the root is a free sphere; every bone a capsule from its base to its tip of
+        radius ``max(min_radius, radius_ratio × length)`` (m) and ``density`` (kg/m³), hinged
         where its ASF ``dof`` line has one rotation, a ball joint where it has two or three
-        (fixed with none), with the ASF limits. ``scale``: metres per file unit (``None``:
-        the CMU reading, ``skeleton.metres_per_unit()``). ``damping``: joint damping rate (1/s; a
-        bone's damping is this times its moment of inertia about its own axis). The ragdoll is lifted so that its lowest point is ``clearance`` (m) above
-        the ground. ``settings`` as for :class:`ArticulatedBody`.
+        (fixed with none), with the ASF limits. BVH: every joint a body, its capsule from the
+        joint to the mean of its children's offsets (and end site), radius from its longest
+        segment; a root is free, other joints are fixed, hinges or ball joints for 0, 1 or
+        2–3 rotation channels, without limits (BVH has none). ``scale``: metres per file
+        unit (``None``: for ASF the CMU reading, ``skeleton.metres_per_unit()``; required for
+        BVH, whose files do not say). ``damping``: joint damping rate (1/s; a body's damping
+        is this times its moment of inertia about its capsule's axis). The ragdoll is lifted
+        so that its lowest point is ``clearance`` (m) above the ground. ``settings`` as for
+        :class:`ArticulatedBody`.
         """
-        if not isinstance(skeleton, _kinema.AsfSkeleton):
-            raise TypeError(
-                f"skeleton: expected an ASF skeleton (kinema.mocap.read_asf), got {type(skeleton).__name__}"
-            )
-        body = _kinema.ArticulatedBody.ragdoll(
-            skeleton,
+        numbers = (
             real(density, "density"),
-            None if scale is None else real(scale, "scale"),
             real(radius_ratio, "radius_ratio"),
             real(min_radius, "min_radius"),
             real(damping, "damping"),
             real(clearance, "clearance"),
         )
+        if isinstance(skeleton, _kinema.AsfSkeleton):
+            d, ratio, rmin, damp, clear = numbers
+            body = _kinema.ArticulatedBody.ragdoll(
+                skeleton,
+                d,
+                None if scale is None else real(scale, "scale"),
+                ratio,
+                rmin,
+                damp,
+                clear,
+            )
+        elif isinstance(skeleton, _kinema.BvhSkeleton):
+            if scale is None:
+                raise ValueError("scale: a BVH file has no length unit; give metres per file unit")
+            d, ratio, rmin, damp, clear = numbers
+            body = _kinema.ArticulatedBody.ragdoll_bvh(
+                skeleton, d, real(scale, "scale"), ratio, rmin, damp, clear
+            )
+        else:
+            raise TypeError(
+                "skeleton: expected an ASF or BVH skeleton (kinema.mocap.read_asf, read_bvh), "
+                f"got {type(skeleton).__name__}"
+            )
         out = cls(body)
         if settings:
             out.configure(**settings)
@@ -556,3 +580,115 @@ class Biped:
             f"Biped(dims={self.dims}, time={self.time:.4g} s, x={self.com[0]:.3g} m, "
             f"steps={self.steps})"
         )
+
+
+class Tracker:
+    """The ragdoll of an ASF ``skeleton`` tracking ``motion`` (an AMC clip of it) frame by
+    frame (docs/character.md, "Mocap tracking").
+
+    Every hinge and ball joint gets a stable PD servo (``kp`` N m/rad, ``kd`` N m s/rad,
+    ``max_torque`` N m; ``kp=0``: limp) towards the clip's next frame; the root gets a
+    "hand of God", a critically damped spring (``assist_frequency`` ω rad/s, 0 for none,
+    ``assist_damping`` ζ) towards the clip's root, force ``m (ω² e + 2ζω ė)`` with ``m``
+    the total mass and torque likewise with the body's rotational inertia about the root.
+    Each frame is ``substeps`` steps of ``1 / (frame rate × substeps)`` s (default 4 at the
+    CMU 120 Hz: 1/480 s). The clip is lifted onto the ground and looped (between its two
+    most alike frames, see :attr:`loop_span`) when tracked longer than it lasts. Ragdoll
+    options (``density``, ``scale``, ...) as :meth:`Ragdoll.from_skeleton`.
+    """
+
+    def __init__(
+        self,
+        skeleton: Any,
+        motion: Any,
+        *,
+        kp: float = 300.0,
+        kd: float = 30.0,
+        max_torque: float = np.inf,
+        assist_frequency: float = 40.0,
+        assist_damping: float = 1.0,
+        substeps: int = 4,
+        density: float = 1000.0,
+        scale: float | None = None,
+        radius_ratio: float = 0.15,
+        min_radius: float = 0.02,
+        damping: float = 2.0,
+    ) -> None:
+        if not isinstance(skeleton, _kinema.AsfSkeleton):
+            raise TypeError(
+                "skeleton: expected an ASF skeleton (kinema.mocap.read_asf), "
+                f"got {type(skeleton).__name__}"
+            )
+        if not isinstance(motion, _kinema.AmcMotion):
+            raise TypeError(
+                f"motion: expected a motion (kinema.mocap.read_amc), got {type(motion).__name__}"
+            )
+        ragdoll = [
+            real(density, "density"),
+            real(radius_ratio, "radius_ratio"),
+            real(min_radius, "min_radius"),
+            real(damping, "damping"),
+            0.0,
+        ]
+        self._t = _kinema.Tracker(
+            skeleton,
+            motion,
+            ragdoll,
+            None if scale is None else real(scale, "scale"),
+            real(kp, "kp"),
+            real(kd, "kd"),
+            real(max_torque, "max_torque"),
+            real(assist_frequency, "assist_frequency"),
+            real(assist_damping, "assist_damping"),
+            _index(substeps, "substeps"),
+        )
+
+    def step(self, frames: int = 1) -> dict[str, np.ndarray]:
+        """Track ``frames`` frames; return per frame ``time`` (s, at the frame's end),
+        ``root_error`` (m, root to the clip's root), ``joint_error`` (rad, RMS over hinge and
+        ball joints of the angle to the clip's), ``assist_force`` (N) and
+        ``assist_torque`` (N m) (means over the frame's steps). A frame that diverges raises
+        :class:`kinema.SimulationError` and is undone; the frames before it stay done."""
+        rows = self._t.step(_index(frames, "frames"))
+        keys = ("time", "root_error", "joint_error", "assist_force", "assist_torque")
+        return {k: rows[:, i].copy() for i, k in enumerate(keys)}
+
+    @property
+    def q(self) -> np.ndarray:
+        """The ragdoll's coordinates ``(nq,)`` (a copy; layout of :class:`ArticulatedBody`)."""
+        return np.array(self._t.q)
+
+    @property
+    def reference_q(self) -> np.ndarray:
+        """The clip's coordinates for the current frame ``(nq,)`` (a copy)."""
+        return np.array(self._t.reference_q)
+
+    @property
+    def frame(self) -> int:
+        """Frames tracked so far."""
+        return int(self._t.frame)
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return float(self._t.time)
+
+    @property
+    def loop_span(self) -> tuple[int, int]:
+        """``(a, b)``: after frame ``b - 1`` the clip goes on from frame ``a``."""
+        a, b = self._t.loop_span
+        return int(a), int(b)
+
+    @property
+    def mass(self) -> float:
+        """Total mass of the ragdoll (kg)."""
+        return float(self._t.mass)
+
+    @property
+    def names(self) -> list[str]:
+        """Body names, in order."""
+        return list(self._t.names())
+
+    def positions(self) -> np.ndarray:
+        """World positions of the body frames ``(n, 3)`` (m)."""
+        return self._t.positions()

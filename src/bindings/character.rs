@@ -4,12 +4,13 @@
 use super::args::Int;
 use super::array::{compute, zeroed};
 use super::error::detached;
-use super::mocap::PySkeleton;
+use super::mocap::{PyBvhSkeleton, PySkeleton};
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::character::{
-    link_boxes, ragdoll, ArticulatedBody as Core, Body, Capsule, Gait, Integrator, Joint, Limits,
-    Model, Phase, Pose, RagdollOptions, Servo, ServoMode, Settings, State, Walker as WalkerCore,
+    link_boxes, ragdoll, ragdoll_bvh, ArticulatedBody as Core, Body, Capsule, Gait, Integrator,
+    Joint, Limits, Model, Phase, Pose, RagdollOptions, Servo, ServoMode, Settings, State,
+    Walker as WalkerCore,
 };
 use crate::error::Error;
 use crate::snapshot::Snapshot;
@@ -158,6 +159,25 @@ impl ArticulatedBody {
         let options =
             RagdollOptions { density, scale, radius_ratio, min_radius, damping, clearance };
         let body = Core::new(ragdoll(sk, &options, Settings::default())?);
+        Ok(ArticulatedBody { body, saved: None })
+    }
+
+    /// The ragdoll of a BVH `skeleton` (`scale`: metres per file unit, required since BVH
+    /// files do not say; see `kinema.character.Ragdoll.from_skeleton`).
+    #[staticmethod]
+    #[allow(clippy::too_many_arguments)]
+    fn ragdoll_bvh(
+        skeleton: PyRef<'_, PyBvhSkeleton>,
+        density: f64,
+        scale: f64,
+        radius_ratio: f64,
+        min_radius: f64,
+        damping: f64,
+        clearance: f64,
+    ) -> PyResult<Self> {
+        let options =
+            RagdollOptions { density, scale, radius_ratio, min_radius, damping, clearance };
+        let body = Core::new(ragdoll_bvh(&skeleton.skeleton, &options, Settings::default())?);
         Ok(ArticulatedBody { body, saved: None })
     }
 

@@ -21,7 +21,7 @@ pub struct PySkeleton {
 /// `kinema.mocap.read_bvh`.
 #[pyclass(module = "kinema._kinema", name = "AmcMotion", frozen)]
 pub struct PyMotion {
-    motion: Motion,
+    pub(super) motion: Motion,
     /// The skeleton the motion was read for (or edited with), for `resample`.
     skeleton: Py<PyAny>,
 }
@@ -380,7 +380,7 @@ fn mocap_write_amc(skeleton: &PySkeleton, motion: &PyMotion) -> PyResult<String>
 /// A BVH hierarchy; see `kinema.mocap.read_bvh`.
 #[pyclass(module = "kinema._kinema", name = "BvhSkeleton", frozen)]
 pub struct PyBvhSkeleton {
-    skeleton: BvhSkeleton,
+    pub(super) skeleton: BvhSkeleton,
 }
 
 #[pymethods]

@@ -10,6 +10,7 @@ mod args;
 mod array;
 mod biped3d;
 mod character;
+mod character_tracking;
 mod cloth;
 mod constraints;
 mod crowd;
@@ -86,6 +87,7 @@ fn _kinema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     rods::register(m)?;
     character::register(m)?;
     biped3d::register(m)?;
+    character_tracking::register(m)?;
     anim::register(m)?;
     mocap::register(m)?;
     ik::register(m)?;

@@ -18,12 +18,14 @@
 //! - `forces.rs`: damping, joint limits, pushes, penalty ground contact with friction.
 //! - `servo.rs`: PD and stable PD (Tan et al. 2011, eq. 5–8).
 //! - `solver.rs`: the [`Solver`] (forward dynamics of a step, symplectic Euler, RK4).
-//! - `ragdoll.rs`: a model from an ASF skeleton.
+//! - `ragdoll.rs`: a model from an ASF or a BVH skeleton.
 //! - `biped.rs`: the planar 7-link biped of SIMBICON (Yin et al. 2007, Table 1).
 //! - `simbicon.rs`: the SIMBICON controller and the [`Walker`] (Yin et al. 2007, §3).
 //! - `biped3d.rs`: the 3-D biped of SIMBICON (torso, ball hips, hinge knees, ball ankles).
 //! - `simbicon3d.rs`: SIMBICON in 3-D and the [`Walker3d`] (Yin et al. 2007, §5).
 //! - `snapshot.rs`: snapshots of states and of [`ArticulatedBody`].
+//! - `tracking.rs`: a ragdoll tracking a mocap clip with PD servos and a measured root
+//!   assistance ([`Tracker`]).
 
 mod biped;
 mod biped3d;
@@ -39,17 +41,19 @@ mod snapshot;
 mod solver;
 pub mod spatial;
 mod state;
+mod tracking;
 
 pub use biped::{hip_height, link_boxes, planar_biped, LEFT, RIGHT, TORSO};
 pub use biped3d::{biped3d, link_boxes_3d, FOOT_WIDTH, HIP_WIDTH, LEFT_3D, RIGHT_3D, TORSO_3D};
 pub use dynamics::Tree;
 pub use joints::{difference, integrate};
 pub use model::{Body, Capsule, Integrator, Joint, Limits, Model, Servo, ServoMode, Settings};
-pub use ragdoll::{ragdoll, RagdollOptions};
+pub use ragdoll::{ragdoll, ragdoll_bvh, RagdollOptions};
 pub use simbicon::{Gait, Phase, Pose, Walker};
 pub use simbicon3d::{Coronal, Walker3d};
 pub use solver::Solver;
 pub use state::{Push, State};
+pub use tracking::{FrameReport, Tracker, TrackingOptions};
 
 use crate::error::Result;
 use glam::DVec3;

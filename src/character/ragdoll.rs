@@ -16,10 +16,19 @@
 //! - joint damping: `damping` (1/s) times the capsule's moment about its own axis (its
 //!   smallest principal moment about the joint: explicit steps stay stable);
 //! - the whole ragdoll is lifted so that its lowest point at rest is `clearance` above y = 0.
+//!
+//! A BVH skeleton ([`ragdoll_bvh`]) has joints rather than bones: a joint's rotation turns
+//! the segments to its children (and to its end site), so joint `j` is a body whose frame
+//! sits at the joint with world axes at rest (BVH's rest pose has every rotation zero), and
+//! its capsule runs from the joint to the mean of its children's offsets and its end site
+//! (a sphere where they cancel), radius `max(min_radius, radius_ratio × the longest
+//! segment)`. A root is a free body; other joints are fixed without rotation channels, a
+//! hinge about the channel's axis with one, a ball joint with two or three. BVH has no
+//! limits: the joints are unlimited. Position channels below a root are not simulated.
 
 use super::model::{Body, Capsule, Joint, Limits, Model, Settings};
 use crate::error::{Error, Result};
-use crate::mocap::{Dof, Skeleton};
+use crate::mocap::{BvhSkeleton, Dof, Skeleton};
 use glam::{DQuat, DVec3};
 
 /// How [`ragdoll`] sizes bodies and joints.
@@ -62,21 +71,7 @@ impl Default for RagdollOptions {
 /// >= 0 (`min_radius`, `damping`, `clearance`), named.
 pub fn ragdoll(skeleton: &Skeleton, options: &RagdollOptions, settings: Settings) -> Result<Model> {
     let o = options;
-    for (name, v, zero_ok) in [
-        ("density", o.density, false),
-        ("scale", o.scale, false),
-        ("radius_ratio", o.radius_ratio, false),
-        ("min_radius", o.min_radius, true),
-        ("damping", o.damping, true),
-        ("clearance", o.clearance, true),
-    ] {
-        if !(v.is_finite() && (v > 0.0 || (zero_ok && v == 0.0))) {
-            return Err(Error::invalid(
-                name,
-                if zero_ok { "must be finite and >= 0" } else { "must be finite and > 0" },
-            ));
-        }
-    }
+    check_options(o)?;
     let radius = |len: f64| (o.radius_ratio * len).max(o.min_radius);
     let tips: Vec<DVec3> =
         skeleton.bones.iter().map(|b| b.direction * b.length * o.scale).collect();
@@ -116,6 +111,86 @@ pub fn ragdoll(skeleton: &Skeleton, options: &RagdollOptions, settings: Settings
             o.density,
             limits,
             o.damping,
+        ))?;
+    }
+    Ok(model)
+}
+
+/// The options' checks (errors as documented on [`ragdoll`]).
+fn check_options(o: &RagdollOptions) -> Result<()> {
+    for (name, v, zero_ok) in [
+        ("density", o.density, false),
+        ("scale", o.scale, false),
+        ("radius_ratio", o.radius_ratio, false),
+        ("min_radius", o.min_radius, true),
+        ("damping", o.damping, true),
+        ("clearance", o.clearance, true),
+    ] {
+        if !(v.is_finite() && (v > 0.0 || (zero_ok && v == 0.0))) {
+            return Err(Error::invalid(
+                name,
+                if zero_ok { "must be finite and >= 0" } else { "must be finite and > 0" },
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The ragdoll of a BVH `skeleton` (rules in the module documentation) with `settings`;
+/// `options.scale` is metres per file unit (BVH files do not say).
+///
+/// # Errors
+/// Those of [`ragdoll`]; a skeleton that [`BvhSkeleton::validate`] refuses.
+pub fn ragdoll_bvh(
+    skeleton: &BvhSkeleton,
+    options: &RagdollOptions,
+    settings: Settings,
+) -> Result<Model> {
+    let o = options;
+    check_options(o)?;
+    skeleton.validate()?;
+    let joints = &skeleton.joints;
+    // Each joint's segments (m, its frame): to its children and its end site.
+    let mut segments: Vec<Vec<DVec3>> =
+        joints.iter().map(|j| j.end_site.map(|e| e * o.scale).into_iter().collect()).collect();
+    for j in joints {
+        if let Some(p) = j.parent {
+            segments[p].push(j.offset * o.scale);
+        }
+    }
+    let shapes: Vec<Capsule> = segments
+        .iter()
+        .map(|s| {
+            let longest = s.iter().map(|v| v.length()).fold(0.0, f64::max);
+            let tip = s.iter().sum::<DVec3>() / s.len().max(1) as f64;
+            Capsule { a: DVec3::ZERO, b: tip, radius: (o.radius_ratio * longest).max(o.min_radius) }
+        })
+        .collect();
+    let mut origins = vec![DVec3::ZERO; joints.len()];
+    for (i, j) in joints.iter().enumerate() {
+        origins[i] = j.parent.map_or(j.offset * o.scale, |p| origins[p] + j.offset * o.scale);
+    }
+    let lowest = origins
+        .iter()
+        .zip(&shapes)
+        .map(|(p, c)| p.y + c.b.y.min(0.0) - c.radius)
+        .fold(f64::INFINITY, f64::min);
+    let mut model = Model::new(settings);
+    for (i, j) in joints.iter().enumerate() {
+        let rotations: Vec<Dof> =
+            j.channels.iter().copied().filter(|c| matches!(c, Dof::Rotation(_))).collect();
+        let joint = match (j.parent, rotations.as_slice()) {
+            (None, _) => Joint::Free,
+            (_, []) => Joint::Fixed,
+            (_, [Dof::Rotation(a)]) => Joint::Revolute { axis: DVec3::AXES[*a] },
+            _ => Joint::Ball,
+        };
+        let offset = match j.parent {
+            None => DVec3::new(origins[i].x, origins[i].y + o.clearance - lowest, origins[i].z),
+            Some(_) => j.offset * o.scale,
+        };
+        model.add_body(body(
+            &j.name, j.parent, joint, offset, shapes[i], o.density, None, o.damping,
         ))?;
     }
     Ok(model)

@@ -2,13 +2,16 @@
 //! ([`Solver::accelerations`]: passive forces, servos, then the ABA or the stable-PD solve)
 //! and the two integrators of [`Integrator`].
 //!
-//! Runge–Kutta 4 follows MuJoCo's `mj_RungeKutta`: the stages are
-//! `(q ⊕ cᵢ dt vᵢ₋₁, q̇ + cᵢ dt aᵢ₋₁)`, and the step moves `q` once from its start by the
-//! weighted stage velocities, `q ⊕ dt Σ bᵢ vᵢ`, and `q̇` by `dt Σ bᵢ aᵢ`.
+//! Runge–Kutta 4 is the classical one on the coordinates and rates: the stages are
+//! `(q + cᵢ dt ṙᵢ₋₁, q̇ + cᵢ dt aᵢ₋₁)` and the step `q + dt Σ bᵢ ṙᵢ`, `q̇ + dt Σ bᵢ aᵢ`, with
+//! `ṙ` the coordinates' time derivative (quaternions: `½ q ⊗ ω`, components renormalised).
+//! Moving quaternions by the exponential map of the weighted stage velocities (MuJoCo 3's
+//! `mj_RungeKutta`) is only second order for rotations whose axis turns; this is fourth order
+//! and agrees with MuJoCo 4's RK4 (`tests/python/test_character.py`).
 
 use super::dynamics::Tree;
 use super::forces::{ground_force, passive};
-use super::joints::integrate;
+use super::joints::{advance, coordinate_rates, integrate};
 use super::model::{Integrator, Model, ServoMode};
 use super::servo::{self, ServoWork};
 use super::state::State;
@@ -21,7 +24,8 @@ pub struct Solver {
     tree: Tree,
     servo: ServoWork,
     tau: Vec<f64>,
-    /// RK4: stage positions and rates, and the four stages' rates and accelerations.
+    /// RK4: stage positions and rates, and the four stages' coordinate rates (`nq`) and
+    /// accelerations.
     stage_q: Vec<f64>,
     stage_qd: Vec<f64>,
     vel: [Vec<f64>; 4],
@@ -157,26 +161,28 @@ impl Solver {
         sq.resize(nq, 0.0);
         sqd.resize(nv, 0.0);
         for k in 0..4 {
-            vel[k].resize(nv, 0.0);
+            vel[k].resize(nq, 0.0);
             acc[k].resize(nv, 0.0);
             if k == 0 {
                 sq.copy_from_slice(&state.q);
                 sqd.copy_from_slice(&state.qd);
             } else {
-                integrate(model, &state.q, &vel[k - 1], C[k] * dt, &mut sq);
+                sq.copy_from_slice(&state.q);
+                advance(model, &vel[k - 1], C[k] * dt, &mut sq);
                 for j in 0..nv {
                     sqd[j] = state.qd[j] + C[k] * dt * acc[k - 1][j];
                 }
             }
-            vel[k].copy_from_slice(&sqd);
+            coordinate_rates(model, &sq, &sqd, &mut vel[k]);
             self.accelerations(model, state, &sq, &sqd, dt, &mut acc[k]);
         }
-        for j in 0..nv {
-            sqd[j] = (0..4).map(|k| B[k] * vel[k][j]).sum();
-            state.qd[j] += dt * (0..4).map(|k| B[k] * acc[k][j]).sum::<f64>();
+        for (j, v) in state.qd.iter_mut().enumerate() {
+            *v += dt * (0..4).map(|k| B[k] * acc[k][j]).sum::<f64>();
         }
-        sq.copy_from_slice(&state.q);
-        integrate(model, &sq, &sqd, dt, &mut state.q);
+        for (j, r) in sq.iter_mut().enumerate() {
+            *r = (0..4).map(|k| B[k] * vel[k][j]).sum();
+        }
+        advance(model, &sq, dt, &mut state.q);
         (self.vel, self.acc, self.stage_q, self.stage_qd) = (vel, acc, sq, sqd);
     }
 }

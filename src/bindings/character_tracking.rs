@@ -1,0 +1,124 @@
+//! `kinema.character.Tracker`: a ragdoll tracking an ASF/AMC clip (mocap tracking with a
+//! measured root assistance, `crate::character::Tracker`).
+
+use super::args::Int;
+use super::array::{compute, zeroed};
+use super::error::detached;
+use super::mocap::{PyMotion, PySkeleton};
+use crate::character::{FrameReport, RagdollOptions, Settings, Tracker as Core, TrackingOptions};
+use glam::DVec3;
+use numpy::PyArrayDyn;
+use pyo3::prelude::*;
+
+/// A ragdoll tracking a clip; see `kinema.character.Tracker`.
+#[pyclass(module = "kinema._kinema")]
+pub struct Tracker {
+    tracker: Core,
+}
+
+#[pymethods]
+impl Tracker {
+    /// The tracker of `motion` by the ragdoll of `skeleton` (ragdoll options as
+    /// `ArticulatedBody.ragdoll`; gains and stepping as `TrackingOptions`).
+    #[new]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        skeleton: PyRef<'_, PySkeleton>,
+        motion: PyRef<'_, PyMotion>,
+        ragdoll: [f64; 5],
+        scale: Option<f64>,
+        kp: f64,
+        kd: f64,
+        max_torque: f64,
+        assist_frequency: f64,
+        assist_damping: f64,
+        substeps: Int,
+    ) -> PyResult<Self> {
+        let sk = &skeleton.skeleton;
+        let [density, radius_ratio, min_radius, damping, clearance] = ragdoll;
+        let scale = scale.unwrap_or_else(|| sk.metres_per_unit());
+        let ragdoll =
+            RagdollOptions { density, scale, radius_ratio, min_radius, damping, clearance };
+        let options = TrackingOptions {
+            kp,
+            kd,
+            max_torque,
+            assist_frequency,
+            assist_damping,
+            substeps: substeps.count("substeps")?,
+        };
+        let tracker = Core::new(sk, &motion.motion, &ragdoll, Settings::default(), options)?;
+        Ok(Tracker { tracker })
+    }
+
+    /// Track `frames` frames (GIL released); per frame `[time, root_error, joint_error,
+    /// assist_force, assist_torque]` (frames, 5).
+    fn step<'py>(&mut self, py: Python<'py>, frames: Int) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let frames = frames.count("frames")?;
+        let tracker = &mut self.tracker;
+        let rows: Vec<FrameReport> =
+            detached(py, || (0..frames).map(|_| tracker.step()).collect())?;
+        compute::<5>(py, rows.len(), &[5], |out| {
+            let out = zeroed(out);
+            for (o, r) in out.iter_mut().zip(&rows) {
+                *o = [r.time, r.root_error, r.joint_error, r.assist_force, r.assist_torque];
+            }
+            Ok(())
+        })
+    }
+
+    /// The ragdoll's coordinates (nq,) (a copy).
+    #[getter]
+    fn q(&self) -> Vec<f64> {
+        self.tracker.body().state().q().to_vec()
+    }
+
+    /// The reference coordinates of the current frame (nq,) (a copy).
+    #[getter]
+    fn reference_q(&self) -> Vec<f64> {
+        self.tracker.reference_q().to_vec()
+    }
+
+    /// Frames tracked so far.
+    #[getter]
+    fn frame(&self) -> usize {
+        self.tracker.frame()
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.tracker.body().state().time()
+    }
+
+    /// `(a, b)`: the clip's frames `a..b` repeat after frame `b − 1`.
+    #[getter]
+    fn loop_span(&self) -> (usize, usize) {
+        self.tracker.loop_span()
+    }
+
+    /// Total mass of the ragdoll (kg).
+    #[getter]
+    fn mass(&self) -> f64 {
+        self.tracker.body().model().mass()
+    }
+
+    /// Body names, in order.
+    fn names(&self) -> Vec<String> {
+        self.tracker.body().model().bodies().iter().map(|b| b.name.clone()).collect()
+    }
+
+    /// World positions of the body frames (n, 3) in m.
+    fn positions<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let p: Vec<DVec3> = self.tracker.body_mut().kinematics().positions().to_vec();
+        compute::<3>(py, p.len(), &[3], |out| {
+            let out = zeroed(out);
+            out.iter_mut().zip(&p).for_each(|(o, v)| *o = v.to_array());
+            Ok(())
+        })
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Tracker>()
+}

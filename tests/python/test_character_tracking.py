@@ -1,0 +1,70 @@
+"""kinema.character.Tracker (mocap tracking with a measured root assistance) and ragdolls
+from BVH skeletons, from Python."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kinema import character, mocap
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
+# Measured over 10 s at the defaults (tests/character_tracking.rs): root error at most
+# 0.10 m, joint error 0.094 rad RMS on average; a limp ragdoll: 1.2-1.5 rad.
+ROOT_BOUND, JOINT_BOUND, LIMP_BOUND = 0.15, 0.15, 0.8
+
+
+@pytest.fixture(scope="module")
+def walk() -> tuple[object, object]:
+    sk = mocap.read_asf(DATA / "07-walk.asf")
+    return sk, mocap.read_amc(DATA / "07_05-walk.amc", sk)
+
+
+def test_tracking_reports_every_frame_and_follows_the_clip(walk):
+    sk, motion = walk
+    t = character.Tracker(sk, motion)
+    r = t.step(240)  # 2 s at 120 Hz
+    assert set(r) == {"time", "root_error", "joint_error", "assist_force", "assist_torque"}
+    assert all(v.shape == (240,) for v in r.values())
+    assert r["time"][-1] == pytest.approx(2.0)
+    assert t.frame == 240 and t.time == pytest.approx(2.0)
+    assert r["root_error"].max() < ROOT_BOUND
+    assert r["joint_error"].mean() < JOINT_BOUND
+    assert np.all(np.isfinite(r["assist_force"])) and r["assist_force"].mean() > 0.0
+    assert t.q.shape == t.reference_q.shape == (len(t.q),)
+    assert t.positions().shape == (31, 3)
+
+
+def test_a_limp_ragdoll_does_not_follow_the_joints(walk):
+    sk, motion = walk
+    r = character.Tracker(sk, motion, kp=0.0, kd=0.0, substeps=8).step(240)
+    assert r["joint_error"][120:].mean() > LIMP_BOUND
+
+
+def test_tracker_arguments_are_named(walk):
+    sk, motion = walk
+    with pytest.raises(ValueError, match="kp"):
+        character.Tracker(sk, motion, kp=-1.0)
+    with pytest.raises(ValueError, match="substeps"):
+        character.Tracker(sk, motion, substeps=0)
+    with pytest.raises(TypeError, match="motion"):
+        character.Tracker(sk, "walk")
+    with pytest.raises(TypeError, match="skeleton"):
+        character.Tracker(motion, motion)
+    with pytest.raises(ValueError, match="motion"):
+        character.Tracker(sk, mocap.read_bvh(DATA / "01_01.bvh")[1])
+
+
+def test_a_bvh_ragdoll_has_a_body_per_joint_and_falls_limp():
+    sk, _ = mocap.read_bvh(DATA / "01_01.bvh")
+    with pytest.raises(ValueError, match="scale"):
+        character.Ragdoll.from_skeleton(sk)
+    r = character.Ragdoll.from_skeleton(sk, scale=0.0254 / 0.45, clearance=0.3)
+    assert len(r) == len(sk.joint_names) and r.names == list(sk.joint_names)
+    assert r.nv == 6 + 3 * (len(r) - 1)  # every CMU BVH joint has three rotation channels
+    e0 = sum(r.energy())
+    r.step(1 / 960, 960)  # unlimited joints: 1/480 s diverged after 0.8 s (docs, Known limits)
+    assert np.all(np.isfinite(r.q)) and sum(r.energy()) < e0
+    assert r.com[1] < 0.3
