@@ -1,6 +1,8 @@
 //! The fluid solver: neighbour lists, densities, DFSPH factors and every scratch buffer. It
-//! carries nothing a later step reads: [`Solver::step`] copies the state in, steps the copy
-//! and writes it back only when every substep succeeded.
+//! carries nothing a later step's result depends on (a later step may reuse the Verlet
+//! lists' candidates, but its lists are exact and in index order either way):
+//! [`Solver::step`] copies the state in, steps the copy and writes it back only when every
+//! substep succeeded.
 //!
 //! All quantities are per unit rest density (SPlisHSPlasH's formulation): `ρ̂ = ρ/ρ₀`,
 //! fluid particle volume `V = m/ρ₀`, boundary volume `V_b = ψ_b/ρ₀`, and `κ = p/ρ₀`.
