@@ -97,6 +97,24 @@ fn column_at_rest_keeps_its_height_and_hydrostatic_pressure() {
     assert!(vmax < 0.5, "{vmax}");
 }
 
+/// A column 25 particles deep at a spacing of 5 mm stays at rest with the default settings.
+/// With substeps of `max_dt` = 5 ms (`|g| dt² / s` = 0.049, allowed before session 20) it
+/// blew up in its third frame (mean speed 3.7 m/s); docs/fluid.md, "Speed".
+#[test]
+fn fine_column_at_rest_stays_at_rest() {
+    let s = 0.005;
+    let mut fluid = Fluid::new(Settings::new(s)).unwrap();
+    tank(&mut fluid, [0.0; 3], [8.0 * s, 37.5 * s, 4.0 * s]);
+    fluid.add_block(DVec3::ZERO, DVec3::new(8.0 * s, 25.0 * s, 4.0 * s), DVec3::ZERO).unwrap();
+    for frame in 0..6 {
+        fluid.step(1.0 / 60.0, 1).unwrap();
+        let v = fluid.state().velocities();
+        let mean = v.iter().map(|v| v.length()).sum::<f64>() / v.len() as f64;
+        eprintln!("frame {frame}: {} substeps, mean speed {mean:.3} m/s", fluid.stats.substeps);
+        assert!(mean < 0.2, "frame {frame}: mean speed {mean} m/s");
+    }
+}
+
 /// Martin & Moyce (1952), "An experimental study of the collapse of liquid columns on a
 /// rigid horizontal plane", Phil. Trans. R. Soc. A 244, 312–324, fig. 3: the surge front
 /// `Z/L` against `T = t sqrt(2g/L)` of a column of width `L = a = 2.25 in` and height `2L`

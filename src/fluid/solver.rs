@@ -37,6 +37,11 @@ const SPARSE: usize = 20;
 /// (`solver_tests.rs`); SPlisHSPlasH 2.x and IISPH (Ihmsen et al. 2014) use 0.5 too.
 const RELAXATION: f64 = 0.5;
 
+/// The largest `|g| dt² / spacing` of a substep. Measured (docs/fluid.md, "Speed"): a column
+/// at rest 25 particles deep stays at rest at 0.008 and 0.025 and blows up at 0.049 (the
+/// earlier limit, `cfl` = 0.4 here, let `max_dt` = 5 ms reach 0.049 at a spacing of 5 mm).
+const GRAVITY_STEP: f64 = 0.02;
+
 /// The Verlet skin (`neighbours.rs`) is chosen so that the candidates last about this many
 /// substeps at the current speeds (each point may move half the skin).
 const LIST_SUBSTEPS: f64 = 8.0;
@@ -101,7 +106,7 @@ impl Solver {
     /// Advance `state` by `steps` frames of `dt` seconds, each in substeps of the CFL
     /// condition (at most `max_dt`, at most `cfl` spacings per substep for the fastest
     /// particle or emitter, and
-    /// `dt ≤ sqrt(cfl spacing / |g|)`), frames split evenly into substeps.
+    /// `dt ≤ sqrt(GRAVITY_STEP spacing / |g|)`), frames split evenly into substeps.
     ///
     /// # Errors
     /// `dt` not finite and positive; a frame needing more than `max_substeps`
@@ -243,7 +248,7 @@ impl Solver {
             limit = limit.min(s.cfl * s.spacing / speed);
         }
         if g > 0.0 {
-            limit = limit.min((s.cfl * s.spacing / g).sqrt());
+            limit = limit.min((GRAVITY_STEP * s.spacing / g).sqrt());
         }
         (limit, fastest)
     }
