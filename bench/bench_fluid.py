@@ -14,8 +14,13 @@ the same CFL limit, tolerances and XSPH viscosity). SPlisHSPlasH runs in a child
 (`OMP_NUM_THREADS=1`, the system's `libGLdispatch.so.0` preloaded: the wheel's own clashes),
 since it can only be run to its scene's end and crashes when its model is read afterwards.
 
+With `--scaling`, kinema's DFSPH alone at its defaults on the same dam break with about 10k
+and 100k fluid particles (L / s = 24 and 50; `--million` adds 1M, L / s = 108, which needs
+several GB and minutes a frame), ms per frame after the first.
+
 Run: python bench/bench_fluid.py [--spacings 10 20] [--frames 6] [--splishsplash 0.5]
-(spacings as L / s; 10 is 800 fluid particles, 20 6,400, 40 51,200.)
+[--scaling [--million]] (spacings as L / s; the fluid has 0.8 (L / s)³ particles: 10 is 800,
+20 6,400, 40 51,200.)
 """
 
 from __future__ import annotations
@@ -331,17 +336,44 @@ def side_by_side(spacings: list[int], seconds: float) -> None:
             )
 
 
+def scaling(frames: int, million: bool) -> None:
+    """Print kinema's DFSPH at its defaults on the dam break at 10k, 100k (and 1M) particles."""
+    threads = os.environ.get("KINEMA_NUM_THREADS", "all")
+    print(
+        f"DFSPH scaling, {frames} frames of 1/60 s after the first; threads {threads}; load {os.getloadavg()[0]:.1f}"
+    )
+    print(
+        "| L / s | fluid / boundary particles | ms/frame, CPU ms (substeps) | "
+        "µs of CPU per particle and substep | compression % |"
+    )
+    print("|---:|---:|---:|---:|---:|")
+    for per_l in (24, 50, 108) if million else (24, 50):
+        fluid = dam(L / per_l, "dfsph")
+        ms, cpu, substeps, err = kinema_frames(fluid, frames)
+        n, nb = len(fluid), len(fluid.boundary_particles)
+        print(
+            f"| {per_l} | {n} / {nb} | {ms:.0f}, {cpu:.0f} ({substeps:.0f}) "
+            f"| {1e3 * cpu / (n * substeps):.2f} | {err:.3f} |",
+            flush=True,
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--spacings", type=int, nargs="+", default=[10, 20])
     parser.add_argument("--frames", type=int, default=6)
     parser.add_argument("--splishsplash", type=float, metavar="SECONDS")
+    parser.add_argument("--scaling", action="store_true")
+    parser.add_argument("--million", action="store_true")
     parser.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         splishsplash_child(int(args.child[0]), float(args.child[1]), args.child[2])
     if args.splishsplash:
         side_by_side(args.spacings, args.splishsplash)
+        return
+    if args.scaling:
+        scaling(args.frames, args.million)
         return
     print(
         f"threads: kinema {os.environ.get('KINEMA_NUM_THREADS', 'all')}, numpy 1; load {os.getloadavg()[0]:.1f}"

@@ -1,6 +1,6 @@
 //! The particle fluid (`kinema::fluid`): the mass rule, a column at rest (incompressibility,
-//! hydrostatic pressure), the dam break against Martin & Moyce (1952), several states of one
-//! model, and the extremes.
+//! hydrostatic pressure), the dam break against Martin & Moyce (1952) and Koshizuka & Oka
+//! (1996), several states of one model, and the extremes.
 
 use glam::DVec3;
 use kinema::fluid::{Fluid, Kernel, Model, Pressure, Settings, Solver, State, Wall};
@@ -40,8 +40,8 @@ fn lattice_at_the_spacing_has_the_rest_density() {
 /// A water column filling the bottom of a closed tank, at rest: with DFSPH the mean density
 /// error after each substep's solve stays under the 0.05 % tolerance, the column keeps its
 /// height (after the first 0.5 s, in which the free surface's lattice settles: particles of
-/// the top layers, short of neighbours, sink into the gaps below), and the pressure at the
-/// bottom is `ρ g h`.
+/// the top layers, short of neighbours, sink into the gaps below), and the pressure, averaged
+/// over the last 0.5 s, grows with depth as `ρ g`.
 #[test]
 fn column_at_rest_keeps_its_height_and_hydrostatic_pressure() {
     let (s, w, h, d) = (0.02, 0.2, 0.4, 0.08);
@@ -54,6 +54,8 @@ fn column_at_rest_keeps_its_height_and_hydrostatic_pressure() {
     };
     let mut iterations = 0;
     let mut h0 = 0.0;
+    // Each particle's height and pressure summed over the last 30 frames.
+    let mut sums = vec![(0.0, 0.0); fluid.state().len()];
     for frame in 0..90 {
         fluid.step(1.0 / 60.0, 1).unwrap();
         let st = fluid.stats;
@@ -66,19 +68,20 @@ fn column_at_rest_keeps_its_height_and_hydrostatic_pressure() {
             let y = height(&fluid);
             assert!((y - h0).abs() <= 0.005 * h0, "frame {frame}: height {y} vs {h0}");
         }
+        if frame >= 60 {
+            let now = fluid.state().positions().iter().zip(fluid.pressures());
+            for (sum, (x, p)) in sums.iter_mut().zip(now) {
+                *sum = (sum.0 + x.y / 30.0, sum.1 + p / 30.0);
+            }
+        }
     }
     eprintln!("{:?}, {iterations} density iterations in 90 frames", fluid.stats);
-    // Hydrostatics: below the settled surface, p is linear in depth with slope ρ g (a
-    // least-squares fit over the particles 3 spacings or more from the floor and the surface).
-    let p = fluid.pressures();
-    let pts: Vec<(f64, f64)> = fluid
-        .state()
-        .positions()
-        .iter()
-        .zip(&p)
-        .filter(|(x, _)| x.y > 3.0 * s && x.y < h0 - 3.0 * s)
-        .map(|(x, p)| (x.y, *p))
-        .collect();
+    // Hydrostatics: below the settled surface, the mean pressure is linear in depth with
+    // slope ρ g (a least-squares fit over the particles 3 spacings or more from the floor and
+    // the surface). The pressure of one frame is not: the surface's jitter makes its slope
+    // swing between 0.65 and 1.4 ρ g from frame to frame (measured over the last 4 frames).
+    let pts: Vec<(f64, f64)> =
+        sums.into_iter().filter(|(y, _)| *y > 3.0 * s && *y < h0 - 3.0 * s).collect();
     let n = pts.len() as f64;
     let (my, mp) =
         (pts.iter().map(|q| q.0).sum::<f64>() / n, pts.iter().map(|q| q.1).sum::<f64>() / n);
@@ -86,31 +89,30 @@ fn column_at_rest_keeps_its_height_and_hydrostatic_pressure() {
         / pts.iter().map(|q| (q.0 - my) * (q.0 - my)).sum::<f64>();
     let surface = my + mp / -slope;
     eprintln!("dp/dy = {slope} Pa/m (rho g = 9810), zero pressure at y = {surface} (surface {h0})");
-    // The discrete gradient `Σ_j V (p_j - p_i) ∇W_ij` of a field of slope `b` is `N b`, with
-    // `N = Σ_j V (y_j - y_i) ∂W_ij/∂y_i` over the fluid neighbours: 1.02 on the cubic
-    // lattice, but the settled column's particles are arranged otherwise and the slab's walls
-    // take neighbours away (measured mean over the fitted particles: 0.84). Hydrostatic
-    // balance is `N dp/dy = -ρ g`: the measured slope is 1.20 ρ g, and `N` times it is ρ g
-    // within 2 % (measured 1.2 %).
-    let kernel = fluid.model().settings().kernel;
-    let (vol, sup) = (fluid.model().particle_mass() / 1000.0, fluid.model().support());
-    let xs = fluid.state().positions();
-    let inside: Vec<&DVec3> = xs.iter().filter(|x| x.y > 3.0 * s && x.y < h0 - 3.0 * s).collect();
-    let norm = inside
-        .iter()
-        .map(|&&xi| {
-            let near = xs.iter().filter(|&&xj| xj != xi && (xi - xj).length() < sup);
-            near.map(|&xj| vol * (xj - xi).y * kernel.gradient(xi - xj, sup).y).sum::<f64>()
-        })
-        .sum::<f64>()
-        / inside.len() as f64;
-    eprintln!("gradient normalisation N = {norm}, N dp/dy = {} rho g", norm * slope / 9810.0);
-    assert!((slope / -9810.0 - 1.0).abs() < 0.25, "{slope}");
-    assert!((norm * slope / 9810.0 + 1.0).abs() < 0.02, "{norm} {slope}");
+    // Measured: 0.949 ρ g, zero 1.7 cm below the surface.
+    assert!((slope / -9810.0 - 1.0).abs() < 0.1, "{slope}");
     assert!((surface - h0).abs() < 2.0 * s, "{surface}");
     // The surface particles still jitter (measured: 0.27 m/s at most after 1.5 s).
     let vmax = fluid.state().velocities().iter().map(|v| v.length()).fold(0.0, f64::max);
     assert!(vmax < 0.5, "{vmax}");
+}
+
+/// A column 25 particles deep at a spacing of 5 mm stays at rest with the default settings.
+/// With substeps of `max_dt` = 5 ms (`|g| dt² / s` = 0.049, allowed before session 20) it
+/// blew up in its third frame (mean speed 3.7 m/s); docs/fluid.md, "Speed".
+#[test]
+fn fine_column_at_rest_stays_at_rest() {
+    let s = 0.005;
+    let mut fluid = Fluid::new(Settings::new(s)).unwrap();
+    tank(&mut fluid, [0.0; 3], [8.0 * s, 37.5 * s, 4.0 * s]);
+    fluid.add_block(DVec3::ZERO, DVec3::new(8.0 * s, 25.0 * s, 4.0 * s), DVec3::ZERO).unwrap();
+    for frame in 0..6 {
+        fluid.step(1.0 / 60.0, 1).unwrap();
+        let v = fluid.state().velocities();
+        let mean = v.iter().map(|v| v.length()).sum::<f64>() / v.len() as f64;
+        eprintln!("frame {frame}: {} substeps, mean speed {mean:.3} m/s", fluid.stats.substeps);
+        assert!(mean < 0.2, "frame {frame}: mean speed {mean} m/s");
+    }
 }
 
 /// Martin & Moyce (1952), "An experimental study of the collapse of liquid columns on a
@@ -119,6 +121,34 @@ fn column_at_rest_keeps_its_height_and_hydrostatic_pressure() {
 /// (`n² = 2`), points up to `T = 3` as digitised in PySPH's `examples/db_exp_data.py`.
 const MARTIN_MOYCE: [(f64, f64); 4] =
     [(0.832, 1.217), (1.219, 1.474), (1.997, 2.292), (2.547, 2.995)];
+
+/// Koshizuka & Oka (1996), "Moving-particle semi-implicit method for fragmentation of
+/// incompressible fluid", Nucl. Sci. Eng. 123, 421–434: the experimental surge front as
+/// digitised and shipped with DualSPHysics (`examples/main/01_DamBreak/
+/// EXP_X-DamTipPosition_Koshizula&Oka1996.txt`, Froude-scaled to its column of width
+/// `a = 1 m` and height `2a`): `(t in s, X in m)`, so `T = t sqrt(2g / 1 m)` and `Z/L = X`;
+/// the points up to `T = 3` (13 of 15; the last two lie beyond a tank of `4a`).
+const KOSHIZUKA_OKA: [(f64, f64); 13] = [
+    (0.092031603, 1.128),
+    (0.190699774, 1.244),
+    (0.266343115, 1.464),
+    (0.32214447, 1.695),
+    (0.368058691, 1.903),
+    (0.413950339, 2.123),
+    (0.446591422, 2.365),
+    (0.495801354, 2.584),
+    (0.521851016, 2.804),
+    (0.56462754, 3.034),
+    (0.594018059, 3.219),
+    (0.636591422, 3.462),
+    (0.669255079, 3.704),
+];
+
+/// Both experiments as `(T, Z/L, name)`.
+fn experiments() -> impl Iterator<Item = (f64, f64, &'static str)> {
+    let ko = KOSHIZUKA_OKA.into_iter().map(|(t, x)| (t * (2.0 * 9.81f64).sqrt(), x, "K&O"));
+    MARTIN_MOYCE.into_iter().map(|(t, z)| (t, z, "M&M")).chain(ko)
+}
 
 /// The surge front of a dam break of `L = 0.146 m` with particles `L / per_width` apart, in a
 /// slab `layers` particles thick between walls: `(T, Z/L)` every 1/240 s up to `T = 3.1`.
@@ -147,14 +177,16 @@ fn front_at(history: &[(f64, f64)], t: f64) -> f64 {
 
 #[test]
 fn dam_break_front_follows_martin_and_moyce() {
-    // Measured at L/10, 4 layers: +12 %, +18 %, +16 %, +13 % (ahead of the experiment, as
-    // inviscid simulations without the gate's opening and the walls' friction are; see
-    // docs/fluid.md); the issue's 5 % is not met.
+    // Measured at L/10, 4 layers: +12 %, +18 %, +16 %, +13 % against Martin & Moyce, from
+    // -4 % (T = 0.41) to +15 % (T = 1.4-1.8) against Koshizuka & Oka (ahead of the
+    // experiments, as inviscid simulations without the gate's opening and the walls'
+    // friction are; see docs/fluid.md); the issue's 5 % is not met.
     let history = dam_break(10.0, 4.0);
-    for (t, z) in MARTIN_MOYCE {
+    for (t, z, name) in experiments() {
         let got = front_at(&history, t);
-        eprintln!("T = {t}: Z/L = {got:.3}, experiment {z} ({:+.1} %)", 100.0 * (got / z - 1.0));
-        assert!((got / z - 1.0).abs() < 0.2, "T = {t}: {got} vs {z}");
+        let off = 100.0 * (got / z - 1.0);
+        eprintln!("T = {t:.3}: Z/L = {got:.3}, {name} {z} ({off:+.1} %)");
+        assert!((got / z - 1.0).abs() < 0.2, "T = {t}: {got} vs {name} {z}");
     }
 }
 
@@ -166,9 +198,10 @@ fn dam_break_front_follows_martin_and_moyce() {
 #[ignore]
 fn dam_break_finer() {
     let history = dam_break(20.0, 8.0);
-    for (t, z) in MARTIN_MOYCE {
+    for (t, z, name) in experiments() {
         let got = front_at(&history, t);
-        eprintln!("T = {t}: Z/L = {got:.3}, experiment {z} ({:+.1} %)", 100.0 * (got / z - 1.0));
+        let off = 100.0 * (got / z - 1.0);
+        eprintln!("T = {t:.3}: Z/L = {got:.3}, {name} {z} ({off:+.1} %)");
     }
 }
 

@@ -12,18 +12,20 @@
 //!
 //! Viscosity is XSPH (Schechter & Bridson 2012). [`surface_mesh`] gives the liquid's
 //! surface as a closed triangle mesh (`surface.rs`). Substeps follow the CFL condition
-//! ([`Solver::step`]); neighbours come from a uniform grid rebuilt every substep
-//! (`grid.rs`), in parallel and deterministically (the same bits for any thread count).
+//! ([`Solver::step`]); neighbours come from Verlet lists over a uniform grid, found again when
+//! a particle moved half their skin (`neighbours.rs`), in parallel and deterministically (in
+//! ascending index order: the same bits for any thread count and any history of the search).
 //!
 //! The fluid is split as every system of kinema is: a [`Model`] (settings, particle volume,
 //! walls and boundary particles), a [`State`] (positions, velocities, time, DFSPH's warm
-//! starts) and a [`Solver`] (neighbour grid, densities, factors, scratch), so one model and
+//! starts) and a [`Solver`] (neighbour lists, densities, factors, scratch), so one model and
 //! one solver can advance several states. [`Fluid`] is the three together.
 
 mod boundary;
 mod emitter;
 mod kernel;
 mod model;
+mod neighbours;
 mod snapshot;
 mod solver;
 mod state;

@@ -1,6 +1,8 @@
-//! The fluid solver: neighbour grid, densities, DFSPH factors and every scratch buffer. It
-//! carries nothing a later step reads: [`Solver::step`] copies the state in, steps the copy
-//! and writes it back only when every substep succeeded.
+//! The fluid solver: neighbour lists, densities, DFSPH factors and every scratch buffer. It
+//! carries nothing a later step's result depends on (a later step may reuse the Verlet
+//! lists' candidates, but its lists are exact and in index order either way):
+//! [`Solver::step`] copies the state in, steps the copy and writes it back only when every
+//! substep succeeded.
 //!
 //! All quantities are per unit rest density (SPlisHSPlasH's formulation): `ρ̂ = ρ/ρ₀`,
 //! fluid particle volume `V = m/ρ₀`, boundary volume `V_b = ψ_b/ρ₀`, and `κ = p/ρ₀`.
@@ -20,9 +22,10 @@
 //!   (a free surface, as SPlisHSPlasH does).
 
 use super::model::{Model, Pressure};
+use super::neighbours::Neighbours;
 use super::{State, Stats};
 use crate::error::{reserve, Error, Result};
-use crate::geometry::grid::{Grid, CHUNK};
+use crate::geometry::grid::CHUNK;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -34,15 +37,30 @@ const SPARSE: usize = 20;
 /// (`solver_tests.rs`); SPlisHSPlasH 2.x and IISPH (Ihmsen et al. 2014) use 0.5 too.
 const RELAXATION: f64 = 0.5;
 
+/// The largest `|g| dt² / spacing` of a substep. Measured (docs/fluid.md, "Speed"): a column
+/// at rest 25 particles deep stays at rest at 0.008 and 0.025 and blows up at 0.049 (the
+/// earlier limit, `cfl` = 0.4 here, let `max_dt` = 5 ms reach 0.049 at a spacing of 5 mm).
+const GRAVITY_STEP: f64 = 0.02;
+
+/// The Verlet skin (`neighbours.rs`) is chosen so that the candidates last about this many
+/// substeps at the current speeds (each point may move half the skin).
+const LIST_SUBSTEPS: f64 = 8.0;
+
+/// The largest Verlet skin, in spacings: the candidates within `h + skin` grow as
+/// `(1 + skin / h)³` (1.95 times the neighbours at `h = 2` spacings).
+const MAX_SKIN: f64 = 0.5;
+
 /// The workspaces of a fluid step (see the module docs).
 #[derive(Clone, Debug, Default)]
 pub struct Solver {
-    grid: Grid,
-    /// Fluid then boundary positions (m), the points of the grid.
+    neighbours: Neighbours,
+    /// Fluid then boundary positions (m), the points of the neighbour lists.
     points: Vec<DVec3>,
-    /// `∇W_ij` (1/m⁴) of every neighbour pair, in the grid's list layout (chunk `i / CHUNK`,
-    /// [`Grid::span`]): computed with the densities, read by every solver iteration.
+    /// `∇W_ij` (1/m⁴) of every neighbour pair, in the lists' layout (chunk `i / CHUNK`,
+    /// [`Neighbours::span`]): computed with the densities, read by every solver iteration.
     gradients: Vec<Vec<DVec3>>,
+    /// `W_ij` (1/m³) of every neighbour pair, in the same layout: read by the viscosity.
+    values: Vec<Vec<f64>>,
     /// The stepped copy of the state's velocities (m/s).
     v: Vec<DVec3>,
     /// The stepped copy of the state's pressures `κ` (m²/s²).
@@ -88,7 +106,7 @@ impl Solver {
     /// Advance `state` by `steps` frames of `dt` seconds, each in substeps of the CFL
     /// condition (at most `max_dt`, at most `cfl` spacings per substep for the fastest
     /// particle or emitter, and
-    /// `dt ≤ sqrt(cfl spacing / |g|)`), frames split evenly into substeps.
+    /// `dt ≤ sqrt(GRAVITY_STEP spacing / |g|)`), frames split evenly into substeps.
     ///
     /// # Errors
     /// `dt` not finite and positive; a frame needing more than `max_substeps`
@@ -205,20 +223,22 @@ impl Solver {
                     ),
                 });
             }
-            let limit = self.substep_limit(model);
+            let (limit, fastest) = self.substep_limit(model);
             let h = left / (left / limit).ceil().max(1.0);
-            self.substep(model, h, stats)?;
+            self.substep(model, h, h * fastest, stats)?;
             left = if h >= left { 0.0 } else { left - h };
             taken += 1;
         }
         Ok(())
     }
 
-    /// The longest substep the CFL condition allows now (s).
-    fn substep_limit(&self, model: &Model) -> f64 {
+    /// The longest substep the CFL condition allows now (s), and the speed of the fastest
+    /// particle or emitter (m/s).
+    fn substep_limit(&self, model: &Model) -> (f64, f64) {
         let s = &model.settings;
         let emitted = model.emitters.iter().map(|e| e.speed);
-        let mut speed = self.v.iter().map(|v| v.length()).chain(emitted).fold(0.0, f64::max);
+        let fastest = self.v.iter().map(|v| v.length()).chain(emitted).fold(0.0, f64::max);
+        let mut speed = fastest;
         if let Pressure::Wcsph { sound_speed } = s.pressure {
             speed += sound_speed;
         }
@@ -228,13 +248,13 @@ impl Solver {
             limit = limit.min(s.cfl * s.spacing / speed);
         }
         if g > 0.0 {
-            limit = limit.min((s.cfl * s.spacing / g).sqrt());
+            limit = limit.min((GRAVITY_STEP * s.spacing / g).sqrt());
         }
-        limit
+        (limit, fastest)
     }
 
-    /// One substep of length `h` (s).
-    fn substep(&mut self, model: &Model, h: f64, stats: &mut Stats) -> Result<()> {
+    /// One substep of length `h` (s) in which no particle moves much more than `reach` (m).
+    fn substep(&mut self, model: &Model, h: f64, reach: f64, stats: &mut Stats) -> Result<()> {
         self.emit(model, h)?;
         let n = self.v.len();
         stats.substeps += 1;
@@ -244,7 +264,7 @@ impl Solver {
         let gravity = model.settings.gravity * h;
         match model.settings.pressure {
             Pressure::Dfsph { max_iterations, divergence_tolerance, density_tolerance } => {
-                self.search(model);
+                self.search(model, reach);
                 self.densities(model, true);
                 let (it, err, _) =
                     self.solve(model, h, Solve::Divergence, max_iterations, divergence_tolerance);
@@ -259,13 +279,14 @@ impl Solver {
                 self.advect(model, h);
             }
             Pressure::Pbf { max_iterations, density_tolerance, tensile } => {
-                let (it, err, max) = self.pbf(model, h, max_iterations, density_tolerance, tensile);
+                let (it, err, max) =
+                    self.pbf(model, h, reach, max_iterations, density_tolerance, tensile);
                 stats.density_iterations += it;
                 stats.density_error = stats.density_error.max(err);
                 stats.max_density_error = stats.max_density_error.max(max);
             }
             Pressure::Wcsph { sound_speed } => {
-                self.search(model);
+                self.search(model, reach);
                 self.densities(model, false);
                 self.residual.iter_mut().zip(&self.density).for_each(|(e, r)| *e = r - 1.0);
                 let (mean, max) = compression(&self.residual);
@@ -293,33 +314,52 @@ impl Solver {
         }
     }
 
-    /// Put the boundary particles after the fluid's and rebuild the neighbour lists.
-    fn search(&mut self, model: &Model) {
+    /// Put the boundary particles after the fluid's and update the neighbour lists. `reach`
+    /// (m), how far the fastest particle moves in a substep, sets the Verlet skin: candidates
+    /// that last about [`LIST_SUBSTEPS`] substeps, at most [`MAX_SKIN`] spacings, none if
+    /// that would not last two.
+    fn search(&mut self, model: &Model, reach: f64) {
         let n = self.v.len();
         self.points.truncate(n);
         self.points.extend_from_slice(&model.boundary);
-        self.grid.build(&self.points, n, model.support);
+        let mut skin = (2.0 * LIST_SUBSTEPS * reach).min(MAX_SKIN * model.settings.spacing);
+        if skin < 4.0 * reach {
+            skin = 0.0;
+        }
+        self.neighbours.update(&self.points, n, model.support, skin);
     }
 
-    /// Densities `ρ̂`, the kernel gradients of every pair and, if `factors`, DFSPH's `α`.
+    /// Densities `ρ̂`, the kernel values and gradients of every pair and, if `factors`,
+    /// DFSPH's `α`.
     fn densities(&mut self, model: &Model, factors: bool) {
-        let Solver { grid, points, density, alpha, gradients, .. } = self;
+        let Solver { neighbours, points, density, alpha, gradients, values, .. } = self;
         let (h, kernel, vol, n) =
             (model.support, model.settings.kernel, model.volume, density.len());
         let vb = &model.boundary_volume;
         gradients.resize_with(n.div_ceil(CHUNK), Vec::new);
+        values.resize_with(n.div_ceil(CHUNK), Vec::new);
         let chunks = density.par_chunks_mut(CHUNK).zip(alpha.par_chunks_mut(CHUNK));
-        chunks.zip(gradients).enumerate().for_each(|(c, ((rho, a), grads))| {
+        let chunks = chunks.zip(gradients.par_iter_mut().zip(values));
+        chunks.enumerate().for_each(|(c, ((rho, a), (grads, values)))| {
             grads.clear();
+            values.clear();
             for (k, (rho, a)) in rho.iter_mut().zip(a).enumerate() {
                 let i = c * CHUNK + k;
                 let (mut r, mut g, mut s) = (vol * kernel.value(0.0, h), DVec3::ZERO, 0.0);
-                for &j in grid.neighbours(i) {
+                for &j in neighbours.neighbours(i) {
                     let j = j as usize;
                     let d = points[i] - points[j];
                     let w = if j < n { vol } else { vb[j - n] };
-                    r += w * kernel.value(d.length(), h);
-                    let gradient = kernel.gradient(d, h);
+                    let distance = d.length();
+                    let value = kernel.value(distance, h);
+                    r += w * value;
+                    values.push(value);
+                    // `Kernel::gradient` without its second square root.
+                    let gradient = if distance == 0.0 {
+                        DVec3::ZERO
+                    } else {
+                        d * (kernel.derivative(distance, h) / distance)
+                    };
                     grads.push(gradient);
                     if factors {
                         let gw = gradient * w;
@@ -338,30 +378,32 @@ impl Solver {
 
     /// The neighbours of particle `i` and their `∇W_ij` (of the last [`Solver::densities`]).
     fn pairs(&self, i: usize) -> (&[u32], &[DVec3]) {
-        (self.grid.neighbours(i), &self.gradients[i / CHUNK][self.grid.span(i)])
+        (self.neighbours.neighbours(i), &self.gradients[i / CHUNK][self.neighbours.span(i)])
     }
 
     /// Gravity's velocity change `g` (m/s: `dt` times gravity), XSPH viscosity
-    /// `v_i += g + ν Σ_j (V / ρ̂_j) (v_j - v_i) W_ij`, and over `dt` (s) surface tension
-    /// (Akinci et al. 2013, [`super::Settings::surface_tension`]).
+    /// `v_i += g + ν Σ_j (V / ρ̂_j) (v_j - v_i) W_ij` (the `W_ij` of the last
+    /// [`Solver::densities`]), and over `dt` (s) surface tension (Akinci et al. 2013,
+    /// [`super::Settings::surface_tension`]).
     fn non_pressure(&mut self, model: &Model, dt: f64, g: DVec3) {
         let gamma = model.settings.surface_tension;
         if gamma > 0.0 {
             self.normals_now(model);
         }
         let mut dv = std::mem::take(&mut self.dv);
-        let Solver { grid, points, v, density, normals, .. } = &*self;
-        let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, v.len());
+        let Solver { neighbours, points, v, density, normals, values, .. } = &*self;
+        let (sup, vol, n) = (model.support, model.volume, v.len());
         let (nu, mass) = (model.settings.viscosity, model.volume * model.settings.rest_density);
         dv.par_iter_mut().enumerate().for_each(|(i, out)| {
             let (mut sum, mut tension) = (DVec3::ZERO, DVec3::ZERO);
-            for &j in grid.neighbours(i) {
+            let near = neighbours.neighbours(i).iter().zip(&values[i / CHUNK][neighbours.span(i)]);
+            for (&j, &w) in near {
                 let j = j as usize;
                 if j < n {
+                    sum += (v[j] - v[i]) * (vol / density[j] * w);
                     let d = points[i] - points[j];
-                    let r = d.length();
-                    sum += (v[j] - v[i]) * (vol / density[j] * kernel.value(r, sup));
-                    if gamma > 0.0 && r > 0.0 {
+                    let r = if gamma > 0.0 { d.length() } else { 0.0 };
+                    if r > 0.0 {
                         let cohesion = d * (mass * super::kernel::cohesion(r, sup) / r);
                         let k = 2.0 / (density[i] + density[j]);
                         tension += (cohesion + normals[i] - normals[j]) * k;
@@ -502,6 +544,7 @@ impl Solver {
         &mut self,
         model: &Model,
         h: f64,
+        reach: f64,
         max: usize,
         tol: f64,
         tensile: f64,
@@ -512,7 +555,7 @@ impl Solver {
         let g = model.settings.gravity * h;
         self.v.iter_mut().for_each(|v| *v += g);
         self.advect(model, h);
-        self.search(model);
+        self.search(model, reach);
         self.total.fill(0.0);
         let corr = tensile * model.lattice_factor();
         let mut iterations = 0;
@@ -556,13 +599,13 @@ impl Solver {
     /// `s_corr = -corr (W_ij / W(0.2 h))⁴`, added to the positions. `corr` (m²) is `k`
     /// times the lattice's `α`: the artificial pressure of a compression `k` at `r = 0.2 h`.
     fn displace(&mut self, model: &Model, corr: f64) {
-        let Solver { grid, points, k, dv, .. } = self;
+        let Solver { neighbours, points, k, dv, .. } = self;
         let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, k.len());
         let vb = &model.boundary_volume;
         let w_dq = kernel.value(0.2 * sup, sup);
         dv.par_iter_mut().enumerate().for_each(|(i, out)| {
             let mut sum = DVec3::ZERO;
-            for &j in grid.neighbours(i) {
+            for &j in neighbours.neighbours(i) {
                 let j = j as usize;
                 let d = points[i] - points[j];
                 let g = kernel.gradient(d, sup);
@@ -598,7 +641,7 @@ impl Solver {
         self.v.clone_from(&state.velocities);
         self.density.resize(n, 0.0);
         self.alpha.resize(n, 0.0);
-        self.search(model);
+        self.search(model, 0.0);
         self.densities(model, false);
         out.clear();
         out.extend(self.density.iter().map(|r| r * model.settings.rest_density));

@@ -21,7 +21,7 @@ fn column() -> (Fluid, Solver) {
     solver.points.clone_from(&fluid.state().positions);
     solver.v = vec![DVec3::ZERO; n];
     solver.emit(fluid.model(), 0.0).unwrap();
-    solver.search(fluid.model());
+    solver.search(fluid.model(), 0.0);
     solver.densities(fluid.model(), true);
     (fluid, solver)
 }

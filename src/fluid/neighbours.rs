@@ -1,0 +1,168 @@
+//! The fluid's neighbour lists: Verlet lists (Verlet 1967; for SPH, Domínguez, Crespo,
+//! Gómez-Gesteira & Marongiu 2011, "Neighbour lists in smoothed particle hydrodynamics",
+//! IJNMF 67) over the shared hashed grid (`geometry/grid.rs`).
+//!
+//! The grid finds, for every query point, the **candidates** closer than `h + skin` (m); the
+//! lists of every substep are the candidates closer than `h`. While no point has moved
+//! `skin / 2` or more since the candidates were found, no pair can have come closer than `h`
+//! without being a candidate, so the candidates are reused; otherwise (or when the points'
+//! count changed) the grid is rebuilt. Each candidate list is sorted by index when it is
+//! built, so every list holds exactly the points closer than `h` **in ascending index
+//! order**, whatever the skin and whenever the candidates were found: results do not depend
+//! on the history of the search, nor on the thread count. The lists use the grid's layout
+//! (chunks of [`CHUNK`] query points, [`Neighbours::span`]). Buffers only grow.
+
+use crate::geometry::grid::{Grid, CHUNK};
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// Verlet lists of the fluid (see the module docs).
+#[derive(Clone, Debug, Default)]
+pub struct Neighbours {
+    grid: Grid,
+    /// The points of the last grid build (m).
+    anchor: Vec<DVec3>,
+    /// The query points of the last build.
+    queries: usize,
+    /// The radius `h` (m) and skin (m) of the last build.
+    radius: f64,
+    skin: f64,
+    /// Candidates of every chunk of query points, each point's sorted by index; a point's
+    /// ends at `candidate_ends[i]` in its chunk's buffer.
+    candidates: Vec<Vec<u32>>,
+    candidate_ends: Vec<u32>,
+    /// The lists (closer than `h`), in the same layout.
+    lists: Vec<Vec<u32>>,
+    ends: Vec<u32>,
+}
+
+/// Where the list of query point `i` lies in its chunk's buffer, given the chunk's ends.
+fn span(ends: &[u32], i: usize) -> std::ops::Range<usize> {
+    let start = if i.is_multiple_of(CHUNK) { 0 } else { ends[i - 1] as usize };
+    start..ends[i] as usize
+}
+
+impl Neighbours {
+    /// Find, for each of the first `queries` of `points`, every other point closer than `h`
+    /// (m), in ascending index order. If the candidates must be found again, they are found
+    /// within `h + skin` (m, `skin ≥ 0`).
+    ///
+    /// # Panics
+    /// If `queries > points.len()` or there are 2³² points or more (callers check).
+    pub fn update(&mut self, points: &[DVec3], queries: usize, h: f64, skin: f64) {
+        if !self.valid(points, queries, h) {
+            self.rebuild(points, queries, h, skin);
+        }
+        let (h2, candidates, candidate_ends) = (h * h, &self.candidates, &self.candidate_ends);
+        self.ends.resize(queries, 0);
+        self.lists.resize_with(queries.div_ceil(CHUNK), Vec::new);
+        let chunks = self.ends.par_chunks_mut(CHUNK).zip(&mut self.lists);
+        chunks.zip(candidates).enumerate().for_each(|(c, ((ends, list), near))| {
+            list.clear();
+            for (k, end) in ends.iter_mut().enumerate() {
+                let i = c * CHUNK + k;
+                let p = points[i];
+                for &j in &near[span(candidate_ends, i)] {
+                    if (points[j as usize] - p).length_squared() < h2 {
+                        list.push(j);
+                    }
+                }
+                // At most `CHUNK` times the points (< 2³² / CHUNK in any real use).
+                *end = list.len() as u32;
+            }
+        });
+    }
+
+    /// The candidates of the last build still hold every pair closer than `h`: the same
+    /// points, queries and radius, and no point moved `skin / 2` or more since.
+    fn valid(&self, points: &[DVec3], queries: usize, h: f64) -> bool {
+        let limit = 0.25 * self.skin * self.skin;
+        self.queries == queries
+            && self.radius == h
+            && self.anchor.len() == points.len()
+            && points.par_iter().zip(&self.anchor).all(|(p, a)| (*p - *a).length_squared() < limit)
+    }
+
+    /// Find the candidates within `h + skin` and sort each point's by index.
+    fn rebuild(&mut self, points: &[DVec3], queries: usize, h: f64, skin: f64) {
+        self.grid.build(points, queries, h + skin);
+        self.anchor.clear();
+        self.anchor.extend_from_slice(points);
+        (self.queries, self.radius, self.skin) = (queries, h, skin);
+        self.candidate_ends.resize(queries, 0);
+        self.candidates.resize_with(queries.div_ceil(CHUNK), Vec::new);
+        let (grid, chunks) = (&self.grid, self.candidate_ends.par_chunks_mut(CHUNK));
+        chunks.zip(&mut self.candidates).enumerate().for_each(|(c, (ends, list))| {
+            list.clear();
+            for (k, end) in ends.iter_mut().enumerate() {
+                let start = list.len();
+                list.extend_from_slice(grid.neighbours(c * CHUNK + k));
+                list[start..].sort_unstable();
+                *end = list.len() as u32;
+            }
+        });
+    }
+
+    /// Where the list of query point `i` lies in the buffer of its chunk `i / CHUNK`, so
+    /// callers can keep per-pair data in buffers of the same layout.
+    pub fn span(&self, i: usize) -> std::ops::Range<usize> {
+        span(&self.ends, i)
+    }
+
+    /// The neighbours of query point `i` (indices into the points of the last update).
+    pub fn neighbours(&self, i: usize) -> &[u32] {
+        &self.lists[i / CHUNK][self.span(i)]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::grid::random_points;
+
+    fn brute_force(points: &[DVec3], i: usize, h: f64) -> Vec<u32> {
+        let near = |j: &usize| *j != i && (points[*j] - points[i]).length_squared() < h * h;
+        (0..points.len()).filter(near).map(|j| j as u32).collect()
+    }
+
+    /// Every list is exactly the brute force's (ascending) after moves under half the skin
+    /// (the candidates reused) and after moves over it (found again).
+    #[test]
+    fn lists_are_exact_and_ascending_with_reused_candidates() {
+        let (h, skin, queries) = (0.08, 0.03, 2500);
+        let mut points = random_points(3000, 5, 1.0);
+        let mut near = Neighbours::default();
+        near.update(&points, queries, h, skin);
+        let built = near.anchor.clone();
+        let mut total = 0;
+        // Each point moves `fraction` of the skin in a direction of its own.
+        for (round, fraction) in [0.49, 0.49, 0.9].into_iter().enumerate() {
+            let directions = random_points(points.len(), 20 + round as u64, 2.0);
+            for (p, d) in points.iter_mut().zip(directions) {
+                *p += d.normalize_or_zero() * (fraction * skin);
+            }
+            let reused = round == 0;
+            near.update(&points, queries, h, skin);
+            assert_eq!(near.anchor == built, reused, "round {round}");
+            for i in 0..queries {
+                assert_eq!(near.neighbours(i), brute_force(&points, i, h), "round {round}, {i}");
+                total += near.neighbours(i).len();
+            }
+        }
+        assert!(total > 3 * queries * 5, "too few neighbours to test: {total}");
+    }
+
+    #[test]
+    fn same_lists_on_one_and_two_threads() {
+        let points = random_points(5000, 11, 1.0);
+        let lists = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut near = Neighbours::default();
+                near.update(&points, 4000, 0.07, 0.01);
+                (near.ends.clone(), near.lists.clone())
+            })
+        };
+        assert_eq!(lists(1), lists(2));
+    }
+}
