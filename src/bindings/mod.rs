@@ -28,6 +28,7 @@ mod rods;
 mod rotation;
 mod skin;
 mod view;
+mod walker;
 
 /// Use `n` threads (1 to `MAX_THREADS` = 1024) in every parallel kernel from now on (any
 /// time, as often as wanted; results are bitwise the same for any thread count).
