@@ -254,9 +254,12 @@ fn crowd_scenes() -> Vec<(String, usize)> {
     found
 }
 
-/// The CMU ragdoll falling limp onto the ground (contacts and joint limits active).
+/// The CMU ragdoll falling limp onto the ground (contacts and joint limits active), and the
+/// planar and 3-D SIMBICON walkers.
 fn character_scenes() -> Vec<(String, usize)> {
-    use kinema::character::{ragdoll, ArticulatedBody, RagdollOptions, Settings};
+    use kinema::character::{
+        ragdoll, ArticulatedBody, Coronal, Gait, RagdollOptions, Settings, Walker, Walker3d,
+    };
     let text = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
     let skeleton = kinema::mocap::parse_asf(&text, "07-walk.asf").unwrap();
     let options = RagdollOptions {
@@ -265,7 +268,14 @@ fn character_scenes() -> Vec<(String, usize)> {
         ..RagdollOptions::default()
     };
     let mut body = ArticulatedBody::new(ragdoll(&skeleton, &options, Settings::default()).unwrap());
-    vec![("character, ragdoll".into(), allocations(120, || body.step(1.0 / 480.0, 4).unwrap()))]
+    let mut planar = Walker::new(Settings::default(), Gait::default(), 0.3).unwrap();
+    let mut spatial =
+        Walker3d::new(Settings::default(), Gait::default_3d(), Coronal::default(), 0.3).unwrap();
+    vec![
+        ("character, ragdoll".into(), allocations(120, || body.step(1.0 / 480.0, 4).unwrap())),
+        ("character, planar walker".into(), allocations(50, || planar.step(1e-3, 4).unwrap())),
+        ("character, 3-D walker".into(), allocations(50, || spatial.step(1e-3, 4).unwrap())),
+    ]
 }
 
 /// A hair of 100 curly strands on a turning head (repulsion with friction between strands

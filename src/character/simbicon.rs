@@ -171,6 +171,10 @@ pub struct Walker {
     pub gait: Gait,
     #[serde(skip)]
     solver: Solver,
+    /// The state at the start of [`Walker::step`] (to put back on error; kept between calls
+    /// so that a step allocates nothing).
+    #[serde(skip)]
+    start: Option<State>,
 }
 
 impl Walker {
@@ -195,7 +199,7 @@ impl Walker {
         qd[0] = speed;
         state.set_qd(&qd)?;
         let solver = Solver::new(&model);
-        Ok(Walker { model, state, phase: Phase::default(), gait, solver })
+        Ok(Walker { model, state, phase: Phase::default(), gait, solver, start: None })
     }
 
     /// The model.
@@ -239,19 +243,25 @@ impl Walker {
                 self.model.set_servo(body, Some(servo))?;
             }
         }
-        let (start, phase) = (self.state.clone(), self.phase);
+        let mut start = self.start.take().unwrap_or_else(|| self.state.clone());
+        start.clone_from(&self.state);
+        let phase = self.phase;
+        let mut result = Ok(());
         for _ in 0..steps {
             let tree = self.solver.kinematics(&self.model, &self.state);
             let down = touches(&self.model, tree, legs(self.phase.state).0[2]);
             advance(&mut self.phase, &self.gait, down);
             control(&self.gait, &self.phase, &self.model, tree, &mut self.state);
             if let Err(e) = self.solver.step(&self.model, &mut self.state, dt, 1) {
-                (self.state, self.phase) = (start, phase);
-                return Err(e);
+                self.state.clone_from(&start);
+                self.phase = phase;
+                result = Err(e);
+                break;
             }
             self.phase.time += dt;
         }
-        Ok(())
+        self.start = Some(start);
+        result
     }
 
     /// Centre of mass (m, world).
