@@ -77,7 +77,7 @@ def _run_batch(
                 system = Scene.load(task.scene)
             else:
                 system = build(**p)
-            row: dict[str, Any] = {"status": "ok", "error": None, **_outputs(run(system))}
+            row = _outputs(run(system), {"status": "ok", "error": None})
         except Exception as e:
             row = {"status": "failed", "error": f"{type(e).__name__}: {e}"}
         finally:
@@ -103,12 +103,12 @@ def _run_packed(
     return pickle.dumps(_run_batch(build, run, tasks, True, directory), pickle.HIGHEST_PROTOCOL)
 
 
-def _outputs(out: Any) -> dict[str, Any]:
-    """What ``run`` returned as columns: numbers stay scalars, arrays are stored flat (float64,
-    int64 or bool) with their shape in a hidden column, restored by :func:`store.restore`."""
-    if not isinstance(out, Mapping):
+def _outputs(out: Any, row: dict[str, Any]) -> dict[str, Any]:
+    """Add what ``run`` returned to ``row`` as columns and return ``row``: numbers stay scalars,
+    arrays are stored flat (float64, int64 or bool) with their shape in a hidden column,
+    restored by :func:`store.restore`."""
+    if type(out) is not dict and not isinstance(out, Mapping):  # a dict skips the ABC's check
         raise TypeError(f"run: must return a dict of numbers or arrays, got {type(out).__name__}")
-    row: dict[str, Any] = {}
     for name, value in out.items():
         if not isinstance(name, str) or name in RESERVED or name.startswith(SHAPE):
             raise TypeError(f"run: result names must be strings other than {sorted(RESERVED)}")
