@@ -12,7 +12,7 @@ All in one process, one after the other, on a machine that may be busy (ratios m
    tasks in two plain processes running a plain ``for`` loop over half the tasks each at the
    same time (their loop thread's CPU time less the tasks'): such a loop pays for calling
    ``build``, freeing each system and the clock reads too, so the difference is the sweep's own
-   cost per task;
+   cost per task, of which the part on the workers' event-loop threads is printed apart;
 2. speed-up: ``--tasks`` cloth tasks (a 16x16 Baraff-Witkin cloth, 40 implicit steps, a
    stiffness x dt grid) run (a) in a plain loop in this process, (b) on a two-process
    ``multiprocessing.Pool`` started beforehand (one task at a time from its shared queue), (c)
@@ -99,6 +99,12 @@ def plain_loops(design: list[dict]) -> float:
         return sum(pool.map(_plain_loop, [design[0::2], design[1::2]], chunksize=1))
 
 
+def _cpu_clocks() -> tuple[float, float]:
+    """A worker's CPU seconds: its whole process, and the thread this runs on (``client.run``
+    runs it on the worker's event loop)."""
+    return time.process_time(), time.thread_time()
+
+
 def _one_thread() -> None:
     import kinema
 
@@ -154,11 +160,13 @@ def main() -> None:
     t0 = time.perf_counter()
     sweep(chain_build, chains, chain_run, client="serial", progress=False)
     serial = time.perf_counter() - t0
-    worker_cpu = client.run(time.process_time)
+    before = client.run(_cpu_clocks)
     t0 = time.perf_counter()
     batched = sweep(chain_build, chains, chain_run, client=client, progress=False)
     dask = time.perf_counter() - t0
-    worker_cpu = sum(t - worker_cpu[w] for w, t in client.run(time.process_time).items())
+    after = client.run(_cpu_clocks)
+    worker_cpu = sum(after[w][0] - before[w][0] for w in after)
+    loop_cpu = sum(after[w][1] - before[w][1] for w in after)  # the event loops' threads
     busy = batched["seconds"].sum()  # worker wall time inside build + run
     busy_cpu = batched["cpu"].sum()  # the same, CPU time
     plain_outside = plain_loops(chains)
@@ -171,7 +179,9 @@ def main() -> None:
         f"({(worker_cpu - busy_cpu) / len(chains) * 1e6:.0f} µs per task); in plain loops "
         f"{plain_outside / busy_cpu * 100:.1f} % ({plain_outside / len(chains) * 1e6:.0f} µs); "
         f"the sweep's own cost {(worker_cpu - busy_cpu - plain_outside) / busy_cpu * 100:.1f} % "
-        f"({(worker_cpu - busy_cpu - plain_outside) / len(chains) * 1e6:.0f} µs per task)"
+        f"({(worker_cpu - busy_cpu - plain_outside) / len(chains) * 1e6:.0f} µs per task), of "
+        f"which the workers' event loops {loop_cpu / busy_cpu * 100:.1f} % "
+        f"({loop_cpu / len(chains) * 1e6:.0f} µs per task)"
     )
 
     t0 = time.perf_counter()
