@@ -23,6 +23,9 @@
 //! steps of a call and across calls. The pattern (the springs' graph) and its symbolic analysis
 //! are redone only when the springs change.
 
+// The loops index the state, the masses and the pattern's slots by particle, as the formulas do.
+#![allow(clippy::needless_range_loop)]
+
 use super::{Dynamics, Force, Model};
 use crate::error::{filled, Error, Result};
 use crate::linalg::SparseCholesky;
