@@ -13,6 +13,10 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
+/// Most right-hand sides [`SparseCholesky::solve_in_place`] solves at once (the three
+/// coordinates of a system of 3-vectors whose matrix is a scalar one times the identity).
+pub const MAX_COLUMNS: usize = 3;
+
 /// `L Lᵀ` factorisation of a sparse SPD matrix, or `L D Lᵀ` of a sparse symmetric
 /// quasi-definite one (`[A Bᵀ; B -C]` with `A`, `C` positive definite, e.g. a regularised KKT
 /// matrix, which has such a factorisation for every ordering: Vanderbei 1995, "Symmetric
@@ -60,7 +64,7 @@ impl SparseCholesky {
         let req = symbolic
             .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
             .or(symbolic.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()))
-            .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+            .or(symbolic.solve_in_place_scratch::<f64>(MAX_COLUMNS, Par::Seq));
         let factor = vec![0.0; symbolic.len_val()];
         Ok(SparseCholesky {
             n,
@@ -149,9 +153,18 @@ impl SparseCholesky {
         Ok(())
     }
 
-    /// Overwrite `rhs` with the solution of `A x = rhs` for the last factorised `A`.
+    /// Overwrite `rhs` with the solution of `A x = rhs` for the last factorised `A`: one
+    /// right-hand side of `n` values, or up to [`MAX_COLUMNS`] of them one after another
+    /// (`rhs.len()` a multiple of `n`, column-major), solved together.
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) {
-        let mat = MatMut::from_column_major_slice_mut(rhs, self.n, 1);
+        let columns = rhs.len() / self.n.max(1);
+        assert!(
+            columns * self.n == rhs.len() && columns <= MAX_COLUMNS,
+            "solve_in_place: {} values for n = {}",
+            rhs.len(),
+            self.n
+        );
+        let mat = MatMut::from_column_major_slice_mut(rhs, self.n, columns);
         let stack = MemStack::new(&mut self.buffer);
         if self.signs.is_empty() {
             LltRef::new(&self.symbolic, &self.factor).solve_in_place_with_conj(

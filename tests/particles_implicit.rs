@@ -238,3 +238,41 @@ fn linear_chain_keeps_one_factorisation_bitwise_as_refactorising() {
     nonlinear.step(DT, 10, Method::ImplicitEuler).unwrap();
     assert!(nonlinear.stats.factorizations >= 10);
 }
+
+/// On a linear chain (affine equations) implicit Euler takes one Newton update per step and
+/// keeps its factors across calls: every step solves `y₁ = y₀ + h f(y₁)` to rounding (the
+/// residual computed here from the chain's forces written out by hand, an oracle independent
+/// of the solver), and a second call at the same step factorises nothing.
+#[test]
+fn linear_chain_steps_solve_implicit_euler_exactly_and_keep_the_factors_across_calls() {
+    let (n, k, h) = (50, 1e4, 1e-3);
+    let mut s = linear_chain(n, k);
+    s.step(h, 3, Method::ImplicitEuler).unwrap();
+    assert_eq!(s.stats.factorizations, 1);
+    for _ in 0..5 {
+        let (x0, v0) = (s.positions().to_vec(), s.velocities().to_vec());
+        s.step(h, 1, Method::ImplicitEuler).unwrap();
+        assert_eq!(s.stats.factorizations, 0, "the factors of the last call are kept");
+        let (x1, v1) = (s.positions(), s.velocities());
+        let p = |x: &[f64], i: usize| DVec3::from_slice(&x[3 * i..]);
+        let mut worst: f64 = 0.0;
+        for i in 1..n {
+            let mut force = -k * (p(x1, i) - p(x1, i - 1));
+            if i + 1 < n {
+                force -= k * (p(x1, i) - p(x1, i + 1));
+            }
+            let a = force / 1e-3 + G;
+            let rx = p(x1, i) - p(&x0, i) - h * p(v1, i);
+            let rv = p(v1, i) - p(&v0, i) - h * a;
+            worst = worst.max(rx.abs().max_element() / h).max(rv.abs().max_element());
+        }
+        // Velocities of order 1 m/s, accelerations of order h k / m · |v| = 1e4 m/s².
+        assert!(worst < 1e-9, "implicit Euler residual {worst:e}");
+    }
+    for method in [Method::ImplicitEuler, Method::Trapezoidal, Method::Bdf2] {
+        s.step(h, 2, method).unwrap();
+        let before = thread_allocations();
+        s.step(h, 10, method).unwrap();
+        assert_eq!(thread_allocations() - before, 0, "{}", method.name());
+    }
+}

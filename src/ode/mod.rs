@@ -83,6 +83,17 @@ pub trait OdeSystem {
     fn sparse_jacobian(&mut self, _t: f64, _y: &[f64], _jac: &mut SparseJacobian) -> Result<bool> {
         Ok(false)
     }
+    /// `Some(key)` when `f` is affine in `y` (`f = J y + g(t)`, a Jacobian constant in `t`
+    /// and `y`) and the system promises that every call returning the same `key` has bitwise
+    /// the same Jacobian; `None` (the default) otherwise. Keys must be unique over the life of
+    /// the process (a fresh one, [`fresh_key`], each time the system may have changed).
+    /// The implicit methods then evaluate the Jacobian and factorise `I - γ h J` only when the
+    /// key or `γ h` changes (for a sparse Jacobian a new key still keeps the factors when the
+    /// matrix is bitwise the one factorised), and take the one Newton step that solves an
+    /// affine equation exactly, without the step that would confirm it.
+    fn constant_jacobian(&self) -> Option<u64> {
+        None
+    }
     /// Write the values of the event functions `g_i(t, y)` into `g` (one per [`Event`] given
     /// to [`solve_adaptive`], `g.len()` of them); the adaptive methods locate their zeros on
     /// the dense output. Called only when events are given; the default writes nothing.
@@ -92,6 +103,13 @@ pub trait OdeSystem {
     fn events(&mut self, _t: f64, _y: &[f64], _g: &mut [f64]) -> Result<()> {
         Ok(())
     }
+}
+
+/// A key for [`OdeSystem::constant_jacobian`] that no earlier call returned (a process-wide
+/// counter).
+pub fn fresh_key() -> u64 {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
 }
 
 /// Largest step ratio `ω = h / h₋` at which BDF2 keeps its history: the variable-step formula

@@ -67,6 +67,9 @@ impl SparseJacobian {
 pub(super) struct SparseNewton {
     /// The Jacobian the system writes.
     pub jac: SparseJacobian,
+    /// The [`super::OdeSystem::constant_jacobian`] key and the bits of `γ h` whose `M` the
+    /// factors hold (`None` when they belong to no key).
+    pub key: Option<(u64, u64)>,
     /// The pattern of `J` that `M` was built for.
     j_col_ptr: Vec<usize>,
     j_row_idx: Vec<usize>,

@@ -40,7 +40,10 @@ const MAX_SPLITS: u32 = 4;
 /// matrix `I - γ h J` is assembled in its pattern and factorised by faer's sparse LU (symbolic
 /// analysis kept per pattern, which is bitwise-neutral; numeric factorisation per Jacobian
 /// update, kept while the matrix is bitwise the same, as for linear forces at a constant
-/// step, which is bitwise-neutral too); otherwise the Jacobian is dense (analytic, or by forward differences over every
+/// step, which is bitwise-neutral too). A system whose Jacobian is constant
+/// ([`OdeSystem::constant_jacobian`]) is not asked for it again while its key and `γ h` are
+/// those of the factors, and with a sparse Jacobian its step is the one Newton update that
+/// solves the affine equation. Otherwise the Jacobian is dense (analytic, or by forward differences over every
 /// column) with a dense LU factorisation with partial pivoting, in place. The dense workspaces
 /// (`n²` values) are allocated at the first dense step, so systems with a sparse Jacobian
 /// never hold them.
@@ -337,6 +340,7 @@ impl Workspace {
         let gamma = self.implicit_base(hist, sys, t, y, h)?;
         // Jacobian at (t1, y) and the iteration matrix I - γ h J.
         let mut sparse = self.factorize(hist, sys, t1, y, gamma * h)?;
+        let affine = sys.constant_jacobian().is_some();
         self.y_new.copy_from_slice(y);
         // `k[0]` holds the last Newton update Δ of norm `last` (infinite before the first and
         // after a Jacobian update), of which `fraction` is applied to the accepted iterate.
@@ -350,6 +354,13 @@ impl Workspace {
             }
             if sparse {
                 self.sparse.solve_in_place(&mut self.stage);
+                if affine {
+                    // f = J y + g with the exact J: this update solves the equation.
+                    for i in 0..n {
+                        self.y_new[i] += self.stage[i];
+                    }
+                    return Ok(true);
+                }
             } else {
                 lu_solve(&self.lu, &self.pivots, n, &mut self.stage);
             }
@@ -441,11 +452,18 @@ impl Workspace {
         y: &[f64],
         gh: f64,
     ) -> Result<bool> {
+        // A constant Jacobian already factorised at this `γ h` (see OdeSystem::constant_jacobian).
+        let key = sys.constant_jacobian().map(|k| (k, gh.to_bits()));
+        if key.is_some() && self.sparse.key == key {
+            return Ok(true);
+        }
         hist.njev += 1;
         if sys.sparse_jacobian(t, y, &mut self.sparse.jac)? {
+            self.sparse.key = None;
             if self.sparse.factorize(self.n, gh)? {
                 self.factorizations += 1;
             }
+            self.sparse.key = key;
             return Ok(true);
         }
         if self.sparse.is_active() {

@@ -26,6 +26,9 @@ pub(crate) struct Dynamics<'a> {
     pub(super) cells: &'a mut Vec<(u64, u32)>,
     /// Buffers of the sparse Jacobian; `None` offers none (the dense path).
     pub(super) jacobian: Option<&'a mut jacobian::JacobianWork>,
+    /// [`OdeSystem::constant_jacobian`]: a key of this call when every force is linear and
+    /// nothing changes the Jacobian within the call ([`super::Model::linear`], no emitters).
+    pub(super) constant: Option<u64>,
 }
 
 impl OdeSystem for Dynamics<'_> {
@@ -35,6 +38,10 @@ impl OdeSystem for Dynamics<'_> {
 
     fn sparse_jacobian(&mut self, _t: f64, y: &[f64], jac: &mut SparseJacobian) -> Result<bool> {
         Ok(jacobian::fill(self, y, jac))
+    }
+
+    fn constant_jacobian(&self) -> Option<u64> {
+        self.constant
     }
 
     fn rhs(&mut self, _t: f64, y: &[f64], dydt: &mut [f64]) -> Result<()> {
@@ -113,6 +120,14 @@ impl Dynamics<'_> {
                     for (pair, l) in pairs.iter().zip(rest) {
                         let (a, b) = (pair[0], pair[1]);
                         let d = at(x, a) - at(x, b);
+                        if *l == 0.0 && *damping == 0.0 {
+                            // The linear force -k d, without the length and direction that
+                            // the general form below takes (and equals it to rounding).
+                            let fa = -stiffness * d;
+                            add(f, a, fa);
+                            add(f, b, -fa);
+                            continue;
+                        }
                         let len = d.length();
                         if len == 0.0 {
                             continue;

@@ -32,6 +32,7 @@ mod forces;
 mod grid;
 mod jacobian;
 mod kernel;
+mod linear;
 mod model;
 mod snapshot;
 mod solver;

@@ -118,6 +118,20 @@ impl Model {
             .sum()
     }
 
+    /// Whether every force is affine in the state with a Jacobian that depends on nothing
+    /// but the model, the masses and the live slots: gravity, damping, linear drag and springs
+    /// of rest length 0 without damping (`-k d`).
+    pub(super) fn linear(&self) -> bool {
+        self.forces.iter().all(|f| match f {
+            Force::Gravity { .. } | Force::Damping { .. } => true,
+            Force::Drag { quadratic, .. } => *quadratic == 0.0,
+            Force::Springs { rest, damping, .. } => {
+                *damping == 0.0 && rest.iter().all(|l| *l == 0.0)
+            }
+            _ => false,
+        })
+    }
+
     /// Whether a force acts between particles (springs, repulsion, all-pairs gravity).
     pub(super) fn pairwise(&self) -> bool {
         self.forces.iter().any(|f| !f.acts_alone())

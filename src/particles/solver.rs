@@ -5,6 +5,7 @@
 
 use super::explicit::Rollback;
 use super::jacobian::JacobianWork;
+use super::linear::LinearImplicit;
 use super::{Dynamics, Model, State, StepStats, CHUNK};
 use crate::error::{reserve, Error, Result};
 use crate::ode::{History, Method, Workspace};
@@ -28,6 +29,8 @@ pub struct Solver {
     pub(super) work: Workspace,
     /// Buffers of the sparse Jacobian for the implicit methods, rebuilt at every evaluation.
     pub(super) jacobian: JacobianWork,
+    /// Implicit Euler of linear models in velocity form, with its kept factorisation.
+    pub(super) linear: LinearImplicit,
     /// Counters of the last call (also of the good steps of a call that failed).
     pub(super) stats: StepStats,
 }
@@ -149,6 +152,7 @@ impl Solver {
             external: &state.external,
             cells: &mut self.cells,
             jacobian: Some(&mut self.jacobian),
+            constant: None,
         };
         Ok(Free { dynamics, y: &mut state.y, inv_mass: &state.inv_mass, time: &mut state.time })
     }
@@ -166,6 +170,18 @@ impl Step<'_> {
         self.state.settle_ages();
         let age_each_step = !self.model.emitters.is_empty();
         let n = self.model.n;
+        // Within a call without emitters the masses and live slots stay as they are.
+        let constant =
+            (sparse && !age_each_step && self.model.linear()).then(crate::ode::fresh_key);
+        let history = self.state.history.as_ref().expect("history created in step");
+        let velocity_form = constant.is_some() && history.method() == Method::ImplicitEuler;
+        if velocity_form {
+            let state = &*self.state;
+            let model = self.model;
+            if self.solver.linear.prepare(model, &state.mass, &state.inv_mass, &state.alive, dt)? {
+                self.solver.stats.factorizations += 1;
+            }
+        }
         for s in 0..steps {
             if self.model.colliders.is_empty() {
                 // Only the slots that stay put need their state kept.
@@ -189,7 +205,7 @@ impl Step<'_> {
                     .zip(y.par_chunks(6 * CHUNK))
                     .for_each(|(b, y)| b.copy_from_slice(y));
             }
-            if let Err(e) = self.one_step(dt, gravity, sparse) {
+            if let Err(e) = self.one_step(dt, gravity, sparse, constant, velocity_form) {
                 if !age_each_step {
                     self.state.age_pending = (dt, s);
                 }
@@ -213,7 +229,14 @@ impl Step<'_> {
         Ok(())
     }
 
-    fn one_step(&mut self, dt: f64, gravity: DVec3, sparse: bool) -> Result<()> {
+    fn one_step(
+        &mut self,
+        dt: f64,
+        gravity: DVec3,
+        sparse: bool,
+        constant: Option<u64>,
+        velocity_form: bool,
+    ) -> Result<()> {
         let n = self.model.n;
         let (state, solver) = (&mut *self.state, &mut *self.solver);
         let history = state.history.as_mut().expect("history created in step");
@@ -226,9 +249,15 @@ impl Step<'_> {
             external: &state.external,
             cells: &mut solver.cells,
             jacobian: sparse.then_some(&mut solver.jacobian),
+            constant,
         };
         let before = solver.work.factorizations();
-        let result = solver.work.step(history, &mut dynamics, state.time, &mut state.y, dt);
+        let result = if velocity_form {
+            history.nfev += 1;
+            solver.linear.step(&mut dynamics, state.time, &mut state.y, dt)
+        } else {
+            solver.work.step(history, &mut dynamics, state.time, &mut state.y, dt)
+        };
         solver.stats.factorizations += solver.work.factorizations() - before;
         result.map_err(|e| match e {
             Error::Diverged { index, .. } => Error::Diverged {
