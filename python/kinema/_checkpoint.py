@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from kinema import _kinema, anim, cloth, crowd, flock, fluid, particles, rigid
+from kinema import _kinema, anim, character, cloth, crowd, flock, fluid, particles, rigid
 from kinema.constraints import ConstrainedSystem
 from kinema.rotation import Rotation
 from kinema.scene import FORMAT_VERSION, AnimatedSphere, Character, CheckpointError, Scene, _Entry
@@ -64,6 +64,9 @@ _NATIVES: dict[str, Any] = {
         _kinema.AsfSkeleton,
         _kinema.AmcMotion,
         _kinema.BvhSkeleton,
+        _kinema.Walker,
+        _kinema.Walker3d,
+        _kinema.ArticulatedBody,
     )
 }
 """The compiled classes a checkpoint may hold (each pickles through its Rust snapshot)."""
@@ -127,6 +130,9 @@ _SCHEMAS: dict[str, _Schema] = {
         _Schema(fluid.Fluid, {"_f": _kinema.Fluid}),
         _Schema(crowd.Crowd, {"_c": _kinema.Crowd}),
         _Schema(flock.Flock, {"_f": _kinema.Flock, "_dim": int}),
+        _Schema(character.Biped, {"_w": (_kinema.Walker, _kinema.Walker3d)}),
+        _Schema(character.ArticulatedBody, {"_b": _kinema.ArticulatedBody}),
+        _Schema(character.Ragdoll, {"_b": _kinema.ArticulatedBody}),
         _Schema(rigid.Sphere, {"radius": _Number}),
         _Schema(rigid.Box, {"half_extents": object}),
         _Schema(rigid.Capsule, {"radius": _Number, "height": _Number}),
@@ -495,6 +501,8 @@ def _check_entry(e: Any, where: str) -> None:
         fluid.Fluid,
         crowd.Crowd,
         flock.Flock,
+        character.Biped,
+        character.ArticulatedBody,
     )
     _need(isinstance(obj, kinds), f"{where}: a {type(obj).__name__}")
     _need(

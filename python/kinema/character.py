@@ -674,6 +674,11 @@ class Tracker:
         return float(self._t.time)
 
     @property
+    def frame_rate(self) -> float:
+        """The clip's frame rate (Hz); a frame lasts its inverse."""
+        return float(self._t.frame_rate)
+
+    @property
     def loop_span(self) -> tuple[int, int]:
         """``(a, b)``: after frame ``b - 1`` the clip goes on from frame ``a``."""
         a, b = self._t.loop_span

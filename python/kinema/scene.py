@@ -222,7 +222,9 @@ class Scene:
         colliders yet), :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
         obstacles only), :class:`kinema.character.Biped` and
         :class:`kinema.character.ArticulatedBody` (a :class:`~kinema.character.Ragdoll` too;
-        their own ground, no colliders),
+        their own ground, no colliders), :class:`kinema.character.Tracker` (no options; each
+        step ``dt / substeps`` must be a whole number of the clip's frames, e.g. ``dt=1/120``
+        for a CMU clip),
         :class:`kinema.rods.Rod` and :class:`kinema.rods.Hair` (their own static colliders
         only; move a hair's head with ``set_head`` between frames),
         :class:`kinema.constraints.ConstrainedSystem` (which steps
@@ -245,6 +247,15 @@ class Scene:
                 for e in self._entries
             ):
                 raise ValueError("item: it is stepped by a constrained system in the scene")
+        elif isinstance(item, _character.Tracker):
+            if options:
+                raise ValueError(f"options: a Tracker takes none, got {sorted(options)}")
+            frames = self._h * item.frame_rate
+            if round(frames) < 1 or abs(frames - round(frames)) > 1e-9 * frames:
+                raise ValueError(
+                    f"dt: a Tracker steps whole frames of 1/{item.frame_rate:g} s; "
+                    f"dt / substeps = {self._h} s is {frames:.6g} frames"
+                )
         elif not isinstance(
             item,
             (
@@ -261,7 +272,8 @@ class Scene:
         ):
             raise ValueError(
                 "item: expected a ParticleSystem, ConstrainedSystem, Cloth, World, Fluid, "
-                "Crowd, Flock, Biped, ArticulatedBody, Rod, Hair, AnimatedSphere or Character, "
+                "Crowd, Flock, Biped, ArticulatedBody, Tracker, Rod, Hair, AnimatedSphere or "
+                "Character, "
                 f"got {type(item).__name__}"
             )
         self._entries.append(_Entry(item, dict(options)))
@@ -358,7 +370,9 @@ class Scene:
         ):
             self._couple(receivers, (self._steps + 1) * h)
         for e in self._entries:
-            if not isinstance(e.obj, _rigid.World):
+            if isinstance(e.obj, _character.Tracker):
+                e.obj.step(round(h * e.obj.frame_rate))
+            elif not isinstance(e.obj, _rigid.World):
                 e.obj.step(h, **e.options)
         self._steps += 1
 
@@ -642,6 +656,8 @@ def _checkpoint(entry: _Entry) -> Callable[[], None]:
         cores = [obj._w]
     elif isinstance(obj, _character.ArticulatedBody):
         cores = [obj._b]
+    elif isinstance(obj, _character.Tracker):
+        cores = [obj._t]
     elif isinstance(obj, _rods.Rod):
         cores = [obj._r]
     elif isinstance(obj, _rods.Hair):

@@ -5,7 +5,9 @@ use super::args::Int;
 use super::array::{compute, zeroed};
 use super::error::detached;
 use super::mocap::{PyMotion, PySkeleton};
-use crate::character::{FrameReport, RagdollOptions, Settings, Tracker as Core, TrackingOptions};
+use crate::character::{
+    FrameReport, RagdollOptions, Settings, State, Tracker as Core, TrackingOptions,
+};
 use glam::DVec3;
 use numpy::PyArrayDyn;
 use pyo3::prelude::*;
@@ -14,6 +16,8 @@ use pyo3::prelude::*;
 #[pyclass(module = "kinema._kinema")]
 pub struct Tracker {
     tracker: Core,
+    /// The undo point of `_mark` (the ragdoll's state and the frame; none before the first).
+    saved: Option<(State, usize)>,
 }
 
 #[pymethods]
@@ -48,7 +52,32 @@ impl Tracker {
             substeps: substeps.count("substeps")?,
         };
         let tracker = Core::new(sk, &motion.motion, &ragdoll, Settings::default(), options)?;
-        Ok(Tracker { tracker })
+        Ok(Tracker { tracker, saved: None })
+    }
+
+    /// Remember the ragdoll's state and the frame (a scene's undo point).
+    fn _mark(&mut self) {
+        let frame = self.tracker.frame();
+        match &mut self.saved {
+            Some((state, saved)) => {
+                state.clone_from(self.tracker.body().state());
+                *saved = frame;
+            }
+            None => self.saved = Some((self.tracker.body().state().clone(), frame)),
+        }
+    }
+
+    /// Put the state and the frame back as they were at the last `_mark`.
+    fn _rollback(&mut self) {
+        if let Some((state, frame)) = &self.saved {
+            self.tracker.restore(state, *frame);
+        }
+    }
+
+    /// The clip's frame rate (Hz).
+    #[getter]
+    fn frame_rate(&self) -> f64 {
+        self.tracker.frame_rate()
     }
 
     /// Track `frames` frames (GIL released); per frame `[time, root_error, joint_error,

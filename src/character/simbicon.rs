@@ -243,16 +243,17 @@ impl Walker {
                 self.model.set_servo(body, Some(servo))?;
             }
         }
+        super::solver::check(&self.model, &self.state, dt)?;
         let mut start = self.start.take().unwrap_or_else(|| self.state.clone());
         start.clone_from(&self.state);
         let phase = self.phase;
         let mut result = Ok(());
-        for _ in 0..steps {
+        for n in 0..steps {
             let tree = self.solver.kinematics(&self.model, &self.state);
             let down = touches(&self.model, tree, legs(self.phase.state).0[2]);
             advance(&mut self.phase, &self.gait, down);
             control(&self.gait, &self.phase, &self.model, tree, &mut self.state);
-            if let Err(e) = self.solver.step(&self.model, &mut self.state, dt, 1) {
+            if let Err(e) = self.solver.step_once(&self.model, &mut self.state, dt, true, n) {
                 self.state.clone_from(&start);
                 self.phase = phase;
                 result = Err(e);

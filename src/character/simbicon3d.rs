@@ -176,17 +176,18 @@ impl Walker3d {
                 self.model.set_servo(body, Some(servo))?;
             }
         }
+        super::solver::check(&self.model, &self.state, dt)?;
         let mut start = self.start.take().unwrap_or_else(|| self.state.clone());
         start.clone_from(&self.state);
         let phase = self.phase;
         let mut result = Ok(());
-        for _ in 0..steps {
+        for n in 0..steps {
             let tree = self.solver.kinematics(&self.model, &self.state);
             let (swing, _, _) = legs(self.phase.state);
             let down = foot_down(&self.model, tree, swing);
             advance(&mut self.phase, &self.gait, down);
             control(self);
-            if let Err(e) = self.solver.step(&self.model, &mut self.state, dt, 1) {
+            if let Err(e) = self.solver.step_once(&self.model, &mut self.state, dt, true, n) {
                 self.state.clone_from(&start);
                 self.phase = phase;
                 result = Err(e);

@@ -71,8 +71,21 @@ impl Solver {
         dt: f64,
         qdd: &mut [f64],
     ) {
+        self.tree.kinematics(model, q, qd);
+        self.dynamics(model, state, q, qd, dt, qdd);
+    }
+
+    /// [`Solver::accelerations`] at the kinematics of `(q, q̇)` already in the tree.
+    fn dynamics(
+        &mut self,
+        model: &Model,
+        state: &State,
+        q: &[f64],
+        qd: &[f64],
+        dt: f64,
+        qdd: &mut [f64],
+    ) {
         let tree = &mut self.tree;
-        tree.kinematics(model, q, qd);
         self.tau.resize(model.nv(), 0.0);
         passive(model, q, qd, &state.torques, &state.pushes, dt, tree, &mut self.tau);
         if servo::any(model) && model.settings.servo_mode == ServoMode::Stable {
@@ -100,34 +113,14 @@ impl Solver {
     /// model (`state`); a non-finite or exploding state (`Diverged`, with the step and the
     /// first bad rate) — the state is then exactly as before the call.
     pub fn step(&mut self, model: &Model, state: &mut State, dt: f64, steps: usize) -> Result<()> {
-        if !(dt.is_finite() && dt > 0.0) {
-            return Err(Error::invalid("dt", "must be finite and > 0"));
-        }
-        model.check_settings()?;
-        if state.q.len() != model.nq() || state.qd.len() != model.nv() {
-            return Err(Error::invalid("state", "is not a state of this model"));
-        }
+        check(model, state, dt)?;
         let mut start = self.start.take().unwrap_or_else(|| state.clone());
         start.clone_from(state);
         let mut result = Ok(());
         for n in 0..steps {
-            match model.settings.integrator {
-                Integrator::SymplecticEuler => self.euler(model, state, dt),
-                Integrator::Rk4 => self.rk4(model, state, dt),
-            }
-            state.time += dt;
-            for p in &mut state.pushes {
-                p.remaining -= dt;
-            }
-            state.pushes.retain(|p| p.remaining > 0.0);
-            let bad = state.q.iter().chain(&state.qd).position(|v| v.is_nan() || v.abs() >= 1e8);
-            if let Some(index) = bad {
-                result = Err(Error::Diverged {
-                    step: n,
-                    index,
-                    reason: "non-finite or exploding joint state".into(),
-                });
+            if let Err(e) = self.step_once(model, state, dt, false, n) {
                 state.clone_from(&start);
+                result = Err(e);
                 break;
             }
         }
@@ -135,14 +128,52 @@ impl Solver {
         result
     }
 
-    fn euler(&mut self, model: &Model, state: &mut State, dt: f64) {
+    /// One step of `dt` of `state` (checked by [`check`]), the `n`-th of its caller; with
+    /// `known`, the tree already holds the kinematics of `state` (a [`Solver::kinematics`]
+    /// of it, only its torques, targets and pushes changed since: the walkers', whose
+    /// controllers read them first), and they are not computed again.
+    ///
+    /// # Errors
+    /// A non-finite or exploding state (`Diverged`); the state is then not put back (the
+    /// caller does).
+    pub(super) fn step_once(
+        &mut self,
+        model: &Model,
+        state: &mut State,
+        dt: f64,
+        known: bool,
+        n: usize,
+    ) -> Result<()> {
+        match model.settings.integrator {
+            Integrator::SymplecticEuler => self.euler(model, state, dt, known),
+            Integrator::Rk4 => self.rk4(model, state, dt, known),
+        }
+        state.time += dt;
+        for p in &mut state.pushes {
+            p.remaining -= dt;
+        }
+        state.pushes.retain(|p| p.remaining > 0.0);
+        match state.q.iter().chain(&state.qd).position(|v| v.is_nan() || v.abs() >= 1e8) {
+            Some(index) => Err(Error::Diverged {
+                step: n,
+                index,
+                reason: "non-finite or exploding joint state".into(),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    fn euler(&mut self, model: &Model, state: &mut State, dt: f64, known: bool) {
         let mut acc = std::mem::take(&mut self.acc[0]);
         let (mut sq, mut sqd) =
             (std::mem::take(&mut self.stage_q), std::mem::take(&mut self.stage_qd));
         acc.resize(model.nv(), 0.0);
         sq.clone_from(&state.q);
         sqd.clone_from(&state.qd);
-        self.accelerations(model, state, &sq, &sqd, dt, &mut acc);
+        if !known {
+            self.tree.kinematics(model, &sq, &sqd);
+        }
+        self.dynamics(model, state, &sq, &sqd, dt, &mut acc);
         for (v, a) in state.qd.iter_mut().zip(&acc) {
             *v += dt * a;
         }
@@ -150,7 +181,7 @@ impl Solver {
         (self.acc[0], self.stage_q, self.stage_qd) = (acc, sq, sqd);
     }
 
-    fn rk4(&mut self, model: &Model, state: &mut State, dt: f64) {
+    fn rk4(&mut self, model: &Model, state: &mut State, dt: f64, known: bool) {
         const C: [f64; 4] = [0.0, 0.5, 0.5, 1.0];
         const B: [f64; 4] = [1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0];
         let (nq, nv) = (model.nq(), model.nv());
@@ -174,7 +205,10 @@ impl Solver {
                 }
             }
             coordinate_rates(model, &sq, &sqd, &mut vel[k]);
-            self.accelerations(model, state, &sq, &sqd, dt, &mut acc[k]);
+            if !(known && k == 0) {
+                self.tree.kinematics(model, &sq, &sqd);
+            }
+            self.dynamics(model, state, &sq, &sqd, dt, &mut acc[k]);
         }
         for (j, v) in state.qd.iter_mut().enumerate() {
             *v += dt * (0..4).map(|k| B[k] * acc[k][j]).sum::<f64>();
@@ -185,4 +219,20 @@ impl Solver {
         advance(model, &sq, dt, &mut state.q);
         (self.vel, self.acc, self.stage_q, self.stage_qd) = (vel, acc, sq, sqd);
     }
+}
+
+/// Check a step of `dt` of `state` under `model`.
+///
+/// # Errors
+/// `dt` not finite and > 0 (`dt`); settings out of range (named); a state of another model
+/// (`state`).
+pub(super) fn check(model: &Model, state: &State, dt: f64) -> Result<()> {
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(Error::invalid("dt", "must be finite and > 0"));
+    }
+    model.check_settings()?;
+    if state.q.len() != model.nq() || state.qd.len() != model.nv() {
+        return Err(Error::invalid("state", "is not a state of this model"));
+    }
+    Ok(())
 }

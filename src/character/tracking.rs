@@ -407,6 +407,19 @@ impl Tracker {
         (root, (sum / count.max(1) as f64).sqrt())
     }
 
+    /// Put back the ragdoll's state and the frame count saved from this tracker (a scene's
+    /// undo, `kinema.Scene`); the reference goes back to that frame.
+    pub fn restore(&mut self, state: &State, frame: usize) {
+        self.body.state.clone_from(state);
+        self.frame = frame;
+        self.reference(frame);
+    }
+
+    /// The clip's frame rate (Hz): a frame lasts its inverse.
+    pub fn frame_rate(&self) -> f64 {
+        self.motion.frame_rate
+    }
+
     /// The simulated ragdoll.
     pub fn body(&self) -> &ArticulatedBody {
         &self.body

@@ -8,7 +8,7 @@ import pickle
 import numpy as np
 import pytest
 
-from kinema import character
+from kinema import character, mocap
 from kinema.scene import Scene
 
 DT = 1e-3
@@ -86,3 +86,22 @@ def test_pickle_restores_the_walk_bitwise():
     planar = character.Biped()._w.__reduce__()[1][0]
     with pytest.raises(ValueError, match="data"):
         type(b._w)._from_snapshot(planar)
+
+
+def test_a_scene_of_walkers_and_a_ragdoll_resumes_from_its_checkpoint_bitwise(tmp_path):
+    # Scene.save / Scene.load store the walkers (planar and 3-D) and a ragdoll through their
+    # Rust snapshots: the loaded scene goes on bit for bit as the one saved.
+    sk = mocap.read_asf(mocap.SAMPLE_DIR / "07-walk.asf")
+    scene = Scene(dt=4e-3, substeps=4)
+    scene.add(character.Biped(dims=3))
+    scene.add(character.Biped())
+    scene.add(character.Ragdoll.from_skeleton(sk, clearance=0.3))
+    scene.step(25)
+    scene.save(tmp_path / "walkers.kin")
+    back = Scene.load(tmp_path / "walkers.kin")
+    assert [type(s) for s in back.systems] == [type(s) for s in scene.systems]
+    scene.step(25)
+    back.step(25)
+    for a, b in zip(scene.systems, back.systems, strict=True):
+        assert a.q.tobytes() == b.q.tobytes() and a.qd.tobytes() == b.qd.tobytes()
+    assert back.systems[0].dims == 3 and back.systems[0].steps == scene.systems[0].steps

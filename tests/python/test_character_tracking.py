@@ -3,12 +3,15 @@ from BVH skeletons, from Python."""
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from kinema import character, mocap
+import kinema
+from kinema import character, mocap, particles
+from kinema.scene import Scene, StabilityWarning
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
 # Measured over 10 s at the defaults (tests/character_tracking.rs): root error at most
@@ -68,3 +71,37 @@ def test_a_bvh_ragdoll_has_a_body_per_joint_and_falls_limp():
     r.step(1 / 960, 960)  # unlimited joints: 1/480 s diverged after 0.8 s (docs, Known limits)
     assert np.all(np.isfinite(r.q)) and sum(r.energy()) < e0
     assert r.com[1] < 0.3
+
+
+def test_a_tracker_is_a_scene_entry_whose_failed_frame_is_undone(walk):
+    # In a scene it tracks one clip frame per step (dt / substeps a whole number of frames,
+    # else refused naming dt), bit for bit as alone; a frame that fails in another system
+    # (a spring pair diverging, stepped after it) puts it back: state, frame and reference.
+    sk, motion = walk
+    alone = character.Tracker(sk, motion)
+    alone.step(6)
+    scene = Scene(dt=1 / 60, substeps=2)
+    t = scene.add(character.Tracker(sk, motion))
+    assert t.frame_rate == 120.0
+    scene.step(3)
+    assert t.frame == 6 and t.q.tobytes() == alone.q.tobytes()
+    with pytest.raises(ValueError, match="dt"):
+        Scene(dt=1 / 100).add(character.Tracker(sk, motion))
+    with pytest.raises(ValueError, match="options"):
+        Scene(dt=1 / 120).add(character.Tracker(sk, motion), method="rk4")
+
+    pair = particles.ParticleSystem([[0.0, 3.0, 0.0], [1.0, 3.0, 0.0]])
+    pair.add(particles.Springs([[0, 1]], stiffness=1e12, rest=[0.5]))
+    scene.add(pair, method="explicit_euler")
+    for _ in range(100):
+        before = (t.q.tobytes(), t.reference_q.tobytes(), t.frame, t.time)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", StabilityWarning)
+                scene.step()
+        except kinema.SimulationError:
+            break
+    else:
+        pytest.fail("the spring pair never diverged")
+    assert (t.q.tobytes(), t.reference_q.tobytes(), t.frame, t.time) == before
+    assert before[2] > 6
