@@ -183,8 +183,8 @@ fn circle_crossing_64_agents_reach_antipodes_without_any_collision() {
 /// velocities perturbed by 10⁻⁴ m/s as the example does), ten perturbation seeds: every agent
 /// arrives and no two overlap after any step. The time to goal depends on the perturbation by
 /// ±15 % (chaos in the packed centre), so the means over seeds are compared: RVO2 (pyrvo 0.4.3,
-/// `bench/bench_crowd.py`'s perturbation, seeds 0–5) 678.0 s, with 10⁵ overlapping pair-steps
-/// per run; kinema with the planning margin 0.1 of `Settings::planning_margin`, seeds 0–9,
+/// `bench/bench_crowd.py`'s perturbation, seeds 0–5) 678.0 s (one run had 139931 overlapping
+/// pair-steps); kinema with the planning margin 0.1 of `Settings::planning_margin`, seeds 0–9,
 /// 678.1 s without overlap (855 s without the margin, docs/crowd.md). Asserts the 5 %.
 /// Run with `--ignored` (26 s in this test profile).
 #[test]
