@@ -180,28 +180,59 @@ fn circle_crossing_64_agents_reach_antipodes_without_any_collision() {
 }
 
 /// RVO2's example at full size (250 agents exactly on a circle of 200 m, preferred
-/// velocities perturbed by 10⁻⁴ m/s as the example does): every agent arrives and no two
-/// overlap after any step. RVO2 on the same set-up (pyrvo 0.4.3, `bench/bench_crowd.py`)
-/// takes 616.90 s on average (3025 steps) with 139931 overlapping pair-steps, deepest 0.63 m;
-/// kinema without overlaps takes 823.60 s (4125 steps, +33.5 %): the 5 % is not met
-/// (docs/crowd.md), so this asserts the recorded figure to 1 % and the ratio below 1.35.
-/// Run with `--ignored` (seconds in this test profile).
+/// velocities perturbed by 10⁻⁴ m/s as the example does), ten perturbation seeds: every agent
+/// arrives and no two overlap after any step. The time to goal depends on the perturbation by
+/// ±15 % (chaos in the packed centre), so the means over seeds are compared: RVO2 (pyrvo 0.4.3,
+/// `bench/bench_crowd.py`'s perturbation, seeds 0–5) 678.0 s (one run had 139931 overlapping
+/// pair-steps); kinema with the planning margin 0.1 of `Settings::planning_margin`, seeds 0–9,
+/// 678.1 s without overlap (855 s without the margin, docs/crowd.md). Asserts the 5 %.
+/// Run with `--ignored` (26 s in this test profile).
 #[test]
 #[ignore]
 fn circle_crossing_250_agents_without_collisions_against_rvo2_time_to_goal() {
-    let settings = Settings { perturbation: 1e-4, ..Settings::rvo2_circle() };
-    let mut crowd = Crowd::new(settings).unwrap();
-    let (p, g) = circle(250, 200.0);
-    crowd.add_agents(&p, &g).unwrap();
-    let steps = run(&mut crowd, 0.25, 6000);
-    let s = crowd.state();
-    let arrived = s.arrival_times().iter().filter(|t| t.is_finite()).count();
-    assert_eq!(arrived, 250, "{steps} steps, {:?}", s.tally());
-    let mean: f64 = s.arrival_times().iter().sum::<f64>() / 250.0;
-    eprintln!("250 agents: mean time to goal {mean:.2} s, {steps} steps, {:?}", s.tally());
-    assert_eq!(s.tally().steps_with_collisions, 0, "{:?}", s.tally());
-    assert!((mean / 823.60 - 1.0).abs() < 0.01, "mean time to goal {mean}");
-    assert!(mean / 616.90 < 1.35, "mean time to goal {mean} against RVO2's 616.90");
+    let mut means = Vec::new();
+    for seed in 0..10 {
+        let settings =
+            Settings { perturbation: 1e-4, seed, planning_margin: 0.1, ..Settings::rvo2_circle() };
+        let mut crowd = Crowd::new(settings).unwrap();
+        let (p, g) = circle(250, 200.0);
+        crowd.add_agents(&p, &g).unwrap();
+        let steps = run(&mut crowd, 0.25, 6000);
+        let s = crowd.state();
+        let arrived = s.arrival_times().iter().filter(|t| t.is_finite()).count();
+        assert_eq!(arrived, 250, "seed {seed}: {steps} steps, {:?}", s.tally());
+        assert_eq!(s.tally().steps_with_collisions, 0, "seed {seed}: {:?}", s.tally());
+        let mean: f64 = s.arrival_times().iter().sum::<f64>() / 250.0;
+        eprintln!("seed {seed}: mean time to goal {mean:.2} s, {steps} steps");
+        means.push(mean);
+    }
+    let mean = means.iter().sum::<f64>() / means.len() as f64;
+    assert!((mean / 678.0 - 1.0).abs() < 0.05, "mean over seeds {mean} against RVO2's 678.0");
+}
+
+/// With a planning margin `m` the agents of a head-on pair pass at least `2 r (1 + m)` apart
+/// (ORCA keeps the inflated discs apart while its programs are feasible), and without it they
+/// come closer.
+#[test]
+fn planning_margin_widens_the_passing_distance() {
+    let closest = |planning_margin: f64| {
+        let settings = Settings { radius: 0.5, planning_margin, ..Settings::rvo2_circle() };
+        let mut crowd = Crowd::new(settings).unwrap();
+        let p = [DVec2::new(-10.0, 0.0), DVec2::new(10.0, 0.0)];
+        crowd.add_agents(&p, &[p[1], p[0]]).unwrap();
+        let mut closest = f64::INFINITY;
+        for _ in 0..400 {
+            crowd.step(0.1, 1).unwrap();
+            let q = crowd.state().positions();
+            closest = closest.min((q[0] - q[1]).length());
+        }
+        assert!(crowd.state().arrival_times().iter().all(|t| t.is_finite()));
+        closest
+    };
+    let (plain, wide) = (closest(0.0), closest(0.2));
+    eprintln!("closest approach: {plain} without a margin, {wide} with 0.2");
+    assert!(wide >= 1.2 - 1e-9, "closest approach {wide}");
+    assert!(plain < 1.2 - 0.05, "closest approach {plain}");
 }
 
 /// An exact circle of 100 agents (80 m) does not deadlock: all reach their antipodes, and

@@ -56,7 +56,8 @@ impl Crowd {
     /// forces' `mass` (kg), `relaxation_time` (s), `strength` (N), `range` (m), `body`
     /// (kg/s²), `friction` (kg/(m s)), `max_substep` (s), `anisotropy` (λ, in [0, 1]) and
     /// `time_gap` (s; Seyfried's `d = a + b v`); ORCA's preferred-velocity
-    /// `perturbation` (m/s) and its `seed`.
+    /// `perturbation` (m/s) and its `seed`; ORCA's `planning_margin` (the agents plan with the
+    /// radius `r (1 + planning_margin)`).
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -80,6 +81,7 @@ impl Crowd {
         time_gap: f64,
         perturbation: f64,
         seed: Int,
+        planning_margin: f64,
     ) -> PyResult<Self> {
         let kind = match model {
             "orca" => Kind::Orca,
@@ -107,6 +109,7 @@ impl Crowd {
             goal_tolerance,
             perturbation,
             seed: seed.count("seed")? as u64,
+            planning_margin,
             kind,
         };
         Ok(Crowd { crowd: Core::new(settings)?, viewed: false, saved: None })

@@ -93,6 +93,14 @@ pub struct Settings {
     pub perturbation: f64,
     /// ORCA: seed of the perturbation's directions.
     pub seed: u64,
+    /// ORCA: the agents plan (their half-planes against each other) with the radius
+    /// `r (1 + planning_margin)` (dimensionless, ≥ 0), while the separation and the collision
+    /// counts keep `r`; 0 (default): off. A margin of 0.1 removes most of the slow-down that
+    /// the separation costs in dense crowds: on RVO2's 250-agent circle, mean time to goal
+    /// over ten perturbation seeds 678 s against 855 s without, and RVO2's 678 s
+    /// (docs/crowd.md, "Planning margin").
+    #[serde(default)]
+    pub planning_margin: f64,
     /// The behaviour model.
     pub kind: Kind,
 }
@@ -113,6 +121,7 @@ impl Settings {
             goal_tolerance: 1.5,
             perturbation: 0.0,
             seed: 0,
+            planning_margin: 0.0,
             kind: Kind::Orca,
         }
     }
@@ -133,8 +142,12 @@ impl Settings {
                 return Err(Error::invalid(arg, "must be finite and > 0"));
             }
         }
-        if !(self.perturbation.is_finite() && self.perturbation >= 0.0) {
-            return Err(Error::invalid("perturbation", "must be finite and >= 0"));
+        for (arg, v) in
+            [("perturbation", self.perturbation), ("planning_margin", self.planning_margin)]
+        {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::invalid(arg, "must be finite and >= 0"));
+            }
         }
         if self.max_neighbours > 1024 {
             return Err(Error::invalid("max_neighbours", "must be at most 1024"));

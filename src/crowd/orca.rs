@@ -104,6 +104,8 @@ pub(super) fn velocity(
             }
         }
     }
+    // The combined radius the agents plan with (the planning margin's, not the true one).
+    let planning = 2.0 * set.radius * (1.0 + set.planning_margin);
     for &(_, j) in &s.agents {
         let j = j as usize;
         let relative = Relative {
@@ -111,7 +113,7 @@ pub(super) fn velocity(
             velocity: v - state.velocities[j],
             apart: apart(i, j),
         };
-        s.lines.push(agent_line(relative, v, 2.0 * set.radius, set.time_horizon, dt));
+        s.lines.push(agent_line(relative, v, planning, set.time_horizon, dt));
     }
     lp::solve(&s.lines, hard, set.max_speed, state.preferred[i], &mut s.projected)
 }

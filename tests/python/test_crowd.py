@@ -33,6 +33,29 @@ def test_head_on_pair_passes_and_arrives() -> None:
     assert c.positions.shape == (2, 2) and not c.positions.flags.writeable
 
 
+def test_planning_margin_widens_the_passing_distance() -> None:
+    # ORCA plans with radius 0.5 * 1.2: the pair passes at least 1.2 m apart, closer without.
+    def closest(margin: float) -> float:
+        c = Crowd(
+            "orca",
+            radius=0.5,
+            max_speed=1.5,
+            preferred_speed=1.0,
+            time_horizon=10.0,
+            planning_margin=margin,
+        )
+        c.add_agents([[-10.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [-10.0, 0.0]])
+        gaps = []
+        for _ in range(300):
+            c.step(0.1)
+            gaps.append(np.linalg.norm(c.positions[0] - c.positions[1]))
+        assert c.metrics()["arrived"] == 2
+        return min(gaps)
+
+    assert closest(0.2) >= 1.2 - 1e-9
+    assert closest(0.0) < 1.15
+
+
 def test_social_force_agents_walk_to_their_goals() -> None:
     c = Crowd("social_force", radius=0.3, neighbour_distance=2.0)
     c.add_obstacle([[3.0, -5.0], [3.0, 5.0]])  # a wall segment beside the path
@@ -67,6 +90,8 @@ def test_door_flow_from_crossings() -> None:
         ({"model": "social_force", "time_gap": -0.1}, "time_gap"),
         ({"model": "social_force", "time_gap": float("inf")}, "time_gap"),
         ({"perturbation": -1e-4}, "perturbation"),
+        ({"planning_margin": -0.1}, "planning_margin"),
+        ({"planning_margin": float("nan")}, "planning_margin"),
         ({"seed": -1}, "seed"),
     ],
 )
