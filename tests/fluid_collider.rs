@@ -87,7 +87,8 @@ fn a_box_at_rest_holds_a_column_as_a_tank_wall() {
 /// the 30° cone ahead of it, within two spacings of its surface, move along at a good part
 /// of `U` (potential flow about a sphere gives `U/2 (3 cos²θ - 1)` on its surface, between
 /// `0.63 U` and `U` in that cone), where a sphere at rest in the same column leaves them
-/// still; the density error stays under the tolerance.
+/// still; the density error stays under the tolerance, and the largest compression of the
+/// particles near it (their densities after each frame) stays under 3 %.
 #[test]
 fn a_sphere_dragged_through_still_fluid_displaces_it_and_none_enters() {
     let (s, r) = (0.02, 0.04);
@@ -103,11 +104,16 @@ fn a_sphere_dragged_through_still_fluid_displaces_it_and_none_enters() {
         let now = fluid.state().colliders()[index];
         let moving = Collider { velocity: DVec3::new(speed, 0.0, 0.0), ..now };
         fluid.set_collider(index, moving).unwrap();
-        let (mut ahead, mut frames) = (0.0, 0.0);
+        let (mut ahead, mut frames, mut squeezed) = (0.0, 0.0, 0.0f64);
         for frame in 0..24 {
             fluid.step(1.0 / 60.0, 1).unwrap();
             assert!(fluid.stats.density_error <= 0.05, "frame {frame}: {:?}", fluid.stats);
             let Shape::Sphere(c) = fluid.state().colliders()[index].shape else { panic!() };
+            let rho = fluid.densities();
+            let near = fluid.state().positions().iter().zip(&rho);
+            let near = near.filter(|(p, _)| (**p - c.center).length() < r + 2.0 * s);
+            let most = near.fold(0.0f64, |m, (_, rho)| m.max(rho / 1000.0 - 1.0));
+            squeezed = squeezed.max(100.0 * most);
             let near = fluid.state().positions().iter().zip(fluid.state().velocities());
             let (mut sum, mut count) = (0.0, 0.0);
             for (&p, v) in near {
@@ -123,14 +129,18 @@ fn a_sphere_dragged_through_still_fluid_displaces_it_and_none_enters() {
         }
         assert_eq!(fluid.state().len(), n);
         let Shape::Sphere(end) = fluid.state().colliders()[index].shape else { panic!() };
-        (ahead / frames, end.center.x)
+        (ahead / frames, end.center.x, squeezed)
     };
-    let (pushed, end) = run(0.5);
-    let (still, start) = run(0.0);
+    let (pushed, end, squeezed) = run(0.5);
+    let (still, start, rest) = run(0.0);
     eprintln!("ahead of the sphere, mean x velocity: dragged {pushed} m/s, at rest {still} m/s");
+    eprintln!("largest compression near it (%): dragged {squeezed}, at rest {rest}");
     assert!((end - start - 0.2).abs() < 1e-9, "the sphere moved {}", end - start);
     assert!(pushed > 0.25 * 0.5, "{pushed}");
     assert!(still.abs() < 0.05 * 0.5, "{still}");
+    // The boundary particles carry the sphere's velocity into the solves: measured 1.45 %
+    // (1.06 % at rest); with their velocity left out of the density change, 6.75 %.
+    assert!(squeezed < 3.0, "{squeezed}");
 }
 
 #[test]
