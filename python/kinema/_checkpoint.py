@@ -506,7 +506,7 @@ def _check_entry(e: Any, where: str) -> None:
     )
     _need(isinstance(obj, kinds), f"{where}: a {type(obj).__name__}")
     _need(
-        e.receives == isinstance(obj, (cloth.Cloth, particles.ParticleSystem)),
+        e.receives == isinstance(obj, (cloth.Cloth, particles.ParticleSystem, fluid.Fluid)),
         f"{where}: receives",
     )
     _need(

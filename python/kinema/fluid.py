@@ -3,7 +3,9 @@
 2012), XSPH viscosity, CFL substeps, emitters and a kill box.
 
 Build a :class:`Fluid`, add tanks (:meth:`Fluid.add_boundary_box`) or floors
-(:meth:`Fluid.add_boundary_plane`), fluid (:meth:`Fluid.add_block`) and nozzles
+(:meth:`Fluid.add_boundary_plane`), solid obstacles of the shared shapes, fixed or moving
+(:meth:`Fluid.add_collider`, :meth:`Fluid.set_collider`), fluid (:meth:`Fluid.add_block`) and
+nozzles
 (:meth:`Fluid.add_emitter`), then ``step`` it by frames: each frame is split into substeps
 of the CFL condition. ``positions`` and ``velocities`` are read-only numpy views of the Rust
 state, updated in place (no copy); once one was taken no more blocks, emitters or kill box
@@ -19,6 +21,7 @@ import numpy as np
 
 from kinema import _kinema
 from kinema._array import as_vector3, real
+from kinema.geometry import Box, Capsule, Sphere, shape_params
 
 __all__ = ["Fluid"]
 
@@ -104,6 +107,23 @@ class Fluid:
             as_vector3(point, "point"), (n / length).tolist(), real(half_extent, "half_extent")
         )
 
+    def add_collider(self, shape: Sphere | Capsule | Box) -> int:
+        """Add a solid obstacle (a :class:`kinema.geometry.Sphere`, ``Capsule`` or ``Box``
+        of radius or half extents at least the spacing) moving at its ``velocity`` (m/s):
+        sampled by boundary particles (Akinci et al. 2012) which carry that velocity, moved
+        by ``velocity · dt`` every substep; the fluid feels it, it does not feel the fluid
+        (one-way). Returns its index for :meth:`set_collider`. Add colliders before the
+        fluid: :meth:`add_block` leaves out the lattice points within half a spacing of one,
+        and a collider with fluid inside it is refused. A plane is refused (use
+        :meth:`add_boundary_plane`); so are ``friction``, ``restitution`` and ``inside``."""
+        return int(self._f.add_collider(*_collider(shape)))
+
+    def set_collider(self, index: int, shape: Sphere | Capsule | Box) -> None:
+        """Move collider ``index`` to ``shape``'s pose and velocity between steps (e.g. a
+        rigid body's, each frame): the same kind and size as the collider added (a capsule
+        may change its length, as a motion-captured bone does)."""
+        self._f.set_collider(index, *_collider(shape))
+
     def add_emitter(self, position: Any, direction: Any, speed: float, radius: float) -> None:
         """Add a nozzle: a disc of ``radius`` (m, at least half a spacing) about ``position``
         (m) facing ``direction`` (made unit), emitting fluid at ``speed`` (m/s) in layers on
@@ -167,7 +187,8 @@ class Fluid:
 
     @property
     def boundary_particles(self) -> np.ndarray:
-        """The walls' boundary particles ``(B, 3)`` (m, a new array)."""
+        """The boundary particles ``(B, 3)`` (m, a new array): the walls', then every
+        collider's where it is now."""
         return self._f.boundary_particles()
 
     @property
@@ -187,3 +208,18 @@ class Fluid:
         mean compression over the substeps, percent), ``max_density_error`` (of any
         particle, percent), ``divergence_error`` (percent per substep)."""
         return self._f.stats()
+
+
+def _collider(shape: Any) -> tuple[str, list[float]]:
+    """The compiled collider's kind and parameters: the shape's, then its velocity."""
+    if not isinstance(shape, (Sphere, Capsule, Box)):
+        raise TypeError(
+            "shape: expected a kinema.geometry Sphere, Capsule or Box (for a plane use "
+            "add_boundary_plane)"
+        )
+    if shape.friction is not None or shape.restitution is not None:
+        raise ValueError("friction: fluid colliders take no friction or restitution")
+    if isinstance(shape, Sphere) and shape.inside:
+        raise ValueError("inside: the fluid stays outside a collider")
+    kind, p = shape_params(shape)
+    return kind, p + as_vector3(shape.velocity, "velocity")

@@ -4,8 +4,8 @@ A :class:`Scene` steps what was added to it (particle systems, constrained parti
 rigid worlds, fluids, crowds, flocks) with one clock: every frame of ``dt`` seconds is
 ``substeps`` steps of ``dt / substeps``. Kinematic objects (an :class:`AnimatedSphere` on a keyframed path, a
 motion-captured :class:`Character` whose bones are capsules) and the spheres, capsules and boxes of
-rigid worlds are colliders for every cloth and particle system in the scene (one-way: cloth and
-particles do not push back). A scene models only what it was given: without colliders *and*
+rigid worlds are colliders for every cloth, particle system and fluid in the scene (one-way:
+cloth, particles and fluids do not push back). A scene models only what it was given: without colliders *and*
 something to collide, no collider code runs; an empty scene only counts frames.
 
 Checkpoints (:meth:`Scene.save`, :meth:`Scene.load`) hold the whole model and state — down to
@@ -187,7 +187,7 @@ class _Entry:
     def __init__(self, obj: Any, options: dict[str, Any]) -> None:
         self.obj = obj
         self.options = options
-        self.receives = isinstance(obj, (_cloth.Cloth, _particles.ParticleSystem))
+        self.receives = isinstance(obj, (_cloth.Cloth, _particles.ParticleSystem, _fluid.Fluid))
         self.colliders: list[int] = []  # indices of the scene's colliders in obj
 
 
@@ -218,8 +218,9 @@ class Scene:
         """Add a system or a kinematic object and return it.
 
         Systems: :class:`kinema.particles.ParticleSystem`, :class:`kinema.cloth.Cloth`,
-        :class:`kinema.rigid.World`, :class:`kinema.fluid.Fluid` (its walls only, no
-        colliders yet), :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
+        :class:`kinema.rigid.World`, :class:`kinema.fluid.Fluid` (the scene's colliders as
+        its moving colliders, each of radius or half extents at least its spacing),
+        :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
         obstacles only), :class:`kinema.character.Biped` and
         :class:`kinema.character.ArticulatedBody` (a :class:`~kinema.character.Ragdoll` too;
         their own ground, no colliders), :class:`kinema.character.Tracker` (no options; each
@@ -321,7 +322,8 @@ class Scene:
         is its pose at the cloth's own time, the start of the step, which the cloth moves by
         ``velocity · h`` to find its end-of-step contacts (implicit Euler and BDF2 solve for
         the end of the step), so it gets the pose at ``t - h``: both meet the collider where
-        it is at ``t``. Without poses from the previous step (the first step, or a collider
+        it is at ``t``. A fluid moves its colliders by ``velocity`` over its substeps, so it
+        gets the pose at ``t - h`` too (without friction: its colliders take none). Without poses from the previous step (the first step, or a collider
         added since), the kinematic objects' are evaluated at ``t - h``; rigid worlds have
         already stepped, so their bodies count as at rest for that one step."""
         h = self._h
@@ -331,24 +333,26 @@ class Scene:
             previous = self._sources(t - h)
         for e in receivers:
             is_cloth = isinstance(e.obj, _cloth.Cloth)
+            is_fluid = isinstance(e.obj, _fluid.Fluid)
             module: Any = _cloth if is_cloth else _particles
-            back = h if is_cloth else 0.0  # from the pose at t to the one the receiver needs
+            back = h if is_cloth or is_fluid else 0.0  # from the pose at t to the receiver's
             for k, (s, p) in enumerate(zip(shapes, previous, strict=True)):
+                friction = None if is_fluid else s[-1]
                 if s[0] == "sphere":
                     v = (s[1] - p[1]) / h
-                    c: Any = module.Sphere(s[1] - back * v, s[2], friction=s[3], velocity=v)
+                    c: Any = module.Sphere(s[1] - back * v, s[2], friction=friction, velocity=v)
                 elif s[0] == "box":
                     v = (s[1] - p[1]) / h
                     c = module.Box(
-                        s[1] - back * v, s[3], orientation=s[2], friction=s[4], velocity=v
+                        s[1] - back * v, s[3], orientation=s[2], friction=friction, velocity=v
                     )
                 else:
                     v = 0.5 * ((s[1] - p[1]) + (s[2] - p[2])) / h
                     a, b = s[1] - back * v, s[2] - back * v
-                    c = module.Capsule(a, b, s[3], friction=s[4], velocity=v)
+                    c = module.Capsule(a, b, s[3], friction=friction, velocity=v)
                 if k < len(e.colliders):
                     e.obj.set_collider(e.colliders[k], c)
-                elif is_cloth:
+                elif is_cloth or is_fluid:
                     e.colliders.append(e.obj.add_collider(c))
                 else:
                     e.obj.add(c)

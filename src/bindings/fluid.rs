@@ -7,7 +7,9 @@ use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::error::Error;
-use crate::fluid::{Emitter, Fluid as Core, Kernel, Pressure, Settings, State, Stats, Wall};
+use crate::fluid::{
+    Collider, Emitter, Fluid as Core, Kernel, Pressure, Settings, State, Stats, Wall,
+};
 use crate::snapshot::Snapshot;
 use glam::DVec3;
 use numpy::{PyArray1, PyArray2, PyArrayDyn, PyArrayMethods};
@@ -21,8 +23,8 @@ pub struct Fluid {
     /// Whether a view of the positions or velocities was handed out: their buffers must then
     /// never be reallocated, so no block, emitter or kill box may be added.
     viewed: bool,
-    /// The scene's undo point (`_mark`).
-    saved: Option<(State, Stats)>,
+    /// The scene's undo point (`_mark`), with the number of colliders then.
+    saved: Option<(State, Stats, usize)>,
 }
 
 impl Fluid {
@@ -67,6 +69,13 @@ impl Fluid {
     }
 }
 
+/// A collider from its kind and parameters: the shape's ([`super::geometry::shape`]), then
+/// velocity 3.
+fn collider(kind: &str, p: &[f64]) -> PyResult<Collider> {
+    let (shape, t) = super::geometry::shape(kind, p, 3)?;
+    Ok(Collider { shape, velocity: DVec3::new(t[0], t[1], t[2]) })
+}
+
 /// Vertices (V, 3) and triangles (T, 3) of a surface.
 type SurfaceMesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u32>>);
 
@@ -95,19 +104,22 @@ impl Fluid {
         Ok(Self::wrap(Core::from_snapshot(data)?))
     }
 
-    /// Remember the state and stats as they are now (a scene's undo point before a frame; no
-    /// allocation after the first time).
+    /// Remember the state, stats and number of colliders as they are now (a scene's undo
+    /// point before a frame; no allocation after the first time).
     fn _mark(&mut self) {
         let fluid = &self.fluid;
-        let saved = self.saved.get_or_insert_with(|| (fluid.state().clone(), fluid.stats));
+        let count = fluid.model().colliders();
+        let saved = self.saved.get_or_insert_with(|| (fluid.state().clone(), fluid.stats, count));
         saved.0.clone_from(fluid.state());
-        saved.1 = fluid.stats;
+        (saved.1, saved.2) = (fluid.stats, count);
     }
 
     /// Put the state and stats back as they were at the last `_mark`, in place (views of the
-    /// state stay valid: their particle count cannot change).
+    /// state stay valid: their particle count cannot change), and remove the colliders the
+    /// frame added.
     fn _rollback(&mut self) {
-        if let Some((state, stats)) = &self.saved {
+        if let Some((state, stats, count)) = &self.saved {
+            self.fluid.truncate_colliders(*count);
             self.fluid.state_mut().clone_from(state);
             self.fluid.stats = *stats;
         }
@@ -218,6 +230,17 @@ impl Fluid {
         Ok(self.fluid.add_wall(wall)?)
     }
 
+    /// Add a collider of `kind` with the shape's parameters (see [`super::geometry::shape`])
+    /// then its velocity (m/s); returns its index.
+    fn add_collider(&mut self, kind: &str, p: Vec<f64>) -> PyResult<usize> {
+        Ok(self.fluid.add_collider(collider(kind, &p)?)?)
+    }
+
+    /// Move collider `index` to the pose and velocity of `kind` with parameters `p`.
+    fn set_collider(&mut self, index: Int, kind: &str, p: Vec<f64>) -> PyResult<()> {
+        Ok(self.fluid.set_collider(index.count("index")?, collider(kind, &p)?)?)
+    }
+
     /// Advance `steps` frames of `dt` seconds in CFL substeps (GIL released).
     fn step(&mut self, py: Python<'_>, dt: f64, steps: Int) -> PyResult<()> {
         let steps = steps.count("steps")?;
@@ -267,12 +290,13 @@ impl Fluid {
         Ok((v, t))
     }
 
-    /// The boundary particles (B, 3) in m (a new array).
+    /// The boundary particles (B, 3) in m, the walls' then the colliders' where they are now
+    /// (a new array).
     fn boundary_particles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        let b = self.fluid.model().boundary_particles();
+        let b = self.fluid.boundary_particles();
         compute::<3>(py, b.len(), &[3], |out| {
             let out = zeroed(out);
-            out.iter_mut().zip(b).for_each(|(o, p)| *o = p.to_array());
+            out.iter_mut().zip(&b).for_each(|(o, p)| *o = p.to_array());
             Ok(())
         })
     }

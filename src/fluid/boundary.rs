@@ -49,25 +49,7 @@ impl Wall {
     /// surface, appending them to `out`.
     pub(super) fn sample(&self, spacing: f64, offset: f64, out: &mut Vec<DVec3>) {
         match *self {
-            Wall::Box { lower, upper } => {
-                let (lower, upper) = (lower - offset, upper + offset);
-                let size = upper - lower;
-                let count = |l: f64| (l / spacing).ceil().max(1.0) as usize;
-                let n = [count(size.x), count(size.y), count(size.z)];
-                let step = size / DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
-                for k in 0..=n[2] {
-                    for j in 0..=n[1] {
-                        // Inner lattice points only on the two x faces.
-                        let on_yz = k == 0 || k == n[2] || j == 0 || j == n[1];
-                        let stride = if on_yz { 1 } else { n[0].max(1) };
-                        let mut i = 0;
-                        while i <= n[0] {
-                            out.push(lower + DVec3::new(i as f64, j as f64, k as f64) * step);
-                            i += stride;
-                        }
-                    }
-                }
-            }
+            Wall::Box { lower, upper } => shell(lower - offset, upper + offset, spacing, out),
             Wall::Plane { point, normal, half_extent } => {
                 let t1 = normal.any_orthonormal_vector();
                 let t2 = normal.cross(t1);
@@ -158,6 +140,27 @@ impl Wall {
             }
         }
         Ok(())
+    }
+}
+
+/// Sample the surface of the box `[lower, upper]` (m) on a lattice about `spacing` apart
+/// (m), every face's points and the edges' once, appending them to `out`.
+pub(super) fn shell(lower: DVec3, upper: DVec3, spacing: f64, out: &mut Vec<DVec3>) {
+    let size = upper - lower;
+    let count = |l: f64| (l / spacing).ceil().max(1.0) as usize;
+    let n = [count(size.x), count(size.y), count(size.z)];
+    let step = size / DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+    for k in 0..=n[2] {
+        for j in 0..=n[1] {
+            // Inner lattice points only on the two x faces.
+            let on_yz = k == 0 || k == n[2] || j == 0 || j == n[1];
+            let stride = if on_yz { 1 } else { n[0].max(1) };
+            let mut i = 0;
+            while i <= n[0] {
+                out.push(lower + DVec3::new(i as f64, j as f64, k as f64) * step);
+                i += stride;
+            }
+        }
     }
 }
 

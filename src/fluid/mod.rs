@@ -16,12 +16,16 @@
 //! a particle moved half their skin (`neighbours.rs`), in parallel and deterministically (in
 //! ascending index order: the same bits for any thread count and any history of the search).
 //!
+//! Colliders (`collider.rs`) are the shared shapes sampled the same way, fixed or moving
+//! with a rigid body (one-way: the fluid feels the body).
+//!
 //! The fluid is split as every system of kinema is: a [`Model`] (settings, particle volume,
 //! walls and boundary particles), a [`State`] (positions, velocities, time, DFSPH's warm
 //! starts) and a [`Solver`] (neighbour lists, densities, factors, scratch), so one model and
 //! one solver can advance several states. [`Fluid`] is the three together.
 
 mod boundary;
+mod collider;
 mod emitter;
 mod kernel;
 mod model;
@@ -32,6 +36,7 @@ mod state;
 mod surface;
 
 pub use boundary::Wall;
+pub use collider::Collider;
 pub use emitter::Emitter;
 pub use kernel::Kernel;
 pub use model::{Model, Pressure, Settings};
@@ -125,6 +130,42 @@ impl Fluid {
         Ok(())
     }
 
+    /// Add a collider (the `collider` module) at its shape's pose, moving at its velocity;
+    /// returns its index (for [`Fluid::set_collider`]).
+    ///
+    /// # Errors
+    /// Those of the shape ([`crate::geometry::Shape::checked`], named); a plane (`shape`: use
+    /// a [`Wall::Plane`]); a radius or half extent under the spacing (`radius`,
+    /// `half_extents`); a non-finite velocity (`velocity`); fluid particles inside the
+    /// shape (`shape`). The fluid is then unchanged.
+    pub fn add_collider(&mut self, collider: Collider) -> Result<usize> {
+        let collider = collider.checked(self.model.settings.spacing)?;
+        if self.state.positions.iter().any(|&p| collider.shape.distance(p).0 < 0.0) {
+            return Err(crate::Error::invalid(
+                "shape",
+                "fluid particles would be inside the collider (add it before the fluid)",
+            ));
+        }
+        self.model.add_collider(&collider)?;
+        self.state.colliders.push(collider);
+        Ok(self.model.colliders.len() - 1)
+    }
+
+    /// Move collider `index` ([`State::set_collider`]).
+    ///
+    /// # Errors
+    /// Those of [`State::set_collider`]; the fluid is then unchanged.
+    pub fn set_collider(&mut self, index: usize, collider: Collider) -> Result<()> {
+        self.state.set_collider(&self.model, index, collider)
+    }
+
+    /// Remove the colliders added after the first `count` (none if there are at most
+    /// `count`): a scene's undo of a frame that added colliders and failed.
+    pub fn truncate_colliders(&mut self, count: usize) {
+        self.model.truncate_colliders(count);
+        self.state.colliders.truncate(count);
+    }
+
     /// Fill `[lower, upper]` (m) with fluid moving at `velocity` (m/s) ([`State::add_block`]);
     /// returns the number of particles added.
     ///
@@ -176,6 +217,14 @@ impl Fluid {
     /// Those of [`surface_mesh`].
     pub fn surface_mesh(&self, resolution: f64) -> Result<crate::geometry::isosurface::Mesh> {
         surface_mesh(&self.model, &self.state, resolution)
+    }
+
+    /// The boundary particles (m): the walls' ([`Model::boundary_particles`]), then every
+    /// collider's where it is now.
+    pub fn boundary_particles(&self) -> Vec<DVec3> {
+        let mut out = self.model.boundary_particles().to_vec();
+        self.model.place_colliders(self.state.colliders(), &mut out);
+        out
     }
 
     /// Pressures (Pa) of the last substep, `N` ([`State::pressures`] times `ρ₀`).

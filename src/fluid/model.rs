@@ -1,9 +1,11 @@
 //! The fluid model: what every step reads and no step changes — the settings (spacing, rest
 //! density, kernel, viscosity, pressure solver and its tolerances, time-step limits, gravity),
 //! the particle mass and volume derived from them, and the walls with their boundary
-//! particles and Akinci volumes, the emitters and the kill box.
+//! particles and Akinci volumes, the colliders' boundary particles in their own frames, the
+//! emitters and the kill box.
 
 use super::boundary::{offset, volumes, Wall};
+use super::collider::{sample, Body, Collider};
 use super::emitter::{validate_kill_box, Emitter};
 use super::Kernel;
 use crate::error::{Error, Result};
@@ -182,8 +184,12 @@ pub struct Model {
     pub(super) walls: Vec<Wall>,
     /// The boundary particles of every wall (m).
     pub(super) boundary: Vec<DVec3>,
-    /// Their Akinci volumes `V_b` (m³), one per boundary particle.
+    /// The Akinci volumes `V_b` (m³) of the walls' boundary particles, then of each
+    /// collider's (in the order of `colliders`), the order of the solver's boundary points.
     pub(super) boundary_volume: Vec<f64>,
+    /// The colliders' sizes and boundary particles in their own frames, in the order added
+    /// (their poses are state).
+    pub(super) colliders: Vec<Body>,
     /// The emitters, in the order added.
     pub(super) emitters: Vec<Emitter>,
     /// The kill box `(lower, upper)` (m): particles outside it are removed.
@@ -215,6 +221,7 @@ impl Model {
             walls: Vec::new(),
             boundary: Vec::new(),
             boundary_volume: Vec::new(),
+            colliders: Vec::new(),
             emitters: Vec::new(),
             kill_box: None,
         })
@@ -272,13 +279,58 @@ impl Model {
         wall.validate(self.settings.spacing)?;
         let mut boundary = self.boundary.clone();
         wall.sample(self.settings.spacing, self.offset, &mut boundary);
-        if boundary.len() >= u32::MAX as usize / 2 {
+        let moving = self.boundary_volume.len() - self.boundary.len();
+        if boundary.len() + moving >= u32::MAX as usize / 2 {
             return Err(Error::invalid("upper", "the wall needs too many boundary particles"));
         }
-        volumes(&boundary, self.settings.kernel, self.support, &mut self.boundary_volume);
+        let mut all = Vec::new();
+        volumes(&boundary, self.settings.kernel, self.support, &mut all);
+        all.extend_from_slice(&self.boundary_volume[self.boundary.len()..]);
+        self.boundary_volume = all;
         self.boundary = boundary;
         self.walls.push(wall);
         Ok(())
+    }
+
+    /// Add a collider (see the `collider` module): sample it in its own frame and give its
+    /// boundary particles Akinci volumes over its own particles. `collider` must have been
+    /// checked ([`Collider::checked`]); its pose is the state's.
+    ///
+    /// # Errors
+    /// More boundary particles than the limit of 2³¹ (`shape`).
+    pub(super) fn add_collider(&mut self, collider: &Collider) -> Result<()> {
+        let points = sample(&collider.shape, self.settings.spacing, self.offset);
+        if self.boundary_volume.len() + points.len() >= u32::MAX as usize / 2 {
+            return Err(Error::invalid("shape", "the collider needs too many boundary particles"));
+        }
+        let mut v = Vec::new();
+        volumes(&points, self.settings.kernel, self.support, &mut v);
+        self.boundary_volume.extend_from_slice(&v);
+        self.colliders.push(Body { shape: collider.shape, points });
+        Ok(())
+    }
+
+    /// Keep only the first `count` colliders (a scene's undo of colliders added in a failed
+    /// frame); their states must be truncated too ([`super::Fluid::truncate_colliders`]).
+    pub(super) fn truncate_colliders(&mut self, count: usize) {
+        if count < self.colliders.len() {
+            let kept: usize = self.colliders[..count].iter().map(|b| b.points.len()).sum();
+            self.boundary_volume.truncate(self.boundary.len() + kept);
+            self.colliders.truncate(count);
+        }
+    }
+
+    /// The number of colliders.
+    pub fn colliders(&self) -> usize {
+        self.colliders.len()
+    }
+
+    /// Every collider's boundary particles at the poses of `colliders` (one per collider of
+    /// the model, m), appended to `out` in the order of the model's boundary volumes.
+    pub(super) fn place_colliders(&self, colliders: &[Collider], out: &mut Vec<DVec3>) {
+        for (body, c) in self.colliders.iter().zip(colliders) {
+            super::collider::place(body, c, out);
+        }
     }
 
     /// The emitters, in the order added.

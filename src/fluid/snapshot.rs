@@ -21,9 +21,17 @@ impl Model {
         for w in &self.walls {
             w.validate(self.settings.spacing)?;
         }
-        check(self.boundary.len() == self.boundary_volume.len(), "boundary", || {
+        let moving: usize = self.colliders.iter().map(|b| b.points.len()).sum();
+        check(self.boundary.len() + moving == self.boundary_volume.len(), "boundary", || {
             "one volume per boundary particle".into()
         })?;
+        for b in &self.colliders {
+            super::Collider { shape: b.shape, velocity: glam::DVec3::ZERO }
+                .checked(self.settings.spacing)?;
+            check(finite(b.points.iter().flat_map(|p| p.to_array())), "colliders", || {
+                "non-finite boundary particle".into()
+            })?;
+        }
         check(
             finite(self.boundary.iter().flat_map(|p| p.to_array()))
                 && self.boundary_volume.iter().all(|v| v.is_finite() && *v > 0.0),
@@ -46,8 +54,9 @@ impl Stamped for State {
     const TAG: &'static str = "FluidState";
     type Model = Model;
 
-    /// Check a decoded state: lengths equal, finite values, not too many particles.
-    fn validate(&self, _: &Model) -> Result<()> {
+    /// Check a decoded state: lengths equal, finite values, not too many particles, one
+    /// collider of the model's kind and size per collider of the model.
+    fn validate(&self, model: &Model) -> Result<()> {
         use crate::snapshot::{check, finite};
         let n = self.positions.len();
         for (field, len) in [
@@ -65,6 +74,14 @@ impl Stamped for State {
         check(self.time.is_finite(), "time", || "non-finite".into())?;
         check(finite(self.emitted.iter().copied()), "emitted", || "non-finite".into())?;
         check(n < u32::MAX as usize / 4, "positions", || "too many particles".into())?;
+        let (have, want) = (self.colliders.len(), model.colliders.len());
+        check(have == want, "colliders", || format!("{have} entries for {want} colliders"))?;
+        for (c, b) in self.colliders.iter().zip(&model.colliders) {
+            let c = c.checked(model.settings.spacing)?;
+            check(super::collider::same_body(&b.shape, &c.shape), "colliders", || {
+                "a collider of another kind or size than the model's".into()
+            })?;
+        }
         Ok(())
     }
 }

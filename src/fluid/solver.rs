@@ -21,6 +21,7 @@
 //!   increments `(Dρ̂_i/Dt) α_i / dt`, ignoring particles with fewer than 20 neighbours
 //!   (a free surface, as SPlisHSPlasH does).
 
+use super::collider::{confine, Collider};
 use super::model::{Model, Pressure};
 use super::neighbours::Neighbours;
 use super::{State, Stats};
@@ -88,6 +89,10 @@ pub struct Solver {
     emitted: Vec<f64>,
     /// An emitter's new layer (m).
     layer: Vec<DVec3>,
+    /// The stepped copy of the state's colliders.
+    colliders: Vec<Collider>,
+    /// The velocity (m/s) of every boundary point: 0 on walls, a collider's on its own.
+    boundary_velocity: Vec<DVec3>,
 }
 
 /// Which DFSPH solve.
@@ -109,7 +114,8 @@ impl Solver {
     /// `dt ≤ sqrt(GRAVITY_STEP spacing / |g|)`), frames split evenly into substeps.
     ///
     /// # Errors
-    /// `dt` not finite and positive; a frame needing more than `max_substeps`
+    /// `dt` not finite and positive; a state with another number of colliders than the model
+    /// (`state`); a frame needing more than `max_substeps`
     /// ([`Error::SolverFailed`]); a non-finite position or velocity ([`Error::Diverged`]);
     /// emitters making more particles than memory or the limit of 2³⁰ allow (`steps`).
     /// The state is then left as it was.
@@ -123,7 +129,11 @@ impl Solver {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(Error::invalid("dt", "must be finite and > 0"));
         }
+        if state.colliders.len() != model.colliders.len() {
+            return Err(Error::invalid("state", "one collider pose per collider of the model"));
+        }
         let mut stats = Stats::default();
+        self.colliders.clone_from(&state.colliders);
         self.points.clone_from(&state.positions);
         self.v.clone_from(&state.velocities);
         self.pressure.clone_from(&state.pressure);
@@ -148,6 +158,7 @@ impl Solver {
         state.pressure.clone_from(&self.pressure);
         state.divergence.clone_from(&self.divergence);
         state.emitted.clone_from(&self.emitted);
+        state.colliders.clone_from(&self.colliders);
         state.time += dt * steps as f64;
         Ok(stats)
     }
@@ -233,11 +244,13 @@ impl Solver {
     }
 
     /// The longest substep the CFL condition allows now (s), and the speed of the fastest
-    /// particle or emitter (m/s).
+    /// particle, emitter or collider (m/s).
     fn substep_limit(&self, model: &Model) -> (f64, f64) {
         let s = &model.settings;
         let emitted = model.emitters.iter().map(|e| e.speed);
-        let fastest = self.v.iter().map(|v| v.length()).chain(emitted).fold(0.0, f64::max);
+        let moving = self.colliders.iter().map(|c| c.velocity.length());
+        let fastest =
+            self.v.iter().map(|v| v.length()).chain(emitted).chain(moving).fold(0.0, f64::max);
         let mut speed = fastest;
         if let Pressure::Wcsph { sound_speed } = s.pressure {
             speed += sound_speed;
@@ -276,9 +289,12 @@ impl Solver {
                 stats.density_iterations += it;
                 stats.density_error = stats.density_error.max(err);
                 stats.max_density_error = stats.max_density_error.max(max);
+                self.move_colliders(h);
                 self.advect(model, h);
             }
             Pressure::Pbf { max_iterations, density_tolerance, tensile } => {
+                // PBF's constraints act on the positions at the end of the substep.
+                self.move_colliders(h);
                 let (it, err, max) =
                     self.pbf(model, h, reach, max_iterations, density_tolerance, tensile);
                 stats.density_iterations += it;
@@ -299,6 +315,7 @@ impl Solver {
                     *k = *p / (r * r);
                 }
                 self.apply(model, h);
+                self.move_colliders(h);
                 self.advect(model, h);
             }
         }
@@ -314,7 +331,15 @@ impl Solver {
         }
     }
 
-    /// Put the boundary particles after the fluid's and update the neighbour lists. `reach`
+    /// Move every collider by its velocity over a substep of `h` (s).
+    fn move_colliders(&mut self, h: f64) {
+        for c in &mut self.colliders {
+            c.shape = c.shape.translated(c.velocity * h);
+        }
+    }
+
+    /// Put the boundary particles after the fluid's (the walls', then the colliders' where
+    /// they are now, with their velocities) and update the neighbour lists. `reach`
     /// (m), how far the fastest particle moves in a substep, sets the Verlet skin: candidates
     /// that last about [`LIST_SUBSTEPS`] substeps, at most [`MAX_SKIN`] spacings, none if
     /// that would not last two.
@@ -322,6 +347,13 @@ impl Solver {
         let n = self.v.len();
         self.points.truncate(n);
         self.points.extend_from_slice(&model.boundary);
+        model.place_colliders(&self.colliders, &mut self.points);
+        self.boundary_velocity.clear();
+        self.boundary_velocity.resize(model.boundary.len(), DVec3::ZERO);
+        for (body, c) in model.colliders.iter().zip(&self.colliders) {
+            let k = self.boundary_velocity.len() + body.points.len();
+            self.boundary_velocity.resize(k, c.velocity);
+        }
         let mut skin = (2.0 * LIST_SUBSTEPS * reach).min(MAX_SKIN * model.settings.spacing);
         if skin < 4.0 * reach {
             skin = 0.0;
@@ -463,13 +495,17 @@ impl Solver {
     fn residuals(&mut self, model: &Model, h: f64, which: Solve) {
         let mut residual = std::mem::take(&mut self.residual);
         let (vol, n, v, density) = (model.volume, self.v.len(), &self.v, &self.density);
-        let vb = &model.boundary_volume;
+        let (vb, bv) = (&model.boundary_volume, &self.boundary_velocity);
         residual.par_iter_mut().enumerate().for_each(|(i, out)| {
             let (near, grads) = self.pairs(i);
             let mut rate = 0.0;
             for (&j, &g) in near.iter().zip(grads) {
                 let j = j as usize;
-                rate += if j < n { vol * (v[i] - v[j]).dot(g) } else { vb[j - n] * v[i].dot(g) };
+                rate += if j < n {
+                    vol * (v[i] - v[j]).dot(g)
+                } else {
+                    vb[j - n] * (v[i] - bv[j - n]).dot(g)
+                };
             }
             *out = match which {
                 Solve::Density => density[i] + h * rate - 1.0,
@@ -577,7 +613,7 @@ impl Solver {
             self.displace(model, corr);
             iterations += 1;
         };
-        let Solver { points, v, x0, pressure, total, .. } = self;
+        let Solver { points, v, x0, pressure, total, colliders, .. } = self;
         for ((v, x), x0) in v.iter_mut().zip(&points[..n]).zip(&*x0) {
             *v = (*x - *x0) / h;
         }
@@ -585,9 +621,13 @@ impl Solver {
             *p = -t / (h * h);
         }
         let margin = 0.25 * model.settings.spacing;
+        let colliders = &**colliders;
         points[..n].par_iter_mut().zip(v).for_each(|(x, v)| {
             for wall in &model.walls {
                 wall.confine(x, v, margin);
+            }
+            for c in colliders {
+                confine(c, x, v, margin);
             }
         });
         self.non_pressure(model, h, DVec3::ZERO);
@@ -621,15 +661,19 @@ impl Solver {
         points[..n].par_iter_mut().zip(&*dv).for_each(|(x, d)| *x += *d);
     }
 
-    /// `x += dt v`, then every wall puts back fluid that crossed it (a quarter spacing
-    /// inside).
+    /// `x += dt v`, then every wall and collider (where it is after the substep) puts back
+    /// fluid that crossed it (a quarter spacing inside).
     fn advect(&mut self, model: &Model, h: f64) {
         let margin = 0.25 * model.settings.spacing;
         let n = self.v.len();
+        let colliders = &*self.colliders;
         self.points[..n].par_iter_mut().zip(&mut self.v).for_each(|(x, v)| {
             *x += *v * h;
             for wall in &model.walls {
                 wall.confine(x, v, margin);
+            }
+            for c in colliders {
+                confine(c, x, v, margin);
             }
         });
     }
@@ -639,6 +683,7 @@ impl Solver {
         let n = state.len();
         self.points.clone_from(&state.positions);
         self.v.clone_from(&state.velocities);
+        self.colliders.clone_from(&state.colliders);
         self.density.resize(n, 0.0);
         self.alpha.resize(n, 0.0);
         self.search(model, 0.0);

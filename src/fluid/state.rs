@@ -1,9 +1,10 @@
 //! The fluid state: what changes in time and what a later step reads — positions,
 //! velocities, the time, and DFSPH's warm starts (the pressures of the constant-density
 //! solve and the impulses of the divergence-free solve of the last substep, from which the
-//! next substep's solves start), and how far each emitter's fluid has moved since its
-//! last layer.
+//! next substep's solves start), how far each emitter's fluid has moved since its
+//! last layer, and where each collider is and how fast it moves.
 
+use super::collider::{same_body, Collider};
 use super::Model;
 use crate::error::{reserve, Error, Result};
 use glam::DVec3;
@@ -26,18 +27,24 @@ pub struct State {
     /// Per emitter of the model: the distance (m) its fluid has moved since its last layer
     /// was emitted (a layer is emitted when it reaches the spacing).
     pub(super) emitted: Vec<f64>,
+    /// Per collider of the model: its shape where it is now and its velocity.
+    pub(super) colliders: Vec<Collider>,
 }
 
 impl State {
     /// An empty state of `model` at time 0 (add fluid with [`State::add_block`]).
     pub fn new(model: &Model) -> Self {
         let emitted = vec![model.settings.spacing; model.emitters.len()];
-        State { emitted, ..State::default() }
+        let colliders =
+            model.colliders.iter().map(|b| Collider { shape: b.shape, velocity: DVec3::ZERO });
+        State { emitted, colliders: colliders.collect(), ..State::default() }
     }
 
     /// Fill the box `[lower, upper]` (m) with particles on a cubic lattice of the model's
-    /// spacing, the first half a spacing inside `lower`, all moving at `velocity` (m/s).
-    /// Returns how many were added.
+    /// spacing, the first half a spacing inside `lower`, all moving at `velocity` (m/s),
+    /// leaving out the points closer than half a spacing to a collider or inside it (fluid
+    /// at rest against a collider is where it would be against a wall). Returns how many
+    /// were added.
     ///
     /// # Errors
     /// Non-finite corners or velocity, a box too small for one particle (`upper`), fluid
@@ -83,20 +90,26 @@ impl State {
                 "the block overlaps fluid already added (particles would sit on top of each other)",
             ));
         }
-        let n = total as usize;
-        reserve("upper", &mut self.positions, n)?;
-        reserve("upper", &mut self.velocities, n)?;
-        reserve("upper", &mut self.pressure, n)?;
-        reserve("upper", &mut self.divergence, n)?;
+        reserve("upper", &mut self.positions, total as usize)?;
+        reserve("upper", &mut self.velocities, total as usize)?;
+        reserve("upper", &mut self.pressure, total as usize)?;
+        reserve("upper", &mut self.divergence, total as usize)?;
         let [cx, cy, cz] = counts.to_array().map(|c| c as usize);
+        let before = self.positions.len();
+        let clear = |p: DVec3| self.colliders.iter().all(|c| c.shape.distance(p).0 > 0.499 * s);
+        let mut points = Vec::new();
         for k in 0..cz {
             for j in 0..cy {
                 for i in 0..cx {
-                    let p = DVec3::new(i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5) * s;
-                    self.positions.push(lower + p);
+                    let p = lower + DVec3::new(i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5) * s;
+                    if clear(p) {
+                        points.push(p);
+                    }
                 }
             }
         }
+        self.positions.extend_from_slice(&points);
+        let n = self.positions.len() - before;
         self.velocities.resize(self.positions.len(), velocity);
         self.pressure.resize(self.positions.len(), 0.0);
         self.divergence.resize(self.positions.len(), 0.0);
@@ -132,6 +145,37 @@ impl State {
     /// Simulated time (s).
     pub fn time(&self) -> f64 {
         self.time
+    }
+
+    /// The colliders where they are now, one per collider of the model.
+    pub fn colliders(&self) -> &[Collider] {
+        &self.colliders
+    }
+
+    /// Move collider `index` of `model` to `collider`'s pose and velocity (between steps; a
+    /// scene sets a rigid body's pose each frame). Fluid it now covers is pushed out by the
+    /// next substep.
+    ///
+    /// # Errors
+    /// No such collider (`index`); the checks of [`Collider`]'s shape and velocity (named);
+    /// another kind or size than the collider added (`shape`; a capsule may change its
+    /// length, see the `collider` module). The state is then unchanged.
+    pub fn set_collider(&mut self, model: &Model, index: usize, collider: Collider) -> Result<()> {
+        let Some(body) = model.colliders.get(index) else {
+            return Err(Error::invalid("index", "no such collider"));
+        };
+        let collider = collider.checked(model.settings.spacing)?;
+        if !same_body(&body.shape, &collider.shape) {
+            return Err(Error::invalid(
+                "shape",
+                "a collider keeps its kind and size (only its pose and velocity change)",
+            ));
+        }
+        let Some(slot) = self.colliders.get_mut(index) else {
+            return Err(Error::invalid("index", "this state predates the collider"));
+        };
+        *slot = collider;
+        Ok(())
     }
 
     /// Overwrite the velocities (m/s), e.g. to start a state in motion.
