@@ -16,8 +16,8 @@ on the hanging sheet and the drape from 32² to 256², docs/cloth.md), ``"multig
 multigrid, Tamstorf, Jones & McCormick 2015) or ``"block_ssor"`` (the paper's modified
 preconditioned conjugate gradient with a block SSOR preconditioner), both to the tolerance
 ``tol``. After the solve, strain limiting (Provot 1995) shortens
-every edge to within ``1 + max_strain`` times its rest length (3 % by default) in at most 32
-sweeps a step (the hanging sheet ends a step at 3.0 % at 32², 3.2 % at 64², 5.8 % at 128²;
+every edge to within ``1 + max_strain`` times its rest length (3 % by default), in sweeps
+outward from the held vertices until no edge exceeds it by more than 10⁻⁴ (at most 64 a step;
 docs/cloth.md).
 
 Units: metres, kilograms, seconds; ``density`` kg/m², ``stretch`` and ``shear`` N/m (membrane
@@ -284,8 +284,8 @@ class Cloth:
         see ``stats["converged"]``; with multigrid, ``M⁻¹ ≈ A⁻¹`` and ``tol`` bounds the
         relative error of ``Δv`` in the energy norm ``‖·‖_A``). After the
         solve edges longer than ``1 + max_strain`` times their rest length are shortened to it
-        (strain limiting, Provot 1995, at most 32 sweeps a step, so at 128² and beyond some
-        excess may remain for later steps; default 3 %, ``inf`` turns it off). An implicit step that changes any stretch
+        (strain limiting, Provot 1995, to within 10⁻⁴ in at most 64 sweeps a step; default
+        3 %, ``inf`` turns it off). An implicit step that changes any stretch
         ratio by more than ``max_strain_change`` (measured after the strain limit) is redone as
         two half steps (Baraff & Witkin §5; ``stats["substeps"]`` counts them; ``inf`` turns this off). On divergence a
         :class:`kinema.SimulationError` names the step and vertex and the cloth stays at the

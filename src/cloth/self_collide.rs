@@ -134,7 +134,7 @@ impl Work {
     /// their rest length ([`strain_limit::Edges::shorten`] with the step's filter and masses).
     fn limit_strain(
         &mut self,
-        edges: &strain_limit::Edges,
+        edges: &mut strain_limit::Edges,
         x0: &[DVec3],
         (filter, mass): (&[DMat3], &[f64]),
         max_strain: f64,
@@ -142,7 +142,7 @@ impl Work {
         for ((x1, &x), &d) in self.x1.iter_mut().zip(x0).zip(&self.d) {
             *x1 = x + d;
         }
-        if edges.shorten(&mut self.x1, filter, mass, max_strain) {
+        if edges.shorten(&mut self.x1, filter, mass, max_strain, false) {
             for ((d, &x1), &x) in self.d.iter_mut().zip(&self.x1).zip(x0) {
                 *d = x1 - x;
             }
@@ -177,11 +177,11 @@ impl Solver {
         stats.proximities += filter.proximity(work);
         // The impulses stretch edges; each CCD pass checks the motion the strain limit leaves,
         // so a pass that finds nothing ends with both the limit and no collision.
-        let limit = max_strain.is_finite().then(|| {
-            &**self.limiter.get_or_insert_with(|| Box::new(strain_limit::Edges::new(model)))
+        let mut limit = max_strain.is_finite().then(|| {
+            &mut **self.limiter.get_or_insert_with(|| Box::new(strain_limit::Edges::new(model)))
         });
         for _ in 0..settings.iterations {
-            if let Some(edges) = limit {
+            if let Some(edges) = limit.as_deref_mut() {
                 work.limit_strain(edges, &state.x, (&s.filter, &model.mass), max_strain);
             }
             if filter.ccd_pass(work) == 0 {

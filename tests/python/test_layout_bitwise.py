@@ -39,6 +39,10 @@ from kinema.demos import showcase
 # solver of a cloth step became sparse Cholesky instead of multigrid PCG at tol 1e-6 (issue #21:
 # an exact solve, faster at every measured size); with `solver="multigrid"` as the default they
 # gave the former hashes.
+# "showcase" was re-recorded again when the strain limiter
+# started to sweep outward from the constrained vertices until converged to 1e-4, moving the far
+# end of an edge alone (issue #21, session 21: the 3 % limit held at 128²); main at ce9639c
+# gives the former hashes.
 EXPECTED = {
     "particles_fountain": "58823ac0b8b176df3229",
     "particles_shapes": "f228e65d27a3913c9309",
@@ -47,7 +51,7 @@ EXPECTED = {
     "cloth_explicit": "90b52dd558916ee90b6c",
     "rigid_drop": "42807893cb67fb2fe284",
     "rigid_tilted": "be22f5405c67168c4c6a",
-    "showcase": "6ffe53c3ce45f4185f3e",
+    "showcase": "2f574a3213d809f0b7db",
 }
 
 
