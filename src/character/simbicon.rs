@@ -243,26 +243,13 @@ impl Walker {
                 self.model.set_servo(body, Some(servo))?;
             }
         }
-        super::solver::check(&self.model, &self.state, dt)?;
-        let mut start = self.start.take().unwrap_or_else(|| self.state.clone());
-        start.clone_from(&self.state);
-        let phase = self.phase;
-        let mut result = Ok(());
-        for n in 0..steps {
-            let tree = self.solver.kinematics(&self.model, &self.state);
-            let down = touches(&self.model, tree, legs(self.phase.state).0[2]);
-            advance(&mut self.phase, &self.gait, down);
-            control(&self.gait, &self.phase, &self.model, tree, &mut self.state);
-            if let Err(e) = self.solver.step_once(&self.model, &mut self.state, dt, true, n) {
-                self.state.clone_from(&start);
-                self.phase = phase;
-                result = Err(e);
-                break;
-            }
-            self.phase.time += dt;
-        }
-        self.start = Some(start);
-        result
+        let gait = &self.gait;
+        let parts = (&self.model, &mut self.state, &mut self.solver, &mut self.phase);
+        walk(parts, &mut self.start, dt, steps, |model, phase, tree, state| {
+            let down = touches(model, tree, legs(phase.state).0[2]);
+            advance(phase, gait, down);
+            control(gait, phase, model, tree, state);
+        })
     }
 
     /// Centre of mass (m, world).
@@ -356,6 +343,38 @@ pub(super) fn advance(phase: &mut Phase, gait: &Gait, down: bool) {
         phase.state = (phase.state + 1) % 4;
         phase.time = 0.0;
     }
+}
+
+/// The step loop both walkers share: `steps` steps of `dt` seconds, each computing the
+/// kinematics once, then `control(model, phase, tree, state)` (the FSM's transitions and the
+/// controller's torques and targets, at those kinematics), then one solver step that reuses
+/// them; on error the state and the phase are put back as they were at the call. `start`
+/// keeps the undo state between calls, so that a step allocates nothing.
+pub(super) fn walk(
+    (model, state, solver, phase): (&Model, &mut State, &mut Solver, &mut Phase),
+    start: &mut Option<State>,
+    dt: f64,
+    steps: usize,
+    mut control: impl FnMut(&Model, &mut Phase, &Tree, &mut State),
+) -> Result<()> {
+    super::solver::check(model, state, dt)?;
+    let mut saved = start.take().unwrap_or_else(|| state.clone());
+    saved.clone_from(state);
+    let saved_phase = *phase;
+    let mut result = Ok(());
+    for n in 0..steps {
+        let tree = solver.kinematics(model, state);
+        control(model, phase, tree, state);
+        if let Err(e) = solver.step_once(model, state, dt, true, n) {
+            state.clone_from(&saved);
+            *phase = saved_phase;
+            result = Err(e);
+            break;
+        }
+        phase.time += dt;
+    }
+    *start = Some(saved);
+    result
 }
 
 /// SIMBICON's controls (§3.2–3.3) into `state`: the hips' torques, and the knees' and

@@ -27,7 +27,7 @@
 use super::biped3d::{biped3d, LEFT_3D, RIGHT_3D, TORSO_3D};
 use super::dynamics::Tree;
 use super::model::{Model, Servo, Settings};
-use super::simbicon::{advance, check_gravity, touches, vertical, Gait, Phase};
+use super::simbicon::{advance, check_gravity, touches, vertical, walk, Gait, Phase};
 use super::solver::Solver;
 use super::spatial::angular;
 use super::state::State;
@@ -176,27 +176,13 @@ impl Walker3d {
                 self.model.set_servo(body, Some(servo))?;
             }
         }
-        super::solver::check(&self.model, &self.state, dt)?;
-        let mut start = self.start.take().unwrap_or_else(|| self.state.clone());
-        start.clone_from(&self.state);
-        let phase = self.phase;
-        let mut result = Ok(());
-        for n in 0..steps {
-            let tree = self.solver.kinematics(&self.model, &self.state);
-            let (swing, _, _) = legs(self.phase.state);
-            let down = foot_down(&self.model, tree, swing);
-            advance(&mut self.phase, &self.gait, down);
-            control(self);
-            if let Err(e) = self.solver.step_once(&self.model, &mut self.state, dt, true, n) {
-                self.state.clone_from(&start);
-                self.phase = phase;
-                result = Err(e);
-                break;
-            }
-            self.phase.time += dt;
-        }
-        self.start = Some(start);
-        result
+        let (gait, coronal) = (&self.gait, &self.coronal);
+        let parts = (&self.model, &mut self.state, &mut self.solver, &mut self.phase);
+        walk(parts, &mut self.start, dt, steps, |model, phase, tree, state| {
+            let down = foot_down(model, tree, legs(phase.state).0);
+            advance(phase, gait, down);
+            control(gait, coronal, phase, model, tree, state);
+        })
     }
 
     /// Centre of mass (m, world).
@@ -251,11 +237,16 @@ fn clamp_joint(world: DVec3, rot: DQuat, limit: f64) -> (DVec3, DVec3) {
 
 /// SIMBICON's controls in 3-D into the walker's state: the hips' torques, and the knees'
 /// and ankles' servo targets, at the state of its last kinematics.
-fn control(w: &mut Walker3d) {
-    let (gait, coronal, model) = (&w.gait, &w.coronal, &w.model);
-    let tree = w.solver.tree();
-    let pose = if w.phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
-    let (swing, stance, side) = legs(w.phase.state);
+fn control(
+    gait: &Gait,
+    coronal: &Coronal,
+    phase: &Phase,
+    model: &Model,
+    tree: &Tree,
+    state: &mut State,
+) {
+    let pose = if phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
+    let (swing, stance, side) = legs(phase.state);
     let (_, ahead, tilt) = vertical(model);
     let vel = tree.momentum(model).1 / model.mass();
     let r = tree.com(model) - tree.positions()[stance[2]];
@@ -270,7 +261,6 @@ fn control(w: &mut Walker3d) {
     let swing_world = servo_world(gait.kp, gait.kd, thigh_target, rot[swing[0]], omega(swing[0]));
     let (swing_tau, swing_world) = clamp_joint(swing_world, rot[swing[0]], gait.max_torque);
     let (stance_tau, _) = clamp_joint(-torso - swing_world, rot[stance[0]], gait.max_torque);
-    let state = &mut w.state;
     state.torques.fill(0.0);
     for (body, tau) in [(swing[0], swing_tau), (stance[0], stance_tau)] {
         let iv = model.starts(body).1;
@@ -297,8 +287,8 @@ mod tests {
         let mut checked = 0;
         for _ in 0..2000 {
             w.step(1e-3, 1).unwrap();
-            w.solver.kinematics(&w.model, &w.state);
-            control(&mut w);
+            let tree = w.solver.kinematics(&w.model, &w.state);
+            control(&w.gait, &w.coronal, &w.phase, &w.model, tree, &mut w.state);
             let (tree, model, gait) = (w.solver.tree(), &w.model, &w.gait);
             let rot = tree.orientations();
             let pose = if w.phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
