@@ -71,3 +71,12 @@ def test_failed_step_leaves_the_fluid_and_warm_start_unchanged():
     f.step(1 / 60)
     g.step(1 / 60)
     assert np.array_equal(f.positions, g.positions)
+
+
+@pytest.mark.parametrize("solver", ["pbf", "wcsph"])
+def test_every_solver_takes_the_implicit_viscosity(solver):
+    f = honey(solver=solver)
+    f.step(1 / 60, steps=3)
+    s = f.stats
+    assert s["viscosity_iterations"] > 0 and s["viscosity_error"] <= 0.01
+    assert np.all(np.isfinite(f.positions)) and np.all(f.positions >= 0)
