@@ -3,7 +3,7 @@
 //! (1996), several states of one model, and the extremes.
 
 use glam::DVec3;
-use kinema::fluid::{Fluid, Kernel, Model, Pressure, Settings, Solver, State, Wall};
+use kinema::fluid::{Fluid, Kernel, Model, Pressure, Settings, Solver, State, Viscosity, Wall};
 use kinema::snapshot::Stamped;
 use kinema::Error;
 
@@ -276,7 +276,7 @@ fn snapshots_round_trip_and_name_their_model() {
     assert_eq!(bits(fluid.state()), bits(copy.state()));
     let data = fluid.state().to_snapshot(fluid.model()).unwrap();
     assert_eq!(bits(&State::from_snapshot(fluid.model(), &data).unwrap()), bits(fluid.state()));
-    let other = small(Settings { viscosity: 0.02, ..Settings::new(0.02) });
+    let other = small(Settings { viscosity: Viscosity::Xsph(0.02), ..Settings::new(0.02) });
     let err = State::from_snapshot(other.model(), &data).unwrap_err();
     assert!(matches!(err, Error::InvalidInput { ref arg, .. } if arg == "model"), "{err}");
 }

@@ -265,6 +265,7 @@ class Fluid:
         rest_density: float,
         kernel: str,
         viscosity: float,
+        viscosity_model: str,
         surface_tension: float,
         solver: str,
         density_tolerance: float,

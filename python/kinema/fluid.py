@@ -1,6 +1,6 @@
 """Particle fluids by SPH: DFSPH (Bender & Koschier 2015, 2017), PBF (Macklin & Müller
 2013) or WCSPH (Becker & Teschner 2007), walls sampled as boundary particles (Akinci et al.
-2012), XSPH viscosity, CFL substeps, emitters and a kill box.
+2012), XSPH or implicit viscosity (Weiler et al. 2018), CFL substeps, emitters and a kill box.
 
 Build a :class:`Fluid`, add tanks (:meth:`Fluid.add_boundary_box`) or floors
 (:meth:`Fluid.add_boundary_plane`), solid obstacles of the shared shapes, fixed or moving
@@ -29,8 +29,12 @@ __all__ = ["Fluid"]
 class Fluid:
     """A fluid of particles ``spacing`` apart at rest (m; the kernel's support is twice it).
 
-    ``rest_density`` in kg/m³; ``viscosity`` the XSPH coefficient in [0, 1] (the fraction by
-    which a substep moves a velocity towards its neighbours' mean); ``solver`` ``"dfsph"``
+    ``rest_density`` in kg/m³; ``viscosity_model`` ``"xsph"`` (``viscosity`` the XSPH
+    coefficient in [0, 1], default 0.01: the fraction by which a substep moves a velocity
+    towards its neighbours' mean) or ``"implicit"`` (``viscosity`` the kinematic viscosity
+    in m²/s, default 1e-6 for water; honey is about 1e-2: Weiler, Koschier, Brochard & Bender
+    2018's implicit solve by preconditioned conjugate gradients, no-slip walls, stable at any
+    substep); ``solver`` ``"dfsph"``
     (stops when the mean density error is below ``density_tolerance`` percent and the
     divergence error below ``divergence_tolerance`` percent, at most ``max_iterations``
     iterations per solve), ``"pbf"`` (position-based fluids: iterations until the mean
@@ -47,9 +51,10 @@ class Fluid:
         self,
         spacing: float,
         rest_density: float = 1000.0,
-        viscosity: float = 0.01,
+        viscosity: float | None = None,
         solver: str = "dfsph",
         *,
+        viscosity_model: str = "xsph",
         surface_tension: float = 0.0,
         kernel: str = "cubic",
         density_tolerance: float = 0.05,
@@ -64,6 +69,10 @@ class Fluid:
     ) -> None:
         if not isinstance(solver, str):
             raise TypeError("solver: expected 'dfsph', 'pbf' or 'wcsph'")
+        if not isinstance(viscosity_model, str):
+            raise TypeError("viscosity_model: expected 'xsph' or 'implicit'")
+        if viscosity is None:
+            viscosity = 1e-6 if viscosity_model == "implicit" else 0.01
         if not isinstance(kernel, str):
             raise TypeError("kernel: expected 'cubic' or 'wendland'")
         self._f = _kinema.Fluid(
@@ -71,6 +80,7 @@ class Fluid:
             real(rest_density, "rest_density"),
             kernel,
             real(viscosity, "viscosity"),
+            viscosity_model,
             real(surface_tension, "surface_tension"),
             solver,
             real(density_tolerance, "density_tolerance"),
@@ -206,7 +216,9 @@ class Fluid:
         """What the last ``step`` did: ``substeps``, ``density_iterations`` and
         ``divergence_iterations`` (summed over substeps), ``density_error`` (the largest
         mean compression over the substeps, percent), ``max_density_error`` (of any
-        particle, percent), ``divergence_error`` (percent per substep)."""
+        particle, percent), ``divergence_error`` (percent per substep),
+        ``viscosity_iterations`` (conjugate-gradient iterations of the implicit viscosity,
+        summed) and ``viscosity_error`` (its largest relative residual, percent)."""
         return self._f.stats()
 
 

@@ -8,7 +8,7 @@ use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::error::Error;
 use crate::fluid::{
-    Collider, Emitter, Fluid as Core, Kernel, Pressure, Settings, State, Stats, Wall,
+    Collider, Emitter, Fluid as Core, Kernel, Pressure, Settings, State, Stats, Viscosity, Wall,
 };
 use crate::snapshot::Snapshot;
 use glam::DVec3;
@@ -126,7 +126,8 @@ impl Fluid {
     }
 
     /// An empty fluid: `spacing` (m), `rest_density` (kg/m³), `kernel` ("cubic" or
-    /// "wendland"), XSPH `viscosity`, Akinci's `surface_tension` γ, `solver` ("dfsph", "pbf" or "wcsph") with its
+    /// "wendland"), `viscosity` of `viscosity_model` ("xsph": dimensionless; "implicit":
+    /// kinematic, m²/s), Akinci's `surface_tension` γ, `solver` ("dfsph", "pbf" or "wcsph") with its
     /// tolerances (%) and iteration cap, PBF's `tensile` `k`, or `sound_speed` (m/s); `cfl`,
     /// `max_dt` (s), `max_substeps`, `gravity` (m/s²).
     #[new]
@@ -136,6 +137,7 @@ impl Fluid {
         rest_density: f64,
         kernel: &str,
         viscosity: f64,
+        viscosity_model: &str,
         surface_tension: f64,
         solver: &str,
         density_tolerance: f64,
@@ -152,6 +154,15 @@ impl Fluid {
             "cubic" => Kernel::CubicSpline,
             "wendland" => Kernel::WendlandC2,
             _ => return Err(Error::invalid("kernel", "expected 'cubic' or 'wendland'").into()),
+        };
+        let viscosity = match viscosity_model {
+            "xsph" => Viscosity::Xsph(viscosity),
+            "implicit" => Viscosity::Implicit(viscosity),
+            _ => {
+                return Err(
+                    Error::invalid("viscosity_model", "expected 'xsph' or 'implicit'").into()
+                )
+            }
         };
         let pressure = match solver {
             "dfsph" => Pressure::Dfsph {
@@ -329,6 +340,8 @@ impl Fluid {
         d.set_item("density_error", s.density_error)?;
         d.set_item("max_density_error", s.max_density_error)?;
         d.set_item("divergence_error", s.divergence_error)?;
+        d.set_item("viscosity_iterations", s.viscosity_iterations)?;
+        d.set_item("viscosity_error", s.viscosity_error)?;
         Ok(d)
     }
 }

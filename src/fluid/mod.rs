@@ -10,7 +10,8 @@
 //! - **WCSPH** (Becker & Teschner 2007, "Weakly compressible SPH for free surface flows"):
 //!   pressure from the Tait equation, the simple reference.
 //!
-//! Viscosity is XSPH (Schechter & Bridson 2012). [`surface_mesh`] gives the liquid's
+//! Viscosity is XSPH (Schechter & Bridson 2012) or the implicit solve of Weiler et al. 2018
+//! (`viscosity.rs`, a kinematic viscosity in m²/s). [`surface_mesh`] gives the liquid's
 //! surface as a closed triangle mesh (`surface.rs`). Substeps follow the CFL condition
 //! ([`Solver::step`]); neighbours come from Verlet lists over a uniform grid, found again when
 //! a particle moved half their skin (`neighbours.rs`), in parallel and deterministically (in
@@ -20,8 +21,8 @@
 //! with a rigid body (one-way: the fluid feels the body).
 //!
 //! The fluid is split as every system of kinema is: a [`Model`] (settings, particle volume,
-//! walls and boundary particles), a [`State`] (positions, velocities, time, DFSPH's warm
-//! starts) and a [`Solver`] (neighbour lists, densities, factors, scratch), so one model and
+//! walls and boundary particles), a [`State`] (positions, velocities, time, the warm starts
+//! of DFSPH and of the implicit viscosity) and a [`Solver`] (neighbour lists, densities, factors, scratch), so one model and
 //! one solver can advance several states. [`Fluid`] is the three together.
 
 mod boundary;
@@ -34,12 +35,13 @@ mod snapshot;
 mod solver;
 mod state;
 mod surface;
+mod viscosity;
 
 pub use boundary::Wall;
 pub use collider::Collider;
 pub use emitter::Emitter;
 pub use kernel::Kernel;
-pub use model::{Model, Pressure, Settings};
+pub use model::{Model, Pressure, Settings, Viscosity};
 pub use solver::Solver;
 pub use state::State;
 pub use surface::surface_mesh;
@@ -66,6 +68,12 @@ pub struct Stats {
     /// The largest over the substeps of the mean density change per substep due to the
     /// velocity divergence after the divergence-free solve (percent, DFSPH).
     pub divergence_error: f64,
+    /// Conjugate-gradient iterations of the implicit viscosity solve, summed over the
+    /// substeps ([`Viscosity::Implicit`]).
+    pub viscosity_iterations: usize,
+    /// The largest over the substeps of the implicit viscosity solve's relative residual
+    /// `|b - A v| / |b|` (percent).
+    pub viscosity_error: f64,
 }
 
 /// A fluid: a [`Model`] with one [`State`] and a [`Solver`], its methods delegating to them.

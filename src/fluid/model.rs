@@ -61,6 +61,20 @@ impl Pressure {
     pub const WCSPH: Pressure = Pressure::Wcsph { sound_speed: 30.0 };
 }
 
+/// The viscosity model and its coefficient.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub enum Viscosity {
+    /// XSPH (dimensionless, in [0, 1]): each substep moves a particle's velocity this
+    /// fraction towards the kernel-weighted mean of its neighbours' (Schechter & Bridson
+    /// 2012, eq. 11; SPlisHSPlasH's `Viscosity_XSPH`). Not a physical viscosity: its effect
+    /// depends on the spacing and the substep.
+    Xsph(f64),
+    /// The kinematic viscosity `ν` (m²/s; water 1e-6, honey about 1e-2) of the implicit
+    /// solve of Weiler, Koschier, Brochard & Bender (2018) (the `viscosity` module): no-slip
+    /// walls and colliders, stable at any substep.
+    Implicit(f64),
+}
+
 /// What a fluid is made of and how it is stepped; [`Settings::new`] gives the defaults.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
@@ -71,10 +85,8 @@ pub struct Settings {
     pub rest_density: f64,
     /// The smoothing kernel (default cubic spline).
     pub kernel: Kernel,
-    /// XSPH viscosity `ν` (dimensionless, default 0.01): each substep moves a particle's
-    /// velocity the fraction `ν` towards the kernel-weighted mean of its neighbours'
-    /// (Schechter & Bridson 2012, eq. 11; SPlisHSPlasH's `Viscosity_XSPH`).
-    pub viscosity: f64,
+    /// The viscosity (default XSPH 0.01).
+    pub viscosity: Viscosity,
     /// Surface tension `γ` of Akinci, Akinci & Teschner (2013, eq. 1-6), default 0 (off):
     /// the acceleration `a_i = -γ Σ_j K_ij [m_j C(r_ij) x̂_ij + (n_i - n_j)]` with
     /// `K_ij = 2ρ₀ / (ρ_i + ρ_j)`, the cohesion spline `C` ([`super::kernel::cohesion`],
@@ -101,7 +113,7 @@ impl Settings {
             spacing,
             rest_density: 1000.0,
             kernel: Kernel::CubicSpline,
-            viscosity: 0.01,
+            viscosity: Viscosity::Xsph(0.01),
             surface_tension: 0.0,
             pressure: Pressure::DFSPH,
             cfl: 0.4,
@@ -116,7 +128,12 @@ impl Settings {
         let checks: [(&str, bool, &str); 7] = [
             ("spacing", positive(self.spacing), "must be finite and > 0"),
             ("rest_density", positive(self.rest_density), "must be finite and > 0"),
-            ("viscosity", (0.0..=1.0).contains(&self.viscosity), "must be in [0, 1]"),
+            match self.viscosity {
+                Viscosity::Xsph(c) => ("viscosity", (0.0..=1.0).contains(&c), "must be in [0, 1]"),
+                Viscosity::Implicit(nu) => {
+                    ("viscosity", nu.is_finite() && nu >= 0.0, "must be finite and >= 0 (m²/s)")
+                }
+            },
             (
                 "surface_tension",
                 self.surface_tension.is_finite() && self.surface_tension >= 0.0,

@@ -63,10 +63,12 @@ impl Stamped for State {
             ("velocities", self.velocities.len()),
             ("pressure", self.pressure.len()),
             ("divergence", self.divergence.len()),
+            ("viscous", self.viscous.len()),
         ] {
             check(len == n, field, || format!("{len} entries for {n} particles"))?;
         }
-        let values = self.positions.iter().chain(&self.velocities).flat_map(|v| v.to_array());
+        let vectors = self.positions.iter().chain(&self.velocities).chain(&self.viscous);
+        let values = vectors.flat_map(|v| v.to_array());
         check(finite(values), "positions", || "non-finite".into())?;
         check(finite(self.pressure.iter().chain(&self.divergence).copied()), "pressure", || {
             "non-finite".into()

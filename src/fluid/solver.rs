@@ -22,8 +22,9 @@
 //!   (a free surface, as SPlisHSPlasH does).
 
 use super::collider::{confine, Collider};
-use super::model::{Model, Pressure};
+use super::model::{Model, Pressure, Viscosity};
 use super::neighbours::Neighbours;
+use super::viscosity::{System, Workspace};
 use super::{State, Stats};
 use crate::error::{reserve, Error, Result};
 use crate::geometry::grid::CHUNK;
@@ -68,6 +69,10 @@ pub struct Solver {
     pressure: Vec<f64>,
     /// The stepped copy of the state's divergence impulses (m²/s).
     divergence: Vec<f64>,
+    /// The stepped copy of the state's implicit viscosity velocity changes (m/s).
+    viscous: Vec<DVec3>,
+    /// The implicit viscosity solve's workspace.
+    implicit: Workspace,
     /// Density ratio `ρ̂` per particle.
     density: Vec<f64>,
     /// DFSPH factor `α` (m²) per particle.
@@ -138,6 +143,7 @@ impl Solver {
         self.v.clone_from(&state.velocities);
         self.pressure.clone_from(&state.pressure);
         self.divergence.clone_from(&state.divergence);
+        self.viscous.clone_from(&state.viscous);
         self.emitted.clone_from(&state.emitted);
         self.emitted.resize(model.emitters.len(), model.settings.spacing);
         for _ in 0..steps {
@@ -152,11 +158,14 @@ impl Solver {
         for buffer in [&mut state.pressure, &mut state.divergence] {
             reserve("steps", buffer, n.saturating_sub(buffer.len()))?;
         }
+        let more = n.saturating_sub(state.viscous.len());
+        reserve("steps", &mut state.viscous, more)?;
         state.positions.clear();
         state.positions.extend_from_slice(&self.points[..n]);
         state.velocities.clone_from(&self.v);
         state.pressure.clone_from(&self.pressure);
         state.divergence.clone_from(&self.divergence);
+        state.viscous.clone_from(&self.viscous);
         state.emitted.clone_from(&self.emitted);
         state.colliders.clone_from(&self.colliders);
         state.time += dt * steps as f64;
@@ -183,10 +192,12 @@ impl Solver {
                 reserve("steps", &mut self.v, k)?;
                 reserve("steps", &mut self.pressure, k)?;
                 reserve("steps", &mut self.divergence, k)?;
+                reserve("steps", &mut self.viscous, k)?;
                 self.points.extend_from_slice(&self.layer);
                 self.v.resize(n + k, e.direction * e.speed);
                 self.pressure.resize(n + k, 0.0);
                 self.divergence.resize(n + k, 0.0);
+                self.viscous.resize(n + k, DVec3::ZERO);
             }
         }
         let n = self.v.len();
@@ -212,6 +223,7 @@ impl Solver {
                 self.v[kept] = self.v[i];
                 self.pressure[kept] = self.pressure[i];
                 self.divergence[kept] = self.divergence[i];
+                self.viscous[kept] = self.viscous[i];
                 kept += 1;
             }
         }
@@ -219,6 +231,7 @@ impl Solver {
         self.v.truncate(kept);
         self.pressure.truncate(kept);
         self.divergence.truncate(kept);
+        self.viscous.truncate(kept);
     }
 
     /// One frame of `dt` in CFL substeps.
@@ -283,7 +296,7 @@ impl Solver {
                     self.solve(model, h, Solve::Divergence, max_iterations, divergence_tolerance);
                 stats.divergence_iterations += it;
                 stats.divergence_error = stats.divergence_error.max(err);
-                self.non_pressure(model, h, gravity);
+                self.non_pressure(model, h, gravity, stats);
                 let (it, err, max) =
                     self.solve(model, h, Solve::Density, max_iterations, density_tolerance);
                 stats.density_iterations += it;
@@ -296,7 +309,7 @@ impl Solver {
                 // PBF's constraints act on the positions at the end of the substep.
                 self.move_colliders(h);
                 let (it, err, max) =
-                    self.pbf(model, h, reach, max_iterations, density_tolerance, tensile);
+                    self.pbf(model, h, reach, max_iterations, density_tolerance, tensile, stats);
                 stats.density_iterations += it;
                 stats.density_error = stats.density_error.max(err);
                 stats.max_density_error = stats.max_density_error.max(max);
@@ -308,7 +321,7 @@ impl Solver {
                 let (mean, max) = compression(&self.residual);
                 stats.density_error = stats.density_error.max(mean);
                 stats.max_density_error = stats.max_density_error.max(max);
-                self.non_pressure(model, h, gravity);
+                self.non_pressure(model, h, gravity, stats);
                 let c2 = sound_speed * sound_speed / 7.0;
                 for ((p, k), &r) in self.pressure.iter_mut().zip(&mut self.k).zip(&self.density) {
                     *p = (c2 * (r.powi(7) - 1.0)).max(0.0);
@@ -416,8 +429,9 @@ impl Solver {
     /// Gravity's velocity change `g` (m/s: `dt` times gravity), XSPH viscosity
     /// `v_i += g + ν Σ_j (V / ρ̂_j) (v_j - v_i) W_ij` (the `W_ij` of the last
     /// [`Solver::densities`]), and over `dt` (s) surface tension (Akinci et al. 2013,
-    /// [`super::Settings::surface_tension`]).
-    fn non_pressure(&mut self, model: &Model, dt: f64, g: DVec3) {
+    /// [`super::Settings::surface_tension`]); then, instead of XSPH, the implicit viscosity
+    /// solve ([`Viscosity::Implicit`], the `viscosity` module) over `dt`.
+    fn non_pressure(&mut self, model: &Model, dt: f64, g: DVec3, stats: &mut Stats) {
         let gamma = model.settings.surface_tension;
         if gamma > 0.0 {
             self.normals_now(model);
@@ -425,11 +439,16 @@ impl Solver {
         let mut dv = std::mem::take(&mut self.dv);
         let Solver { neighbours, points, v, density, normals, values, .. } = &*self;
         let (sup, vol, n) = (model.support, model.volume, v.len());
-        let (nu, mass) = (model.settings.viscosity, model.volume * model.settings.rest_density);
+        let nu = match model.settings.viscosity {
+            Viscosity::Xsph(c) => c,
+            Viscosity::Implicit(_) => 0.0,
+        };
+        let mass = model.volume * model.settings.rest_density;
+        let pairs = nu > 0.0 || gamma > 0.0;
         dv.par_iter_mut().enumerate().for_each(|(i, out)| {
             let (mut sum, mut tension) = (DVec3::ZERO, DVec3::ZERO);
             let near = neighbours.neighbours(i).iter().zip(&values[i / CHUNK][neighbours.span(i)]);
-            for (&j, &w) in near {
+            for (&j, &w) in near.filter(|_| pairs) {
                 let j = j as usize;
                 if j < n {
                     sum += (v[j] - v[i]) * (vol / density[j] * w);
@@ -446,6 +465,22 @@ impl Solver {
         });
         self.v.par_iter_mut().zip(&dv).for_each(|(v, dv)| *v += *dv);
         self.dv = dv;
+        if let Viscosity::Implicit(nu) = model.settings.viscosity {
+            let system = System {
+                neighbours: &self.neighbours,
+                gradients: &self.gradients,
+                points: &self.points,
+                density: &self.density,
+                boundary_volume: &model.boundary_volume,
+                boundary_velocity: &self.boundary_velocity,
+                volume: model.volume,
+                scale: 10.0 * dt * nu,
+                epsilon: 0.01 * model.support * model.support,
+            };
+            let (it, err) = system.solve(&mut self.implicit, &mut self.v, &mut self.viscous);
+            stats.viscosity_iterations += it;
+            stats.viscosity_error = stats.viscosity_error.max(err);
+        }
     }
 
     /// The surface normals `n_i = -h Σ_j (V / ρ̂_j) ∇W_ij` over fluid neighbours (Akinci et
@@ -576,6 +611,7 @@ impl Solver {
     /// The pressure stored is `κ = -Σ λ / h²` (the pressure whose DFSPH impulse over `h`
     /// gives the same displacement). Returns the iterations, the mean and the largest
     /// compression reached (percent).
+    #[allow(clippy::too_many_arguments)]
     fn pbf(
         &mut self,
         model: &Model,
@@ -584,6 +620,7 @@ impl Solver {
         max: usize,
         tol: f64,
         tensile: f64,
+        stats: &mut Stats,
     ) -> (usize, f64, f64) {
         let n = self.v.len();
         self.x0.clear();
@@ -630,7 +667,7 @@ impl Solver {
                 confine(c, x, v, margin);
             }
         });
-        self.non_pressure(model, h, DVec3::ZERO);
+        self.non_pressure(model, h, DVec3::ZERO, stats);
         (iterations, mean, largest)
     }
 

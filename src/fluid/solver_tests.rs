@@ -76,3 +76,115 @@ fn relaxation_is_below_the_jacobi_limit_of_the_column() {
     assert!(lambda > 2.0 && lambda < 4.0, "{lambda}");
     assert!(RELAXATION * lambda < 2.0, "ω λ_max = {}", RELAXATION * lambda);
 }
+
+/// Why the viscosity is implicit (Weiler et al. 2018): on the column at rest, for a
+/// honey-like `ν` = 0.05 m²/s at the default 5 ms substep, the largest eigenvalue of
+/// `-dt ν ∇²` (the paper's Laplacian with the walls' term) is measured above 2, so forward
+/// Euler `v ← v + dt ν ∇²v` multiplies that mode by `|1 - λ| > 1` every substep and
+/// diverges (shown: 30 such substeps grow a velocity field a thousandfold), while the
+/// implicit system `A = I - dt ν ∇²` has every eigenvalue `≥ 1`.
+#[test]
+fn explicit_viscosity_diverges_on_the_honey_column() {
+    let (fluid, solver) = column();
+    let model = fluid.model();
+    let (dt, nu) = (0.005, 0.05);
+    let system = crate::fluid::viscosity::System {
+        neighbours: &solver.neighbours,
+        gradients: &solver.gradients,
+        points: &solver.points,
+        density: &solver.density,
+        boundary_volume: &model.boundary_volume,
+        boundary_velocity: &solver.boundary_velocity,
+        volume: model.volume,
+        scale: 10.0 * dt * nu,
+        epsilon: 0.01 * model.support * model.support,
+    };
+    let n = fluid.state().len();
+    let start: Vec<DVec3> =
+        (0..n).map(|i| DVec3::new(1.0, -0.7, 0.3) * if i % 2 == 0 { 1.0 } else { -0.8 }).collect();
+    let norm = |x: &[DVec3]| x.iter().map(|v| v.length_squared()).sum::<f64>().sqrt();
+    // Power iteration on A (symmetric positive definite).
+    let (mut x, mut y) = (start.clone(), vec![DVec3::ZERO; n]);
+    let mut lambda = 0.0;
+    for _ in 0..300 {
+        let s = norm(&x);
+        x.iter_mut().for_each(|v| *v /= s);
+        system.product(&x, &mut y);
+        lambda = x.iter().zip(&y).map(|(a, b)| a.dot(*b)).sum::<f64>();
+        std::mem::swap(&mut x, &mut y);
+    }
+    let explicit = lambda - 1.0;
+    // Forward Euler: v ← v + dt ν ∇²v = (2I - A) v.
+    let mut v = start.clone();
+    for _ in 0..30 {
+        system.product(&v, &mut y);
+        v.iter_mut().zip(&y).for_each(|(v, a)| *v = *v * 2.0 - *a);
+    }
+    let growth = norm(&v) / norm(&start);
+    eprintln!("largest eigenvalue of -dt nu Laplacian: {explicit}; forward Euler growth {growth}");
+    assert!(explicit > 2.0, "{explicit}");
+    assert!(growth > 1e3, "{growth}");
+}
+
+/// The paper's Laplacian (eq. 11, `2(d + 2)` = 10) of the shear `v = (y², 0, 0)`
+/// (`∇²v = (2, 0, 0)`) at the centre of a block of the lattice: its value is the lattice sum
+/// `10 Σ_k V x_k² y_k² (-W'(r_k))/(r_k (r_k² + 0.01 h²))` (computed here apart, 1.40 for the
+/// cubic spline: 70 % of the continuum's 2), and the same shear along a diagonal of the
+/// lattice, `e₁ (x·e₂)²`, gets 2.86 (143 %): the sum at `h = 2 s` on a cubic lattice is
+/// anisotropic (docs/fluid.md, "Implicit viscosity").
+#[test]
+fn laplacian_of_a_shear_on_the_lattice() {
+    let s = 0.02;
+    let mut fluid = Fluid::new(Settings::new(s)).unwrap();
+    fluid.add_block(DVec3::ZERO, DVec3::splat(12.0 * s), DVec3::ZERO).unwrap();
+    let mut solver = Solver::new(fluid.model());
+    let n = fluid.state().len();
+    solver.points.clone_from(&fluid.state().positions);
+    solver.v = vec![DVec3::ZERO; n];
+    solver.emit(fluid.model(), 0.0).unwrap();
+    solver.search(fluid.model(), 0.0);
+    solver.densities(fluid.model(), true);
+    let model = fluid.model();
+    let system = crate::fluid::viscosity::System {
+        neighbours: &solver.neighbours,
+        gradients: &solver.gradients,
+        points: &solver.points,
+        density: &solver.density,
+        boundary_volume: &model.boundary_volume,
+        boundary_velocity: &solver.boundary_velocity,
+        volume: model.volume,
+        scale: 10.0,
+        epsilon: 0.01 * model.support * model.support,
+    };
+    let h = model.support;
+    let mut lattice = 0.0;
+    for k in -2i32..=2 {
+        for j in -2i32..=2 {
+            for i in -2i32..=2 {
+                let x = DVec3::new(f64::from(i), f64::from(j), f64::from(k)) * s;
+                let r = x.length();
+                if r > 0.0 {
+                    let slope = model.settings.kernel.derivative(r, h);
+                    lattice -= x.x * x.x * x.y * x.y * slope / (r * (r * r + 0.01 * h * h));
+                }
+            }
+        }
+    }
+    let lattice = 10.0 * model.volume * lattice;
+    let centre = DVec3::splat(6.5 * s);
+    let i = (0..n).find(|&i| (solver.points[i] - centre).length() < 1e-9).unwrap();
+    let mut av = vec![DVec3::ZERO; n];
+    let axis: Vec<DVec3> = solver.points[..n].iter().map(|p| DVec3::X * (p.y * p.y)).collect();
+    system.product(&axis, &mut av);
+    let along = axis[i] - av[i];
+    let e1 = DVec3::new(1.0, 1.0, 0.0) / 2f64.sqrt();
+    let e2 = DVec3::new(1.0, -1.0, 0.0) / 2f64.sqrt();
+    let diagonal: Vec<DVec3> =
+        solver.points[..n].iter().map(|p| e1 * (p.dot(e2) * p.dot(e2))).collect();
+    system.product(&diagonal, &mut av);
+    let across = (diagonal[i] - av[i]).dot(e1);
+    eprintln!("shear along an axis {along} (lattice sum {lattice}), along a diagonal {across}");
+    assert!((along.x - lattice).abs() < 1e-9 && along.y.abs() + along.z.abs() < 1e-9);
+    assert!((along.x / 2.0 - 0.698).abs() < 0.005, "{along}");
+    assert!((across / 2.0 - 1.432).abs() < 0.005, "{across}");
+}

@@ -1,7 +1,7 @@
 //! The fluid state: what changes in time and what a later step reads — positions,
-//! velocities, the time, and DFSPH's warm starts (the pressures of the constant-density
-//! solve and the impulses of the divergence-free solve of the last substep, from which the
-//! next substep's solves start), how far each emitter's fluid has moved since its
+//! velocities, the time, and the warm starts (the pressures of DFSPH's constant-density
+//! solve, the impulses of its divergence-free solve and the implicit viscosity's velocity
+//! change of the last substep, from which the next substep's solves start), how far each emitter's fluid has moved since its
 //! last layer, and where each collider is and how fast it moves.
 
 use super::collider::{same_body, Collider};
@@ -22,6 +22,9 @@ pub struct State {
     /// DFSPH's divergence-free impulse over rest density (m²/s) of the last substep, `N`: the
     /// warm start of the next divergence-free solve.
     pub(super) divergence: Vec<f64>,
+    /// The velocity change (m/s) of the last substep's implicit viscosity solve, `N`: the
+    /// warm start of the next (0 with XSPH).
+    pub(super) viscous: Vec<DVec3>,
     /// Simulated time (s).
     pub(super) time: f64,
     /// Per emitter of the model: the distance (m) its fluid has moved since its last layer
@@ -94,6 +97,7 @@ impl State {
         reserve("upper", &mut self.velocities, total as usize)?;
         reserve("upper", &mut self.pressure, total as usize)?;
         reserve("upper", &mut self.divergence, total as usize)?;
+        reserve("upper", &mut self.viscous, total as usize)?;
         let [cx, cy, cz] = counts.to_array().map(|c| c as usize);
         let before = self.positions.len();
         let clear = |p: DVec3| self.colliders.iter().all(|c| c.shape.distance(p).0 > 0.499 * s);
@@ -113,6 +117,7 @@ impl State {
         self.velocities.resize(self.positions.len(), velocity);
         self.pressure.resize(self.positions.len(), 0.0);
         self.divergence.resize(self.positions.len(), 0.0);
+        self.viscous.resize(self.positions.len(), DVec3::ZERO);
         Ok(n)
     }
 
