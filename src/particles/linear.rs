@@ -262,7 +262,10 @@ impl LinearImplicit {
         for (j, &i) in self.order.iter().enumerate() {
             self.position[i] = j;
         }
-        (self.col_ptr.clear(), self.row_idx.clear(), self.unit.clear(), self.inv_pivot.clear());
+        self.col_ptr.clear();
+        self.row_idx.clear();
+        self.unit.clear();
+        self.inv_pivot.clear();
         self.col_ptr.push(0);
         for j in 0..n {
             let (start, end) = (col_ptr[j], col_ptr[j + 1]);
