@@ -8,14 +8,20 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, LdltRef, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, LltRef, SymbolicCholesky,
+    SymbolicCholeskyRaw, SymmetricOrdering,
 };
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 /// Most right-hand sides [`SparseCholesky::solve_in_place`] solves at once (the three
 /// coordinates of a system of 3-vectors whose matrix is a scalar one times the identity).
 pub const MAX_COLUMNS: usize = 3;
+
+/// [`SparseCholesky::simplicial_factor`]: the permutation (if any), then `L`'s column
+/// pointers, row indices and values.
+pub type SimplicialFactor<'a> = (Option<&'a [usize]>, &'a [usize], &'a [usize], &'a [f64]);
 
 /// `L Lᵀ` factorisation of a sparse SPD matrix, or `L D Lᵀ` of a sparse symmetric
 /// quasi-definite one (`[A Bᵀ; B -C]` with `A`, `C` positive definite, e.g. a regularised KKT
@@ -49,6 +55,24 @@ impl SparseCholesky {
     /// # Errors
     /// An invalid pattern (faer's checks) or out of memory.
     pub fn new(n: usize, col_ptr: Vec<usize>, row_idx: Vec<usize>) -> Result<Self> {
+        Self::analyse(n, col_ptr, row_idx, SupernodalThreshold::AUTO)
+    }
+
+    /// [`Self::new`] with faer's simplicial (column by column) factorisation forced, so that
+    /// the factor is one compressed-column matrix ([`Self::simplicial_factor`]).
+    ///
+    /// # Errors
+    /// As [`Self::new`].
+    pub fn simplicial(n: usize, col_ptr: Vec<usize>, row_idx: Vec<usize>) -> Result<Self> {
+        Self::analyse(n, col_ptr, row_idx, SupernodalThreshold::FORCE_SIMPLICIAL)
+    }
+
+    fn analyse(
+        n: usize,
+        col_ptr: Vec<usize>,
+        row_idx: Vec<usize>,
+        threshold: SupernodalThreshold,
+    ) -> Result<Self> {
         if col_ptr.len() != n + 1 || col_ptr[n] != row_idx.len() || row_idx.iter().any(|&r| r >= n)
         {
             return Err(Error::invalid("pattern", "is not a valid compressed-column pattern"));
@@ -58,7 +82,10 @@ impl SparseCholesky {
             pattern,
             Side::Lower,
             SymmetricOrdering::Amd,
-            Default::default(),
+            CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: threshold,
+                ..Default::default()
+            },
         )
         .map_err(|e| Error::SolverFailed { reason: format!("symbolic Cholesky: {e:?}") })?;
         let req = symbolic
@@ -93,6 +120,19 @@ impl SparseCholesky {
             return Err(Error::invalid("signs", "needs one sign per row"));
         }
         Ok(SparseCholesky { signs, ..Self::new(n, col_ptr, row_idx)? })
+    }
+
+    /// The factor `L` of the last `L Lᵀ` factorisation of `P A Pᵀ` when it is simplicial
+    /// (always after [`Self::simplicial`]): `(perm, col_ptr, row_idx, values)`, row `i` of
+    /// `P A Pᵀ` being row `perm[i]` of `A` (no `perm`: `P = I`), and `L` lower triangular in
+    /// compressed columns with each column's diagonal entry first. `None` for a supernodal or
+    /// `L D Lᵀ` factorisation.
+    pub fn simplicial_factor(&self) -> Option<SimplicialFactor<'_>> {
+        let SymbolicCholeskyRaw::Simplicial(l) = self.symbolic.raw() else {
+            return None;
+        };
+        let perm = self.symbolic.perm().map(|p| p.arrays().0);
+        self.signs.is_empty().then_some((perm, l.col_ptr(), l.row_idx(), &self.factor[..]))
     }
 
     /// Number of stored entries of the pattern (lower triangle).

@@ -276,3 +276,73 @@ fn linear_chain_steps_solve_implicit_euler_exactly_and_keep_the_factors_across_c
         assert_eq!(thread_allocations() - before, 0, "{}", method.name());
     }
 }
+
+/// A linear net (the `side x side` grid of [`spring_net`] with zero-length undamped springs,
+/// so its factor fills in under the AMD ordering), pinned at one corner, with one dead slot,
+/// under gravity, damping, linear drag with wind and external forces: every implicit Euler
+/// step of the velocity form solves `y₁ = y₀ + h f(y₁)` to rounding (the residual computed
+/// from the forces written out by hand), the pinned and dead slots keep their bits, and a
+/// step that goes non-finite leaves the state as it was.
+#[test]
+fn linear_net_steps_solve_implicit_euler_exactly() {
+    let (side, k, h, m) = (7, 50.0, 1e-2, 0.01);
+    let (rate, linear, wind) = (0.3, 2e-3, DVec3::new(0.1, 0.0, -0.2));
+    let (template, springs) = spring_net(side, k);
+    let n = side * side;
+    let (xs, vs): (Vec<DVec3>, Vec<DVec3>) = (0..n)
+        .map(|i| (pos(&template, i), DVec3::from_slice(&template.velocities()[3 * i..])))
+        .unzip();
+    let mut masses = vec![m; n];
+    masses[0] = f64::INFINITY;
+    let mut s = ParticleSystem::new(&xs, &vs, &masses, n + 1).unwrap();
+    let mut pairs: Vec<[usize; 2]> = springs.iter().map(|s| s.0).collect();
+    pairs.push([3, n]); // to the dead slot (at the origin), which stays put
+    let rest = vec![0.0; pairs.len()];
+    s.add_force(Force::Springs { pairs: pairs.clone(), rest, stiffness: k, damping: 0.0 }).unwrap();
+    s.add_force(Force::Gravity { g: G }).unwrap();
+    s.add_force(Force::Damping { rate }).unwrap();
+    s.add_force(Force::Drag { linear, quadratic: 0.0, wind }).unwrap();
+    let external: Vec<f64> = (0..3 * (n + 1)).map(|c| 1e-3 * ((c * 7) % 5) as f64).collect();
+    s.set_external_forces(&external).unwrap();
+    let bits = |s: &ParticleSystem, i: usize| -> Vec<u64> {
+        let (x, v) = (&s.positions()[3 * i..3 * i + 3], &s.velocities()[3 * i..3 * i + 3]);
+        x.iter().chain(v).map(|v| v.to_bits()).collect()
+    };
+    let kept = [bits(&s, 0), bits(&s, n)];
+    for _ in 0..5 {
+        let (x0, v0) = (s.positions().to_vec(), s.velocities().to_vec());
+        s.step(h, 1, Method::ImplicitEuler).unwrap();
+        let (x1, v1) = (s.positions(), s.velocities());
+        let p = |x: &[f64], i: usize| DVec3::from_slice(&x[3 * i..]);
+        let mut force = vec![DVec3::ZERO; n + 1];
+        for &[a, b] in &pairs {
+            let f = -k * (p(x1, a) - p(x1, b));
+            force[a] += f;
+            force[b] -= f;
+        }
+        let mut worst: f64 = 0.0;
+        // Slots 1..n move (0 is pinned, n dead).
+        for (i, spring) in force.iter().enumerate().take(n).skip(1) {
+            let v = p(v1, i);
+            let f = *spring + m * G - rate * m * v - linear * (v - wind) + p(&external, i);
+            let rx = p(x1, i) - p(&x0, i) - h * v;
+            let rv = v - p(&v0, i) - h * f / m;
+            worst = worst.max(rx.abs().max_element() / h).max(rv.abs().max_element());
+        }
+        assert!(worst < 1e-12, "implicit Euler residual {worst:e}");
+        assert_eq!([bits(&s, 0), bits(&s, n)], kept, "the pinned and dead slots stay put");
+    }
+    // Particle 20 at 1.7e308 m/s pushed on by 1e308 N: the step overflows (which particle
+    // first depends on how the overflow spreads through the solve).
+    s.state_mut()[3 * (n + 1) + 3 * 20 + 1] = 1.7e308;
+    s.state_changed();
+    let mut huge = external.clone();
+    huge[3 * 20 + 1] = 1e308;
+    s.set_external_forces(&huge).unwrap();
+    let before: Vec<u64> =
+        s.positions().iter().chain(s.velocities()).map(|v| v.to_bits()).collect();
+    let err = s.step(h, 1, Method::ImplicitEuler).unwrap_err();
+    assert!(err.to_string().contains("diverged at step 0"), "{err}");
+    let after: Vec<u64> = s.positions().iter().chain(s.velocities()).map(|v| v.to_bits()).collect();
+    assert_eq!(before, after, "a failed step leaves the state as it was");
+}
