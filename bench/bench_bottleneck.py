@@ -10,7 +10,10 @@ speed, which bounds only the fastest pushes), at full size:
    fundamental diagram (docs/crowd.md), against the Jülich experiments (Liddle et al. 2011, as tabulated in
    JuPedSim's `Utest/testflow.py`; Seyfried et al. 2009: about 1.9 /(m s)); the table, and
    the plot `docs/images/crowd_bottleneck_flow.png`;
-2. "faster is slower" (Helbing et al. 2000, Fig. 1c): `--panic` (200) agents of radius
+2. ORCA through the same doors (kinema's ORCA defaults, max speed 2 m/s), with its default
+   planning margin 0.1 and without (0), the steady flow averaged over seeds 0–2 (`--orca`
+   agents, 150; 0 skips it);
+3. "faster is slower" (Helbing et al. 2000, Fig. 1c): `--panic` (200) agents of radius
    0.3 m (Helbing's radii are 0.25–0.35 m) on a grid of 20 rows 0.75 m apart leave through a
    1 m door at desired speeds 0.6–5 m/s; the time for the first 90 %
    and for all of them to leave.
@@ -19,7 +22,7 @@ Every agent walks to the nearest point of the door's far side narrowed by its ra
 jamb (Helbing et al.: e⁰ points to the exit), then straight on (`kinema.crowd.door_goals`;
 the same set-up as `tests/crowd_bottleneck.rs`, which runs it at reduced size).
 
-Run: python bench/bench_bottleneck.py [--quick] [--agents 150] [--panic 200] [--no-plot]
+Run: python bench/bench_bottleneck.py [--quick] [--agents 150] [--orca 150] [--panic 200] [--no-plot]
 (--quick: 40 agents in each, no plot: a smoke run, not the figures.)
 """
 
@@ -62,19 +65,24 @@ def evacuate(
     seconds: float,
     seed: int = 0,
     time_gap: float = 0.0,
+    orca_margin: float | None = None,
 ) -> np.ndarray:
     """Crossing times (s) of the door's far side by ``n`` agents started on a grid of
     ``rows`` rows ``spacing`` m apart in front of a door of ``width`` m, each moved by up to
     0.1 m (uniform, ``seed``: a symmetric start jams symmetrically); ``time_gap`` (s) is
-    the social forces' Seyfried time gap (0: Helbing et al. 2000 as published)."""
-    c = Crowd(
-        "social_force",
-        radius=radius,
-        max_speed=2.0 * speed,
-        preferred_speed=speed,
-        neighbour_distance=2.0,
-        time_gap=time_gap,
-    )
+    the social forces' Seyfried time gap (0: Helbing et al. 2000 as published); with
+    ``orca_margin`` ORCA at its defaults with that planning margin instead."""
+    if orca_margin is None:
+        c = Crowd(
+            "social_force",
+            radius=radius,
+            max_speed=2.0 * speed,
+            preferred_speed=speed,
+            neighbour_distance=2.0,
+            time_gap=time_gap,
+        )
+    else:
+        c = Crowd("orca", radius=radius, preferred_speed=speed, planning_margin=orca_margin)
     half = width / 2
     for lo, hi in [(half, 20.0), (-20.0, -half)]:
         c.add_obstacle([[0.0, lo], [0.2, lo], [0.2, hi], [0.0, hi]])
@@ -146,6 +154,22 @@ def flows(n: int, plot: bool) -> None:
         plt.close(fig)
 
 
+def orca_flows(n: int) -> None:
+    print(f"ORCA through a door: {n} agents, radius 0.25 m, 1.34 m/s, 120 s at most, seeds 0-2")
+    print("| width (m) | out, margin 0 | flow (1/s) | out, margin 0.1 | flow (1/s) | Liddle 2011 |")
+    print("|---|---|---|---|---|---|")
+    for w in [0.8, 1.0, 1.2, 1.6, 2.0, 2.4]:
+        cells = []
+        for m in [0.0, 0.1]:
+            runs = [
+                evacuate(w, n, 0.25, 1.34, 10, 0.7, 120.0, seed, orca_margin=m) for seed in range(3)
+            ]
+            out = "/".join(str(t.size) for t in runs)
+            cells += [out, f"{np.mean([steady(t) for t in runs]):.2f}"]
+        exp = np.interp(w, LIDDLE_2011[:, 0], LIDDLE_2011[:, 1], left=np.nan)
+        print(f"| {w:.1f} | {' | '.join(cells)} | {exp:.2f} |", flush=True)
+
+
 def panic(n: int) -> None:
     print(f"faster is slower: {n} agents, radius 0.3 m, 1 m door, 300 s at most")
     print("| desired speed (m/s) | out | 90 % out (s) | all out (s) | CPU s |")
@@ -163,13 +187,16 @@ def panic(n: int) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--agents", type=int, default=150)
+    ap.add_argument("--orca", type=int, default=150)
     ap.add_argument("--panic", type=int, default=200)
     ap.add_argument("--no-plot", action="store_true")
     ap.add_argument("--quick", action="store_true")
     a = ap.parse_args()
     if a.quick:
-        a.agents, a.panic, a.no_plot = 40, 40, True
+        a.agents, a.orca, a.panic, a.no_plot = 40, 40, 40, True
     flows(a.agents, not a.no_plot)
+    if a.orca:
+        orca_flows(a.orca)
     panic(a.panic)
 
 

@@ -4,10 +4,10 @@ antipodes, radius 1.5 m, max speed 2 m/s, preferred speed 1 m/s (RVO2's example 
 goal vector to 1), neighbour distance 15 m, 10 neighbours, horizons 10 s / 10 s, dt 0.25 s —
 from RVO2's exact starts (evenly on the circle) with its example's perturbation of every
 preferred velocity by up to 10⁻⁴ m/s (pyrvo: uniform random, as the example; kinema: its
-hashed `perturbation`), in one process, until every agent has arrived (first within one
-radius) or `--steps` pass: steps per second, agents arrived, mean time to goal (pyrvo's
-preferred velocities are set from Python each step, as its example does, and that loop is
-counted in its time there).
+hashed `perturbation`; kinema at its default planning margin 0.1), in one process, until
+every agent has arrived (first within one radius) or `--steps` pass: steps per second,
+agents arrived, mean time to goal (pyrvo's preferred velocities are set from Python each
+step, as its example does, and that loop is counted in its time there).
 
 Then speed, as time per step at equal settings (kinema's defaults): ORCA with `--orca`
 agents crossing a square at 0.1 agents per m² against RVO2's `do_step` alone (the Python loop

@@ -54,8 +54,8 @@ fn ahead(positions: &[DVec2]) -> Vec<DVec2> {
 }
 
 /// Mean speed along the ring (m/s) of agents of `kind` at `density`, over the last 10 s
-/// of 20 s.
-fn ring_speed(density: f64, kind: Kind) -> f64 {
+/// of 20 s; ORCA plans with `planning_margin`.
+fn ring_speed(density: f64, kind: Kind, planning_margin: f64) -> f64 {
     let settings = Settings {
         radius: 0.25,
         max_speed: 2.0,
@@ -63,6 +63,7 @@ fn ring_speed(density: f64, kind: Kind) -> f64 {
         neighbour_distance: 2.0,
         time_horizon: 2.0,
         obstacle_time_horizon: 2.0,
+        planning_margin,
         kind,
         ..Settings::rvo2_circle()
     };
@@ -103,7 +104,7 @@ fn social_force_speed_falls_with_density_as_weidmann() {
         Kind::SocialForce(SocialForce { max_substep: 0.01, time_gap, ..SocialForce::default() })
     };
     let densities = [0.5, 1.0, 2.0, 3.0];
-    let speeds: Vec<f64> = densities.iter().map(|&d| ring_speed(d, kind(0.065))).collect();
+    let speeds: Vec<f64> = densities.iter().map(|&d| ring_speed(d, kind(0.065), 0.0)).collect();
     for (d, v) in densities.iter().zip(&speeds) {
         let w = weidmann(*d);
         eprintln!("density {d:4.2} /m²: speed {v:.3} m/s, Weidmann {w:.3}");
@@ -111,17 +112,26 @@ fn social_force_speed_falls_with_density_as_weidmann() {
     }
     assert!((speeds[0] - 1.34).abs() < 0.134, "free speed {}", speeds[0]);
     assert!(speeds.windows(2).all(|w| w[1] < w[0]), "{speeds:?}");
-    let isotropic = ring_speed(2.0, kind(0.0));
+    let isotropic = ring_speed(2.0, kind(0.0), 0.0);
     assert!(isotropic > 1.2, "without the time gap the speed should hardly fall: {isotropic}");
 }
 
-/// ORCA on the same ring (neighbour distance and horizons 2 s): its speed falls only once the
-/// agents nearly touch (1.33, 1.11, 0.75 m/s at 0.5, 2, 3 /m²; Weidmann 1.30, 0.61, 0.33).
+/// ORCA on the same ring (neighbour distance and horizons 2 s, the default planning margin
+/// 0.1): its speed falls only once the agents nearly touch (1.34, 0.99, 0.59 m/s at 0.5, 2,
+/// 3 /m²; Weidmann 1.30, 0.61, 0.33). Without the margin it stays higher still
+/// (1.08 and 0.77 m/s at 2 and 3 /m²): the default is the nearer to Weidmann's.
 #[test]
 fn orca_speed_on_the_ring_stays_high_until_dense() {
-    let speeds: Vec<f64> = [0.5, 2.0, 3.0].iter().map(|&d| ring_speed(d, Kind::Orca)).collect();
+    let margin = Settings::rvo2_circle().planning_margin;
+    let speeds: Vec<f64> =
+        [0.5, 2.0, 3.0].iter().map(|&d| ring_speed(d, Kind::Orca, margin)).collect();
     eprintln!("ORCA: {speeds:?}");
     assert!((speeds[0] - 1.34).abs() < 0.134, "free speed {}", speeds[0]);
     assert!(speeds.windows(2).all(|w| w[1] < w[0]), "{speeds:?}");
     assert!(speeds[1] > 1.5 * weidmann(2.0), "{speeds:?}");
+    for (speed, density) in speeds[1..].iter().zip([2.0, 3.0]) {
+        let none = ring_speed(density, Kind::Orca, 0.0);
+        eprintln!("ORCA without the margin at {density} /m²: {none}");
+        assert!(*speed > weidmann(density) && *speed < none - 0.05, "{speed} against {none}");
+    }
 }

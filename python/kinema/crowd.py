@@ -45,8 +45,10 @@ class Crowd:
     have arrived within ``goal_tolerance`` m of their goal. ORCA adds to every preferred
     velocity a ``perturbation`` (m/s) in a direction hashed from ``seed``, the step and the
     agent, which breaks exactly symmetric deadlocks (0 turns it off); with a
-    ``planning_margin`` m its agents plan with the radius ``radius * (1 + m)`` (0: off; 0.1
-    matched RVO2's mean time to goal on its 250-agent circle without overlaps, docs/crowd.md). ``navigation`` (m, or
+    ``planning_margin`` m (default 0.1) its agents plan with the radius ``radius * (1 + m)``:
+    a personal space of ``m * radius`` metres round each body that ORCA keeps clear (0: off;
+    0.1 matches RVO2's mean time to goal on its 250-agent circle without overlaps and brings
+    the ring corridor's speeds nearer Weidmann's, docs/crowd.md). ``navigation`` (m, or
     ``None``: off) turns on the global layer with that clearance (:meth:`set_navigation`).
     After each ORCA step, overlapping agents are pushed apart and out of obstacles (a
     position-based projection, Müller et al. 2007), so no two agents overlap after a step
@@ -76,7 +78,7 @@ class Crowd:
         time_gap: float = 0.0,
         perturbation: float = 0.0,
         seed: int = 0,
-        planning_margin: float = 0.0,
+        planning_margin: float = 0.1,
         navigation: float | None = None,
     ) -> None:
         if not isinstance(model, str):

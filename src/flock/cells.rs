@@ -10,10 +10,16 @@
 //! sparse one (a boid far away) they may, and every candidate's cell is checked. The three cells of
 //! a row `x - 1, x, x + 1` have consecutive buckets (modulo the table), so their boids are one
 //! contiguous range (two when the row wraps round the table's end). Boids are ordered by
-//! bucket with a counting sort (stable: by index within a bucket), their positions,
-//! velocities and cells copied in that order; a boid's neighbours are then read from a few
-//! contiguous ranges, and consecutive boids read nearly the same ones. The order depends on
-//! the positions alone, not on the thread count. Buffers only grow.
+//! bucket, and by index within a bucket, so the order depends on the positions alone, not on
+//! the thread count nor on the steps before; a boid's neighbours are then read from a few
+//! contiguous ranges, and consecutive boids read nearly the same ones.
+//!
+//! The positions and velocities live here in that order for all the steps of one
+//! [`super::Solver::step`] call ([`Cells::load`] from the state, [`Cells::store`] back): each
+//! step re-sorts them from the previous step's order, which is nearly the new one (boids move
+//! less than a cell a step), so the counting sort and the copy into the new order read
+//! memory nearly in sequence instead of at random (Green 2008 keeps particles sorted the same
+//! way). Buffers only grow.
 
 use crate::geometry::grid::{cell_of, sort_by_bucket};
 use glam::DVec3;
@@ -22,12 +28,6 @@ use rayon::prelude::*;
 /// Boids sorted by cell (see the module docs).
 #[derive(Clone, Debug, Default)]
 pub(super) struct Cells {
-    /// Cell of each boid, in index order.
-    cell: Vec<[i64; 3]>,
-    /// Bucket of each boid, in index order.
-    bucket: Vec<u32>,
-    /// Start of each bucket in the sorted order (`buckets + 1` entries).
-    start: Vec<u32>,
     /// The boid in each sorted slot.
     pub(super) order: Vec<u32>,
     /// The sorted slot of each boid (the inverse of `order`).
@@ -38,6 +38,16 @@ pub(super) struct Cells {
     pub(super) velocities: Vec<DVec3>,
     /// Cells in sorted order.
     cells: Vec<[i64; 3]>,
+    /// Scratch of a sort: the cell and the bucket of each slot before it, the slot each new
+    /// slot comes from, and the buffers of the new order (swapped with the ones above).
+    cell: Vec<[i64; 3]>,
+    bucket: Vec<u32>,
+    from: Vec<u32>,
+    next_order: Vec<u32>,
+    next_positions: Vec<DVec3>,
+    next_velocities: Vec<DVec3>,
+    /// Start of each bucket in the sorted order (`buckets + 1` entries).
+    start: Vec<u32>,
     /// The widened box's lowest cell.
     origin: [i64; 3],
     /// Cells of the widened box along x and along x and y (`W`, `W H`).
@@ -48,22 +58,43 @@ pub(super) struct Cells {
     h2: f64,
     /// Every boid lies in one layer of cells along z: only that layer is visited.
     planar: bool,
+    /// Every boid has the first one's `z` and a zero velocity `z` (a 2-D flock).
+    flat: bool,
     /// The widened box has at most as many cells as there are buckets: one cell a bucket.
     dense: bool,
 }
 
 impl Cells {
-    /// Sort the boids at `positions` flying at `velocities` into cells of size `h` (m).
+    /// Take the boids at `positions` flying at `velocities`, in index order (not yet sorted).
     ///
     /// # Panics
     /// If the slices differ in length or hold 2³² boids or more (callers check).
-    pub(super) fn build(&mut self, positions: &[DVec3], velocities: &[DVec3], h: f64) {
+    pub(super) fn load(&mut self, positions: &[DVec3], velocities: &[DVec3]) {
         let n = positions.len();
         assert!(velocities.len() == n && n < u32::MAX as usize);
+        self.positions.clear();
+        self.positions.extend_from_slice(positions);
+        self.velocities.clear();
+        self.velocities.extend_from_slice(velocities);
+        self.order.clear();
+        self.order.extend(0..n as u32);
+        self.rank.clone_from(&self.order);
+    }
+
+    /// Write the boids back to `positions` and `velocities` in index order.
+    pub(super) fn store(&self, positions: &mut [DVec3], velocities: &mut [DVec3]) {
+        (positions, velocities, &self.rank).into_par_iter().for_each(|(p, v, &s)| {
+            (*p, *v) = (self.positions[s as usize], self.velocities[s as usize]);
+        });
+    }
+
+    /// Sort the boids into cells of size `h` (m), from the order they are in.
+    pub(super) fn sort(&mut self, h: f64) {
+        let n = self.positions.len();
         let inv_h = 1.0 / h;
         self.h2 = h * h;
         self.cell.resize(n, [0; 3]);
-        self.cell.par_iter_mut().zip(positions).for_each(|(c, p)| *c = cell_of(*p, inv_h));
+        self.cell.par_iter_mut().zip(&self.positions).for_each(|(c, p)| *c = cell_of(*p, inv_h));
         let (lo, hi) = self
             .cell
             .par_iter()
@@ -80,6 +111,11 @@ impl Cells {
                 },
             );
         self.planar = n == 0 || lo[2] == hi[2];
+        let z = self.positions.first().map_or(0.0, |p| p.z);
+        self.flat = self.planar
+            && (&self.positions, &self.velocities)
+                .into_par_iter()
+                .all(|(p, v)| p.z == z && v.z == 0.0);
         // The box widened by one cell each side; its extents in wrapping arithmetic (exact
         // for any flock whose box has fewer than 2⁶⁴ cells).
         self.origin = std::array::from_fn(|k| lo[k].wrapping_sub(1));
@@ -98,22 +134,51 @@ impl Cells {
         let this = &*self;
         bucket.par_iter_mut().zip(&this.cell).for_each(|(b, c)| *b = this.bucket_of(*c));
         self.bucket = bucket;
-        self.rank.resize(n, 0);
-        let rank = &mut self.rank;
-        sort_by_bucket(&self.bucket, buckets, &mut self.start, &mut self.order, |i, slot| {
-            rank[i] = slot;
-        });
-        self.positions.resize(n, DVec3::ZERO);
-        self.velocities.resize(n, DVec3::ZERO);
+        // Stable by the slot before: within a bucket still in the previous order, which was by
+        // index; a boid that changed bucket is moved into place by index (a few swaps).
+        sort_by_bucket(&self.bucket, buckets, &mut self.start, &mut self.from, |_, _| {});
+        let (order, from) = (&self.order, &self.from);
+        self.next_order.resize(n, 0);
+        self.next_order.par_iter_mut().zip(from).for_each(|(o, &f)| *o = order[f as usize]);
+        let (next, from, bucket) = (&mut self.next_order, &mut self.from, &self.bucket);
+        for k in 1..n {
+            let mut j = k;
+            while j > 0
+                && bucket[from[j - 1] as usize] == bucket[from[j] as usize]
+                && next[j - 1] > next[j]
+            {
+                next.swap(j - 1, j);
+                from.swap(j - 1, j);
+                j -= 1;
+            }
+        }
+        self.next_positions.resize(n, DVec3::ZERO);
+        self.next_velocities.resize(n, DVec3::ZERO);
         self.cells.resize(n, [0; 3]);
-        let cell = &self.cell;
-        (&mut self.positions, &mut self.velocities, &mut self.cells)
+        let (p, v, c) = (&self.positions, &self.velocities, &self.cell);
+        (&mut self.next_positions, &mut self.next_velocities, &mut self.cells)
             .into_par_iter()
-            .zip(&self.order)
-            .for_each(|((p, v, c), &i)| {
-                let i = i as usize;
-                (*p, *v, *c) = (positions[i], velocities[i], cell[i]);
+            .zip(&self.from)
+            .for_each(|((np, nv, nc), &f)| {
+                let f = f as usize;
+                (*np, *nv, *nc) = (p[f], v[f], c[f]);
             });
+        std::mem::swap(&mut self.positions, &mut self.next_positions);
+        std::mem::swap(&mut self.velocities, &mut self.next_velocities);
+        std::mem::swap(&mut self.order, &mut self.next_order);
+        for (s, &i) in self.order.iter().enumerate() {
+            self.rank[i as usize] = s as u32;
+        }
+    }
+
+    /// Squared neighbour radius (m²).
+    pub(super) fn h2(&self) -> f64 {
+        self.h2
+    }
+
+    /// Whether every boid has the first one's `z` and a zero velocity `z` (a 2-D flock).
+    pub(super) fn flat(&self) -> bool {
+        self.flat
     }
 
     /// The bucket of cell `c`.
@@ -125,12 +190,12 @@ impl Cells {
         (number & self.mask) as u32
     }
 
-    /// Call `f(t, d, near)` for every boid in sorted slot `t` of the cells next to the boid in
-    /// slot `s` (rows of cells z then y outer, then by slot), `d` the offset to it (m), `near`
-    /// whether it is a neighbour: `t ≠ s` and closer than `h`. Candidates that are not
-    /// neighbours come too (`near` false), so callers can accumulate without branches.
+    /// Call `f(t, next)` for every boid in sorted slot `t` of the buckets of the cells next
+    /// to the boid in slot `s` (rows of cells z then y outer, then by slot), `next` whether
+    /// its cell is one of them (always, unless cells share buckets). The boid itself comes
+    /// too; callers test the distance, so they can accumulate without branches.
     #[inline]
-    pub(super) fn for_each_candidate(&self, s: usize, f: impl FnMut(usize, DVec3, bool)) {
+    pub(super) fn for_each_candidate(&self, s: usize, f: impl FnMut(usize, bool)) {
         if self.dense {
             self.sweep::<true>(s, f);
         } else {
@@ -141,8 +206,8 @@ impl Cells {
     /// [`Cells::for_each_candidate`]; `DENSE`: no two cells share a bucket and no row wraps
     /// round the table, so a candidate's cell needs no check.
     #[inline]
-    fn sweep<const DENSE: bool>(&self, s: usize, mut f: impl FnMut(usize, DVec3, bool)) {
-        let (p, c) = (self.positions[s], self.cells[s]);
+    fn sweep<const DENSE: bool>(&self, s: usize, mut f: impl FnMut(usize, bool)) {
+        let c = self.cells[s];
         let layers = if self.planar { 0..=0 } else { -1..=1 };
         let buckets = self.start.len() - 1;
         for dz in layers {
@@ -157,15 +222,13 @@ impl Cells {
                 ];
                 for range in ranges {
                     for t in range {
-                        let d = self.positions[t] - p;
-                        let mut near = (d.length_squared() < self.h2) & (t != s);
-                        if !DENSE {
+                        let next = DENSE || {
                             let q = &self.cells[t];
-                            near &= q[1] == y
+                            q[1] == y
                                 && q[2] == z
-                                && q[0].wrapping_sub(c[0]).wrapping_add(1) as u64 <= 2;
-                        }
-                        f(t, d, near);
+                                && q[0].wrapping_sub(c[0]).wrapping_add(1) as u64 <= 2
+                        };
+                        f(t, next);
                     }
                 }
             }
@@ -180,7 +243,7 @@ mod tests {
 
     /// Every pair closer than `h` once, against brute force: rows sharing buckets, 3-D,
     /// planar, with coincident and far-away points (a sparse box whose cells share buckets),
-    /// and tiny flocks.
+    /// and tiny flocks; and re-sorted after the points moved, the same order as sorted afresh.
     #[test]
     fn neighbours_match_brute_force() {
         let planar = |n, seed| {
@@ -207,15 +270,17 @@ mod tests {
         ] {
             let n = pts.len();
             let mut cells = Cells::default();
-            cells.build(&pts, &pts, h);
+            cells.load(&pts, &pts);
+            cells.sort(h);
             for i in 0..n {
                 let s = cells.rank[i] as usize;
                 assert_eq!(cells.order[s] as usize, i);
                 let mut got = Vec::new();
-                cells.for_each_candidate(s, |t, d, near| {
+                cells.for_each_candidate(s, |t, next| {
                     let j = cells.order[t] as usize;
-                    assert_eq!(d, pts[j] - pts[i]);
-                    if near {
+                    assert_eq!(cells.positions[t], pts[j]);
+                    let d2 = (pts[j] - pts[i]).length_squared();
+                    if next && t != s && d2 < cells.h2() {
                         got.push(j);
                     }
                 });
@@ -225,6 +290,22 @@ mod tests {
                     .collect();
                 assert_eq!(got, want, "point {i} of {n}");
             }
+            // Move every point by up to a cell and re-sort from this order: the order is
+            // the one sorting the moved points afresh gives.
+            let moved: Vec<DVec3> = pts
+                .iter()
+                .enumerate()
+                .map(|(k, p)| *p + h * DVec3::new((k % 7) as f64 / 7.0 - 0.5, 0.3, 0.0))
+                .collect();
+            cells.positions.iter_mut().zip(&cells.order).for_each(|(p, &i)| *p = moved[i as usize]);
+            cells.sort(h);
+            let mut fresh = Cells::default();
+            fresh.load(&moved, &pts);
+            fresh.sort(h);
+            assert_eq!(cells.order, fresh.order, "{n} points");
+            assert_eq!(cells.rank, fresh.rank);
+            assert_eq!(cells.positions, fresh.positions);
+            assert_eq!(cells.velocities, fresh.velocities);
         }
     }
 }

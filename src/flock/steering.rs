@@ -6,7 +6,7 @@
 //! flocking rules do), weighted and summed with the others, the sum again at most
 //! `max_force`.
 
-use super::{Settings, State};
+use super::Settings;
 use crate::error::{Error, Result};
 use crate::geometry::Shape;
 use glam::DVec3;
@@ -167,11 +167,32 @@ fn random_direction(seed: u64, time: f64, i: usize, planar: bool) -> DVec3 {
     DVec3::new(s * angle.cos(), s * angle.sin(), cz)
 }
 
-/// The steering (m/s², not yet weighted) of `behaviour` on boid `i` of `state`.
-pub(super) fn force(set: &Settings, behaviour: &Behaviour, state: &State, i: usize) -> DVec3 {
-    let (p, v) = (state.positions[i], state.velocities[i]);
+/// The flock as the behaviours read it: positions (m) and velocities (m/s) in some order,
+/// the slot in it of each boid, and the time (s).
+pub(super) struct View<'a> {
+    /// Positions (m).
+    pub positions: &'a [DVec3],
+    /// Velocities (m/s).
+    pub velocities: &'a [DVec3],
+    /// The slot in `positions` of each boid.
+    pub rank: &'a [u32],
+    /// The time (s).
+    pub time: f64,
+}
+
+impl View<'_> {
+    /// Position and velocity of boid `i`.
+    fn boid(&self, i: usize) -> (DVec3, DVec3) {
+        let s = self.rank[i] as usize;
+        (self.positions[s], self.velocities[s])
+    }
+}
+
+/// The steering (m/s², not yet weighted) of `behaviour` on boid `i` of `flock`.
+pub(super) fn force(set: &Settings, behaviour: &Behaviour, flock: &View, i: usize) -> DVec3 {
+    let (p, v) = flock.boid(i);
     let predicted = |j: u32| {
-        let (q, u) = (state.positions[j as usize], state.velocities[j as usize]);
+        let (q, u) = flock.boid(j as usize);
         q + u * ((q - p).length() / set.max_speed)
     };
     match *behaviour {
@@ -190,7 +211,7 @@ pub(super) fn force(set: &Settings, behaviour: &Behaviour, state: &State, i: usi
         Behaviour::Pursue(_) | Behaviour::Evade(_) => DVec3::ZERO,
         Behaviour::Wander { distance, radius, seed, planar } => {
             let ahead = v.normalize_or_zero() * distance;
-            let aim = ahead + radius * random_direction(seed, state.time, i, planar);
+            let aim = ahead + radius * random_direction(seed, flock.time, i, planar);
             towards(set, full(set, aim), v)
         }
         Behaviour::Avoid { shape, horizon, clearance } => {

@@ -34,15 +34,16 @@ def test_head_on_pair_passes_and_arrives() -> None:
 
 
 def test_planning_margin_widens_the_passing_distance() -> None:
-    # ORCA plans with radius 0.5 * 1.2: the pair passes at least 1.2 m apart, closer without.
-    def closest(margin: float) -> float:
+    # ORCA plans with radius 0.5 * 1.2: the pair passes at least 1.2 m apart, closer without;
+    # with the default margin 0.1 (a personal space of 0.05 m) at least 1.1 m apart.
+    def closest(margin: float | None) -> float:
         c = Crowd(
             "orca",
             radius=0.5,
             max_speed=1.5,
             preferred_speed=1.0,
             time_horizon=10.0,
-            planning_margin=margin,
+            **({} if margin is None else {"planning_margin": margin}),
         )
         c.add_agents([[-10.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [-10.0, 0.0]])
         gaps = []
@@ -53,7 +54,8 @@ def test_planning_margin_widens_the_passing_distance() -> None:
         return min(gaps)
 
     assert closest(0.2) >= 1.2 - 1e-9
-    assert closest(0.0) < 1.15
+    assert closest(0.0) < 1.05
+    assert 1.1 - 1e-9 <= closest(None) < 1.15
 
 
 def test_social_force_agents_walk_to_their_goals() -> None:
