@@ -137,7 +137,7 @@ fn a_mesh_box_moved_fast_through_a_hanging_sheet_pushes_it_without_crossing() {
     for step in 0..40 {
         if step == 12 {
             let (corners, _) = box_mesh(centre, half);
-            state.set_mesh_collider(index, &corners, &vec![DVec3::ZERO; 8]).unwrap();
+            state.set_mesh_collider(index, &corners, &[DVec3::ZERO; 8]).unwrap();
         }
         solver
             .step(&model, &mut state, dt, 1, Method::ImplicitEuler, SolveOptions::default())

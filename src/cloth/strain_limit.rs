@@ -6,8 +6,7 @@
 //! filter leaves free, `Sᵢ / mᵢ` (pinned vertices do not move, vertices on a plane or touching
 //! a collider slide along it) — only the end farther from the held vertices when one is
 //! nearer (long range attachments, Kim, Chentanez & Müller 2012) — in Gauss–Seidel sweeps
-//! over the edges ordered outward from the held vertices (every constrained one, then, if the
-//! limit is not reached in half the sweeps, the pinned ones alone), until no edge exceeds the
+//! over the edges ordered outward from the held (pinned) vertices, until no edge exceeds the
 //! limit by more than 10⁻⁴; the velocities take the position change divided by the step. It
 //! works on the step's new positions and velocities in the scratch, so a step that fails
 //! later is rolled back with it. With self-collision on, [`super::self_collide`] applies it
@@ -16,9 +15,8 @@
 use super::{Model, Solver};
 use glam::{DMat3, DVec3};
 
-/// Gauss–Seidel sweeps over the edges a call makes at most, half with every constrained
-/// vertex held and half with the pinned ones alone (see [`Edges::shorten`]); an excess left
-/// after them is taken up by the next steps.
+/// Gauss–Seidel sweeps over the edges a call makes at most (see [`Edges::shorten`]); an
+/// excess left after them is taken up by the next steps.
 const MAX_SWEEPS: usize = 64;
 
 /// An edge counts as too long when it exceeds its limit by more than this fraction of its
@@ -91,16 +89,15 @@ impl Edges {
         }
     }
 
-    /// Order the edges by the graph distance of their nearer end from the held vertices, in
-    /// which [`Edges::shorten`] sweeps: those whose filter is not the identity (pinned,
-    /// constrained, touching a collider), or with `pinned_only` those whose filter is zero
-    /// (pinned or moving at a prescribed velocity). Breadth-first search and a counting sort
-    /// (stable, so edges at one distance keep the index order): no allocation.
-    fn order_from_constraints(&mut self, filter: &[DMat3], pinned_only: bool) {
+    /// Order the edges by the graph distance of their nearer end from the held vertices, those
+    /// whose filter is zero (pinned or moving at a prescribed velocity), in which
+    /// [`Edges::shorten`] sweeps. Breadth-first search and a counting sort (stable, so edges
+    /// at one distance keep the index order): no allocation.
+    fn order_from_constraints(&mut self, filter: &[DMat3]) {
         let n = filter.len();
         self.queue.clear();
         for (i, f) in filter.iter().enumerate() {
-            let held = if pinned_only { *f == DMat3::ZERO } else { *f != DMat3::IDENTITY };
+            let held = *f == DMat3::ZERO;
             self.distance[i] = if held { 0 } else { u32::MAX };
             if held {
                 self.queue.push(i as u32);
@@ -148,12 +145,10 @@ impl Edges {
     /// the square of its length: 1,700–4,000 were measured at 128² in session 19, and 32 left
     /// the 128² sheet at 5.8 %.)
     /// Edges between vertices at one distance, and every edge of a cloth with no held
-    /// vertex, move both ends (momentum kept). The first half of the sweeps holds every
-    /// constrained vertex (pinned, on a plane or line, touching a collider), the second half
-    /// only those whose filter is zero: held touching vertices cannot reach the limit where
-    /// the cloth spans two contact regions (the 128² drape between the sphere's top and the
-    /// ground ended a step at 7.6 % after 64 sweeps, session 21), and sliding ones alone
-    /// converge slowly (both ends of every edge of a drape move). The sweeps stop when no edge exceeds its limit
+    /// vertex, move both ends (momentum kept). Only vertices whose filter is zero are held:
+    /// held vertices touching a collider (until session 22) could not reach the limit where
+    /// the cloth spans two contact regions, as they can only slide (the 128² drape between
+    /// the sphere's top and the ground ended its steps at 7.6 %). The sweeps stop when no edge exceeds its limit
     /// by more than [`TOLERANCE`] of its rest length, after at most [`MAX_SWEEPS`]; returns
     /// whether any edge was too long. Without `one_sided` both ends of every edge move (as
     /// self-collision applies it between its passes: the far end moving alone there left the
@@ -172,15 +167,9 @@ impl Edges {
         if !self.edges.iter().any(|e| too_long(x, e)) {
             return false;
         }
-        // First with every constrained vertex held; where that cannot reach the limit (the
-        // cloth spanning two contact regions, whose vertices can only slide), with the pinned
-        // ones alone, so that touching vertices slide.
-        self.order_from_constraints(filter, false);
-        for sweep in 0..MAX_SWEEPS {
-            if sweep == MAX_SWEEPS / 2 {
-                self.order_from_constraints(filter, true);
-            }
-            let distance = &self.distance;
+        self.order_from_constraints(filter);
+        let distance = &self.distance;
+        for _ in 0..MAX_SWEEPS {
             let mut moved = false;
             for &k in &self.order {
                 let (a, b, rest) = self.edges[k as usize];

@@ -39,7 +39,7 @@ def box(centre: list[float], half: float) -> np.ndarray:
 
 def test_a_sheet_falls_onto_a_mesh_box_and_stays_outside() -> None:
     cloth = Cloth.grid(12, 12, 0.6, 0.6)
-    cloth.set_state(cloth.positions + [0.0, 0.35, 0.0])
+    cloth.set_state(cloth.positions + np.array([0.0, 0.35, 0.0]))
     assert cloth.add_mesh_collider(box([0, 0.15, 0], 0.15), FACES) == 0
     assert cloth.mesh_colliders == 1
     for _ in range(40):
@@ -84,7 +84,7 @@ def test_bad_input_names_the_argument() -> None:
 
 def test_a_failed_step_leaves_the_cloth_and_meshes_as_they_were_and_pickles_keep_them() -> None:
     cloth = Cloth.grid(8, 8, 0.5, 0.5)
-    cloth.set_state(cloth.positions + [0.0, 0.32, 0.0])
+    cloth.set_state(cloth.positions + np.array([0.0, 0.32, 0.0]))
     cloth.add_mesh_collider(box([0, 0.15, 0], 0.15), FACES, np.tile([0.0, 0.3, 0.0], (8, 1)))
     cloth.step(1 / 60, steps=3)
     x, v, t = cloth.positions.copy(), cloth.velocities.copy(), cloth.time
