@@ -125,6 +125,18 @@ fn cloth_scenes() -> Vec<(String, usize)> {
         if k == 0 {
             c.set_self_collision(Some(cloth::SelfCollision::default())).unwrap();
         }
+        if k == 1 {
+            // A moving triangle-mesh collider (a tetrahedron rising into the sheet).
+            let v = [[0.0, -0.4, 0.0], [0.3, -0.4, 0.0], [0.0, -0.4, 0.3], [0.1, -0.1, 0.1]];
+            let tet = cloth::MeshCollider::new(
+                v.map(DVec3::from_array).to_vec(),
+                vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+                Some(vec![DVec3::new(0.0, 1.0, 0.0); 4]),
+                0.5,
+            )
+            .unwrap();
+            c.add_mesh_collider(tet);
+        }
         c.pin(&[0, 15], None).unwrap();
         c.add_collider(cloth::Collider {
             shape: geometry::Shape::Sphere(geometry::Sphere {

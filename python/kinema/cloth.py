@@ -4,7 +4,8 @@ Build a :class:`Cloth` from a grid (:meth:`Cloth.grid`), arrays or an OBJ file, 
 with :meth:`Cloth.pin` / :meth:`Cloth.constrain` / :meth:`Cloth.prescribe` (mass-modification
 constraints, Baraff & Witkin §5.3), add colliders (:class:`Plane`, :class:`Sphere`, :class:`Capsule`, :class:`Box`, the shapes of
 :mod:`kinema.geometry` re-exported here, which may move at
-a constant velocity or be moved with :meth:`Cloth.set_collider`) and :meth:`Cloth.step`.
+a constant velocity or be moved with :meth:`Cloth.set_collider`) and moving triangle meshes
+(:meth:`Cloth.add_mesh_collider`), and :meth:`Cloth.step`.
 
 Integrators: ``"implicit_euler"`` (the paper's one Newton step per time step), ``"bdf2"``
 (Choi & Ko 2002, second order, less numerical damping), or any explicit method of
@@ -261,6 +262,47 @@ class Cloth:
     def set_collider(self, index: int, collider: Plane | Sphere | Capsule | Box) -> None:
         """Replace collider ``index`` (move it along any path between steps)."""
         self._core.set_collider(index, *_collider(collider))
+
+    def add_mesh_collider(
+        self, vertices: Any, triangles: Any, velocities: Any = None, friction: float = 0.5
+    ) -> int:
+        """Add a kinematic triangle mesh (a character's body) as a collider; returns its index
+        (for :meth:`set_mesh_collider`).
+
+        ``vertices`` ``(V, 3)`` m at the current time, ``triangles`` ``(T, 3)`` integer
+        indices, ``velocities`` ``(V, 3)`` m/s (default at rest): over a step of ``h`` each
+        vertex moves linearly by ``velocity · h``. Coulomb ``friction`` (>= 0) between the mesh
+        and the cloth. The cloth meets the mesh in the collision filter of Bridson, Fedkiw &
+        Anderson (2002) after each implicit step — proximity repulsion with friction within
+        ``thickness``, continuous collision detection of the cloth's vertices and edges against
+        the mesh's moving triangles and edges, rigid impact zones as the fail-safe — so no
+        cloth vertex or edge crosses the mesh during a step, however fast it moves, provided
+        the cloth does not start the step through it. The mesh need not be closed; it is
+        never moved by the cloth. Implicit integrators only.
+        """
+        x, _ = as_batch(vertices, "vertices", (3,))
+        t = np.asarray(triangles)
+        if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
+            raise ValueError(
+                f"triangles: expected integer indices of shape (T, 3), got {t.shape} {t.dtype}"
+            )
+        v = None if velocities is None else as_batch(velocities, "velocities", (3,))[0]
+        tri = np.ascontiguousarray(t, dtype=np.float64)
+        return int(self._core.add_mesh_collider(x, tri, v, real(friction, "friction")))
+
+    def set_mesh_collider(self, index: int, vertices: Any, velocities: Any = None) -> None:
+        """Set the vertices ``(V, 3)`` m of mesh collider ``index`` at the current time and
+        their velocities ``(V, 3)`` m/s over the next steps (default at rest). To follow an
+        animation at frame ``f``: ``set_mesh_collider(i, pose[f], (pose[f + 1] - pose[f]) / dt)``
+        before ``step(dt)``."""
+        x, _ = as_batch(vertices, "vertices", (3,))
+        v = None if velocities is None else as_batch(velocities, "velocities", (3,))[0]
+        self._core.set_mesh_collider(index, x, v)
+
+    @property
+    def mesh_colliders(self) -> int:
+        """The number of mesh colliders."""
+        return int(self._core.mesh_colliders)
 
     def step(
         self,

@@ -7,8 +7,8 @@ use super::error::detached;
 use super::pickle::{reduce, Reduced};
 use super::view::view;
 use crate::cloth::{
-    parse_obj, write_obj, Cloth, Collider, Elasticity, LinearSolver, Material, Mesh, SelfCollision,
-    SolveOptions, State, Triangulation, VertexConstraint,
+    parse_obj, write_obj, Cloth, Collider, Elasticity, LinearSolver, Material, Mesh, MeshCollider,
+    SelfCollision, SolveOptions, State, Triangulation, VertexConstraint,
 };
 use crate::error::Error;
 use crate::geometry::triangle::intersecting_triangles;
@@ -21,6 +21,21 @@ use pyo3::types::PyDict;
 
 fn vectors(arr: &PyReadonlyArrayDyn<'_, f64>, arg: &str) -> PyResult<Vec<DVec3>> {
     Ok(rows::<3>(arr, arg, &[3])?.iter().map(|p| DVec3::from_array(*p)).collect())
+}
+
+/// Triangles `(M, 3)` given as float64 vertex indices, checked to be non-negative integers
+/// (argument `triangles`).
+fn indices(triangles: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<[usize; 3]>> {
+    let mut tris = Vec::new();
+    for (k, t) in rows::<3>(triangles, "triangles", &[3])?.iter().enumerate() {
+        if t.iter().any(|x| x.fract() != 0.0 || *x < 0.0 || !x.is_finite()) {
+            return Err(Error::invalid("triangles", "indices must be non-negative integers")
+                .at(k)
+                .into());
+        }
+        tris.push(t.map(|x| x as usize));
+    }
+    Ok(tris)
 }
 
 /// A collider from its kind and parameters: the shape's ([`super::geometry::shape`]), then
@@ -83,15 +98,7 @@ impl ClothCore {
         gravity: [f64; 3],
     ) -> PyResult<Self> {
         let positions = rows::<3>(&vertices, "vertices", &[3])?.to_vec();
-        let mut tris = Vec::new();
-        for (k, t) in rows::<3>(&triangles, "triangles", &[3])?.iter().enumerate() {
-            if t.iter().any(|x| x.fract() != 0.0 || *x < 0.0 || !x.is_finite()) {
-                return Err(Error::invalid("triangles", "indices must be non-negative integers")
-                    .at(k)
-                    .into());
-            }
-            tris.push(t.map(|x| x as usize));
-        }
+        let tris = indices(&triangles)?;
         let uv = match uv {
             Some(a) => Some(
                 rows::<6>(&a, "uv", &[6])?
@@ -210,6 +217,46 @@ impl ClothCore {
     /// Replace collider `index`.
     fn set_collider(&mut self, index: Int, kind: &str, p: Vec<f64>) -> PyResult<()> {
         Ok(self.cloth.set_collider(index.count("index")?, collider(kind, &p)?)?)
+    }
+
+    /// Add a triangle-mesh collider of `vertices` (V, 3) m, `triangles` (T, 3) float64
+    /// indices, `velocities` (V, 3) m/s (at rest when `None`) and Coulomb `friction`; returns
+    /// its index.
+    #[pyo3(signature = (vertices, triangles, velocities, friction))]
+    fn add_mesh_collider(
+        &mut self,
+        vertices: PyReadonlyArrayDyn<'_, f64>,
+        triangles: PyReadonlyArrayDyn<'_, f64>,
+        velocities: Option<PyReadonlyArrayDyn<'_, f64>>,
+        friction: f64,
+    ) -> PyResult<usize> {
+        let x = vectors(&vertices, "vertices")?;
+        let v = velocities.map(|v| vectors(&v, "velocities")).transpose()?;
+        let mesh = MeshCollider::new(x, indices(&triangles)?, v, friction)?;
+        Ok(self.cloth.add_mesh_collider(mesh))
+    }
+
+    /// Set the vertices (V, 3) m of mesh collider `index` at the current time and their
+    /// velocities (V, 3) m/s (at rest when `None`).
+    #[pyo3(signature = (index, vertices, velocities))]
+    fn set_mesh_collider(
+        &mut self,
+        index: Int,
+        vertices: PyReadonlyArrayDyn<'_, f64>,
+        velocities: Option<PyReadonlyArrayDyn<'_, f64>>,
+    ) -> PyResult<()> {
+        let x = vectors(&vertices, "vertices")?;
+        let v = match velocities {
+            Some(v) => vectors(&v, "velocities")?,
+            None => vec![DVec3::ZERO; x.len()],
+        };
+        Ok(self.cloth.set_mesh_collider(index.count("index")?, &x, &v)?)
+    }
+
+    /// Number of mesh colliders.
+    #[getter]
+    fn mesh_colliders(&self) -> usize {
+        self.cloth.mesh_colliders().len()
     }
 
     /// Advance `steps` steps of `dt` s (GIL released); at most `MAX_ITERATIONS` (10^6) PCG

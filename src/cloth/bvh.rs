@@ -3,7 +3,8 @@
 //! the triangles' centres in the initial shape) and refit every step bottom-up from the boxes
 //! of the triangles' swept motion (Bridson, Fedkiw & Anderson 2002, §6.1: refitting keeps the
 //! tree valid as the cloth deforms, at a fraction of a rebuild's cost). The self-query walks
-//! the tree against itself and reports each pair of triangles whose boxes overlap once.
+//! the tree against itself and reports each pair of triangles whose boxes overlap once; the
+//! cross-query does the same between the cloth's tree and the mesh colliders' one.
 
 use glam::DVec3;
 
@@ -18,27 +19,41 @@ struct Node {
     children: [usize; 2],
 }
 
-/// The tree (see the module documentation). Refitting and querying allocate nothing once the
-/// output buffer has grown to the largest result.
-#[derive(Debug)]
+/// The tree (see the module documentation). Refitting, rebuilding and querying allocate
+/// nothing once the buffers have grown to the largest mesh and result.
+#[derive(Debug, Default)]
 pub(super) struct Bvh {
     /// Nodes, each after its parent (so a reverse pass refits children before parents).
     nodes: Vec<Node>,
-    /// The traversal stack of the self-query.
+    /// The traversal stack of the queries.
     stack: Vec<(usize, usize)>,
+    /// The triangles' centres and order, the work of a build.
+    centres: Vec<DVec3>,
+    order: Vec<usize>,
 }
 
 impl Bvh {
-    /// The tree of `triangles` on the vertex `positions` (m) of the initial shape.
+    /// The tree of `triangles` (at least one) on the vertex `positions` (m) of the initial
+    /// shape.
     pub(super) fn new(positions: &[DVec3], triangles: &[[usize; 3]]) -> Bvh {
-        let centres: Vec<DVec3> = triangles
-            .iter()
-            .map(|t| (positions[t[0]] + positions[t[1]] + positions[t[2]]) / 3.0)
-            .collect();
-        let mut order: Vec<usize> = (0..triangles.len()).collect();
-        let mut nodes = Vec::with_capacity(2 * triangles.len());
-        split(&centres, &mut order, &mut nodes);
-        Bvh { nodes, stack: Vec::with_capacity(256) }
+        let mut bvh = Bvh { stack: Vec::with_capacity(256), ..Bvh::default() };
+        bvh.build(positions, triangles);
+        bvh
+    }
+
+    /// Build the tree anew for `triangles` (at least one) on `positions` (m), reusing the
+    /// buffers (the mesh colliders' tree is rebuilt every step: their triangles may be
+    /// deformed by any animation, and a tree built from the state alone keeps a step
+    /// independent of the steps before it).
+    pub(super) fn build(&mut self, positions: &[DVec3], triangles: &[[usize; 3]]) {
+        self.centres.clear();
+        self.centres.extend(
+            triangles.iter().map(|t| (positions[t[0]] + positions[t[1]] + positions[t[2]]) / 3.0),
+        );
+        self.order.clear();
+        self.order.extend(0..triangles.len());
+        self.nodes.clear();
+        split(&self.centres, &mut self.order, &mut self.nodes);
     }
 
     /// Refit every box to the triangles' vertices at `x0` and `x1` (the step's start and end;
@@ -97,6 +112,26 @@ impl Bvh {
                     let [l, r] = na.children;
                     self.stack.extend([(l, b), (r, b)]);
                 }
+            }
+        }
+    }
+}
+
+impl Bvh {
+    /// Call `pair(i, j)` for every triangle `i` of this tree and `j` of `other` whose boxes
+    /// overlap, each pair once, in an order fixed by the two trees.
+    pub(super) fn pairs_with(&mut self, other: &Bvh, mut pair: impl FnMut(usize, usize)) {
+        self.stack.clear();
+        self.stack.push((0, 0));
+        while let Some((a, b)) = self.stack.pop() {
+            let (na, nb) = (self.nodes[a], other.nodes[b]);
+            if !(na.lo.cmple(nb.hi).all() && nb.lo.cmple(na.hi).all()) {
+                continue;
+            }
+            match (na.triangle != usize::MAX, nb.triangle != usize::MAX) {
+                (true, true) => pair(na.triangle, nb.triangle),
+                (true, false) => self.stack.extend(nb.children.map(|c| (a, c))),
+                (false, _) => self.stack.extend(na.children.map(|c| (c, b))),
             }
         }
     }

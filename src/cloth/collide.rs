@@ -112,10 +112,14 @@ fn deepest_contact(
 }
 
 impl State {
-    /// Move the colliders on by `velocity · h` and the time by `h`.
+    /// Move the colliders and the mesh colliders' vertices on by `velocity · h` and the time
+    /// by `h`.
     pub(super) fn advance_colliders(&mut self, h: f64) {
         for c in &mut self.colliders {
             c.shape = c.shape.translated(c.velocity * h);
+        }
+        for m in &mut self.meshes {
+            m.advance(h);
         }
         self.time += h;
     }

@@ -62,6 +62,7 @@ mod forces;
 mod implicit;
 mod linear;
 mod mesh;
+mod mesh_collider;
 mod model;
 mod multigrid;
 mod pcg;
@@ -76,6 +77,7 @@ pub use bsr::BlockMatrix;
 pub use collide::Collider;
 pub use elements::dihedral_angle;
 pub use mesh::{parse_obj, uv_from_shape, write_obj, Mesh, Topology, Triangulation};
+pub use mesh_collider::MeshCollider;
 pub use model::Model;
 pub use self_collide::MIN_DISTANCE;
 pub use settings::{
@@ -276,6 +278,30 @@ impl Cloth {
     /// The colliders, at the cloth's current time.
     pub fn colliders(&self) -> &[Collider] {
         self.state.colliders()
+    }
+
+    /// Add a triangle-mesh collider ([`State::add_mesh_collider`]); returns its index.
+    pub fn add_mesh_collider(&mut self, mesh: MeshCollider) -> usize {
+        self.state.add_mesh_collider(mesh)
+    }
+
+    /// Set the vertices (m) and velocities (m/s) of mesh collider `index`
+    /// ([`State::set_mesh_collider`]).
+    ///
+    /// # Errors
+    /// A bad index, wrong lengths or non-finite values; the collider is then unchanged.
+    pub fn set_mesh_collider(
+        &mut self,
+        index: usize,
+        vertices: &[DVec3],
+        velocities: &[DVec3],
+    ) -> Result<()> {
+        self.state.set_mesh_collider(index, vertices, velocities)
+    }
+
+    /// The triangle-mesh colliders, at the cloth's current time.
+    pub fn mesh_colliders(&self) -> &[MeshCollider] {
+        self.state.mesh_colliders()
     }
 
     /// Total force on every vertex (N), `(N, 3)` ([`Model::forces`]).

@@ -23,10 +23,21 @@
 //! with a user constraint (pinned, plane, line, prescribed velocity) have infinite mass. The
 //! changed displacement becomes the step's end position and its change, divided by `Δt`, is
 //! added to the velocity. The broad phase is [`super::bvh::Bvh`], refit at every pass.
+//!
+//! **Mesh colliders** ([`super::MeshCollider`], a character's body) take part in the same
+//! filter, as Bridson et al. treat kinematic objects: their vertices join the cloth's, moving
+//! linearly by `velocity · h` over the step with infinite mass (no impulse moves them), and
+//! the cloth's vertices and edges meet the meshes' triangles and edges, and the meshes'
+//! vertices the cloth's triangles, in all three stages, with the mesh's friction. In an
+//! impact zone a mesh's vertex counts [`MESH_MASS`] times the cloth's mass, so that the zone
+//! moves with the mesh (exactly where the mesh moves rigidly; where it deforms, by the rigid
+//! motion that fits its vertices in the zone best). The filter runs when self-collision is on
+//! or the state has a mesh collider; with the meshes alone it makes the cloth–mesh pairs only,
+//! with [`super::SelfCollision::default`]'s passes.
 
 use super::bvh::Bvh;
 use super::strain_limit;
-use super::{Model, SelfCollision, Solver, State, StepStats};
+use super::{Model, Solver, State, StepStats};
 use crate::geometry::ccd::{edge_edge, segment_weights, vertex_triangle, Impact};
 use crate::geometry::segment::closest_points_of_segments;
 use crate::geometry::triangle::closest_point_on_triangle;
@@ -38,27 +49,48 @@ pub const MIN_DISTANCE: f64 = 0.25;
 /// The separation, as a fraction of the thickness, a collision impulse moves a pair to.
 const TARGET_DISTANCE: f64 = 0.5;
 
-/// A candidate pair: vertex–triangle `[p, a, b, c]` or edge–edge `[p, q, r, s]`.
+/// A candidate pair: vertex–triangle `[p, a, b, c]` or edge–edge `[p, q, r, s]`, and the
+/// Coulomb friction between its sides.
 #[derive(Clone, Copy, Debug)]
 struct Pair {
     verts: [usize; 4],
     edges: bool,
+    friction: f64,
 }
 
+/// The mass of a mesh collider's vertex in the rigid impact zones, relative to the cloth's
+/// total mass: large enough that a zone holding one moves with the mesh (to rounding), finite
+/// so that the zone's sums stay exact to a relative 10⁻⁷.
+const MESH_MASS: f64 = 1e9;
+
 /// The workspace of self-collision (in the solver; built on the first step that needs it).
+///
+/// Vertices are numbered the cloth's `N` first, then those of the mesh colliders in their
+/// order (`N + V` in all); every per-vertex vector has that length.
 #[derive(Debug)]
 pub(super) struct Work {
     bvh: Bvh,
     /// Per triangle, bits 0–2: the triangle is the first holding its vertex k; bits 3–5: the
     /// first holding its edge k (`t[k]`, `t[k+1]`), so every feature pair is found once.
     owns: Vec<u8>,
-    /// Displacements of the step (m), and as proposed by the solve.
+    /// The mesh colliders' triangles (numbered as above), their owned features (as `owns`),
+    /// their friction, their tree (rebuilt every step), and the triangles being gathered.
+    mesh_tris: Vec<[usize; 3]>,
+    mesh_owns: Vec<u8>,
+    mesh_friction: Vec<f64>,
+    mesh_bvh: Bvh,
+    gathered: Vec<[usize; 3]>,
+    /// Positions at the start of the step (m).
+    x0: Vec<DVec3>,
+    /// Displacements of the step (m), and as proposed by the solve (a mesh's: `velocity · h`).
     d: Vec<DVec3>,
     d_solve: Vec<DVec3>,
     /// End positions `x₀ + d` (m), for refitting.
     x1: Vec<DVec3>,
-    /// Inverse masses (1/kg), 0 for constrained vertices.
+    /// Inverse masses (1/kg), 0 for constrained vertices and the meshes' vertices.
     w: Vec<f64>,
+    /// Masses (kg) in the impact zones, [`MESH_MASS`] times the cloth's for a mesh's vertex.
+    m: Vec<f64>,
     pairs: Vec<Pair>,
     /// Impact zones: union-find parents, the vertices in zones, per-root sums.
     parent: Vec<usize>,
@@ -98,29 +130,23 @@ impl Work {
     pub(super) fn new(model: &Model) -> Work {
         let n = model.len();
         let tris = &model.triangles;
-        let mut first_vertex = vec![usize::MAX; n];
-        let mut first_edge = std::collections::HashMap::new();
-        let mut owns = vec![0u8; tris.len()];
-        for (k, t) in tris.iter().enumerate() {
-            for c in 0..3 {
-                if first_vertex[t[c]] == usize::MAX {
-                    first_vertex[t[c]] = k;
-                    owns[k] |= 1 << c;
-                }
-                let (a, b) = (t[c], t[(c + 1) % 3]);
-                if *first_edge.entry((a.min(b), a.max(b))).or_insert(k) == k {
-                    owns[k] |= 8 << c;
-                }
-            }
-        }
+        let mut owns = Vec::new();
+        ownership(tris, &mut owns);
         let zero = vec![DVec3::ZERO; n];
         Work {
             bvh: Bvh::new(&model.initial, tris),
             owns,
+            mesh_tris: Vec::new(),
+            mesh_owns: Vec::new(),
+            mesh_friction: Vec::new(),
+            mesh_bvh: Bvh::default(),
+            gathered: Vec::new(),
+            x0: zero.clone(),
             d: zero.clone(),
             d_solve: zero.clone(),
             x1: zero,
             w: vec![0.0; n],
+            m: model.mass.clone(),
             // Room for the candidates of a crumpled cloth, so that steps rarely allocate.
             pairs: Vec::with_capacity(32 * tris.len()),
             parent: (0..n).collect(),
@@ -130,21 +156,82 @@ impl Work {
         }
     }
 
-    /// Shorten the edges of the motion's end positions `x₀ + d` over `1 + max_strain` times
-    /// their rest length ([`strain_limit::Edges::shorten`] with the step's filter and masses).
+    /// Shorten the cloth's edges of the motion's end positions `x₀ + d` over `1 + max_strain`
+    /// times their rest length ([`strain_limit::Edges::shorten`] with the step's filter and
+    /// masses).
     fn limit_strain(
         &mut self,
         edges: &mut strain_limit::Edges,
-        x0: &[DVec3],
         (filter, mass): (&[DMat3], &[f64]),
         max_strain: f64,
     ) {
-        for ((x1, &x), &d) in self.x1.iter_mut().zip(x0).zip(&self.d) {
+        let n = mass.len();
+        for ((x1, &x), &d) in self.x1.iter_mut().zip(&self.x0).zip(&self.d).take(n) {
             *x1 = x + d;
         }
-        if edges.shorten(&mut self.x1, filter, mass, max_strain, false) {
-            for ((d, &x1), &x) in self.d.iter_mut().zip(&self.x1).zip(x0) {
+        if edges.shorten(&mut self.x1[..n], filter, mass, max_strain, false) {
+            for ((d, &x1), &x) in self.d.iter_mut().zip(&self.x1).zip(&self.x0).take(n) {
                 *d = x1 - x;
+            }
+        }
+    }
+
+    /// Take the mesh colliders of `state` for a step of `h` (s): their vertices after the
+    /// cloth's in every per-vertex vector (start positions, displacements `velocity · h`, no
+    /// inverse mass, [`MESH_MASS`] times the cloth's mass in the zones), their triangles
+    /// numbered so, and their tree built on the start positions. Allocates only when the
+    /// meshes grow.
+    fn take_meshes(&mut self, model: &Model, state: &State, h: f64) {
+        let n = model.len();
+        let heavy = MESH_MASS * model.mass.iter().sum::<f64>();
+        self.gathered.clear();
+        self.mesh_friction.clear();
+        self.x0.truncate(n);
+        self.d.truncate(n);
+        self.m.truncate(n);
+        for mesh in &state.meshes {
+            let offset = self.x0.len();
+            self.gathered.extend(mesh.triangles.iter().map(|t| t.map(|v| v + offset)));
+            self.mesh_friction.extend(mesh.triangles.iter().map(|_| mesh.friction));
+            self.x0.extend_from_slice(&mesh.vertices);
+            self.d.extend(mesh.velocities.iter().map(|&v| v * h));
+            self.m.extend(mesh.vertices.iter().map(|_| heavy));
+        }
+        let total = self.x0.len();
+        self.d_solve.resize(total, DVec3::ZERO);
+        self.x1.resize(total, DVec3::ZERO);
+        self.w.resize(total, 0.0);
+        self.w[n..].iter_mut().for_each(|w| *w = 0.0);
+        self.parent.truncate(n);
+        self.parent.extend(n..total);
+        self.in_zone.resize(total, false);
+        self.sums.resize(total, ZoneSums::default());
+        if self.gathered != self.mesh_tris {
+            std::mem::swap(&mut self.gathered, &mut self.mesh_tris);
+            ownership(&self.mesh_tris, &mut self.mesh_owns);
+        }
+        if !self.mesh_tris.is_empty() {
+            self.mesh_bvh.build(&self.x0, &self.mesh_tris);
+        }
+    }
+}
+
+/// Per triangle of `tris`, into `owns`, bits 0–2: the triangle is the first holding its vertex
+/// k; bits 3–5: the first holding its edge k (`t[k]`, `t[k+1]`), so that every feature pair
+/// is found once.
+fn ownership(tris: &[[usize; 3]], owns: &mut Vec<u8>) {
+    let mut first_vertex = std::collections::HashMap::new();
+    let mut first_edge = std::collections::HashMap::new();
+    owns.clear();
+    owns.resize(tris.len(), 0);
+    for (k, t) in tris.iter().enumerate() {
+        for c in 0..3 {
+            if *first_vertex.entry(t[c]).or_insert(k) == k {
+                owns[k] |= 1 << c;
+            }
+            let (a, b) = (t[c], t[(c + 1) % 3]);
+            if *first_edge.entry((a.min(b), a.max(b))).or_insert(k) == k {
+                owns[k] |= 8 << c;
             }
         }
     }
@@ -152,8 +239,8 @@ impl Work {
 
 impl Solver {
     /// Filter the step's proposed motion (`state.x` to the scratch's `x_new`, velocities
-    /// `v_new`) of a step of `h` seconds for self-collision, if the model has it on; counts
-    /// into `stats`.
+    /// `v_new`) of a step of `h` seconds for self-collision, if the model has it on, and for
+    /// the state's mesh colliders; counts into `stats`.
     pub(super) fn self_collide(
         &mut self,
         model: &Model,
@@ -162,18 +249,22 @@ impl Solver {
         max_strain: f64,
         stats: &mut StepStats,
     ) {
-        let Some(settings) = model.self_collision else {
+        if model.self_collision.is_none() && state.meshes.is_empty() {
             return;
-        };
+        }
         let t0 = std::time::Instant::now();
         let work = self.self_work.get_or_insert_with(|| Box::new(Work::new(model)));
+        work.take_meshes(model, state, h);
         let s = &mut self.scratch;
         for i in 0..state.len() {
+            work.x0[i] = state.x[i];
             work.d[i] = s.x_new[i] - state.x[i];
-            work.d_solve[i] = work.d[i];
             work.w[i] = if state.constraints[i].is_some() { 0.0 } else { 1.0 / model.mass[i] };
         }
-        let filter = Filter { model, x0: &state.x, h, settings };
+        work.d_solve.copy_from_slice(&work.d);
+        let settings = model.self_collision.unwrap_or_default();
+        let self_friction = model.self_collision.map(|s| s.friction);
+        let filter = Filter { model, h, self_friction };
         stats.proximities += filter.proximity(work);
         // The impulses stretch edges; each CCD pass checks the motion the strain limit leaves,
         // so a pass that finds nothing ends with both the limit and no collision.
@@ -182,7 +273,7 @@ impl Solver {
         });
         for _ in 0..settings.iterations {
             if let Some(edges) = limit.as_deref_mut() {
-                work.limit_strain(edges, &state.x, (&s.filter, &model.mass), max_strain);
+                work.limit_strain(edges, (&s.filter, &model.mass), max_strain);
             }
             if filter.ccd_pass(work) == 0 {
                 break;
@@ -191,19 +282,19 @@ impl Solver {
         }
         stats.impact_zones += filter.impact_zones(work);
         for i in 0..state.len() {
-            s.x_new[i] = state.x[i] + work.d[i];
+            s.x_new[i] = work.x0[i] + work.d[i];
             s.v_new[i] += (work.d[i] - work.d_solve[i]) / h;
         }
         stats.self_collision_seconds += t0.elapsed().as_secs_f64();
     }
 }
 
-/// What the stages of one filter share.
+/// What the stages of one filter share: the model, the step (s), and the friction between
+/// the cloth's layers when self-collision is on (`None`: only the mesh colliders).
 struct Filter<'a> {
     model: &'a Model,
-    x0: &'a [DVec3],
     h: f64,
-    settings: SelfCollision,
+    self_friction: Option<f64>,
 }
 
 impl Filter<'_> {
@@ -212,12 +303,14 @@ impl Filter<'_> {
     fn candidates(&self, work: &mut Work, swept: bool, margin: f64) {
         let tris = &self.model.triangles;
         if swept {
-            for i in 0..self.x0.len() {
-                work.x1[i] = self.x0[i] + work.d[i];
+            for i in 0..work.x0.len() {
+                work.x1[i] = work.x0[i] + work.d[i];
             }
         }
-        let Work { bvh, owns, pairs, x1, .. } = work;
-        let (x0, x1) = (self.x0, if swept { &x1[..] } else { self.x0 });
+        let Work {
+            bvh, owns, pairs, x0, x1, mesh_tris, mesh_owns, mesh_friction, mesh_bvh, ..
+        } = work;
+        let (x0, x1) = (&x0[..], if swept { &x1[..] } else { &x0[..] });
         bvh.refit(tris, x0, x1, 0.5 * margin);
         pairs.clear();
         // The pair's own boxes (of its features' motion) must overlap too.
@@ -230,29 +323,46 @@ impl Filter<'_> {
             let ((alo, ahi), (blo, bhi)) = (bounds(a), bounds(b));
             (alo - margin).cmple(bhi).all() && (blo - margin).cmple(ahi).all()
         };
-        bvh.self_pairs(|i, j| {
-            for (a, b) in [(i, j), (j, i)] {
-                let (ta, tb) = (tris[a], tris[b]);
-                for (c, &p) in ta.iter().enumerate() {
-                    if owns[a] & (1 << c) != 0 && !tb.contains(&p) && close(&[p], &tb) {
-                        pairs.push(Pair { verts: [p, tb[0], tb[1], tb[2]], edges: false });
-                    }
+        // The features of triangle `ta` selected by `oa` against triangle `tb`: the vertices
+        // of bits 0–2 against `tb`, the edges of bits 3–5 against `tb`'s edges of `ob`'s bits
+        // 3–5 (with the ownership bits, each feature pair once; pairs sharing a vertex are no
+        // pairs).
+        let mut features = |ta: [usize; 3], oa: u8, tb: [usize; 3], ob: u8, friction: f64| {
+            for (c, &p) in ta.iter().enumerate() {
+                if oa & (1 << c) != 0 && !tb.contains(&p) && close(&[p], &tb) {
+                    pairs.push(Pair { verts: [p, tb[0], tb[1], tb[2]], edges: false, friction });
                 }
             }
             for c in 0..3 {
-                if owns[i] & (8 << c) == 0 {
+                if oa & (8 << c) == 0 {
                     continue;
                 }
-                let (p, q) = (tris[i][c], tris[i][(c + 1) % 3]);
+                let (p, q) = (ta[c], ta[(c + 1) % 3]);
                 for e in 0..3 {
-                    let (r, s) = (tris[j][e], tris[j][(e + 1) % 3]);
+                    let (r, s) = (tb[e], tb[(e + 1) % 3]);
                     let apart = ![r, s].iter().any(|v| *v == p || *v == q);
-                    if owns[j] & (8 << e) != 0 && apart && close(&[p, q], &[r, s]) {
-                        pairs.push(Pair { verts: [p, q, r, s], edges: true });
+                    if ob & (8 << e) != 0 && apart && close(&[p, q], &[r, s]) {
+                        pairs.push(Pair { verts: [p, q, r, s], edges: true, friction });
                     }
                 }
             }
-        });
+        };
+        if let Some(friction) = self.self_friction {
+            bvh.self_pairs(|i, j| {
+                features(tris[i], owns[i] & 7, tris[j], 0, friction);
+                features(tris[j], owns[j] & 7, tris[i], 0, friction);
+                features(tris[i], owns[i] & !7, tris[j], owns[j], friction);
+            });
+        }
+        if !mesh_tris.is_empty() {
+            mesh_bvh.refit(mesh_tris, x0, x1, 0.5 * margin);
+            bvh.pairs_with(mesh_bvh, |i, j| {
+                let mu = mesh_friction[j];
+                features(tris[i], owns[i] & 7, mesh_tris[j], 0, mu);
+                features(mesh_tris[j], mesh_owns[j] & 7, tris[i], 0, mu);
+                features(tris[i], owns[i] & !7, mesh_tris[j], mesh_owns[j], mu);
+            });
+        }
     }
 
     /// Stage 1: repulsion and friction impulses on the pairs closer than the thickness at the
@@ -263,18 +373,19 @@ impl Filter<'_> {
         let mut count = 0;
         for k in 0..work.pairs.len() {
             let pair = work.pairs[k];
-            let x = pair.verts.map(|v| self.x0[v]);
+            let x = pair.verts.map(|v| work.x0[v]);
             let (distance, weights, normal) = closest(pair, x);
             if distance < thickness {
                 count += 1;
-                self.repulse(work, pair.verts, weights, normal, thickness - distance);
+                self.repulse(work, pair, weights, normal, thickness - distance);
             }
         }
         count
     }
 
     /// The proximity impulse of one pair (see the module documentation) on the displacements.
-    fn repulse(&self, work: &mut Work, verts: [usize; 4], alpha: [f64; 4], n: DVec3, overlap: f64) {
+    fn repulse(&self, work: &mut Work, pair: Pair, alpha: [f64; 4], n: DVec3, overlap: f64) {
+        let verts = pair.verts;
         let w: f64 = (0..4).map(|k| alpha[k] * alpha[k] * work.w[verts[k]]).sum();
         if w <= 0.0 || w.is_nan() {
             return;
@@ -293,7 +404,7 @@ impl Filter<'_> {
         }
         let tangent = rel - n * dn;
         let slide = tangent.length();
-        let friction = (self.settings.friction * change).min(slide);
+        let friction = (pair.friction * change).min(slide);
         let mut impulse = n * (change / w);
         if slide > 0.0 {
             impulse -= tangent * (friction / (slide * w));
@@ -323,8 +434,8 @@ impl Filter<'_> {
     /// The collision of a pair in the current motion, if any (see the module documentation).
     fn collision(&self, work: &Work, pair: Pair) -> Option<Impact> {
         let delta = MIN_DISTANCE * self.model.thickness;
-        let x0 = pair.verts.map(|v| self.x0[v]);
-        let x1 = pair.verts.map(|v| self.x0[v] + work.d[v]);
+        let x0 = pair.verts.map(|v| work.x0[v]);
+        let x1 = pair.verts.map(|v| work.x0[v] + work.d[v]);
         let crossing =
             if pair.edges { edge_edge(x0, x1, delta) } else { vertex_triangle(x0, x1, delta) };
         if crossing.is_some() {
@@ -343,7 +454,7 @@ impl Filter<'_> {
         let alpha = impact.weights;
         let w: f64 = (0..4).map(|k| alpha[k] * alpha[k] * work.w[verts[k]]).sum();
         let end =
-            (0..4).fold(DVec3::ZERO, |s, k| s + (self.x0[verts[k]] + work.d[verts[k]]) * alpha[k]);
+            (0..4).fold(DVec3::ZERO, |s, k| s + (work.x0[verts[k]] + work.d[verts[k]]) * alpha[k]);
         let change = TARGET_DISTANCE * self.model.thickness - impact.normal.dot(end);
         if !(w > 0.0 && change > 0.0) {
             return false;
@@ -358,7 +469,7 @@ impl Filter<'_> {
     /// Stage 3: rigid impact zones until no collision between zones remains (at most one
     /// merge per vertex); returns the number of zones of two or more vertices.
     fn impact_zones(&self, work: &mut Work) -> usize {
-        let n = self.x0.len();
+        let n = work.x0.len();
         work.zoned.clear();
         let mut merged = false;
         for _ in 0..n {
@@ -402,20 +513,19 @@ impl Filter<'_> {
     /// Move the free vertices of every zone rigidly with the zone's momentum (Bridson §7.4;
     /// [`ZoneSums::displacement`]).
     fn rigidify(&self, work: &mut Work) {
-        let Work { parent, zoned, sums, d, w, .. } = work;
-        let m = &self.model.mass;
+        let Work { parent, zoned, sums, d, w, x0, m, .. } = work;
         for &v in zoned.iter() {
             let r = find(parent, v);
             let s = &mut sums[r];
             s.m += m[v];
-            s.mx += self.x0[v] * m[v];
+            s.mx += x0[v] * m[v];
             s.md += d[v] * m[v];
         }
         for &v in zoned.iter() {
             let r = find(parent, v);
             let s = &mut sums[r];
             let (c, vc) = (s.mx / s.m, s.md / s.m);
-            let arm = self.x0[v] - c;
+            let arm = x0[v] - c;
             s.angular += arm.cross(d[v] - vc) * m[v];
             s.inertia += (DMat3::from_diagonal(DVec3::splat(arm.length_squared()))
                 - crate::math::outer(arm, arm))
@@ -423,7 +533,7 @@ impl Filter<'_> {
         }
         for &v in zoned.iter() {
             if w[v] > 0.0 {
-                d[v] = sums[find(parent, v)].displacement(self.x0[v]);
+                d[v] = sums[find(parent, v)].displacement(x0[v]);
             }
         }
         for &v in zoned.iter() {

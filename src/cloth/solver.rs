@@ -162,10 +162,13 @@ impl Solver {
                     "integrator",
                     "trapezoidal is not offered for cloth; use implicit_euler or bdf2",
                 )),
-                _ if model.self_collision.is_some() => Err(Error::invalid(
-                    "integrator",
-                    "self-collision needs an implicit integrator (implicit_euler or bdf2)",
-                )),
+                _ if model.self_collision.is_some() || !state.meshes.is_empty() => {
+                    Err(Error::invalid(
+                        "integrator",
+                        "self-collision and mesh colliders need an implicit integrator \
+                         (implicit_euler or bdf2)",
+                    ))
+                }
                 explicit => self.step_explicit(model, state, &mut stats, dt, explicit),
             };
             if let Err(e) = result {

@@ -5,7 +5,7 @@
 //! their current poses. Several states of one [`Model`] can be stepped by one
 //! [`super::Solver`]; a state snapshot records the model's fingerprint.
 
-use super::{Collider, ContactState, Model, VertexConstraint};
+use super::{Collider, ContactState, MeshCollider, Model, VertexConstraint};
 use crate::error::{Error, Result};
 use crate::snapshot::{check, finite, Stamped};
 use glam::DVec3;
@@ -33,6 +33,10 @@ pub struct State {
     pub(super) constraints: Vec<Option<VertexConstraint>>,
     /// The colliders, at the current time.
     pub(super) colliders: Vec<Collider>,
+    /// The triangle-mesh colliders, at the current time (absent from snapshots written before
+    /// they existed).
+    #[serde(default)]
+    pub(super) meshes: Vec<MeshCollider>,
 }
 
 impl Clone for State {
@@ -57,6 +61,7 @@ impl Clone for State {
             contact,
             constraints,
             colliders,
+            meshes,
         } = other;
         self.x.clone_from(x);
         self.v.clone_from(v);
@@ -68,6 +73,12 @@ impl Clone for State {
         self.contact.clone_from(contact);
         self.constraints.clone_from(constraints);
         self.colliders.clone_from(colliders);
+        self.meshes.truncate(meshes.len());
+        let kept = self.meshes.len();
+        for (mine, theirs) in self.meshes.iter_mut().zip(meshes) {
+            mine.clone_from(theirs);
+        }
+        self.meshes.extend(meshes[kept..].iter().cloned());
     }
 }
 
@@ -121,6 +132,9 @@ impl Stamped for State {
         for c in &self.colliders {
             c.checked()?;
         }
+        for m in &self.meshes {
+            m.validate()?;
+        }
         Ok(())
     }
 }
@@ -142,6 +156,7 @@ impl State {
             contact: vec![ContactState::Free; n],
             constraints: vec![None; n],
             colliders: Vec::new(),
+            meshes: Vec::new(),
         }
     }
 
@@ -158,6 +173,7 @@ impl State {
             contact: Vec::new(),
             constraints: Vec::new(),
             colliders: Vec::new(),
+            meshes: Vec::new(),
         }
     }
 
@@ -301,6 +317,36 @@ impl State {
         })?;
         *slot = collider.checked()?;
         Ok(())
+    }
+
+    /// Add a triangle-mesh collider; returns its index (for
+    /// [`State::set_mesh_collider`]).
+    pub fn add_mesh_collider(&mut self, mesh: MeshCollider) -> usize {
+        self.meshes.push(mesh);
+        self.meshes.len() - 1
+    }
+
+    /// Set the vertices (m) of mesh collider `index` at the current time and their velocities
+    /// (m/s) over the next steps ([`MeshCollider::set_motion`]).
+    ///
+    /// # Errors
+    /// A bad index, wrong lengths or non-finite values; the collider is then unchanged.
+    pub fn set_mesh_collider(
+        &mut self,
+        index: usize,
+        vertices: &[DVec3],
+        velocities: &[DVec3],
+    ) -> Result<()> {
+        let count = self.meshes.len();
+        let mesh = self.meshes.get_mut(index).ok_or_else(|| {
+            Error::invalid("index", format!("no mesh collider {index} (have {count})"))
+        })?;
+        mesh.set_motion(vertices, velocities)
+    }
+
+    /// The triangle-mesh colliders, at the current time.
+    pub fn mesh_colliders(&self) -> &[MeshCollider] {
+        &self.meshes
     }
 
     /// Whether the state has the sizes of a state of `model` (the cheap check of every step).

@@ -43,6 +43,9 @@ from kinema.demos import showcase
 # started to sweep outward from the constrained vertices until converged to 1e-4, moving the far
 # end of an edge alone (issue #21, session 21: the 3 % limit held at 128²); main at ce9639c
 # gives the former hashes.
+# "showcase" was re-recorded again when the strain limiter stopped holding the vertices that
+# touch a collider (issue #21, session 22: they slide, so the limit is reachable where the
+# cloth spans two contact regions); main at d855c8e gives the former hash.
 EXPECTED = {
     "particles_fountain": "58823ac0b8b176df3229",
     "particles_shapes": "f228e65d27a3913c9309",
@@ -51,7 +54,7 @@ EXPECTED = {
     "cloth_explicit": "90b52dd558916ee90b6c",
     "rigid_drop": "42807893cb67fb2fe284",
     "rigid_tilted": "be22f5405c67168c4c6a",
-    "showcase": "2f574a3213d809f0b7db",
+    "showcase": "3da40796629c75c9e506",
 }
 
 
