@@ -45,6 +45,14 @@ pub struct Tree {
     pub mass_matrix: DMatrix<f64>,
     /// Scratch of `nv` values for solves with `M`'s factor.
     pub(super) column: Vec<f64>,
+    /// The parent of each degree of freedom (`nv`; [`super::servo::NO_PARENT`] for the
+    /// first): the previous one of its joint, else the last of the nearest ancestor joint
+    /// with one (Featherstone's expanded parent array, §6.5).
+    pub(super) dof_parents: Vec<usize>,
+    /// The ground contacts of the last implicit step's forces ([`super::forces::passive`]).
+    pub(super) contacts: Vec<super::forces::Contact>,
+    /// Scratch: a point's Jacobian, `(dof, world velocity (m/s) per unit rate)` on its path.
+    pub(super) jacobian: Vec<(usize, DVec3)>,
 }
 
 impl Tree {
@@ -68,6 +76,58 @@ impl Tree {
             self.mass_matrix = DMatrix::zeros(nv, nv);
         }
         self.column.resize(nv, 0.0);
+        self.dof_parents.resize(nv, super::servo::NO_PARENT);
+        let last = |mut p: Option<usize>| {
+            while let Some(j) = p {
+                let n = model.bodies()[j].joint.nv();
+                if n > 0 {
+                    return model.starts(j).1 + n - 1;
+                }
+                p = model.bodies()[j].parent;
+            }
+            super::servo::NO_PARENT
+        };
+        for (i, b) in model.bodies().iter().enumerate() {
+            let iv = model.starts(i).1;
+            for k in 0..b.joint.nv() {
+                self.dof_parents[iv + k] = if k > 0 { iv + k - 1 } else { last(b.parent) };
+            }
+        }
+        let ends = model.bodies().iter().filter_map(|b| b.shape).map(|c| 1 + (c.a != c.b) as usize);
+        let ends: usize = ends.sum();
+        self.contacts.reserve(ends.saturating_sub(self.contacts.len()));
+        self.jacobian.reserve(nv.saturating_sub(self.jacobian.len()));
+    }
+
+    /// Add `dt Σ Jᵀ C J` to [`Tree::mass_matrix`] for the recorded [`Tree::contacts`]: `J`
+    /// the world velocity of a contact point per joint rate (3 × `nv`, nonzero on the
+    /// point's path to the root), `C = diag(c_t, c_n, c_t)` its viscous coefficients. With
+    /// it, `(M + dt Jᵀ C J) q̈ = …` takes the contacts' damping at the next step's velocity,
+    /// `−C J (q̇ + dt q̈)` (the explicit part `−C J q̇` is in [`Tree::f_ext`]).
+    pub(super) fn add_contact_damping(&mut self, model: &Model, dt: f64) {
+        for n in 0..self.contacts.len() {
+            let c = self.contacts[n];
+            self.jacobian.clear();
+            let mut j = Some(c.body);
+            while let Some(b) = j {
+                let iv = model.starts(b).1;
+                let arm = c.point - self.pos[b];
+                for k in 0..model.bodies()[b].joint.nv() {
+                    let col = self.s[b].column(k);
+                    let w = self.rot[b] * DVec3::new(col[0], col[1], col[2]);
+                    let v = self.rot[b] * DVec3::new(col[3], col[4], col[5]) + w.cross(arm);
+                    self.jacobian.push((iv + k, v));
+                }
+                j = model.bodies()[b].parent;
+            }
+            let weight = DVec3::new(c.tangent, c.normal, c.tangent) * dt;
+            for &(r, a) in &self.jacobian {
+                let wa = weight * a;
+                for &(k, b) in &self.jacobian {
+                    self.mass_matrix[(r, k)] += wa.dot(b);
+                }
+            }
+        }
     }
 
     /// Positions, orientations, velocities and velocity products of every body at
