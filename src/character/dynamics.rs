@@ -51,8 +51,6 @@ pub struct Tree {
     pub(super) dof_parents: Vec<usize>,
     /// The ground contacts of the last implicit step's forces ([`super::forces::passive`]).
     pub(super) contacts: Vec<super::forces::Contact>,
-    /// Scratch: a point's Jacobian, `(dof, world velocity (m/s) per unit rate)` on its path.
-    pub(super) jacobian: Vec<(usize, DVec3)>,
 }
 
 impl Tree {
@@ -96,38 +94,6 @@ impl Tree {
         let ends = model.bodies().iter().filter_map(|b| b.shape).map(|c| 1 + (c.a != c.b) as usize);
         let ends: usize = ends.sum();
         self.contacts.reserve(ends.saturating_sub(self.contacts.len()));
-        self.jacobian.reserve(nv.saturating_sub(self.jacobian.len()));
-    }
-
-    /// Add `dt Σ Jᵀ C J` to [`Tree::mass_matrix`] for the recorded [`Tree::contacts`]: `J`
-    /// the world velocity of a contact point per joint rate (3 × `nv`, nonzero on the
-    /// point's path to the root), `C = diag(c_t, c_n, c_t)` its viscous coefficients. With
-    /// it, `(M + dt Jᵀ C J) q̈ = …` takes the contacts' damping at the next step's velocity,
-    /// `−C J (q̇ + dt q̈)` (the explicit part `−C J q̇` is in [`Tree::f_ext`]).
-    pub(super) fn add_contact_damping(&mut self, model: &Model, dt: f64) {
-        for n in 0..self.contacts.len() {
-            let c = self.contacts[n];
-            self.jacobian.clear();
-            let mut j = Some(c.body);
-            while let Some(b) = j {
-                let iv = model.starts(b).1;
-                let arm = c.point - self.pos[b];
-                for k in 0..model.bodies()[b].joint.nv() {
-                    let col = self.s[b].column(k);
-                    let w = self.rot[b] * DVec3::new(col[0], col[1], col[2]);
-                    let v = self.rot[b] * DVec3::new(col[3], col[4], col[5]) + w.cross(arm);
-                    self.jacobian.push((iv + k, v));
-                }
-                j = model.bodies()[b].parent;
-            }
-            let weight = DVec3::new(c.tangent, c.normal, c.tangent) * dt;
-            for &(r, a) in &self.jacobian {
-                let wa = weight * a;
-                for &(k, b) in &self.jacobian {
-                    self.mass_matrix[(r, k)] += wa.dot(b);
-                }
-            }
-        }
     }
 
     /// Positions, orientations, velocities and velocity products of every body at
@@ -206,8 +172,40 @@ impl Tree {
     /// The joint-space inertia `M(q)` by the CRBA (Featherstone Table 6.2) into
     /// [`Tree::mass_matrix`], at the `q` of the last [`Tree::kinematics`].
     pub fn crba(&mut self, model: &Model) {
-        let bodies = model.bodies();
         self.ia.clone_from_slice(&model.inertias);
+        self.composite(model);
+    }
+
+    /// `M + dt Σ Jᵀ C J` by the CRBA into [`Tree::mass_matrix`] for the recorded
+    /// [`Tree::contacts`]: `J` a contact point's world velocity per joint rate, `C =
+    /// diag(c_t, c_n, c_t)` (world) its viscous coefficients. With it, `(M + dt Jᵀ C J) q̈ = …`
+    /// takes the contacts' damping at the next step's velocity, `−C J (q̇ + dt q̈)` (the
+    /// explicit part `−C J q̇` is in [`Tree::f_ext`]). Each contact adds to its body's
+    /// inertia the 6 × 6 `dt Gᵀ C_b G` (body axes, `G = [−p×, 1]` the point's velocity from
+    /// the body's `[ω; v]`, `C_b = Rᵀ C R`) before the composite inertias are summed, so the
+    /// terms cost `O(contacts)` and keep the tree's sparsity.
+    pub(super) fn crba_with_contacts(&mut self, model: &Model, dt: f64) {
+        self.ia.clone_from_slice(&model.inertias);
+        for c in &self.contacts {
+            let rot = self.rot[c.body];
+            let p = super::spatial::skew(rot.conjugate() * (c.point - self.pos[c.body]));
+            let up = super::spatial::vec3(rot.conjugate() * DVec3::Y);
+            let cb = nalgebra::Matrix3::identity() * c.tangent
+                + up * up.transpose() * (c.normal - c.tangent);
+            let mut d = SMat::zeros();
+            d.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-(p * cb * p)));
+            d.fixed_view_mut::<3, 3>(0, 3).copy_from(&(p * cb));
+            d.fixed_view_mut::<3, 3>(3, 0).copy_from(&(-(cb * p)));
+            d.fixed_view_mut::<3, 3>(3, 3).copy_from(&cb);
+            self.ia[c.body] += d * dt;
+        }
+        self.composite(model);
+    }
+
+    /// The CRBA's sums of the composite inertias (from `self.ia`, the bodies' own) and the
+    /// joint-space matrix from them.
+    fn composite(&mut self, model: &Model) {
+        let bodies = model.bodies();
         for (i, b) in bodies.iter().enumerate().rev() {
             if let Some(p) = b.parent {
                 let ic = self.x_up[i].inertia_to_parent(&self.ia[i]);

@@ -10,7 +10,7 @@
 //! bias forces of the RNEA and `⊖`, `⊕` the joints' coordinate operations). `M` comes from
 //! the CRBA, the system is solved by the LTL factorisation in the tree's sparsity ([`ltl`]). The ground contacts' damping is taken
 //! at the next step's velocity in the same solve, `M + dt K_d + dt Σ Jᵀ C J`
-//! ([`Tree::add_contact_damping`]). If a servo torque so found passes its limit, the servo
+//! ([`Tree::crba_with_contacts`]). If a servo torque so found passes its limit, the servo
 //! torques are clamped and the accelerations solved again with them fixed, `M + dt Σ Jᵀ C J`
 //! (the servos' implicit damping is lost on that step; the contacts' is kept).
 
@@ -88,8 +88,7 @@ pub(super) fn stable(
     integrate(model, q, qd, dt, &mut w.q_pred);
     difference(model, targets, &w.q_pred, &mut w.diff);
     tree.rnea(model, &w.zero, &mut w.bias);
-    tree.crba(model);
-    tree.add_contact_damping(model, dt);
+    tree.crba_with_contacts(model, dt);
     if w.inertia.shape() != (nv, nv) {
         w.inertia = DMatrix::zeros(nv, nv);
     }
@@ -140,24 +139,26 @@ pub(super) const NO_PARENT: usize = usize::MAX;
 /// read or written, so the cost is `Σ depth²` instead of `n³ / 6` (two legs do not couple).
 /// `false` if `a` is not positive definite.
 pub(super) fn ltl(a: &mut DMatrix<f64>, lambda: &[usize]) -> bool {
+    let n = a.nrows();
+    let a = a.as_mut_slice();
     for k in (0..lambda.len()).rev() {
-        let d = a[(k, k)];
+        let d = a[k + k * n];
         if d.is_nan() || d <= 0.0 {
             return false;
         }
         let d = d.sqrt();
-        a[(k, k)] = d;
+        a[k + k * n] = d;
         let mut i = lambda[k];
         while i != NO_PARENT {
-            a[(k, i)] /= d;
+            a[k + i * n] /= d;
             i = lambda[i];
         }
         let mut i = lambda[k];
         while i != NO_PARENT {
-            let lki = a[(k, i)];
+            let lki = a[k + i * n];
             let mut j = i;
             while j != NO_PARENT {
-                a[(i, j)] -= lki * a[(k, j)];
+                a[i + j * n] -= lki * a[k + j * n];
                 j = lambda[j];
             }
             i = lambda[i];
@@ -169,21 +170,23 @@ pub(super) fn ltl(a: &mut DMatrix<f64>, lambda: &[usize]) -> bool {
 /// Solve `Lᵀ L x = b` in place (`b` becomes `x`) with the factor `l` of [`ltl`]
 /// (Featherstone 2008, Table 6.4: back-substitution along each path to the root).
 pub(super) fn ltl_solve(l: &DMatrix<f64>, lambda: &[usize], b: &mut [f64]) {
+    let n = l.nrows();
+    let l = l.as_slice();
     for i in (0..lambda.len()).rev() {
-        b[i] /= l[(i, i)];
+        b[i] /= l[i + i * n];
         let mut j = lambda[i];
         while j != NO_PARENT {
-            b[j] -= l[(i, j)] * b[i];
+            b[j] -= l[i + j * n] * b[i];
             j = lambda[j];
         }
     }
     for i in 0..lambda.len() {
         let mut j = lambda[i];
         while j != NO_PARENT {
-            b[i] -= l[(i, j)] * b[j];
+            b[i] -= l[i + j * n] * b[j];
             j = lambda[j];
         }
-        b[i] /= l[(i, i)];
+        b[i] /= l[i + i * n];
     }
 }
 
@@ -191,7 +194,59 @@ pub(super) fn ltl_solve(l: &DMatrix<f64>, lambda: &[usize], b: &mut [f64]) {
 mod tests {
     use super::*;
     use crate::character::biped3d::biped3d;
+    use crate::character::forces::Contact;
     use crate::character::model::Settings;
+    use glam::DVec3;
+
+    /// The 3-D biped in a bent pose, moving with rates `qd`: its kinematics in a tree.
+    fn bent_biped(qd: &[f64]) -> (crate::character::model::Model, Tree) {
+        let model = biped3d(Settings::default()).unwrap();
+        let mut q = model.neutral();
+        for (k, v) in q.iter_mut().enumerate() {
+            *v += 0.3 * ((k as f64) * 1.7).sin();
+        }
+        for i in 0..model.bodies().len() {
+            if model.bodies()[i].joint.nq() >= 4 {
+                let at = model.starts(i).0 + if i == 0 { 3 } else { 0 };
+                let n: f64 = q[at..at + 4].iter().map(|v| v * v).sum::<f64>().sqrt();
+                q[at..at + 4].iter_mut().for_each(|v| *v /= n);
+            }
+        }
+        let mut tree = Tree::default();
+        tree.kinematics(&model, &q, &qd[..model.nv()]);
+        (model, tree)
+    }
+
+    /// The contacts' terms of the CRBA are `dt Jᵀ C J`: for any rates, `q̇ᵀ (M_c − M) q̇`
+    /// equals `dt Σ (c_t |v_t|² + c_n v_n²)` with `v` each contact point's world velocity
+    /// from the bodies' velocities of the kinematics (an independent route to `J q̇`).
+    #[test]
+    fn the_contacts_damping_adds_dt_jt_c_j_to_the_mass_matrix() {
+        let dt = 1e-3;
+        let qd: Vec<f64> = (0..20).map(|k| ((k * 7) as f64 * 0.61).sin()).collect();
+        let (model, mut tree) = bent_biped(&qd);
+        let points = [(3, DVec3::new(0.05, -0.07, 0.05)), (8, DVec3::new(0.1, -0.07, -0.05))];
+        let mut expected = 0.0;
+        for (n, &(body, local)) in points.iter().enumerate() {
+            let (tangent, normal) = (1000.0 * (n + 1) as f64, 300.0 * (n + 2) as f64);
+            let point = tree.pos[body] + tree.rot[body] * local;
+            tree.contacts.push(Contact { body, point, normal, tangent });
+            let v = &tree.v[body];
+            let w = DVec3::new(v[0], v[1], v[2]);
+            let vel = tree.rot[body] * (DVec3::new(v[3], v[4], v[5]) + w.cross(local));
+            expected += dt * (tangent * (vel.x * vel.x + vel.z * vel.z) + normal * vel.y * vel.y);
+        }
+        tree.crba(&model);
+        let plain = tree.mass_matrix.clone();
+        tree.crba_with_contacts(&model, dt);
+        let x = nalgebra::DVector::from(qd.clone());
+        let added = x.dot(&((&tree.mass_matrix - plain) * &x));
+        assert!(
+            (added - expected).abs() < 1e-12 * expected.abs().max(1.0),
+            "{added} vs {expected}"
+        );
+        assert!(expected > 1e-3, "{expected}");
+    }
 
     /// The LTL factorisation in the tree's sparsity solves the CRBA's `M x = b` as a dense
     /// Cholesky does, on the 3-D biped in a bent pose (two branches, a free root, ball, hinge
