@@ -10,7 +10,7 @@ step), CPU time (``time.process_time``), best of three. No peer: no other packag
 SIMBICON; the planar walker is the reference. Run with KINEMA_NUM_THREADS=1.
 
 ``--pushes``: the largest push survived by the 3-D walker (0.2 s on the torso at t = 4.0,
-4.1, …, 4.6 s, forces 50–500 N by 50, walking on to t = 9 s without the hips below 0.7 m or
+4.1, …, 4.6 s, forces 50–1000 N by 50, walking on to t = 9 s without the hips below 0.7 m or
 the torso beyond 0.8 rad), from the front (−x), behind (+x), the left (+z) and the right
 (−z), and its walks of 20 s on flat ground and 10 s on ±5° slopes.
 
@@ -75,7 +75,7 @@ def pushes() -> None:
         row = []
         for at in phases:
             best = 0
-            for f in range(50, 550, 50):
+            for f in range(50, 1050, 50):
                 if walk(9.0, (at, (f * d[0], 0.0, f * d[2])))[0]:
                     break
                 best = f

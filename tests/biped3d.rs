@@ -108,15 +108,20 @@ fn without_coronal_feedback_the_3d_walk_falls_sideways() {
 }
 
 /// Two phases of the sweep of `bench/bench_biped.py --pushes` (0.2 s on the torso at
-/// t = 4.0 … 4.6 s): from the front it survives 250–450 N, from the left (+z) 100–150 N
-/// and from the right (−z) 50–200 N at these two phases (docs/character.md). From behind
-/// it survives 0 N at both (the stance leg turns, docs/character.md): not tested.
+/// t = 4.0 … 4.6 s): at these two it survives from the front ≥ 500 N, from behind 200–300 N,
+/// from the left (+z) 200–300 N and from the right (−z) 250–300 N (docs/character.md).
+/// With the feet's friction capped in an explicit step (before the contacts' damping was
+/// implicit) the stance leg turned about the vertical and it survived 0 N from behind at
+/// both.
 #[test]
-fn pushes_from_the_front_and_the_sides_are_survived() {
+fn pushes_from_every_side_are_survived() {
     for at in [4.0, 4.4] {
-        for force in
-            [DVec3::new(-250.0, 0.0, 0.0), DVec3::new(0.0, 0.0, 100.0), DVec3::new(0.0, 0.0, -50.0)]
-        {
+        for force in [
+            DVec3::new(-350.0, 0.0, 0.0),
+            DVec3::new(150.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, 150.0),
+            DVec3::new(0.0, 0.0, -150.0),
+        ] {
             let w = walk(Coronal::default(), 0.0, 7.0, Some((at, force)));
             assert!(!w.fell(), "fell after {force} N at {at} s");
         }
@@ -128,7 +133,18 @@ fn the_3d_walk_climbs_a_five_degree_slope() {
     let w = walk(Coronal::default(), 5f64.to_radians(), 10.0, None);
     assert!(!w.fell(), "fell climbing: {w:?}");
     let speed = w.speed(5.0, 10.0);
-    assert!((0.15..0.5).contains(&speed), "climbs at {speed} m/s");
+    assert!((0.5..0.9).contains(&speed), "climbs at {speed} m/s");
+}
+
+/// Down 5° it walks faster than on flat ground (1.6 m/s; it falls at 16.8 s of 20,
+/// docs/character.md). With the torso upright against gravity (the planar walker's rule)
+/// it fell at 3.4 s.
+#[test]
+fn the_3d_walk_descends_a_five_degree_slope() {
+    let w = walk(Coronal::default(), -5f64.to_radians(), 10.0, None);
+    assert!(!w.fell(), "fell descending at {} s", w.com.len() as f64 / 10.0);
+    let speed = w.speed(5.0, 10.0);
+    assert!((1.3..1.9).contains(&speed), "descends at {speed} m/s");
 }
 
 #[test]

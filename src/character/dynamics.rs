@@ -45,6 +45,12 @@ pub struct Tree {
     pub mass_matrix: DMatrix<f64>,
     /// Scratch of `nv` values for solves with `M`'s factor.
     pub(super) column: Vec<f64>,
+    /// The parent of each degree of freedom (`nv`; [`super::servo::NO_PARENT`] for the
+    /// first): the previous one of its joint, else the last of the nearest ancestor joint
+    /// with one (Featherstone's expanded parent array, §6.5).
+    pub(super) dof_parents: Vec<usize>,
+    /// The ground contacts of the last implicit step's forces ([`super::forces::passive`]).
+    pub(super) contacts: Vec<super::forces::Contact>,
 }
 
 impl Tree {
@@ -68,6 +74,26 @@ impl Tree {
             self.mass_matrix = DMatrix::zeros(nv, nv);
         }
         self.column.resize(nv, 0.0);
+        self.dof_parents.resize(nv, super::servo::NO_PARENT);
+        let last = |mut p: Option<usize>| {
+            while let Some(j) = p {
+                let n = model.bodies()[j].joint.nv();
+                if n > 0 {
+                    return model.starts(j).1 + n - 1;
+                }
+                p = model.bodies()[j].parent;
+            }
+            super::servo::NO_PARENT
+        };
+        for (i, b) in model.bodies().iter().enumerate() {
+            let iv = model.starts(i).1;
+            for k in 0..b.joint.nv() {
+                self.dof_parents[iv + k] = if k > 0 { iv + k - 1 } else { last(b.parent) };
+            }
+        }
+        let ends = model.bodies().iter().filter_map(|b| b.shape).map(|c| 1 + (c.a != c.b) as usize);
+        let ends: usize = ends.sum();
+        self.contacts.reserve(ends.saturating_sub(self.contacts.len()));
     }
 
     /// Positions, orientations, velocities and velocity products of every body at
@@ -146,8 +172,40 @@ impl Tree {
     /// The joint-space inertia `M(q)` by the CRBA (Featherstone Table 6.2) into
     /// [`Tree::mass_matrix`], at the `q` of the last [`Tree::kinematics`].
     pub fn crba(&mut self, model: &Model) {
-        let bodies = model.bodies();
         self.ia.clone_from_slice(&model.inertias);
+        self.composite(model);
+    }
+
+    /// `M + dt Σ Jᵀ C J` by the CRBA into [`Tree::mass_matrix`] for the recorded
+    /// [`Tree::contacts`]: `J` a contact point's world velocity per joint rate, `C =
+    /// diag(c_t, c_n, c_t)` (world) its viscous coefficients. With it, `(M + dt Jᵀ C J) q̈ = …`
+    /// takes the contacts' damping at the next step's velocity, `−C J (q̇ + dt q̈)` (the
+    /// explicit part `−C J q̇` is in [`Tree::f_ext`]). Each contact adds to its body's
+    /// inertia the 6 × 6 `dt Gᵀ C_b G` (body axes, `G = [−p×, 1]` the point's velocity from
+    /// the body's `[ω; v]`, `C_b = Rᵀ C R`) before the composite inertias are summed, so the
+    /// terms cost `O(contacts)` and keep the tree's sparsity.
+    pub(super) fn crba_with_contacts(&mut self, model: &Model, dt: f64) {
+        self.ia.clone_from_slice(&model.inertias);
+        for c in &self.contacts {
+            let rot = self.rot[c.body];
+            let p = super::spatial::skew(rot.conjugate() * (c.point - self.pos[c.body]));
+            let up = super::spatial::vec3(rot.conjugate() * DVec3::Y);
+            let cb = nalgebra::Matrix3::identity() * c.tangent
+                + up * up.transpose() * (c.normal - c.tangent);
+            let mut d = SMat::zeros();
+            d.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-(p * cb * p)));
+            d.fixed_view_mut::<3, 3>(0, 3).copy_from(&(p * cb));
+            d.fixed_view_mut::<3, 3>(3, 0).copy_from(&(-(cb * p)));
+            d.fixed_view_mut::<3, 3>(3, 3).copy_from(&cb);
+            self.ia[c.body] += d * dt;
+        }
+        self.composite(model);
+    }
+
+    /// The CRBA's sums of the composite inertias (from `self.ia`, the bodies' own) and the
+    /// joint-space matrix from them.
+    fn composite(&mut self, model: &Model) {
+        let bodies = model.bodies();
         for (i, b) in bodies.iter().enumerate().rev() {
             if let Some(p) = b.parent {
                 let ic = self.x_up[i].inertia_to_parent(&self.ia[i]);

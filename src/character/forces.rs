@@ -13,22 +13,45 @@
 //!   `k = m ω²`, `c = 2 ζ m ω` (`m` the body's mass, ω
 //!   [`super::Settings::contact_frequency`]): a body resting on one point sinks `g / ω²`.
 //!   Friction `f_t = −μ f_n v_t / max(|v_t|, v_s)` (Coulomb above the slip speed `v_s`,
-//!   viscous below). Both viscous coefficients are capped at `m / (4 dt)`, above which an
-//!   explicit step would overshoot (a capsule end's effective mass can be `m / 4`).
+//!   viscous below). In an explicit step both viscous coefficients are capped at
+//!   `m / (4 dt)`, above which the step would overshoot (a capsule end's effective mass can
+//!   be `m / 4`). When the step solves stable PD ([`implicit`]) they are not capped: each
+//!   contact is recorded ([`Contact`]) and its damping is taken at the next step's velocity
+//!   in the same linear solve as the servos ([`super::servo::stable`]), as stable PD does
+//!   for the servos' `k_d`.
 
 use super::dynamics::Tree;
 use super::joints::quat;
-use super::model::{Joint, Model};
-use super::servo::{cholesky, cholesky_substitute};
+use super::model::{Joint, Model, ServoMode};
+use super::servo::{ltl, ltl_solve};
 use super::spatial::spatial;
 use super::state::Push;
 use crate::rotation::quat_to_rotvec;
 use glam::DVec3;
 
+/// A ground contact of the last [`passive`] of an implicit step: the body, the contact
+/// point (m, world) and the viscous coefficients (N s/m) of its force, `c_n` on the normal
+/// velocity (zero when the normal force is clamped at zero) and `c_t` on the tangential
+/// velocity (friction's `μ f_n / max(|v_t|, v_s)`).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Contact {
+    pub body: usize,
+    pub point: DVec3,
+    pub normal: f64,
+    pub tangent: f64,
+}
+
+/// Whether a step of `model` solves stable PD, and so takes the contacts' damping at the
+/// next step's velocity (uncapped) in the same solve.
+pub(super) fn implicit(model: &Model) -> bool {
+    model.settings.servo_mode == ServoMode::Stable && super::servo::any(model)
+}
+
 /// Add the body forces (contacts, pushes) to `tree.f_ext` and the joint forces (applied
 /// torques, damping, limits) to `tau`, at the state of the last [`Tree::kinematics`].
 /// Pushes act with weight `min(remaining, dt) / dt` (the impulse of a push ending inside
-/// the step).
+/// the step). With `implicit`, the contacts' viscous coefficients are not capped and the
+/// contacts are recorded in `tree.contacts` for the solve.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn passive(
     model: &Model,
@@ -37,17 +60,26 @@ pub(super) fn passive(
     torques: &[f64],
     pushes: &[Push],
     dt: f64,
+    implicit: bool,
     tree: &mut Tree,
     tau: &mut [f64],
 ) {
     tau.copy_from_slice(torques);
+    tree.contacts.clear();
     for p in pushes {
         let w = p.remaining.min(dt) / dt;
         let com = model.bodies()[p.body].com;
         apply(tree, p.body, com, w * p.force);
     }
     if model.settings.ground {
-        contacts(model, tree, dt);
+        for i in 0..model.bodies().len() {
+            for_each_contact(model, tree, i, dt, implicit, |tree, contact, point, force| {
+                apply(tree, i, point, force);
+                if implicit {
+                    tree.contacts.push(contact);
+                }
+            });
+        }
     }
     for (i, b) in model.bodies().iter().enumerate() {
         let (_, iv) = model.starts(i);
@@ -66,37 +98,35 @@ fn apply(tree: &mut Tree, i: usize, point: DVec3, force: DVec3) {
     tree.f_ext[i] += spatial(point.cross(f), f);
 }
 
-fn contacts(model: &Model, tree: &mut Tree, dt: f64) {
-    for i in 0..model.bodies().len() {
-        for_each_contact(model, tree, i, dt, |tree, point, force| apply(tree, i, point, force));
-    }
-}
-
 /// The total ground force (N, world) on the bodies at the state of the last
-/// [`Tree::kinematics`], for a step `dt` (zero without a ground).
+/// [`Tree::kinematics`], for a step `dt` (zero without a ground), at the current velocities
+/// (an implicit step's damping adds its part at the next step's).
 pub(super) fn ground_force(model: &Model, tree: &mut Tree, dt: f64) -> DVec3 {
     let mut total = DVec3::ZERO;
     if model.settings.ground {
+        let implicit = implicit(model);
         for i in 0..model.bodies().len() {
-            for_each_contact(model, tree, i, dt, |_, _, force| total += force);
+            for_each_contact(model, tree, i, dt, implicit, |_, _, _, force| total += force);
         }
     }
     total
 }
 
-/// Call `visit(tree, point, force)` for every ground contact of body `i`: the contact point
-/// (m, body frame) and the force there (N, world).
+/// Call `visit(tree, contact, point, force)` for every ground contact of body `i`: the
+/// contact (its point in world axes), the point (m, body frame) and the force there (N,
+/// world), with the viscous coefficients capped unless `implicit`.
 fn for_each_contact(
     model: &Model,
     tree: &mut Tree,
     i: usize,
     dt: f64,
-    mut visit: impl FnMut(&mut Tree, DVec3, DVec3),
+    implicit: bool,
+    mut visit: impl FnMut(&mut Tree, Contact, DVec3, DVec3),
 ) {
     let (s, b) = (&model.settings, &model.bodies()[i]);
     let Some(shape) = b.shape else { return };
     // Viscous coefficients above m / (4 dt) would overshoot in an explicit step.
-    let cap = b.mass / (4.0 * dt);
+    let cap = if implicit { f64::INFINITY } else { b.mass / (4.0 * dt) };
     let k = b.mass * s.contact_frequency.powi(2);
     let c = (2.0 * s.contact_damping * b.mass * s.contact_frequency).min(cap);
     let ends: &[DVec3] = if shape.a == shape.b { &[shape.a][..] } else { &[shape.a, shape.b][..] };
@@ -112,13 +142,20 @@ fn for_each_contact(
         let vel = tree.rot[i] * local;
         let normal = (k * depth - c * vel.y).max(0.0);
         let slip = DVec3::new(vel.x, 0.0, vel.z);
-        let friction = -(s.friction * normal / slip.length().max(s.slip_speed)).min(cap) * slip;
-        visit(tree, point, DVec3::new(friction.x, normal, friction.z));
+        let tangent = (s.friction * normal / slip.length().max(s.slip_speed)).min(cap);
+        let friction = -tangent * slip;
+        let contact = Contact {
+            body: i,
+            point: tree.pos[i] + tree.rot[i] * point,
+            normal: if normal > 0.0 { c } else { 0.0 },
+            tangent,
+        };
+        visit(tree, contact, point, DVec3::new(friction.x, normal, friction.z));
     }
 }
 
 /// The joint-limit torques into `tau`; the joint-space inertia is computed and factorised
-/// (CRBA, Cholesky, in the workspace) only when a limit is passed.
+/// (CRBA, LTL, in the workspace) only when a limit is passed.
 fn limits(model: &Model, q: &[f64], qd: &[f64], tree: &mut Tree, tau: &mut [f64]) {
     let mut factorised: Option<bool> = None;
     let (w, zeta) = (model.settings.limit_frequency, model.settings.limit_damping);
@@ -151,7 +188,7 @@ fn limits(model: &Model, q: &[f64], qd: &[f64], tree: &mut Tree, tau: &mut [f64]
             };
             let ok = *factorised.get_or_insert_with(|| {
                 tree.crba(model);
-                cholesky(&mut tree.mass_matrix)
+                ltl(&mut tree.mass_matrix, &tree.dof_parents)
             });
             let inverse =
                 if ok { axis_inverse_inertia(tree, iv, count, axes[k]) } else { f64::NAN };
@@ -171,11 +208,11 @@ fn limits(model: &Model, q: &[f64], qd: &[f64], tree: &mut Tree, tau: &mut [f64]
 
 /// `aᵀ (M⁻¹)_jj a`: the inverse effective inertia of a joint's `count` degrees of freedom at
 /// `iv` about the unit direction `axis` (a revolute joint: its own), the whole tree free to
-/// respond; `tree.mass_matrix` holds the Cholesky factor of `M`, `tree.column` is scratch.
+/// respond; `tree.mass_matrix` holds the LTL factor of `M`, `tree.column` is scratch.
 fn axis_inverse_inertia(tree: &mut Tree, iv: usize, count: usize, axis: DVec3) -> f64 {
     let a = if count == 1 { [1.0, 0.0, 0.0] } else { axis.to_array() };
     tree.column.fill(0.0);
     tree.column[iv..iv + count].copy_from_slice(&a[..count]);
-    cholesky_substitute(&tree.mass_matrix, &mut tree.column);
+    ltl_solve(&tree.mass_matrix, &tree.dof_parents, &mut tree.column);
     (0..count).map(|r| a[r] * tree.column[iv + r]).sum()
 }

@@ -8,9 +8,11 @@
 //! `τ = −k_p (q + dt q̇ − q̄) − k_d (q̇ + dt q̈)`, and solves the accelerations together with it:
 //! `(M + dt K_d) q̈ = τ_other − C(q, q̇) + k_p (q̄ ⊖ (q ⊕ dt q̇)) − k_d q̇` (eq. 8, with `C` the
 //! bias forces of the RNEA and `⊖`, `⊕` the joints' coordinate operations). `M` comes from
-//! the CRBA, the dense system is solved by Cholesky. If a torque so found passes its limit,
-//! the torques are clamped and the accelerations recomputed by the ABA with them (the
-//! implicit damping is lost on that step only for the clamped joints' values).
+//! the CRBA, the system is solved by the LTL factorisation in the tree's sparsity ([`ltl`]). The ground contacts' damping is taken
+//! at the next step's velocity in the same solve, `M + dt K_d + dt Σ Jᵀ C J`
+//! ([`Tree::crba_with_contacts`]). If a servo torque so found passes its limit, the servo
+//! torques are clamped and the accelerations solved again with them fixed, `M + dt Σ Jᵀ C J`
+//! (the servos' implicit damping is lost on that step; the contacts' is kept).
 
 use super::dynamics::Tree;
 use super::joints::{difference, integrate};
@@ -25,6 +27,9 @@ pub(super) struct ServoWork {
     bias: Vec<f64>,
     zero: Vec<f64>,
     servo: Vec<f64>,
+    /// `M + dt Σ Jᵀ C J` before the servos' damping and the factorisation (for a clamped
+    /// step's second solve).
+    inertia: DMatrix<f64>,
 }
 
 /// The servoed degrees of freedom: `(first dof, count, servo)` per servoed joint.
@@ -83,7 +88,11 @@ pub(super) fn stable(
     integrate(model, q, qd, dt, &mut w.q_pred);
     difference(model, targets, &w.q_pred, &mut w.diff);
     tree.rnea(model, &w.zero, &mut w.bias);
-    tree.crba(model);
+    tree.crba_with_contacts(model, dt);
+    if w.inertia.shape() != (nv, nv) {
+        w.inertia = DMatrix::zeros(nv, nv);
+    }
+    w.inertia.copy_from(&tree.mass_matrix);
     w.servo.fill(0.0);
     for (iv, n, s) in servos(model) {
         for (k, &v) in qd.iter().enumerate().skip(iv).take(n) {
@@ -94,11 +103,11 @@ pub(super) fn stable(
     for k in 0..nv {
         qdd[k] = tau[k] - w.bias[k] + w.servo[k];
     }
-    if !cholesky(&mut tree.mass_matrix) {
+    if !ltl(&mut tree.mass_matrix, &tree.dof_parents) {
         qdd.fill(f64::NAN);
         return;
     }
-    cholesky_substitute(&tree.mass_matrix, qdd);
+    ltl_solve(&tree.mass_matrix, &tree.dof_parents, qdd);
     let mut clamped = false;
     for (iv, n, s) in servos(model) {
         for (k, &a) in qdd.iter().enumerate().skip(iv).take(n) {
@@ -108,53 +117,168 @@ pub(super) fn stable(
         }
     }
     if clamped {
-        for (t, s) in tau.iter_mut().zip(&w.servo) {
-            *t += s;
+        tree.mass_matrix.copy_from(&w.inertia);
+        for k in 0..nv {
+            qdd[k] = tau[k] - w.bias[k] + w.servo[k];
         }
-        tree.aba(model, tau, qdd);
+        if !ltl(&mut tree.mass_matrix, &tree.dof_parents) {
+            qdd.fill(f64::NAN);
+            return;
+        }
+        ltl_solve(&tree.mass_matrix, &tree.dof_parents, qdd);
     }
 }
 
-/// Overwrite the lower triangle of symmetric positive definite `a` with its Cholesky factor
-/// `L` (`a = L Lᵀ`); `false` if `a` is not positive definite.
-pub(super) fn cholesky(a: &mut DMatrix<f64>) -> bool {
+/// `lambda[i]` of a degree of freedom without a parent (the tree's first).
+pub(super) const NO_PARENT: usize = usize::MAX;
+
+/// Factor symmetric positive definite `a` in place as `a = Lᵀ L`, `L` lower triangular with
+/// the tree's branch-induced sparsity: Featherstone's LTL factorisation (2008, §6.5, Table
+/// 6.3). `lambda[i] < i` is the parent of degree of freedom `i` ([`NO_PARENT`] for none;
+/// [`Tree::dof_parents`]); only the entries `(i, j)` with `j` on `i`'s path to the root are
+/// read or written, so the cost is `Σ depth²` instead of `n³ / 6` (two legs do not couple).
+/// `false` if `a` is not positive definite.
+pub(super) fn ltl(a: &mut DMatrix<f64>, lambda: &[usize]) -> bool {
     let n = a.nrows();
-    for j in 0..n {
-        let mut d = a[(j, j)];
-        for k in 0..j {
-            d -= a[(j, k)] * a[(j, k)];
-        }
+    let a = a.as_mut_slice();
+    for k in (0..lambda.len()).rev() {
+        let d = a[k + k * n];
         if d.is_nan() || d <= 0.0 {
             return false;
         }
         let d = d.sqrt();
-        a[(j, j)] = d;
-        for i in j + 1..n {
-            let mut s = a[(i, j)];
-            for k in 0..j {
-                s -= a[(i, k)] * a[(j, k)];
+        a[k + k * n] = d;
+        let mut i = lambda[k];
+        while i != NO_PARENT {
+            a[k + i * n] /= d;
+            i = lambda[i];
+        }
+        let mut i = lambda[k];
+        while i != NO_PARENT {
+            let lki = a[k + i * n];
+            let mut j = i;
+            while j != NO_PARENT {
+                a[i + j * n] -= lki * a[k + j * n];
+                j = lambda[j];
             }
-            a[(i, j)] = s / d;
+            i = lambda[i];
         }
     }
     true
 }
 
-/// Solve `L Lᵀ x = b` in place (`b` becomes `x`) with the factor `l` of [`cholesky`].
-pub(super) fn cholesky_substitute(l: &DMatrix<f64>, b: &mut [f64]) {
-    let n = b.len();
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[(i, k)] * b[k];
+/// Solve `Lᵀ L x = b` in place (`b` becomes `x`) with the factor `l` of [`ltl`]
+/// (Featherstone 2008, Table 6.4: back-substitution along each path to the root).
+pub(super) fn ltl_solve(l: &DMatrix<f64>, lambda: &[usize], b: &mut [f64]) {
+    let n = l.nrows();
+    let l = l.as_slice();
+    for i in (0..lambda.len()).rev() {
+        b[i] /= l[i + i * n];
+        let mut j = lambda[i];
+        while j != NO_PARENT {
+            b[j] -= l[i + j * n] * b[i];
+            j = lambda[j];
         }
-        b[i] = s / l[(i, i)];
     }
-    for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in i + 1..n {
-            s -= l[(k, i)] * b[k];
+    for i in 0..lambda.len() {
+        let mut j = lambda[i];
+        while j != NO_PARENT {
+            b[i] -= l[i + j * n] * b[j];
+            j = lambda[j];
         }
-        b[i] = s / l[(i, i)];
+        b[i] /= l[i + i * n];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::character::biped3d::biped3d;
+    use crate::character::forces::Contact;
+    use crate::character::model::Settings;
+    use glam::DVec3;
+
+    /// The 3-D biped in a bent pose, moving with rates `qd`: its kinematics in a tree.
+    fn bent_biped(qd: &[f64]) -> (crate::character::model::Model, Tree) {
+        let model = biped3d(Settings::default()).unwrap();
+        let mut q = model.neutral();
+        for (k, v) in q.iter_mut().enumerate() {
+            *v += 0.3 * ((k as f64) * 1.7).sin();
+        }
+        for i in 0..model.bodies().len() {
+            if model.bodies()[i].joint.nq() >= 4 {
+                let at = model.starts(i).0 + if i == 0 { 3 } else { 0 };
+                let n: f64 = q[at..at + 4].iter().map(|v| v * v).sum::<f64>().sqrt();
+                q[at..at + 4].iter_mut().for_each(|v| *v /= n);
+            }
+        }
+        let mut tree = Tree::default();
+        tree.kinematics(&model, &q, &qd[..model.nv()]);
+        (model, tree)
+    }
+
+    /// The contacts' terms of the CRBA are `dt Jᵀ C J`: for any rates, `q̇ᵀ (M_c − M) q̇`
+    /// equals `dt Σ (c_t |v_t|² + c_n v_n²)` with `v` each contact point's world velocity
+    /// from the bodies' velocities of the kinematics (an independent route to `J q̇`).
+    #[test]
+    fn the_contacts_damping_adds_dt_jt_c_j_to_the_mass_matrix() {
+        let dt = 1e-3;
+        let qd: Vec<f64> = (0..20).map(|k| ((k * 7) as f64 * 0.61).sin()).collect();
+        let (model, mut tree) = bent_biped(&qd);
+        let points = [(3, DVec3::new(0.05, -0.07, 0.05)), (8, DVec3::new(0.1, -0.07, -0.05))];
+        let mut expected = 0.0;
+        for (n, &(body, local)) in points.iter().enumerate() {
+            let (tangent, normal) = (1000.0 * (n + 1) as f64, 300.0 * (n + 2) as f64);
+            let point = tree.pos[body] + tree.rot[body] * local;
+            tree.contacts.push(Contact { body, point, normal, tangent });
+            let v = &tree.v[body];
+            let w = DVec3::new(v[0], v[1], v[2]);
+            let vel = tree.rot[body] * (DVec3::new(v[3], v[4], v[5]) + w.cross(local));
+            expected += dt * (tangent * (vel.x * vel.x + vel.z * vel.z) + normal * vel.y * vel.y);
+        }
+        tree.crba(&model);
+        let plain = tree.mass_matrix.clone();
+        tree.crba_with_contacts(&model, dt);
+        let x = nalgebra::DVector::from(qd.clone());
+        let added = x.dot(&((&tree.mass_matrix - plain) * &x));
+        assert!(
+            (added - expected).abs() < 1e-12 * expected.abs().max(1.0),
+            "{added} vs {expected}"
+        );
+        assert!(expected > 1e-3, "{expected}");
+    }
+
+    /// The LTL factorisation in the tree's sparsity solves the CRBA's `M x = b` as a dense
+    /// Cholesky does, on the 3-D biped in a bent pose (two branches, a free root, ball, hinge
+    /// and fixed joints).
+    #[test]
+    fn ltl_solves_the_mass_matrix_as_a_dense_cholesky() {
+        let model = biped3d(Settings::default()).unwrap();
+        let mut q = model.neutral();
+        for (k, v) in q.iter_mut().enumerate() {
+            *v += 0.3 * ((k as f64) * 1.7).sin();
+        }
+        for i in 0..model.bodies().len() {
+            let iq = model.starts(i).0;
+            if model.bodies()[i].joint.nq() == 4 || i == 0 {
+                let at = if i == 0 { 3 } else { iq };
+                let n: f64 = q[at..at + 4].iter().map(|v| v * v).sum::<f64>().sqrt();
+                q[at..at + 4].iter_mut().for_each(|v| *v /= n);
+            }
+        }
+        let qd = vec![0.0; model.nv()];
+        let mut tree = Tree::default();
+        tree.kinematics(&model, &q, &qd);
+        tree.crba(&model);
+        let dense = tree.mass_matrix.clone();
+        let b: Vec<f64> = (0..model.nv()).map(|k| ((k * k) as f64 * 0.37).cos()).collect();
+        let expected = dense.clone().cholesky().unwrap().solve(&nalgebra::DVector::from(b.clone()));
+        assert!(ltl(&mut tree.mass_matrix, &tree.dof_parents));
+        let mut x = b.clone();
+        ltl_solve(&tree.mass_matrix, &tree.dof_parents, &mut x);
+        let err = x.iter().zip(expected.iter()).map(|(a, e)| (a - e).abs()).fold(0.0, f64::max);
+        assert!(err < 1e-10 * expected.amax(), "{err}");
+        let residual = &dense * nalgebra::DVector::from(x) - nalgebra::DVector::from(b);
+        assert!(residual.amax() < 1e-10, "{}", residual.amax());
     }
 }

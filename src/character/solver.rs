@@ -10,9 +10,9 @@
 //! and agrees with MuJoCo 4's RK4 (`tests/python/test_character.py`).
 
 use super::dynamics::Tree;
-use super::forces::{ground_force, passive};
+use super::forces::{ground_force, implicit, passive};
 use super::joints::{advance, coordinate_rates, integrate};
-use super::model::{Integrator, Model, ServoMode};
+use super::model::{Integrator, Model};
 use super::servo::{self, ServoWork};
 use super::state::State;
 use crate::error::{Error, Result};
@@ -87,8 +87,9 @@ impl Solver {
     ) {
         let tree = &mut self.tree;
         self.tau.resize(model.nv(), 0.0);
-        passive(model, q, qd, &state.torques, &state.pushes, dt, tree, &mut self.tau);
-        if servo::any(model) && model.settings.servo_mode == ServoMode::Stable {
+        let implicit = implicit(model);
+        passive(model, q, qd, &state.torques, &state.pushes, dt, implicit, tree, &mut self.tau);
+        if implicit {
             servo::stable(
                 model,
                 q,

@@ -30,7 +30,7 @@
 use super::joints::{difference, quat};
 use super::model::{Joint, Servo};
 use super::ragdoll::{ragdoll, RagdollOptions};
-use super::servo::{cholesky, cholesky_substitute};
+use super::servo::{ltl, ltl_solve};
 use super::{ArticulatedBody, Settings, State, Tree};
 use crate::error::{Error, Result};
 use crate::mocap::{Dof, Motion, Skeleton};
@@ -356,18 +356,18 @@ impl Tracker {
     }
 
     /// The effective inertia `1 / (M⁻¹)_jj` of each of the root's six rates at the current
-    /// state (CRBA, Cholesky); kept from the last frame if `M` is not positive definite.
+    /// state (CRBA, LTL factorisation); kept from the last frame if `M` is not positive definite.
     fn root_inertias(&mut self) {
         let (model, state, tree) = (&self.body.model, &self.body.state, &mut self.tree);
         tree.kinematics(model, &state.q, &state.qd);
         tree.crba(model);
-        if !cholesky(&mut tree.mass_matrix) {
+        if !ltl(&mut tree.mass_matrix, &tree.dof_parents) {
             return;
         }
         for (j, m) in self.inertia.iter_mut().enumerate() {
             tree.column.fill(0.0);
             tree.column[j] = 1.0;
-            cholesky_substitute(&tree.mass_matrix, &mut tree.column);
+            ltl_solve(&tree.mass_matrix, &tree.dof_parents, &mut tree.column);
             *m = 1.0 / tree.column[j];
         }
     }
