@@ -100,14 +100,9 @@ pub(super) fn stable(
             tree.mass_matrix[(k, k)] += dt * s.kd;
         }
     }
-    for k in 0..nv {
-        qdd[k] = tau[k] - w.bias[k] + w.servo[k];
-    }
-    if !ltl(&mut tree.mass_matrix, &tree.dof_parents) {
-        qdd.fill(f64::NAN);
+    if !solve(tree, w, tau, qdd) {
         return;
     }
-    ltl_solve(&tree.mass_matrix, &tree.dof_parents, qdd);
     let mut clamped = false;
     for (iv, n, s) in servos(model) {
         for (k, &a) in qdd.iter().enumerate().skip(iv).take(n) {
@@ -118,15 +113,22 @@ pub(super) fn stable(
     }
     if clamped {
         tree.mass_matrix.copy_from(&w.inertia);
-        for k in 0..nv {
-            qdd[k] = tau[k] - w.bias[k] + w.servo[k];
-        }
-        if !ltl(&mut tree.mass_matrix, &tree.dof_parents) {
-            qdd.fill(f64::NAN);
-            return;
-        }
-        ltl_solve(&tree.mass_matrix, &tree.dof_parents, qdd);
+        solve(tree, w, tau, qdd);
     }
+}
+
+/// `qdd = M⁻¹ (tau - bias + servo)` with the matrix `M` in `tree.mass_matrix`, factored there
+/// in place ([`ltl`]); false, and `qdd` NaN, when `M` is not positive definite.
+fn solve(tree: &mut Tree, w: &ServoWork, tau: &[f64], qdd: &mut [f64]) -> bool {
+    for (((a, &t), &b), &s) in qdd.iter_mut().zip(tau).zip(&w.bias).zip(&w.servo) {
+        *a = t - b + s;
+    }
+    if !ltl(&mut tree.mass_matrix, &tree.dof_parents) {
+        qdd.fill(f64::NAN);
+        return false;
+    }
+    ltl_solve(&tree.mass_matrix, &tree.dof_parents, qdd);
+    true
 }
 
 /// `lambda[i]` of a degree of freedom without a parent (the tree's first).

@@ -226,6 +226,27 @@ mod tests {
     use super::*;
     use crate::cloth::{Elasticity, Material, Mesh, Triangulation};
 
+    /// The edges of a strip of `nx` x `ny` vertices `length` m long (default material) and its
+    /// positions stretched along its length by 10 %.
+    fn stretched_strip(nx: usize, ny: usize, length: f64) -> (Model, Edges, Vec<DVec3>) {
+        let mesh = Mesh::grid(nx, ny, 0.01, length, Triangulation::Alternating).unwrap();
+        let model =
+            Model::new(mesh, Elasticity::BaraffWitkin, Material::default(), DVec3::ZERO).unwrap();
+        let edges = Edges::new(&model);
+        let mut x = model.state().positions().to_vec();
+        x.iter_mut().for_each(|p| p.z *= 1.1);
+        (model, edges, x)
+    }
+
+    /// The largest strain of `edges` at positions `x`.
+    fn largest_strain(edges: &Edges, x: &[DVec3]) -> f64 {
+        edges
+            .edges
+            .iter()
+            .map(|&(a, b, rest)| (x[b as usize] - x[a as usize]).length() / rest - 1.0)
+            .fold(0.0, f64::max)
+    }
+
     /// A strip of 2 x 200 vertices (a chain of 199 quads), stretched along its length by 10 %
     /// and held at its last two vertices (the end the edge index order reaches last): the
     /// limiter must bring every edge to within the tolerance of 3 % in one call. The limiter
@@ -234,22 +255,13 @@ mod tests {
     #[test]
     fn a_long_strip_held_at_its_far_end_is_limited_in_one_call() {
         let (nx, ny) = (2, 200);
-        let mesh = Mesh::grid(nx, ny, 0.01, 1.0, Triangulation::Alternating).unwrap();
-        let model =
-            Model::new(mesh, Elasticity::BaraffWitkin, Material::default(), DVec3::ZERO).unwrap();
-        let mut edges = Edges::new(&model);
-        let mut x = model.state().positions().to_vec();
-        x.iter_mut().for_each(|p| p.z *= 1.1);
+        let (model, mut edges, mut x) = stretched_strip(nx, ny, 1.0);
         let mut filter = vec![DMat3::IDENTITY; model.len()];
         filter[nx * ny - 1] = DMat3::ZERO;
         filter[nx * ny - 2] = DMat3::ZERO;
         let held = [x[nx * ny - 1], x[nx * ny - 2]];
         assert!(edges.shorten(&mut x, &filter, &model.mass, 0.03, true));
-        let worst = edges
-            .edges
-            .iter()
-            .map(|&(a, b, rest)| (x[b as usize] - x[a as usize]).length() / rest - 1.0)
-            .fold(0.0, f64::max);
+        let worst = largest_strain(&edges, &x);
         assert!(worst <= 0.03 + TOLERANCE, "largest strain {worst:.4}");
         assert_eq!([x[nx * ny - 1], x[nx * ny - 2]], held, "held vertices moved");
     }
@@ -262,12 +274,7 @@ mod tests {
     #[test]
     fn vertices_touching_a_collider_slide_to_reach_the_limit() {
         let (nx, ny) = (2, 6);
-        let mesh = Mesh::grid(nx, ny, 0.01, 0.25, Triangulation::Alternating).unwrap();
-        let model =
-            Model::new(mesh, Elasticity::BaraffWitkin, Material::default(), DVec3::ZERO).unwrap();
-        let mut edges = Edges::new(&model);
-        let mut x = model.state().positions().to_vec();
-        x.iter_mut().for_each(|p| p.z *= 1.1);
+        let (model, mut edges, mut x) = stretched_strip(nx, ny, 0.25);
         let before = x.clone();
         let mut filter = vec![DMat3::IDENTITY; model.len()];
         let ends = [0, 1, nx * ny - 2, nx * ny - 1];
@@ -275,11 +282,7 @@ mod tests {
             filter[i] = DMat3::IDENTITY - crate::math::outer(DVec3::Y, DVec3::Y);
         }
         assert!(edges.shorten(&mut x, &filter, &model.mass, 0.03, true));
-        let worst = edges
-            .edges
-            .iter()
-            .map(|&(a, b, rest)| (x[b as usize] - x[a as usize]).length() / rest - 1.0)
-            .fold(0.0, f64::max);
+        let worst = largest_strain(&edges, &x);
         assert!(worst <= 0.03 + TOLERANCE, "largest strain {worst:.4}");
         for &i in &ends {
             assert_eq!(x[i].y, before[i].y, "vertex {i} left the ground");
