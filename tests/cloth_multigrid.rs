@@ -106,7 +106,7 @@ fn multigrid_solution_matches_cholesky() {
 /// The docs table (run with `--ignored --nocapture`): stretch 1e2…1e6 at 64² (shear 1e3,
 /// then shear a tenth of the stretch), grids 32²/64²/128²/256² at stretch 1e4.
 #[test]
-#[ignore]
+#[ignore = "the docs table: cargo test --release --test cloth_multigrid -- --ignored --nocapture"]
 fn iteration_table() {
     for solver in [LinearSolver::Multigrid, LinearSolver::BlockSsor] {
         let stretches = [1e2, 1e3, 1e4, 1e5, 1e6];

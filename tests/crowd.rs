@@ -190,7 +190,7 @@ fn circle_crossing_64_agents_reach_antipodes_without_any_collision() {
 /// seeds 0–9, 678.1 s without overlap (855 s without the margin, docs/crowd.md). Asserts the
 /// issue's 5 %. Run with `--ignored` (26 s in this test profile).
 #[test]
-#[ignore]
+#[ignore = "26 s: cargo test --test crowd -- --ignored"]
 fn circle_crossing_250_agents_without_collisions_against_rvo2_time_to_goal() {
     let mut means = Vec::new();
     for seed in 0..10 {

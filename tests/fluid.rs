@@ -195,7 +195,7 @@ fn dam_break_front_follows_martin_and_moyce() {
 /// same set-up): +15.3 %, +19.5 %, +18.1 %, +14.9 %: refining moves the front further
 /// ahead, not towards the experiment (docs/fluid.md).
 #[test]
-#[ignore]
+#[ignore = "L/20: cargo test --release --test fluid -- --ignored"]
 fn dam_break_finer() {
     let history = dam_break(20.0, 8.0);
     for (t, z, name) in experiments() {

@@ -466,20 +466,31 @@ impl Solver {
         self.v.par_iter_mut().zip(&dv).for_each(|(v, dv)| *v += *dv);
         self.dv = dv;
         if let Viscosity::Implicit(nu) = model.settings.viscosity {
-            let system = System {
-                neighbours: &self.neighbours,
-                gradients: &self.gradients,
-                points: &self.points,
-                density: &self.density,
-                boundary_volume: &model.boundary_volume,
-                boundary_velocity: &self.boundary_velocity,
-                volume: model.volume,
-                scale: 10.0 * dt * nu,
-                epsilon: 0.01 * model.support * model.support,
-            };
-            let (it, err) = system.solve(&mut self.implicit, &mut self.v, &mut self.viscous);
+            let (mut w, mut v, mut warm) = (
+                std::mem::take(&mut self.implicit),
+                std::mem::take(&mut self.v),
+                std::mem::take(&mut self.viscous),
+            );
+            let (it, err) = self.viscosity_system(model, dt * nu).solve(&mut w, &mut v, &mut warm);
+            (self.implicit, self.v, self.viscous) = (w, v, warm);
             stats.viscosity_iterations += it;
             stats.viscosity_error = stats.viscosity_error.max(err);
+        }
+    }
+
+    /// The implicit-viscosity system `(I - dt ν ∇²) v = v*` (Weiler et al. 2018, eq. 11)
+    /// over this substep's pairs, for `dt_nu = dt ν` (m²).
+    pub(super) fn viscosity_system<'a>(&'a self, model: &'a Model, dt_nu: f64) -> System<'a> {
+        System {
+            neighbours: &self.neighbours,
+            gradients: &self.gradients,
+            points: &self.points,
+            density: &self.density,
+            boundary_volume: &model.boundary_volume,
+            boundary_velocity: &self.boundary_velocity,
+            volume: model.volume,
+            scale: 10.0 * dt_nu,
+            epsilon: 0.01 * model.support * model.support,
         }
     }
 

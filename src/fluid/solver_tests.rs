@@ -88,17 +88,7 @@ fn explicit_viscosity_diverges_on_the_honey_column() {
     let (fluid, solver) = column();
     let model = fluid.model();
     let (dt, nu) = (0.005, 0.05);
-    let system = crate::fluid::viscosity::System {
-        neighbours: &solver.neighbours,
-        gradients: &solver.gradients,
-        points: &solver.points,
-        density: &solver.density,
-        boundary_volume: &model.boundary_volume,
-        boundary_velocity: &solver.boundary_velocity,
-        volume: model.volume,
-        scale: 10.0 * dt * nu,
-        epsilon: 0.01 * model.support * model.support,
-    };
+    let system = solver.viscosity_system(model, dt * nu);
     let n = fluid.state().len();
     let start: Vec<DVec3> =
         (0..n).map(|i| DVec3::new(1.0, -0.7, 0.3) * if i % 2 == 0 { 1.0 } else { -0.8 }).collect();
@@ -145,17 +135,7 @@ fn laplacian_of_a_shear_on_the_lattice() {
     solver.search(fluid.model(), 0.0);
     solver.densities(fluid.model(), true);
     let model = fluid.model();
-    let system = crate::fluid::viscosity::System {
-        neighbours: &solver.neighbours,
-        gradients: &solver.gradients,
-        points: &solver.points,
-        density: &solver.density,
-        boundary_volume: &model.boundary_volume,
-        boundary_velocity: &solver.boundary_velocity,
-        volume: model.volume,
-        scale: 10.0,
-        epsilon: 0.01 * model.support * model.support,
-    };
+    let system = solver.viscosity_system(model, 1.0);
     let h = model.support;
     let mut lattice = 0.0;
     for k in -2i32..=2 {
