@@ -403,8 +403,8 @@ class Biped:
     of the ground (see :class:`ArticulatedBody`). ``slope`` (rad, positive climbs): the
     ground stays y = 0 and gravity turns by it; the controller takes the vertical from
     gravity and the swing hip's target from the ground's normal. The knees and ankles are
-    stable PD servos: step with ``dt`` ≤ 2e-3 s (it walks up to 3.5e-3 s; ``dims=3``: 1e-3 s,
-    it falls at 2e-3 s).
+    stable PD servos: step with ``dt`` ≤ 2e-3 s (it walks up to 3.5e-3 s; ``dims=3``: 1e-3 s
+    documented, it walks up to 3.5e-3 s too).
 
     Coordinates ``q`` (9,): torso ``x, y`` (m, at the hips) and angle (rad), then hip, knee
     and ankle angles of the right leg, then of the left.
