@@ -403,8 +403,8 @@ class Biped:
     of the ground (see :class:`ArticulatedBody`). ``slope`` (rad, positive climbs): the
     ground stays y = 0 and gravity turns by it; the controller takes the vertical from
     gravity and the swing hip's target from the ground's normal. The knees and ankles are
-    stable PD servos: step with ``dt`` ≤ 2e-3 s (it walks up to 3.5e-3 s; ``dims=3``: 1e-3 s,
-    it falls at 2e-3 s).
+    stable PD servos: step with ``dt`` ≤ 2e-3 s (it walks up to 3.5e-3 s; ``dims=3``: 1e-3 s
+    documented, it walks up to 3.5e-3 s too).
 
     Coordinates ``q`` (9,): torso ``x, y`` (m, at the hips) and angle (rad), then hip, knee
     and ankle angles of the right leg, then of the left.
@@ -416,7 +416,9 @@ class Biped:
     has its own balance feedback, the swing thigh's sideways angle ``coronal_swing_hip·(±1)
     + coronal_cd·d_z + coronal_cv·v_z`` (rad, rad/m, rad s/m; positive puts the foot to +z;
     ``coronal_swing_hip`` abducts). The torso's world orientation (upright, heading +x) is
-    servoed through the stance hip, which so holds the twist. Coordinates ``q`` (25,): the
+    servoed through the stance hip, which so holds the twist; the stance hip's torque about the
+    stance leg's axis (hip to the foot's centre of pressure) is capped at what the foot's
+    friction holds (none in the air), or the leg spins on a lightly loaded foot. Coordinates ``q`` (25,): the
     torso's position (m) and quaternion ``(w, x, y, z)``, then per leg the hip's quaternion,
     the knee's angle, the ankle's quaternion; rates ``qd`` (20,). The coronal keywords are
     refused with ``dims=2``. One class for both: the controller, its gait keywords and

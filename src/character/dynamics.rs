@@ -48,7 +48,9 @@ pub struct Tree {
     /// The parent of each degree of freedom (`nv`; [`super::servo::NO_PARENT`] for the
     /// first): the previous one of its joint, else the last of the nearest ancestor joint
     /// with one (Featherstone's expanded parent array, §6.5).
-    pub(super) dof_parents: Vec<usize>,
+    dof_parents: Vec<usize>,
+    /// Each degree of freedom's path to the root in `dof_parents` (rebuilt when they change).
+    pub(super) dof_paths: super::servo::Paths,
     /// The ground contacts of the last implicit step's forces ([`super::forces::passive`]).
     pub(super) contacts: Vec<super::forces::Contact>,
 }
@@ -85,11 +87,17 @@ impl Tree {
             }
             super::servo::NO_PARENT
         };
+        let mut changed = self.dof_paths.len() != nv;
         for (i, b) in model.bodies().iter().enumerate() {
             let iv = model.starts(i).1;
             for k in 0..b.joint.nv() {
-                self.dof_parents[iv + k] = if k > 0 { iv + k - 1 } else { last(b.parent) };
+                let parent = if k > 0 { iv + k - 1 } else { last(b.parent) };
+                changed |= self.dof_parents[iv + k] != parent;
+                self.dof_parents[iv + k] = parent;
             }
+        }
+        if changed {
+            self.dof_paths.build(&self.dof_parents);
         }
         let ends = model.bodies().iter().filter_map(|b| b.shape).map(|c| 1 + (c.a != c.b) as usize);
         let ends: usize = ends.sum();
@@ -216,7 +224,10 @@ impl Tree {
         m.fill(0.0);
         for (i, b) in bodies.iter().enumerate() {
             let (iv, ni) = (model.starts(i).1, b.joint.nv());
-            let mut f = self.ia[i] * self.s[i];
+            let mut f = SMat::zeros();
+            for k in 0..ni {
+                f.set_column(k, &(self.ia[i] * self.s[i].column(k)));
+            }
             for r in 0..ni {
                 for k in 0..ni {
                     m[(iv + r, iv + k)] = self.s[i].column(r).dot(&f.column(k));

@@ -73,12 +73,14 @@ pub(super) fn passive(
     }
     if model.settings.ground {
         for i in 0..model.bodies().len() {
-            for_each_contact(model, tree, i, dt, implicit, |tree, contact, point, force| {
+            for (contact, point, force) in
+                contacts(model, tree, i, dt, implicit).into_iter().flatten()
+            {
                 apply(tree, i, point, force);
                 if implicit {
                     tree.contacts.push(contact);
                 }
-            });
+            }
         }
     }
     for (i, b) in model.bodies().iter().enumerate() {
@@ -98,39 +100,46 @@ fn apply(tree: &mut Tree, i: usize, point: DVec3, force: DVec3) {
     tree.f_ext[i] += spatial(point.cross(f), f);
 }
 
-/// The total ground force (N, world) on the bodies at the state of the last
+/// The total ground force (N, world) on `bodies` at the state of the last
 /// [`Tree::kinematics`], for a step `dt` (zero without a ground), at the current velocities
 /// (an implicit step's damping adds its part at the next step's).
-pub(super) fn ground_force(model: &Model, tree: &mut Tree, dt: f64) -> DVec3 {
+pub(super) fn ground_force(
+    model: &Model,
+    tree: &Tree,
+    bodies: impl IntoIterator<Item = usize>,
+    dt: f64,
+) -> DVec3 {
     let mut total = DVec3::ZERO;
     if model.settings.ground {
         let implicit = implicit(model);
-        for i in 0..model.bodies().len() {
-            for_each_contact(model, tree, i, dt, implicit, |_, _, _, force| total += force);
+        for i in bodies {
+            for (_, _, force) in contacts(model, tree, i, dt, implicit).into_iter().flatten() {
+                total += force;
+            }
         }
     }
     total
 }
 
-/// Call `visit(tree, contact, point, force)` for every ground contact of body `i`: the
-/// contact (its point in world axes), the point (m, body frame) and the force there (N,
-/// world), with the viscous coefficients capped unless `implicit`.
-fn for_each_contact(
+/// The ground contacts of body `i` (one per capsule end below the ground): the contact
+/// (its point in world axes), the point (m, body frame) and the force there (N, world),
+/// with the viscous coefficients capped unless `implicit`.
+pub(super) fn contacts(
     model: &Model,
-    tree: &mut Tree,
+    tree: &Tree,
     i: usize,
     dt: f64,
     implicit: bool,
-    mut visit: impl FnMut(&mut Tree, Contact, DVec3, DVec3),
-) {
+) -> [Option<(Contact, DVec3, DVec3)>; 2] {
+    let mut out = [None; 2];
     let (s, b) = (&model.settings, &model.bodies()[i]);
-    let Some(shape) = b.shape else { return };
+    let Some(shape) = b.shape else { return out };
     // Viscous coefficients above m / (4 dt) would overshoot in an explicit step.
     let cap = if implicit { f64::INFINITY } else { b.mass / (4.0 * dt) };
     let k = b.mass * s.contact_frequency.powi(2);
     let c = (2.0 * s.contact_damping * b.mass * s.contact_frequency).min(cap);
     let ends: &[DVec3] = if shape.a == shape.b { &[shape.a][..] } else { &[shape.a, shape.b][..] };
-    for &end in ends {
+    for (slot, &end) in out.iter_mut().zip(ends) {
         let centre = tree.pos[i] + tree.rot[i] * end;
         let depth = shape.radius - centre.y;
         if depth <= 0.0 {
@@ -150,8 +159,9 @@ fn for_each_contact(
             normal: if normal > 0.0 { c } else { 0.0 },
             tangent,
         };
-        visit(tree, contact, point, DVec3::new(friction.x, normal, friction.z));
+        *slot = Some((contact, point, DVec3::new(friction.x, normal, friction.z)));
     }
+    out
 }
 
 /// The joint-limit torques into `tau`; the joint-space inertia is computed and factorised
@@ -188,7 +198,7 @@ fn limits(model: &Model, q: &[f64], qd: &[f64], tree: &mut Tree, tau: &mut [f64]
             };
             let ok = *factorised.get_or_insert_with(|| {
                 tree.crba(model);
-                ltl(&mut tree.mass_matrix, &tree.dof_parents)
+                ltl(&mut tree.mass_matrix, &tree.dof_paths)
             });
             let inverse =
                 if ok { axis_inverse_inertia(tree, iv, count, axes[k]) } else { f64::NAN };
@@ -213,6 +223,6 @@ fn axis_inverse_inertia(tree: &mut Tree, iv: usize, count: usize, axis: DVec3) -
     let a = if count == 1 { [1.0, 0.0, 0.0] } else { axis.to_array() };
     tree.column.fill(0.0);
     tree.column[iv..iv + count].copy_from_slice(&a[..count]);
-    ltl_solve(&tree.mass_matrix, &tree.dof_parents, &mut tree.column);
+    ltl_solve(&tree.mass_matrix, &tree.dof_paths, &mut tree.column);
     (0..count).map(|r| a[r] * tree.column[iv + r]).sum()
 }

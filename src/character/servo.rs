@@ -123,47 +123,79 @@ fn solve(tree: &mut Tree, w: &ServoWork, tau: &[f64], qdd: &mut [f64]) -> bool {
     for (((a, &t), &b), &s) in qdd.iter_mut().zip(tau).zip(&w.bias).zip(&w.servo) {
         *a = t - b + s;
     }
-    if !ltl(&mut tree.mass_matrix, &tree.dof_parents) {
+    if !ltl(&mut tree.mass_matrix, &tree.dof_paths) {
         qdd.fill(f64::NAN);
         return false;
     }
-    ltl_solve(&tree.mass_matrix, &tree.dof_parents, qdd);
+    ltl_solve(&tree.mass_matrix, &tree.dof_paths, qdd);
     true
 }
 
 /// `lambda[i]` of a degree of freedom without a parent (the tree's first).
 pub(super) const NO_PARENT: usize = usize::MAX;
 
+/// Every degree of freedom's path to the root: its ancestors `λ(k), λ(λ(k)), …` in
+/// Featherstone's expanded parent array (2008, §6.5), one slice per degree of freedom, so
+/// that [`ltl`] and [`ltl_solve`] read them in order instead of walking the parent array
+/// (a chain of dependent loads).
+#[derive(Clone, Debug, Default)]
+pub(super) struct Paths {
+    starts: Vec<usize>,
+    flat: Vec<usize>,
+}
+
+impl Paths {
+    /// The paths of the parent array `lambda` (`lambda[i] < i`, [`NO_PARENT`] for none).
+    pub(super) fn build(&mut self, lambda: &[usize]) {
+        self.starts.clear();
+        self.flat.clear();
+        self.starts.push(0);
+        for &parent in lambda {
+            let mut j = parent;
+            while j != NO_PARENT {
+                self.flat.push(j);
+                j = lambda[j];
+            }
+            self.starts.push(self.flat.len());
+        }
+    }
+
+    /// The number of degrees of freedom.
+    pub(super) fn len(&self) -> usize {
+        self.starts.len().saturating_sub(1)
+    }
+
+    /// The ancestors of degree of freedom `k`, nearest first.
+    fn of(&self, k: usize) -> &[usize] {
+        &self.flat[self.starts[k]..self.starts[k + 1]]
+    }
+}
+
 /// Factor symmetric positive definite `a` in place as `a = Lᵀ L`, `L` lower triangular with
 /// the tree's branch-induced sparsity: Featherstone's LTL factorisation (2008, §6.5, Table
-/// 6.3). `lambda[i] < i` is the parent of degree of freedom `i` ([`NO_PARENT`] for none;
-/// [`Tree::dof_parents`]); only the entries `(i, j)` with `j` on `i`'s path to the root are
-/// read or written, so the cost is `Σ depth²` instead of `n³ / 6` (two legs do not couple).
-/// `false` if `a` is not positive definite.
-pub(super) fn ltl(a: &mut DMatrix<f64>, lambda: &[usize]) -> bool {
+/// 6.3), along each degree of freedom's path to the root ([`Paths`], `Tree::dof_paths`);
+/// only the entries `(i, j)` with `j` on `i`'s path are read or written, so the cost is
+/// `Σ depth²` instead of `n³ / 6` (two legs do not couple). `false` if `a` is not positive
+/// definite.
+pub(super) fn ltl(a: &mut DMatrix<f64>, paths: &Paths) -> bool {
     let n = a.nrows();
     let a = a.as_mut_slice();
-    for k in (0..lambda.len()).rev() {
+    for k in (0..paths.len()).rev() {
         let d = a[k + k * n];
         if d.is_nan() || d <= 0.0 {
             return false;
         }
         let d = d.sqrt();
         a[k + k * n] = d;
-        let mut i = lambda[k];
-        while i != NO_PARENT {
+        let path = paths.of(k);
+        for &i in path {
             a[k + i * n] /= d;
-            i = lambda[i];
         }
-        let mut i = lambda[k];
-        while i != NO_PARENT {
+        for (m, &i) in path.iter().enumerate() {
             let lki = a[k + i * n];
-            let mut j = i;
-            while j != NO_PARENT {
+            for &j in &path[m..] {
                 a[i + j * n] -= lki * a[k + j * n];
-                j = lambda[j];
             }
-            i = lambda[i];
         }
     }
     true
@@ -171,22 +203,18 @@ pub(super) fn ltl(a: &mut DMatrix<f64>, lambda: &[usize]) -> bool {
 
 /// Solve `Lᵀ L x = b` in place (`b` becomes `x`) with the factor `l` of [`ltl`]
 /// (Featherstone 2008, Table 6.4: back-substitution along each path to the root).
-pub(super) fn ltl_solve(l: &DMatrix<f64>, lambda: &[usize], b: &mut [f64]) {
+pub(super) fn ltl_solve(l: &DMatrix<f64>, paths: &Paths, b: &mut [f64]) {
     let n = l.nrows();
     let l = l.as_slice();
-    for i in (0..lambda.len()).rev() {
+    for i in (0..paths.len()).rev() {
         b[i] /= l[i + i * n];
-        let mut j = lambda[i];
-        while j != NO_PARENT {
+        for &j in paths.of(i) {
             b[j] -= l[i + j * n] * b[i];
-            j = lambda[j];
         }
     }
-    for i in 0..lambda.len() {
-        let mut j = lambda[i];
-        while j != NO_PARENT {
+    for i in 0..paths.len() {
+        for &j in paths.of(i) {
             b[i] -= l[i + j * n] * b[j];
-            j = lambda[j];
         }
         b[i] /= l[i + i * n];
     }
@@ -275,9 +303,9 @@ mod tests {
         let dense = tree.mass_matrix.clone();
         let b: Vec<f64> = (0..model.nv()).map(|k| ((k * k) as f64 * 0.37).cos()).collect();
         let expected = dense.clone().cholesky().unwrap().solve(&nalgebra::DVector::from(b.clone()));
-        assert!(ltl(&mut tree.mass_matrix, &tree.dof_parents));
+        assert!(ltl(&mut tree.mass_matrix, &tree.dof_paths));
         let mut x = b.clone();
-        ltl_solve(&tree.mass_matrix, &tree.dof_parents, &mut x);
+        ltl_solve(&tree.mass_matrix, &tree.dof_paths, &mut x);
         let err = x.iter().zip(expected.iter()).map(|(a, e)| (a - e).abs()).fold(0.0, f64::max);
         assert!(err < 1e-10 * expected.amax(), "{err}");
         let residual = &dense * nalgebra::DVector::from(x) - nalgebra::DVector::from(b);

@@ -16,6 +16,11 @@
 //!   the same PD on the swing thigh's world orientation, `τ_B`; the stance hip takes
 //!   `τ_A = −τ_torso − τ_B` (world), so that the hips apply `τ_torso` to the torso. The
 //!   torso's yaw is part of `τ_torso`: the stance hip holds the twist (the heading).
+//! - **The stance foot's grip** (ours): the stance hip's torque about the stance leg's axis
+//!   (from the hip through the foot's centre of pressure) is clamped to what the foot's
+//!   friction holds against turning about it ([`grip`]); the leg turns about that axis on
+//!   the hip's torque alone, and without the cap a lightly loaded stance foot let the leg
+//!   spin (350 N from behind, the descent; measured, docs/character.md).
 //! - Hip torques are clamped to `±max_torque` per component in the thigh's axes. Knees
 //!   (hinges) and ankles (ball joints, target `R_z(θ)`, no roll or twist) are servos of the
 //!   model, stable PD by default, with the gait's gains.
@@ -29,6 +34,7 @@
 
 use super::biped3d::{biped3d, LEFT_3D, RIGHT_3D, TORSO_3D};
 use super::dynamics::Tree;
+use super::forces::{contacts, implicit};
 use super::model::{Model, Servo, Settings};
 use super::simbicon::{advance, check_gravity, touches, vertical, walk, Gait, Phase};
 use super::solver::Solver;
@@ -184,7 +190,7 @@ impl Walker3d {
         walk(parts, &mut self.start, dt, steps, |model, phase, tree, state| {
             let down = foot_down(model, tree, legs(phase.state).0);
             advance(phase, gait, down);
-            control(gait, coronal, phase, model, tree, state);
+            control(gait, coronal, phase, model, tree, state, dt);
         })
     }
 
@@ -238,8 +244,40 @@ fn clamp_joint(world: DVec3, rot: DQuat, limit: f64) -> (DVec3, DVec3) {
     (local, rot * local)
 }
 
+/// What the stance foot's friction holds against the leg turning about its own axis: the
+/// unit axis from the hip through the foot's centre of pressure and the largest torque
+/// about it (N m), `μ Σ f_n,i ρ_i` over the foot's contacts (`ρ_i` a contact's distance
+/// from the axis: every contact sliding at its Coulomb limit); in the air, the axis from the
+/// hip to the ankle and no torque. The whole stance leg (thigh, shin, foot) turns about
+/// that axis on the hip's torque alone: its other joints are inside it, the hip's force
+/// passes through the axis, and a foot on its toes pivots about them.
+fn grip(model: &Model, tree: &Tree, stance: [usize; 4], dt: f64) -> (DVec3, f64) {
+    let (feet, stiff) = ([stance[2], stance[3]], implicit(model));
+    let (mut load, mut moment) = (0.0, DVec3::ZERO);
+    for (contact, _, force) in
+        feet.iter().flat_map(|&b| contacts(model, tree, b, dt, stiff)).flatten()
+    {
+        load += force.y;
+        moment += force.y * contact.point;
+    }
+    let hip = tree.positions()[stance[0]];
+    if load <= 0.0 {
+        return ((tree.positions()[stance[2]] - hip).normalize(), 0.0);
+    }
+    let centre = moment / load;
+    let axis = (centre - hip).normalize();
+    let mut held = 0.0;
+    for (contact, _, force) in
+        feet.iter().flat_map(|&b| contacts(model, tree, b, dt, stiff)).flatten()
+    {
+        held += force.y * (contact.point - centre).reject_from_normalized(axis).length();
+    }
+    (axis, model.settings.friction * held)
+}
+
 /// SIMBICON's controls in 3-D into the walker's state: the hips' torques, and the knees'
-/// and ankles' servo targets, at the state of its last kinematics.
+/// and ankles' servo targets, at the state of its last kinematics, for a step `dt`.
+#[allow(clippy::too_many_arguments)]
 fn control(
     gait: &Gait,
     coronal: &Coronal,
@@ -247,6 +285,7 @@ fn control(
     model: &Model,
     tree: &Tree,
     state: &mut State,
+    dt: f64,
 ) {
     let pose = if phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
     let (swing, stance, side) = legs(phase.state);
@@ -264,7 +303,13 @@ fn control(
         servo_world(gait.torso_kp, gait.torso_kd, torso_target, rot[TORSO_3D], omega(TORSO_3D));
     let swing_world = servo_world(gait.kp, gait.kd, thigh_target, rot[swing[0]], omega(swing[0]));
     let (swing_tau, swing_world) = clamp_joint(swing_world, rot[swing[0]], gait.max_torque);
-    let (stance_tau, _) = clamp_joint(-torso - swing_world, rot[stance[0]], gait.max_torque);
+    // The stance hip's torque about the leg's axis turns the leg against the foot's
+    // friction alone: no more than the foot holds (none in the air).
+    let mut stance_world = -torso - swing_world;
+    let (axis, held) = grip(model, tree, stance, dt);
+    let about = stance_world.dot(axis);
+    stance_world -= (about - about.clamp(-held, held)) * axis;
+    let (stance_tau, _) = clamp_joint(stance_world, rot[stance[0]], gait.max_torque);
     state.torques.fill(0.0);
     for (body, tau) in [(swing[0], swing_tau), (stance[0], stance_tau)] {
         let iv = model.starts(body).1;
@@ -284,15 +329,18 @@ fn control(
 mod tests {
     use super::*;
 
+    /// The hips apply the torso servo's world torque to the torso, but for its part about
+    /// the stance leg's axis where the stance foot's grip caps it: there the stance hip's
+    /// torque about the axis is the grip and the rest is the torso's.
     #[test]
     fn the_hips_apply_the_torso_servo_torque_to_the_torso() {
         let settings = Settings { contact_frequency: 200.0, ..Settings::default() };
         let mut w = Walker3d::new(settings, Gait::default_3d(), Coronal::default(), 0.3).unwrap();
-        let mut checked = 0;
+        let (mut checked, mut gripped) = (0, 0);
         for _ in 0..2000 {
             w.step(1e-3, 1).unwrap();
             let tree = w.solver.kinematics(&w.model, &w.state);
-            control(&w.gait, &w.coronal, &w.phase, &w.model, tree, &mut w.state);
+            control(&w.gait, &w.coronal, &w.phase, &w.model, tree, &mut w.state, 1e-3);
             let (tree, model, gait) = (w.solver.tree(), &w.model, &w.gait);
             let rot = tree.orientations();
             let pose = if w.phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
@@ -308,9 +356,19 @@ mod tests {
                 continue;
             }
             let on_torso = -(rot[RIGHT_3D[0]] * right) - rot[LEFT_3D[0]] * left;
-            assert!((on_torso - torso).length() < 1e-9, "{on_torso} vs {torso}");
-            checked += 1;
+            let stance = legs(w.phase.state).1;
+            let (axis, held) = grip(model, tree, stance, 1e-3);
+            let stance_hip = if stance == RIGHT_3D { right } else { left };
+            if ((rot[stance[0]] * stance_hip).dot(axis).abs() - held).abs() < 1e-9 {
+                let off_axis = (on_torso - torso).reject_from_normalized(axis);
+                assert!(off_axis.length() < 1e-9, "{on_torso} vs {torso} off the axis {axis}");
+                gripped += 1;
+            } else {
+                assert!((on_torso - torso).length() < 1e-9, "{on_torso} vs {torso}");
+                checked += 1;
+            }
         }
-        assert!(checked > 1500, "{checked} unclamped steps");
+        assert!(checked > 1500, "{checked} unclamped steps, {gripped} at the grip");
+        assert!(gripped > 0, "the grip never held the stance hip");
     }
 }

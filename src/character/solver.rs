@@ -57,7 +57,7 @@ impl Solver {
     /// apply it (the penalty forces of [`super::Settings::contact_frequency`]).
     pub fn ground_force(&mut self, model: &Model, state: &State, dt: f64) -> glam::DVec3 {
         self.tree.kinematics(model, &state.q, &state.qd);
-        ground_force(model, &mut self.tree, dt)
+        ground_force(model, &self.tree, 0..model.bodies().len(), dt)
     }
 
     /// The accelerations `qdd` (`nv`) of `state`'s inputs at `(q, q̇)` for a step `dt`

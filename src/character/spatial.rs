@@ -109,10 +109,26 @@ impl Transform {
         x
     }
 
-    /// `Xᵀ I X`: a spatial (articulated) inertia `inertia` given in B, expressed in A.
+    /// `Xᵀ I X`: a symmetric spatial (articulated) inertia `inertia` given in B, expressed
+    /// in A. The product done by blocks: with `X = rot(E) xlt(r)`, first the blocks
+    /// `[A, B; Bᵀ, C]` turned, `A' = Eᵀ A E` (and so `B'`, `C'`), then shifted,
+    /// `[A' − B' r× − (B' r×)ᵀ − r× C' r×, B' − (C' r×)ᵀ; ·ᵀ, C']`: 243 multiplications
+    /// instead of the 432 of the two 6 × 6 products.
     pub fn inertia_to_parent(&self, inertia: &SMat) -> SMat {
-        let x = self.matrix();
-        x.transpose() * inertia * x
+        let e = Matrix3::from_column_slice(&self.rot.to_cols_array());
+        let et = e.transpose();
+        let a = et * inertia.fixed_view::<3, 3>(0, 0) * e;
+        let b = et * inertia.fixed_view::<3, 3>(0, 3) * e;
+        let c = et * inertia.fixed_view::<3, 3>(3, 3) * e;
+        let rx = skew(self.pos);
+        let (b_rx, c_rx) = (b * rx, c * rx);
+        let top_right = b - c_rx.transpose();
+        let mut out = SMat::zeros();
+        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&(a - b_rx - b_rx.transpose() - rx * c_rx));
+        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&top_right);
+        out.fixed_view_mut::<3, 3>(3, 0).copy_from(&top_right.transpose());
+        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&c);
+        out
     }
 
     /// `self ∘ inner`: first `inner` (A to B), then `self` (B to C).
@@ -155,6 +171,14 @@ mod tests {
         assert!((x.force_to_parent(&x.force(&f)) - f).norm() < 1e-14);
         // Power is invariant: (X m)·(X* f) = m·f.
         assert!((x.motion(&m).dot(&x.force(&f)) - m.dot(&f)).abs() < 1e-14);
+        let i = rigid_inertia(
+            2.0,
+            DVec3::new(0.1, -0.3, 0.2),
+            DMat3::from_diagonal(DVec3::new(0.3, 0.5, 0.4)),
+        );
+        let i = i + SMat::from_fn(|r, c| 0.1 * ((r * c) as f64 + 1.0).sin()).symmetric_part();
+        let dense = mat.transpose() * i * mat;
+        assert!((x.inertia_to_parent(&i) - dense).amax() < 1e-13 * dense.amax());
         let y = Transform::new(DQuat::from_rotation_y(0.4), DVec3::new(1.0, 0.0, -0.5));
         assert!((y.compose(&x).matrix() - y.matrix() * x.matrix()).norm() < 1e-14);
     }

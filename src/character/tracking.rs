@@ -361,13 +361,13 @@ impl Tracker {
         let (model, state, tree) = (&self.body.model, &self.body.state, &mut self.tree);
         tree.kinematics(model, &state.q, &state.qd);
         tree.crba(model);
-        if !ltl(&mut tree.mass_matrix, &tree.dof_parents) {
+        if !ltl(&mut tree.mass_matrix, &tree.dof_paths) {
             return;
         }
         for (j, m) in self.inertia.iter_mut().enumerate() {
             tree.column.fill(0.0);
             tree.column[j] = 1.0;
-            ltl_solve(&tree.mass_matrix, &tree.dof_parents, &mut tree.column);
+            ltl_solve(&tree.mass_matrix, &tree.dof_paths, &mut tree.column);
             *m = 1.0 / tree.column[j];
         }
     }
