@@ -329,6 +329,34 @@ fn rod_scenes() -> Vec<(String, usize)> {
     found
 }
 
+/// A dam of fluid in a tank with a sphere moving through it: DFSPH (the default) with the
+/// implicit viscosity, WCSPH with XSPH and surface tension, and PBF.
+fn fluid_scenes() -> Vec<(String, usize)> {
+    use kinema::fluid::{Collider, Fluid, Pressure, Settings, Viscosity, Wall};
+    let s = 0.02;
+    let runs = [
+        ("DFSPH, implicit viscosity", Pressure::DFSPH, Viscosity::Implicit(1e-3), 0.0),
+        ("WCSPH, XSPH and surface tension", Pressure::WCSPH, Viscosity::Xsph(0.01), 0.05),
+        ("PBF", Pressure::PBF, Viscosity::Xsph(0.01), 0.0),
+    ];
+    let mut found = Vec::new();
+    for (name, pressure, viscosity, surface_tension) in runs {
+        let settings = Settings { pressure, viscosity, surface_tension, ..Settings::new(s) };
+        let mut fluid = Fluid::new(settings).unwrap();
+        fluid.add_wall(Wall::Box { lower: DVec3::ZERO, upper: DVec3::new(0.4, 0.3, 0.2) }).unwrap();
+        let ball = geometry::Sphere { center: DVec3::new(0.3, 0.08, 0.1), radius: 0.05 };
+        let velocity = DVec3::new(-0.2, 0.0, 0.0);
+        fluid.add_collider(Collider { shape: geometry::Shape::Sphere(ball), velocity }).unwrap();
+        let lower = DVec3::splat(0.5 * s);
+        fluid.add_block(lower, DVec3::new(0.16, 0.2, 0.2 - 0.5 * s), DVec3::ZERO).unwrap();
+        found.push((
+            format!("fluid, {name}"),
+            allocations(3, || fluid.step(1.0 / 240.0, 1).unwrap()),
+        ));
+    }
+    found
+}
+
 #[test]
 fn steps_allocate_nothing_once_warmed_up() {
     let found: Vec<(String, usize)> = [
@@ -339,6 +367,7 @@ fn steps_allocate_nothing_once_warmed_up() {
         crowd_scenes(),
         character_scenes(),
         rod_scenes(),
+        fluid_scenes(),
     ]
     .into_iter()
     .flatten()

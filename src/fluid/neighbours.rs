@@ -11,15 +11,32 @@
 //! order**, whatever the skin and whenever the candidates were found: results do not depend
 //! on the history of the search, nor on the thread count. The lists use the grid's layout
 //! (chunks of [`CHUNK`] query points, [`Neighbours::span`]). Buffers only grow.
+//!
+//! Points that never move (the walls' boundary particles, two thirds of the points of a
+//! tank) have a grid of their own, of cells `h (1 + MAX_SKIN)`, built again only when they
+//! or `h` change; a rebuild bins the query points and the moving points alone and adds the
+//! fixed points' candidates from that grid. The candidates are the same set either way, and
+//! sorted, so the lists are too.
 
 use crate::geometry::grid::{Grid, CHUNK};
 use glam::DVec3;
 use rayon::prelude::*;
 
+/// The largest skin, as a fraction of `h`: the cells of the fixed points' grid are
+/// `h (1 + MAX_SKIN)`.
+pub const MAX_SKIN: f64 = 0.25;
+
 /// Verlet lists of the fluid (see the module docs).
 #[derive(Clone, Debug, Default)]
 pub struct Neighbours {
+    /// The grid of the query points and the moving points.
     grid: Grid,
+    /// Those points (m), the grid's input.
+    moving: Vec<DVec3>,
+    /// The grid of the fixed points, the points it was built from (m) and its cell size (m).
+    fixed_grid: Grid,
+    fixed: Vec<DVec3>,
+    fixed_cell: f64,
     /// The points of the last grid build (m).
     anchor: Vec<DVec3>,
     /// The query points of the last build.
@@ -44,14 +61,15 @@ fn span(ends: &[u32], i: usize) -> std::ops::Range<usize> {
 
 impl Neighbours {
     /// Find, for each of the first `queries` of `points`, every other point closer than `h`
-    /// (m), in ascending index order. If the candidates must be found again, they are found
-    /// within `h + skin` (m, `skin ≥ 0`).
+    /// (m), in ascending index order. The `fixed` points after the queries do not move (see
+    /// the module docs). If the candidates must be found again, they are found within
+    /// `h + skin` (m, `0 ≤ skin ≤ MAX_SKIN h`).
     ///
     /// # Panics
-    /// If `queries > points.len()` or there are 2³² points or more (callers check).
-    pub fn update(&mut self, points: &[DVec3], queries: usize, h: f64, skin: f64) {
+    /// If `queries + fixed > points.len()` or there are 2³² points or more (callers check).
+    pub fn update(&mut self, points: &[DVec3], queries: usize, fixed: usize, h: f64, skin: f64) {
         if !self.valid(points, queries, h) {
-            self.rebuild(points, queries, h, skin);
+            self.rebuild(points, queries, fixed, h, skin);
         }
         let (h2, candidates, candidate_ends) = (h * h, &self.candidates, &self.candidate_ends);
         self.ends.resize(queries, 0);
@@ -84,19 +102,36 @@ impl Neighbours {
     }
 
     /// Find the candidates within `h + skin` and sort each point's by index.
-    fn rebuild(&mut self, points: &[DVec3], queries: usize, h: f64, skin: f64) {
-        self.grid.build(points, queries, h + skin);
+    fn rebuild(&mut self, points: &[DVec3], queries: usize, fixed: usize, h: f64, skin: f64) {
+        debug_assert!((0.0..=MAX_SKIN * h).contains(&skin), "skin {skin} for h {h}");
+        let (walls, cell) = (&points[queries..queries + fixed], h * (1.0 + MAX_SKIN));
+        if self.fixed_cell != cell || self.fixed != walls {
+            self.fixed_grid.build(walls, 0, cell);
+            self.fixed.clear();
+            self.fixed.extend_from_slice(walls);
+            self.fixed_cell = cell;
+        }
+        self.moving.clear();
+        self.moving.extend_from_slice(&points[..queries]);
+        self.moving.extend_from_slice(&points[queries + fixed..]);
+        self.grid.build(&self.moving, queries, h + skin);
         self.anchor.clear();
         self.anchor.extend_from_slice(points);
         (self.queries, self.radius, self.skin) = (queries, h, skin);
         self.candidate_ends.resize(queries, 0);
         self.candidates.resize_with(queries.div_ceil(CHUNK), Vec::new);
-        let (grid, chunks) = (&self.grid, self.candidate_ends.par_chunks_mut(CHUNK));
+        let (grid, fixed_grid, chunks) =
+            (&self.grid, &self.fixed_grid, self.candidate_ends.par_chunks_mut(CHUNK));
+        // Indices in `moving` past the queries, and in `fixed`, to indices in `points`.
+        let (q, f) = (queries as u32, fixed as u32);
         chunks.zip(&mut self.candidates).enumerate().for_each(|(c, (ends, list))| {
             list.clear();
             for (k, end) in ends.iter_mut().enumerate() {
-                let start = list.len();
-                list.extend_from_slice(grid.neighbours(c * CHUNK + k));
+                let (i, start) = (c * CHUNK + k, list.len());
+                list.extend(grid.neighbours(i).iter().map(|&j| if j < q { j } else { j + f }));
+                let from = list.len();
+                fixed_grid.within(points[i], h + skin, list);
+                list[from..].iter_mut().for_each(|j| *j += q);
                 list[start..].sort_unstable();
                 *end = list.len() as u32;
             }
@@ -126,30 +161,35 @@ mod tests {
     }
 
     /// Every list is exactly the brute force's (ascending) after moves under half the skin
-    /// (the candidates reused) and after moves over it (found again).
+    /// (the candidates reused), after moves over it (found again), and after the fixed
+    /// points moved too (their grid built again).
     #[test]
     fn lists_are_exact_and_ascending_with_reused_candidates() {
-        let (h, skin, queries) = (0.08, 0.03, 2500);
+        let (h, skin, queries, fixed) = (0.08, 0.02, 2500, 300);
         let mut points = random_points(3000, 5, 1.0);
         let mut near = Neighbours::default();
-        near.update(&points, queries, h, skin);
+        near.update(&points, queries, fixed, h, skin);
         let built = near.anchor.clone();
         let mut total = 0;
-        // Each point moves `fraction` of the skin in a direction of its own.
-        for (round, fraction) in [0.49, 0.49, 0.9].into_iter().enumerate() {
+        // Each point moves `fraction` of the skin in a direction of its own; the fixed
+        // points `queries..queries + fixed` only in the last round.
+        for (round, fraction) in [0.49, 0.49, 0.9, 0.9].into_iter().enumerate() {
             let directions = random_points(points.len(), 20 + round as u64, 2.0);
-            for (p, d) in points.iter_mut().zip(directions) {
-                *p += d.normalize_or_zero() * (fraction * skin);
+            for (i, (p, d)) in points.iter_mut().zip(directions).enumerate() {
+                if round == 3 || !(queries..queries + fixed).contains(&i) {
+                    *p += d.normalize_or_zero() * (fraction * skin);
+                }
             }
             let reused = round == 0;
-            near.update(&points, queries, h, skin);
+            near.update(&points, queries, fixed, h, skin);
             assert_eq!(near.anchor == built, reused, "round {round}");
+            assert_eq!(near.fixed, points[queries..queries + fixed], "round {round}");
             for i in 0..queries {
                 assert_eq!(near.neighbours(i), brute_force(&points, i, h), "round {round}, {i}");
                 total += near.neighbours(i).len();
             }
         }
-        assert!(total > 3 * queries * 5, "too few neighbours to test: {total}");
+        assert!(total > 4 * queries * 5, "too few neighbours to test: {total}");
     }
 
     #[test]
@@ -159,7 +199,7 @@ mod tests {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| {
                 let mut near = Neighbours::default();
-                near.update(&points, 4000, 0.07, 0.01);
+                near.update(&points, 4000, 0, 0.07, 0.01);
                 (near.ends.clone(), near.lists.clone())
             })
         };

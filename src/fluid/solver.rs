@@ -23,7 +23,7 @@
 
 use super::collider::{confine, Collider};
 use super::model::{Model, Pressure, Viscosity};
-use super::neighbours::Neighbours;
+use super::neighbours::{Neighbours, MAX_SKIN};
 use super::viscosity::{System, Workspace};
 use super::{State, Stats};
 use crate::error::{reserve, Error, Result};
@@ -47,10 +47,6 @@ const GRAVITY_STEP: f64 = 0.02;
 /// The Verlet skin (`neighbours.rs`) is chosen so that the candidates last about this many
 /// substeps at the current speeds (each point may move half the skin).
 const LIST_SUBSTEPS: f64 = 8.0;
-
-/// The largest Verlet skin, in spacings: the candidates within `h + skin` grow as
-/// `(1 + skin / h)³` (1.95 times the neighbours at `h = 2` spacings).
-const MAX_SKIN: f64 = 0.5;
 
 /// The workspaces of a fluid step (see the module docs).
 #[derive(Clone, Debug, Default)]
@@ -354,7 +350,7 @@ impl Solver {
     /// Put the boundary particles after the fluid's (the walls', then the colliders' where
     /// they are now, with their velocities) and update the neighbour lists. `reach`
     /// (m), how far the fastest particle moves in a substep, sets the Verlet skin: candidates
-    /// that last about [`LIST_SUBSTEPS`] substeps, at most [`MAX_SKIN`] spacings, none if
+    /// that last about [`LIST_SUBSTEPS`] substeps, at most `MAX_SKIN h` (half a spacing), none if
     /// that would not last two.
     fn search(&mut self, model: &Model, reach: f64) {
         let n = self.v.len();
@@ -367,11 +363,13 @@ impl Solver {
             let k = self.boundary_velocity.len() + body.points.len();
             self.boundary_velocity.resize(k, c.velocity);
         }
-        let mut skin = (2.0 * LIST_SUBSTEPS * reach).min(MAX_SKIN * model.settings.spacing);
+        // At most `MAX_SKIN h`, half a spacing: the candidates within `h + skin` grow as
+        // `(1 + skin / h)³`, 1.95 times the neighbours.
+        let mut skin = (2.0 * LIST_SUBSTEPS * reach).min(MAX_SKIN * model.support);
         if skin < 4.0 * reach {
             skin = 0.0;
         }
-        self.neighbours.update(&self.points, n, model.support, skin);
+        self.neighbours.update(&self.points, n, model.boundary.len(), model.support, skin);
     }
 
     /// Densities `ρ̂`, the kernel values and gradients of every pair and, if `factors`,

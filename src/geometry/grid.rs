@@ -46,6 +46,9 @@ pub struct Grid {
     /// Every point lies in one layer of cells along z (points on a plane `z = const`, as
     /// crowds and 2-D flocks): the layers above and below are not visited.
     planar: bool,
+    /// `1 / cell size` (1/m) and the bucket mask of the last build.
+    inv_h: f64,
+    mask: u64,
 }
 
 /// The cell of point `p` (m) in a grid of cells of size `1 / inv_h` (m) with a corner at the
@@ -107,6 +110,7 @@ impl Grid {
         let buckets = (2 * n).next_power_of_two().max(2);
         let mask = (buckets - 1) as u64;
         let inv_h = 1.0 / h;
+        (self.inv_h, self.mask) = (inv_h, mask);
         self.cell.resize(n, [0; 3]);
         self.bucket.resize(n, 0);
         self.cell.par_iter_mut().zip(&mut self.bucket).zip(points).for_each(|((c, b), p)| {
@@ -125,11 +129,11 @@ impl Grid {
                 *c = cell[j as usize];
             },
         );
-        self.lists(points, queries, h, mask);
+        self.lists(points, queries, h);
     }
 
     /// The neighbour lists of the first `queries` points, one chunk of `CHUNK` per task.
-    fn lists(&mut self, points: &[DVec3], queries: usize, h: f64, mask: u64) {
+    fn lists(&mut self, points: &[DVec3], queries: usize, h: f64) {
         let mut ends = std::mem::take(&mut self.ends);
         let mut lists = std::mem::take(&mut self.lists);
         ends.resize(queries, 0);
@@ -138,7 +142,7 @@ impl Grid {
         ends.par_chunks_mut(CHUNK).zip(&mut lists).enumerate().for_each(|(c, (ends, list))| {
             list.clear();
             for (k, end) in ends.iter_mut().enumerate() {
-                this.visit(points[c * CHUNK + k], c * CHUNK + k, h, mask, list);
+                this.visit(points[c * CHUNK + k], c * CHUNK + k, h, list);
                 // At most `CHUNK` times the points (< 2³² / CHUNK in any real use).
                 *end = list.len() as u32;
             }
@@ -150,20 +154,43 @@ impl Grid {
     /// Append to `out` every point `j ≠ i` closer than `h` to point `i` at `p`, cell by cell
     /// (z, y, x outer to inner; only the own layer when the points are planar), by index
     /// within a cell.
-    fn visit(&self, p: DVec3, i: usize, h: f64, mask: u64, out: &mut Vec<u32>) {
-        let (c, h2) = (self.cell[i], h * h);
+    fn visit(&self, p: DVec3, i: usize, h: f64, out: &mut Vec<u32>) {
         let layers = if self.planar { 0..=0 } else { -1..=1 };
+        self.scan(p, self.cell[i], layers, h * h, Some(i as u32), out);
+    }
+
+    /// Append to `out` every point of the last build closer than `r` (m) to `p` (m), a point
+    /// that need not be one of them, in the order of the lists (all 27 cells around `p`'s).
+    /// `r` must not exceed the cell size of the last build.
+    pub fn within(&self, p: DVec3, r: f64, out: &mut Vec<u32>) {
+        if !self.sorted.is_empty() {
+            let c = cell_of(p, self.inv_h);
+            self.scan(p, c, -1..=1, r * r, None, out);
+        }
+    }
+
+    /// The points other than `skip` closer than `sqrt(h2)` to `p` in the cells `c + (dx, dy,
+    /// dz)`, `dz` in `layers`, appended to `out`.
+    fn scan(
+        &self,
+        p: DVec3,
+        c: [i64; 3],
+        layers: std::ops::RangeInclusive<i64>,
+        h2: f64,
+        skip: Option<u32>,
+        out: &mut Vec<u32>,
+    ) {
         for dz in layers {
             for dy in -1..=1 {
                 for dx in -1..=1 {
                     let cc = [c[0].wrapping_add(dx), c[1].wrapping_add(dy), c[2].wrapping_add(dz)];
-                    let b = hash(cc, mask) as usize;
+                    let b = hash(cc, self.mask) as usize;
                     let range = self.start[b] as usize..self.start[b + 1] as usize;
                     let candidates = self.sorted_points[range.clone()].iter();
                     for ((q, qc), &j) in
                         candidates.zip(&self.sorted_cells[range.clone()]).zip(&self.sorted[range])
                     {
-                        if (*q - p).length_squared() < h2 && *qc == cc && j as usize != i {
+                        if (*q - p).length_squared() < h2 && *qc == cc && Some(j) != skip {
                             out.push(j);
                         }
                     }
