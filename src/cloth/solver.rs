@@ -198,7 +198,7 @@ impl Solver {
     /// resolves (a vertex landing on a collider is stopped within the substep, however short,
     /// and compressed triangles on the 128² drape change by 1.7–6 % at every substep from `h`
     /// to `h/32`), and the half is taken (its second half is checked afresh). Until session 23
-    /// such steps were halved to `h/32`, 63 solves a step. `refused` is the change of the
+    /// such steps were halved down to `h/32` (up to 63 solves a step). `refused` is the change of the
     /// refused step this one is the first half of.
     fn adaptive(
         &mut self,
