@@ -600,11 +600,14 @@ fn assert_same_cloth(a: &Cloth, b: &Cloth) {
 #[test]
 fn failed_cloth_step_leaves_nothing_behind() {
     use kinema::snapshot::Snapshot;
-    // Steps that fail (the matrix stops being positive definite, or RK4 overflows).
+    // Steps that fail (the matrix stops being positive definite, or RK4 overflows). Since
+    // session 23 a subdivided step takes the first half of a refused step whose change does
+    // not shrink with the step, and the steps of 1e8 s used before succeed (probed: with block
+    // SSOR 1e7 s fails after subdividing for both integrators, with Cholesky 1e12 s).
     let cases = [
-        (Method::Bdf2, pcg(1e-6), 1e8),
-        (Method::ImplicitEuler, pcg(1e-6), 1e8),
-        (Method::Bdf2, cholesky(), 1e8),
+        (Method::Bdf2, pcg(1e-6), 1e7),
+        (Method::ImplicitEuler, pcg(1e-6), 1e7),
+        (Method::Bdf2, cholesky(), 1e12),
         (Method::Rk4, pcg(1e-6), 1e100),
     ];
     for (method, options, huge) in cases {

@@ -14,17 +14,19 @@ use glam::{DMat3, DVec3};
 use std::time::Instant;
 
 impl Solver {
-    /// One linearised implicit step of `h` (BDF2 when `how.bdf2` and the state has a history);
-    /// returns `false` (and takes no step) when `check` is set and the step changes a stretch
-    /// ratio by more than allowed. The numbers of the step are added to `stats`.
+    /// One linearised implicit step of `h` (BDF2 when `how.bdf2` and the state has a history).
+    /// With `check = Some(ceiling)` a step whose largest change of a stretch ratio exceeds
+    /// `max_strain_change` but not `ceiling` is refused: no step is taken and its change is
+    /// returned (see [`Solver::adaptive`]); otherwise the step is taken and `None` returned.
+    /// The numbers of the step are added to `stats`.
     pub(super) fn step_implicit(
         &mut self,
         how: Implicit,
         state: &mut State,
         stats: &mut StepStats,
         h: f64,
-        check: bool,
-    ) -> Result<bool> {
+        check: Option<f64>,
+    ) -> Result<Option<f64>> {
         let Implicit { model, bdf2, options } = how;
         let t0 = Instant::now();
         // Variable-step BDF2 (Choi & Ko 2002, eq. 12, at a constant step): with (c, γ) of
@@ -64,10 +66,14 @@ impl Solver {
         // a cloth hanging at the limit had every step halved: the unlimited solve overshoots
         // the limit by more than `max_strain_change` at the pinned corners).
         self.limit_strain(model, h_eff, options.max_strain);
-        let strained = check
-            && options.max_strain_change.is_finite()
-            && strain_change(model, &state.x, &self.scratch.x_new) > options.max_strain_change;
-        if !strained {
+        let refused = match check {
+            Some(ceiling) if options.max_strain_change.is_finite() => {
+                let change = strain_change(model, &state.x, &self.scratch.x_new);
+                (change > options.max_strain_change && change <= ceiling).then_some(change)
+            }
+            _ => None,
+        };
+        if refused.is_none() {
             self.self_collide(model, state, h, options.max_strain, stats);
             let s = &self.scratch;
             let n = state.len();
@@ -85,7 +91,7 @@ impl Solver {
             stats.substeps += 1;
         }
         stats.collide_seconds += collide_time + t3.elapsed().as_secs_f64();
-        Ok(!strained)
+        Ok(refused)
     }
 
     /// The BDF2 history terms `c (x - x₋)`, `c (v - v₋)` into the scratch (zero for implicit
