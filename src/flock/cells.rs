@@ -219,8 +219,10 @@ impl Cells {
         }
     }
 
-    /// [`Cells::for_each_candidate`]; `DENSE`: no two cells share a bucket and no row wraps
-    /// round the table, so a candidate's cell needs no check.
+    /// [`Cells::for_each_candidate`]; `DENSE`: no two cells share a bucket, so a candidate's
+    /// cell needs no check. A row may still run past the table's end onto its start (the
+    /// numbers of a layer are offset by the layers below it, `W H` for a planar flock): the
+    /// second range.
     #[inline]
     fn sweep<const DENSE: bool>(&self, s: usize, mut f: impl FnMut(usize, bool)) {
         let c = self.cells[s];
