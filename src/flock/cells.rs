@@ -181,6 +181,22 @@ impl Cells {
         self.flat
     }
 
+    /// The slots of the candidates of the boid in slot `s` in the row of cells `dy` (-1, 0
+    /// or 1) next to it, if the flock is dense and planar and the row's three buckets do not
+    /// wrap round the table's end: the slots [`Cells::for_each_candidate`] visits for that
+    /// row, in the same order.
+    pub(super) fn row(&self, s: usize, dy: i64) -> Option<std::ops::Range<usize>> {
+        let c = self.cells[s];
+        let first = self.bucket_of([c[0].wrapping_sub(1), c[1].wrapping_add(dy), c[2]]) as usize;
+        (self.dense && self.planar && first + 3 < self.start.len())
+            .then(|| self.start[first] as usize..self.start[first + 3] as usize)
+    }
+
+    /// Whether the boids in slots `a` and `b` lie in one row of cells.
+    pub(super) fn same_row(&self, a: usize, b: usize) -> bool {
+        self.cells[a][1..] == self.cells[b][1..]
+    }
+
     /// The bucket of cell `c`.
     fn bucket_of(&self, c: [i64; 3]) -> u32 {
         let d: [u64; 3] = std::array::from_fn(|k| c[k].wrapping_sub(self.origin[k]) as u64);
@@ -203,8 +219,10 @@ impl Cells {
         }
     }
 
-    /// [`Cells::for_each_candidate`]; `DENSE`: no two cells share a bucket and no row wraps
-    /// round the table, so a candidate's cell needs no check.
+    /// [`Cells::for_each_candidate`]; `DENSE`: no two cells share a bucket, so a candidate's
+    /// cell needs no check. A row may still run past the table's end onto its start (the
+    /// numbers of a layer are offset by the layers below it, `W H` for a planar flock): the
+    /// second range.
     #[inline]
     fn sweep<const DENSE: bool>(&self, s: usize, mut f: impl FnMut(usize, bool)) {
         let c = self.cells[s];

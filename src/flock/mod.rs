@@ -14,6 +14,7 @@
 //! is the order parameter of Vicsek et al. (1995).
 
 mod cells;
+mod lanes;
 mod model;
 mod snapshot;
 mod solver;

@@ -1,0 +1,149 @@
+//! The 2-D sweep of a flat, dense flock four boids at a time: the boids of four consecutive
+//! sorted slots in one row of cells read the union of their candidate ranges once, each
+//! candidate tested against the four in the lanes of AVX2 registers (where the CPU has AVX2,
+//! found at run time, [`pulp::x86::V3`]; else the scalar sweep: the wheel runs on any
+//! x86-64). A lane
+//! keeps only its own candidates (the slots of its three cells of the row, as the scalar sweep
+//! of `cells.rs` visits them, in the same order) and does the arithmetic of
+//! `solver::flocking` on them in the same order, so the sums are bitwise the scalar sweep's:
+//! a candidate a lane does not see adds `+0` (the scalar sweep adds `±0`, which leaves a sum
+//! that started at `+0` unchanged too), and no fused multiply-add is introduced.
+//!
+//! Positions and velocities are read as structures of arrays in the sorted order
+//! ([`Columns`], refilled after every sort); the gather of a candidate's four values is then
+//! four loads from sequential memory, broadcast to the lanes.
+
+use super::cells::Cells;
+use glam::DVec2;
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Boids a group sweeps together.
+pub(super) const LANES: usize = 4;
+
+/// Positions (m) and velocities (m/s) of a flat flock in the cells' sorted order, one array
+/// per component.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Columns {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    vx: Vec<f64>,
+    vy: Vec<f64>,
+}
+
+/// The sums of one boid's neighbours in view (see `solver::flocking`): away from the close
+/// ones (`-Σ d / |d|²`), their velocities, their offsets `Σ d` (m) and their number.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Sums {
+    pub(super) away: DVec2,
+    pub(super) velocity: DVec2,
+    pub(super) offset: DVec2,
+    pub(super) count: f64,
+}
+
+impl Columns {
+    /// Copy the sorted positions and velocities of `cells` (a flat flock: `x`, `y` only).
+    pub(super) fn load(&mut self, cells: &Cells) {
+        let n = cells.positions.len();
+        for c in [&mut self.x, &mut self.y, &mut self.vx, &mut self.vy] {
+            c.resize(n, 0.0);
+        }
+        (&mut self.x, &mut self.y, &mut self.vx, &mut self.vy)
+            .into_par_iter()
+            .zip((&cells.positions, &cells.velocities))
+            .for_each(|((x, y, vx, vy), (p, v))| (*x, *y, *vx, *vy) = (p.x, p.y, v.x, v.y));
+    }
+}
+
+/// The inputs of one group's sweep: the boids in slots `first..first + LANES` (all in one
+/// row of cells), and their candidates' slots per row of cells, `rows[row][lane]`.
+pub(super) struct Group<'a> {
+    pub(super) columns: &'a Columns,
+    pub(super) first: usize,
+    pub(super) rows: [[Range<usize>; LANES]; 3],
+    /// Squared neighbour radius and separation distance (m²).
+    pub(super) h2: f64,
+    pub(super) separation2: f64,
+    /// `cos_half |v|` times its absolute value per lane (the field of view, `solver::flocking`),
+    /// and whether the lane's boid sees all round.
+    pub(super) cc: [f64; LANES],
+    pub(super) sees_all: [bool; LANES],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Group<'_> {
+    /// The sums of the group's boids, lane by lane, with AVX2 (call inside
+    /// [`pulp::x86::V3::vectorize`], so that it is compiled for it).
+    #[inline(always)]
+    pub(super) fn sums(self, simd: pulp::x86::V3) -> [Sums; LANES] {
+        use pulp::bytemuck::cast;
+        use std::arch::x86_64::{__m256d, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ};
+        let avx = simd.avx;
+        let Group { columns: c, first, rows, h2, separation2, cc, sees_all } = self;
+        let lane = |a: &[f64]| -> __m256d {
+            cast::<[f64; LANES], _>(a[first..first + LANES].try_into().unwrap())
+        };
+        let (px, py, vx, vy) = (lane(&c.x), lane(&c.y), lane(&c.vx), lane(&c.vy));
+        let all = f64::from_bits(u64::MAX);
+        let sees_all: __m256d = cast(sees_all.map(|a| if a { all } else { 0.0 }));
+        let cc: __m256d = cast(cc);
+        let own: __m256d = cast(std::array::from_fn::<f64, LANES, _>(|l| (first + l) as f64));
+        let (h2, separation2) = (avx._mm256_set1_pd(h2), avx._mm256_set1_pd(separation2));
+        let (zero, one) = (avx._mm256_setzero_pd(), avx._mm256_set1_pd(1.0));
+        let sign = avx._mm256_set1_pd(-0.0);
+        let [mut count, mut ax, mut ay, mut ux, mut uy, mut ox, mut oy] = [zero; 7];
+        for row in &rows {
+            // Slots as f64 (exact below 2⁵³): lane l keeps the candidates in row[l].
+            let lo: __m256d = cast(row.clone().map(|r| r.start as f64));
+            let hi: __m256d = cast(row.clone().map(|r| r.end as f64));
+            for t in row[0].start..row[LANES - 1].end {
+                let slot = avx._mm256_set1_pd(t as f64);
+                let dx = avx._mm256_sub_pd(avx._mm256_broadcast_sd(&c.x[t]), px);
+                let dy = avx._mm256_sub_pd(avx._mm256_broadcast_sd(&c.y[t]), py);
+                let d2 = avx._mm256_add_pd(avx._mm256_mul_pd(dx, dx), avx._mm256_mul_pd(dy, dy));
+                let dot = avx._mm256_add_pd(avx._mm256_mul_pd(dx, vx), avx._mm256_mul_pd(dy, vy));
+                let near = avx._mm256_and_pd(
+                    avx._mm256_and_pd(
+                        avx._mm256_cmp_pd::<_CMP_GE_OQ>(slot, lo),
+                        avx._mm256_cmp_pd::<_CMP_LT_OQ>(slot, hi),
+                    ),
+                    avx._mm256_and_pd(
+                        avx._mm256_cmp_pd::<_CMP_NEQ_OQ>(slot, own),
+                        avx._mm256_cmp_pd::<_CMP_LT_OQ>(d2, h2),
+                    ),
+                );
+                let front = avx._mm256_cmp_pd::<_CMP_GE_OQ>(
+                    avx._mm256_mul_pd(dot, avx._mm256_andnot_pd(sign, dot)),
+                    avx._mm256_mul_pd(cc, d2),
+                );
+                let seen = avx._mm256_and_pd(near, avx._mm256_or_pd(sees_all, front));
+                let w = avx._mm256_and_pd(seen, one);
+                count = avx._mm256_add_pd(count, w);
+                let tvx = avx._mm256_broadcast_sd(&c.vx[t]);
+                let tvy = avx._mm256_broadcast_sd(&c.vy[t]);
+                ux = avx._mm256_add_pd(ux, avx._mm256_mul_pd(tvx, w));
+                uy = avx._mm256_add_pd(uy, avx._mm256_mul_pd(tvy, w));
+                ox = avx._mm256_add_pd(ox, avx._mm256_mul_pd(dx, w));
+                oy = avx._mm256_add_pd(oy, avx._mm256_mul_pd(dy, w));
+                let close = avx._mm256_and_pd(
+                    avx._mm256_cmp_pd::<_CMP_LT_OQ>(d2, separation2),
+                    avx._mm256_cmp_pd::<_CMP_GT_OQ>(d2, zero),
+                );
+                // Rare: divide only when a lane has a close candidate (the others add 0).
+                if avx._mm256_movemask_pd(close) != 0 {
+                    let q = avx._mm256_and_pd(close, avx._mm256_div_pd(w, d2));
+                    ax = avx._mm256_sub_pd(ax, avx._mm256_mul_pd(dx, q));
+                    ay = avx._mm256_sub_pd(ay, avx._mm256_mul_pd(dy, q));
+                }
+            }
+        }
+        let [count, ax, ay, ux, uy, ox, oy]: [[f64; LANES]; 7] =
+            [count, ax, ay, ux, uy, ox, oy].map(cast);
+        std::array::from_fn(|l| Sums {
+            away: DVec2::new(ax[l], ay[l]),
+            velocity: DVec2::new(ux[l], uy[l]),
+            offset: DVec2::new(ox[l], oy[l]),
+            count: count[l],
+        })
+    }
+}
