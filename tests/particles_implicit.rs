@@ -195,9 +195,14 @@ fn sparse_implicit_steps_allocate_nothing_after_the_first() {
 /// (the linear force `-k d`), pinned at the first, under gravity, swinging sideways: its
 /// Newton matrix `I - h J` is the same at every step.
 fn linear_chain(n: usize, k: f64) -> ParticleSystem {
+    linear_chain_of(n, k, 1e-3)
+}
+
+/// [`linear_chain`] of particles of mass `m` (kg).
+fn linear_chain_of(n: usize, k: f64, m: f64) -> ParticleSystem {
     let xs: Vec<DVec3> = (0..n).map(|i| DVec3::new(0.0, -0.01 * i as f64, 0.0)).collect();
     let vs: Vec<DVec3> = (0..n).map(|i| DVec3::new(0.5 * i as f64 / n as f64, 0.0, 0.0)).collect();
-    let mut masses = vec![1e-3; n];
+    let mut masses = vec![m; n];
     masses[0] = f64::INFINITY;
     let mut s = ParticleSystem::new(&xs, &vs, &masses, n).unwrap();
     let pairs: Vec<[usize; 2]> = (0..n - 1).map(|i| [i, i + 1]).collect();
@@ -275,6 +280,37 @@ fn linear_chain_steps_solve_implicit_euler_exactly_and_keep_the_factors_across_c
         s.step(h, 10, method).unwrap();
         assert_eq!(thread_allocations() - before, 0, "{}", method.name());
     }
+}
+
+/// A solver kept across calls keeps its factorisation only while the model's forces, the
+/// state's masses and live slots and the step are those it was set up for: stepping another
+/// state of other masses, the first state again, another step, and the model after a force
+/// was added each factorise anew, and every call's steps are bitwise those of a fresh solver.
+#[test]
+fn a_kept_linear_solver_follows_the_model_the_state_and_the_step() {
+    use kinema::particles::{Model, Solver, State};
+    let (light, heavy) = (linear_chain_of(60, 1e4, 1e-3), linear_chain_of(60, 1e4, 2e-3));
+    let mut model = light.model().clone();
+    let (mut a, mut b) = (light.state().clone(), heavy.state().clone());
+    let mut kept = Solver::new(&model).unwrap();
+    let bits = |s: &State| -> Vec<u64> {
+        s.positions().iter().chain(s.velocities()).map(|v| v.to_bits()).collect()
+    };
+    let mut check = |model: &Model, state: &mut State, dt: f64, factorises: usize, case: &str| {
+        let mut copy = state.clone();
+        let stats = kept.step(model, state, dt, 3, Method::ImplicitEuler).unwrap();
+        Solver::new(model).unwrap().step(model, &mut copy, dt, 3, Method::ImplicitEuler).unwrap();
+        assert_eq!(bits(state), bits(&copy), "{case}");
+        assert_eq!(stats.factorizations, factorises, "{case}");
+    };
+    check(&model, &mut a, 1e-3, 1, "first call");
+    check(&model, &mut a, 1e-3, 0, "the same again");
+    check(&model, &mut b, 1e-3, 1, "another state, heavier");
+    check(&model, &mut a, 1e-3, 1, "the first state again");
+    check(&model, &mut a, 2e-3, 1, "another step");
+    model.add_force(Force::Damping { rate: 0.5 }).unwrap();
+    check(&model, &mut a, 2e-3, 1, "the model with damping");
+    check(&model, &mut a, 2e-3, 0, "the same again");
 }
 
 /// A linear net (the `side x side` grid of [`spring_net`] with zero-length undamped springs,

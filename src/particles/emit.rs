@@ -24,6 +24,9 @@ impl Step<'_> {
         {
             masses.uniform = None;
         }
+        if self.solver.stats.expired > 0 {
+            self.state.summary.slots = None;
+        }
     }
 
     /// Emit new particles into dead slots: each emitter owes the whole part of its
@@ -65,6 +68,7 @@ impl Step<'_> {
         }
         if self.solver.stats.emitted > 0 || self.solver.stats.expired > 0 {
             self.state.state_changed();
+            self.state.summary.slots = None;
         }
         if self.solver.stats.emitted > 0 {
             let emitted = emitted_bound(&self.model.emitters);

@@ -72,6 +72,7 @@ impl Step<'_> {
             if let Some(masses) = &mut self.state.summary.masses {
                 masses.uniform = None;
             }
+            self.state.summary.slots = None;
         }
         (self.state.time, self.state.summary.state) = (time, bound);
         self.solver.stats = StepStats::default();
@@ -212,6 +213,9 @@ pub(super) struct Summary {
     pub(super) masses: Option<Masses>,
     /// The largest |component| of the external forces (N).
     pub(super) external: Option<f64>,
+    /// A key of the slots' masses and live flags ([`crate::ode::fresh_key`]): the same while
+    /// they are unchanged, forgotten when emission, retirement or a restore changes them.
+    pub(super) slots: Option<u64>,
 }
 
 /// The slots' masses as the explicit kernel needs them.

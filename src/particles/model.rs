@@ -8,19 +8,39 @@ use glam::DVec3;
 
 /// A particle model (see the module docs): read-only during a step (`&Model`); several
 /// [`super::State`]s may share it.
-#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Model {
     /// Number of slots (live and dead) of every state of this model.
     pub(super) n: usize,
     pub(super) forces: Vec<Force>,
     pub(super) colliders: Vec<Collider>,
     pub(super) emitters: Vec<Emitter>,
+    /// A key of the capacity and the forces ([`crate::ode::fresh_key`]), new whenever they
+    /// change: what a solver's kept factorisation was built for. Copied by a clone (the same
+    /// forces); not part of the model's value or of its serialised form.
+    #[serde(skip, default = "crate::ode::fresh_key")]
+    pub(super) forces_key: u64,
+}
+
+impl PartialEq for Model {
+    fn eq(&self, other: &Self) -> bool {
+        // Destructured so that a new field cannot be forgotten here.
+        let Model { n, forces, colliders, emitters, forces_key: _ } = self;
+        (n, forces, colliders, emitters)
+            == (&other.n, &other.forces, &other.colliders, &other.emitters)
+    }
 }
 
 impl Model {
     /// A model of `capacity` slots without forces, colliders or emitters.
     pub fn new(capacity: usize) -> Self {
-        Model { n: capacity, forces: Vec::new(), colliders: Vec::new(), emitters: Vec::new() }
+        Model {
+            n: capacity,
+            forces: Vec::new(),
+            colliders: Vec::new(),
+            emitters: Vec::new(),
+            forces_key: crate::ode::fresh_key(),
+        }
     }
 
     /// Number of slots (live and dead) of the states of this model.
@@ -56,6 +76,7 @@ impl Model {
             }
             f => f,
         });
+        self.forces_key = crate::ode::fresh_key();
         Ok(())
     }
 

@@ -170,15 +170,21 @@ impl Step<'_> {
         self.state.settle_ages();
         let age_each_step = !self.model.emitters.is_empty();
         let n = self.model.n;
-        // Within a call without emitters the masses and live slots stay as they are.
-        let constant =
-            (sparse && !age_each_step && self.model.linear()).then(crate::ode::fresh_key);
+        // Within a call without emitters the masses and live slots stay as they are. The
+        // velocity form's check of the model is skipped when it is set up for this model.
         let history = self.state.history.as_ref().expect("history created in step");
-        let velocity_form = constant.is_some() && history.method() == Method::ImplicitEuler;
+        let model = self.model;
+        let slots = *self.state.summary.slots.get_or_insert_with(crate::ode::fresh_key);
+        let velocity_form = sparse
+            && !age_each_step
+            && history.method() == Method::ImplicitEuler
+            && (self.solver.linear.prepared(model.forces_key, slots, dt) || model.linear());
+        let constant = (sparse && !age_each_step && !velocity_form && model.linear())
+            .then(crate::ode::fresh_key);
         if velocity_form {
             let state = &*self.state;
-            let model = self.model;
-            if self.solver.linear.prepare(model, &state.mass, &state.inv_mass, &state.alive, dt)? {
+            let (mass, inv_mass, alive) = (&state.mass, &state.inv_mass, &state.alive);
+            if self.solver.linear.prepare(model, slots, mass, inv_mass, alive, dt)? {
                 self.solver.stats.factorizations += 1;
             }
         }
@@ -236,12 +242,14 @@ impl Step<'_> {
     /// `prepare`) without colliders or emitters: nothing but the steps, which write nothing to
     /// the slots that stay put and nothing at all when they fail.
     fn linear_steps(&mut self, dt: f64, steps: usize) -> Result<()> {
-        let (state, solver) = (&mut *self.state, &mut *self.solver);
+        let (state, linear) = (&mut *self.state, &mut self.solver.linear);
         let history = state.history.as_mut().expect("history created in step");
+        let (forces, external) = (&self.model.forces, &state.external);
+        linear.begin(&state.y, dt);
         for s in 0..steps {
             history.nfev += 1;
-            let (forces, external) = (&self.model.forces, &state.external);
-            if let Err(e) = solver.linear.step(forces, &state.mass, external, &mut state.y, dt) {
+            if let Err(e) = linear.step(forces, external, dt) {
+                linear.end(&mut state.y);
                 state.age_pending = (dt, s);
                 state.state_changed();
                 return Err(match e {
@@ -255,6 +263,7 @@ impl Step<'_> {
             }
             state.time += dt;
         }
+        linear.end(&mut state.y);
         state.age_pending = (dt, steps);
         Ok(())
     }
@@ -285,7 +294,12 @@ impl Step<'_> {
         let result = if velocity_form {
             history.nfev += 1;
             let (forces, external) = (&self.model.forces, &state.external);
-            solver.linear.step(forces, &state.mass, external, &mut state.y, dt)
+            solver.linear.begin(&state.y, dt);
+            let stepped = solver.linear.step(forces, external, dt);
+            if stepped.is_ok() {
+                solver.linear.end(&mut state.y);
+            }
+            stepped
         } else {
             solver.work.step(history, &mut dynamics, state.time, &mut state.y, dt)
         };
