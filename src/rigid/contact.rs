@@ -83,12 +83,6 @@ impl Bodies<'_> {
         self.q[i] * ((self.q[i].conjugate() * w) * self.inv_moments[i])
     }
 
-    /// `1/m + (r × d) · I⁻¹ (r × d)` of body `i`.
-    fn compliance(&self, i: usize, r: DVec3, d: DVec3) -> f64 {
-        let rd = r.cross(d);
-        self.inv_mass[i] + rd.dot(self.inv_inertia(i, rd))
-    }
-
     /// Fill the contact's angular responses (see [`Contact::spin`]), compliances, effective
     /// masses and normal–tangent couplings.
     pub fn prepare(&self, c: &mut Contact) {
@@ -98,8 +92,11 @@ impl Bodies<'_> {
             Some(b) => dirs.map(|d| self.inv_inertia(b, c.rb.cross(d))),
             None => [DVec3::ZERO; 3],
         };
-        c.compliance = dirs.map(|d| {
-            self.compliance(c.a, c.ra, d) + c.b.map_or(0.0, |b| self.compliance(b, c.rb, d))
+        // `1/m + (r × d) · I⁻¹ (r × d)` of each body, `I⁻¹ (r × d)` being the spin just made.
+        c.compliance = std::array::from_fn(|k| {
+            let own =
+                |i: usize, r: DVec3, spin: DVec3| self.inv_mass[i] + r.cross(dirs[k]).dot(spin);
+            own(c.a, c.ra, c.spin[0][k]) + c.b.map_or(0.0, |b| own(b, c.rb, c.spin[1][k]))
         });
         c.mass = c.compliance.map(|k| if k > 0.0 { 1.0 / k } else { 0.0 });
         let (arm_a, arm_b) = (c.ra.cross(c.n), c.rb.cross(c.n));
