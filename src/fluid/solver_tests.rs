@@ -16,6 +16,12 @@ fn column() -> (Fluid, Solver) {
     let tank = Wall::Box { lower: DVec3::ZERO, upper: DVec3::new(w, 0.6, d) };
     fluid.add_wall(tank).unwrap();
     fluid.add_block(DVec3::ZERO, DVec3::new(w, h, d), DVec3::ZERO).unwrap();
+    let solver = at_rest(&fluid);
+    (fluid, solver)
+}
+
+/// A solver of `fluid` at rest with its neighbours, densities and factors.
+fn at_rest(fluid: &Fluid) -> Solver {
     let mut solver = Solver::new(fluid.model());
     let n = fluid.state().len();
     solver.points.clone_from(&fluid.state().positions);
@@ -23,7 +29,7 @@ fn column() -> (Fluid, Solver) {
     solver.emit(fluid.model(), 0.0).unwrap();
     solver.search(fluid.model(), 0.0);
     solver.densities(fluid.model(), true);
-    (fluid, solver)
+    solver
 }
 
 /// `α A κ`: the change of the predicted density of the density solve that the pressures
@@ -127,13 +133,8 @@ fn laplacian_of_a_shear_on_the_lattice() {
     let s = 0.02;
     let mut fluid = Fluid::new(Settings::new(s)).unwrap();
     fluid.add_block(DVec3::ZERO, DVec3::splat(12.0 * s), DVec3::ZERO).unwrap();
-    let mut solver = Solver::new(fluid.model());
+    let solver = at_rest(&fluid);
     let n = fluid.state().len();
-    solver.points.clone_from(&fluid.state().positions);
-    solver.v = vec![DVec3::ZERO; n];
-    solver.emit(fluid.model(), 0.0).unwrap();
-    solver.search(fluid.model(), 0.0);
-    solver.densities(fluid.model(), true);
     let model = fluid.model();
     let system = solver.viscosity_system(model, 1.0);
     let h = model.support;
