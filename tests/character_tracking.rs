@@ -7,6 +7,7 @@ use kinema::character::{
     FrameReport, RagdollOptions, Settings, Solver, State, Tracker, TrackingOptions,
 };
 use kinema::mocap::{parse_amc, parse_asf, Motion, Skeleton};
+use kinema::snapshot::Snapshot;
 
 fn walk() -> (Skeleton, Motion) {
     let asf = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
@@ -118,4 +119,21 @@ fn bad_options_are_named() {
     let short = motion.slice(0, 4).unwrap();
     let err = Tracker::new(&skeleton, &short, &ragdoll, Settings::default(), Default::default());
     assert!(err.unwrap_err().to_string().contains("motion"));
+}
+
+/// A tracker restored from its snapshot goes on bit for bit as the original: the ragdoll's
+/// state, the frame and the reports of the next frames.
+#[test]
+fn a_restored_tracker_continues_bit_for_bit() {
+    let mut t = tracker(TrackingOptions::default());
+    for _ in 0..30 {
+        t.step().unwrap();
+    }
+    let mut back = Tracker::from_snapshot(&t.to_snapshot().unwrap()).unwrap();
+    assert_eq!(back.frame(), 30);
+    for _ in 0..30 {
+        assert_eq!(t.step().unwrap(), back.step().unwrap());
+    }
+    assert_eq!(t.body().state(), back.body().state());
+    assert_eq!(t.reference_q(), back.reference_q());
 }

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from kinema import _kinema, anim, character, cloth, crowd, flock, fluid, particles, rigid
+from kinema import _kinema, anim, character, cloth, crowd, flock, fluid, particles, rigid, rods
 from kinema.constraints import ConstrainedSystem
 from kinema.rotation import Rotation
 from kinema.scene import FORMAT_VERSION, AnimatedSphere, Character, CheckpointError, Scene, _Entry
@@ -67,6 +67,9 @@ _NATIVES: dict[str, Any] = {
         _kinema.Walker,
         _kinema.Walker3d,
         _kinema.ArticulatedBody,
+        _kinema.Tracker,
+        _kinema.Rod,
+        _kinema.Hair,
     )
 }
 """The compiled classes a checkpoint may hold (each pickles through its Rust snapshot)."""
@@ -133,6 +136,9 @@ _SCHEMAS: dict[str, _Schema] = {
         _Schema(character.Biped, {"_w": (_kinema.Walker, _kinema.Walker3d)}),
         _Schema(character.ArticulatedBody, {"_b": _kinema.ArticulatedBody}),
         _Schema(character.Ragdoll, {"_b": _kinema.ArticulatedBody}),
+        _Schema(character.Tracker, {"_t": _kinema.Tracker}),
+        _Schema(rods.Rod, {"_r": _kinema.Rod}),
+        _Schema(rods.Hair, {"_h": _kinema.Hair}),
         _Schema(rigid.Sphere, {"radius": _Number}),
         _Schema(rigid.Box, {"half_extents": object}),
         _Schema(rigid.Capsule, {"radius": _Number, "height": _Number}),
@@ -469,7 +475,7 @@ def _check_scene(scene: Scene) -> None:
     objects += [e.obj._particles for e in scene._entries if isinstance(e.obj, ConstrainedSystem)]
     _need(len({id(o) for o in objects}) == len(objects), "a system added twice")
     for i, e in enumerate(scene._entries):
-        _check_entry(e, f"systems[{i}]")
+        _check_entry(e, f"systems[{i}]", scene._h)
     for k in scene._kinematic:
         _need(isinstance(k, (AnimatedSphere, Character)), f"kinematic object {type(k).__name__}")
         _check_kinematic(k)
@@ -490,7 +496,7 @@ def _check_scene(scene: Scene) -> None:
             _check_shape(s)
 
 
-def _check_entry(e: Any, where: str) -> None:
+def _check_entry(e: Any, where: str, h: float) -> None:
     _need(isinstance(e, _Entry), f"{where}: a {type(e).__name__}")
     obj = e.obj
     kinds = (
@@ -503,6 +509,9 @@ def _check_entry(e: Any, where: str) -> None:
         flock.Flock,
         character.Biped,
         character.ArticulatedBody,
+        character.Tracker,
+        rods.Rod,
+        rods.Hair,
     )
     _need(isinstance(obj, kinds), f"{where}: a {type(obj).__name__}")
     _need(
@@ -529,6 +538,10 @@ def _check_entry(e: Any, where: str) -> None:
     elif isinstance(obj, rigid.World):
         _need(all(type(s).__name__ in _SCHEMAS for s in obj._shapes), f"{where}: shapes")
         _need(len(obj._shapes) == len(obj.positions), f"{where}: one shape per body")
+    elif isinstance(obj, character.Tracker):
+        frames = h * obj.frame_rate
+        whole = round(frames) >= 1 and abs(frames - round(frames)) <= 1e-9 * frames
+        _need(not e.options and whole, f"{where}: a Tracker steps whole frames, no options")
 
 
 def _check_kinematic(k: AnimatedSphere | Character) -> None:

@@ -406,6 +406,9 @@ class Walker3d:
 
 @final
 class Tracker:
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]: ...
+    @staticmethod
+    def _from_snapshot(data: bytes) -> Tracker: ...
     def __new__(
         cls,
         skeleton: AsfSkeleton,

@@ -5,9 +5,11 @@ use super::args::Int;
 use super::array::{compute, zeroed};
 use super::error::detached;
 use super::mocap::{PyMotion, PySkeleton};
+use super::pickle::{reduce, Reduced};
 use crate::character::{
     FrameReport, RagdollOptions, Settings, State, Tracker as Core, TrackingOptions,
 };
+use crate::snapshot::Snapshot;
 use glam::DVec3;
 use numpy::PyArrayDyn;
 use pyo3::prelude::*;
@@ -53,6 +55,17 @@ impl Tracker {
         };
         let tracker = Core::new(sk, &motion.motion, &ragdoll, Settings::default(), options)?;
         Ok(Tracker { tracker, saved: None })
+    }
+
+    /// Pickle support: the tracker as a snapshot (skeleton, clip, options, ragdoll, frame).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Reduced<'py>> {
+        reduce(slf, |s| &s.tracker, vec![])
+    }
+
+    /// The object stored by `__reduce__`.
+    #[staticmethod]
+    fn _from_snapshot(data: &[u8]) -> PyResult<Self> {
+        Ok(Self { tracker: Core::from_snapshot(data)?, saved: None })
     }
 
     /// Remember the ragdoll's state and the frame (a scene's undo point).

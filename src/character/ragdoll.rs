@@ -32,7 +32,7 @@ use crate::mocap::{BvhSkeleton, Dof, Skeleton};
 use glam::{DQuat, DVec3};
 
 /// How [`ragdoll`] sizes bodies and joints.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct RagdollOptions {
     /// Density of every capsule (kg/m³), default 1000 (water, close to the body's).
     pub density: f64,

@@ -1,10 +1,11 @@
-//! Articulated snapshots: the body's (model and state), and a state's alone, stamped with
-//! its model's fingerprint so that it is restored only onto it.
+//! Articulated snapshots: the body's (model and state), a state's alone, stamped with its
+//! model's fingerprint so that it is restored only onto it, the walkers' and the mocap
+//! tracker's.
 
 use super::model::Joint;
 use super::simbicon::SERVOED;
 use super::simbicon3d::SERVOED_3D;
-use super::{biped3d, planar_biped, ArticulatedBody, Model, State, Walker, Walker3d};
+use super::{biped3d, planar_biped, ArticulatedBody, Model, State, Tracker, Walker, Walker3d};
 use crate::error::Result;
 use crate::snapshot::{check, finite, Snapshot, Stamped};
 
@@ -101,5 +102,99 @@ impl Snapshot for Walker3d {
         let phase_ok = self.phase.state < 4 && self.phase.time.is_finite();
         check(phase_ok, "phase", || "state beyond 3 or a non-finite time".into())?;
         self.state.validate(&self.model)
+    }
+}
+
+/// The most frames a restored tracker may have tracked: ten days of a 120 Hz clip. The clip's
+/// pose at frame `k` composes one loop turn per loop, so the bound keeps a crafted frame count
+/// from making a step take hours.
+const MAX_TRACKED_FRAMES: usize = 100_000_000;
+
+impl Snapshot for Tracker {
+    const TAG: &'static str = "Tracker";
+
+    /// The ragdoll must be valid and be the tree its skeleton builds (parents and joints), the
+    /// clip's lift and loop those its skeleton, clip and options give (rebuilt and compared),
+    /// the reference buffers of the model's sizes and finite, the frame count bounded.
+    fn validate(&self) -> Result<()> {
+        Snapshot::validate(&self.body)?;
+        let settings = self.body.model().settings;
+        let built =
+            Tracker::new(&self.skeleton, &self.motion, &self.ragdoll, settings, self.options)?;
+        let (mine, theirs) = (self.body.model().bodies(), built.body.model().bodies());
+        let same_tree = mine.len() == theirs.len()
+            && mine.iter().zip(theirs).all(|(a, b)| a.parent == b.parent && a.joint == b.joint);
+        check(same_tree, "body", || "not the ragdoll of the skeleton".into())?;
+        let clip = (self.shift, self.loop_span, self.loop_turn, self.loop_from, self.loop_to);
+        let want = (built.shift, built.loop_span, built.loop_turn, built.loop_from, built.loop_to);
+        check(clip == want, "loop_span", || "not the lift and loop of the clip".into())?;
+        let (nq, nv) = (self.body.model().nq(), self.body.model().nv());
+        for (field, len, want) in [
+            ("q_ref", self.q_ref.len(), nq),
+            ("q_next", self.q_next.len(), nq),
+            ("v_ref", self.v_ref.len(), nv),
+            ("diff", self.diff.len(), nv),
+        ] {
+            check(len == want, field, || format!("{len} entries, expected {want}"))?;
+        }
+        let values = self.q_ref.iter().chain(&self.q_next).chain(&self.v_ref).chain(&self.diff);
+        let inertia_ok = self.inertia.iter().all(|m| m.is_finite() && *m >= 0.0);
+        check(finite(values.copied()) && inertia_ok, "q_ref", || "non-finite".into())?;
+        check(self.frame <= MAX_TRACKED_FRAMES, "frame", || {
+            format!("{} frames, more than {MAX_TRACKED_FRAMES}", self.frame)
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::character::{RagdollOptions, Settings, TrackingOptions};
+    use crate::mocap::{parse_amc, parse_asf};
+
+    fn tracker() -> Tracker {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/mocap/");
+        let asf = std::fs::read_to_string(format!("{dir}07-walk.asf")).unwrap();
+        let amc = std::fs::read_to_string(format!("{dir}07_05-walk.amc")).unwrap();
+        let skeleton = parse_asf(&asf, "07-walk.asf").unwrap();
+        let motion = parse_amc(&amc, "07_05-walk.amc", &skeleton).unwrap();
+        let ragdoll = RagdollOptions { scale: skeleton.metres_per_unit(), ..Default::default() };
+        let options = TrackingOptions::default();
+        Tracker::new(&skeleton, &motion, &ragdoll, Settings::default(), options).unwrap()
+    }
+
+    /// A tracker whose parts do not belong together is refused, naming the part: each
+    /// mutation below is one a crafted snapshot could make.
+    #[test]
+    fn an_inconsistent_tracker_snapshot_is_refused() {
+        let good = tracker();
+        assert!(Tracker::from_snapshot(&good.to_snapshot().unwrap()).is_ok());
+        type Mutation = fn(&mut Tracker);
+        let cases: [(&str, Mutation); 4] = [
+            ("loop_span", |t| t.loop_span.1 += 1),
+            ("frame", |t| t.frame = MAX_TRACKED_FRAMES + 1),
+            ("q_ref", |t| t.q_ref.truncate(3)),
+            ("q_ref", |t| t.v_ref[0] = f64::NAN),
+        ];
+        for (field, mutate) in cases {
+            let mut t = good.clone();
+            mutate(&mut t);
+            let err = refusal(&t);
+            assert!(err.contains(field), "{field}: {err}");
+        }
+        let mut other_clip = good.clone();
+        other_clip.motion = good.motion.slice(0, 60).unwrap();
+        assert!(refusal(&other_clip).contains("loop_span"));
+        let mut walker = good.clone();
+        walker.body = ArticulatedBody::new(biped3d(Settings::default()).unwrap());
+        assert!(refusal(&walker).contains("body"));
+    }
+
+    /// Why the snapshot of `t` is refused (a test failure if it is not).
+    fn refusal(t: &Tracker) -> String {
+        match Tracker::from_snapshot(&t.to_snapshot().unwrap()) {
+            Ok(_) => panic!("accepted"),
+            Err(e) => e.to_string(),
+        }
     }
 }

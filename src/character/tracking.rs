@@ -37,7 +37,7 @@ use crate::mocap::{Dof, Motion, Skeleton};
 use glam::{DQuat, DVec3};
 
 /// Gains and stepping of a [`Tracker`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct TrackingOptions {
     /// Servo proportional gain on every hinge and ball joint (N m/rad); 0 leaves the
     /// ragdoll limp (no servos).
@@ -82,29 +82,32 @@ pub struct FrameReport {
     pub assist_torque: f64,
 }
 
-/// A ragdoll tracking a clip (module documentation).
-#[derive(Clone, Debug)]
+/// A ragdoll tracking a clip (module documentation). A snapshot holds what it was built
+/// from (skeleton, clip, ragdoll and tracking options), the ragdoll and the frame.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Tracker {
-    body: ArticulatedBody,
-    skeleton: Skeleton,
-    motion: Motion,
-    options: TrackingOptions,
-    scale: f64,
+    pub(super) body: ArticulatedBody,
+    pub(super) skeleton: Skeleton,
+    pub(super) motion: Motion,
+    pub(super) ragdoll: RagdollOptions,
+    pub(super) options: TrackingOptions,
     /// Added to the clip's root position (m): the ragdoll's root offset removed, the lift.
-    shift: DVec3,
+    pub(super) shift: DVec3,
     /// Loop: first and one-past-last frame, and the root's turn and shift per loop.
-    loop_span: (usize, usize),
-    loop_turn: DQuat,
-    loop_from: DVec3,
-    loop_to: DVec3,
+    pub(super) loop_span: (usize, usize),
+    pub(super) loop_turn: DQuat,
+    pub(super) loop_from: DVec3,
+    pub(super) loop_to: DVec3,
     /// The mass of each of the root's six rates (kg m², kg) at the frame's start.
-    inertia: [f64; 6],
+    pub(super) inertia: [f64; 6],
+    #[serde(skip)]
     tree: Tree,
-    frame: usize,
-    q_ref: Vec<f64>,
-    q_next: Vec<f64>,
-    v_ref: Vec<f64>,
-    diff: Vec<f64>,
+    pub(super) frame: usize,
+    pub(super) q_ref: Vec<f64>,
+    pub(super) q_next: Vec<f64>,
+    pub(super) v_ref: Vec<f64>,
+    pub(super) diff: Vec<f64>,
+    #[serde(skip)]
     saved: Option<State>,
 }
 
@@ -163,8 +166,8 @@ impl Tracker {
             body: ArticulatedBody::new(model),
             skeleton: skeleton.clone(),
             motion: motion.clone(),
+            ragdoll: *ragdoll_options,
             options,
-            scale: ragdoll_options.scale,
             shift,
             loop_span: (0, motion.frames),
             loop_turn: DQuat::IDENTITY,
@@ -266,7 +269,7 @@ impl Tracker {
         let [x, y, z] = sk.root_axis.axes;
         let m = sk.root_axis.to_quat(&[angles[x], angles[y], angles[z]]).expect("finite angles");
         let root = (sk.root_orientation * m).normalize();
-        let p = t * self.scale + self.shift;
+        let p = t * self.ragdoll.scale + self.shift;
         q[..3].copy_from_slice(&p.to_array());
         q[3..7].copy_from_slice(&[root.w, root.x, root.y, root.z]);
         let model = self.body.model();
