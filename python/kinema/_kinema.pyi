@@ -474,6 +474,7 @@ class ArticulatedBody:
         integrator: str,
         servo_mode: str,
         ground: bool,
+        self_collision: bool,
         contact_frequency: float,
         contact_damping: float,
         friction: float,

@@ -134,7 +134,9 @@ class ArticulatedBody:
     Settings (keywords, changeable later with :meth:`configure`): ``gravity`` (m/s²);
     ``integrator`` ``"symplectic"`` (semi-implicit Euler, order 1) or ``"rk4"`` (order 4);
     ``servo_mode`` ``"stable"`` (stable PD) or ``"explicit"``; ``ground`` (collide the
-    capsules with y = 0); ``contact_frequency`` ω (rad/s: contact stiffness ``m ω²`` per
+    capsules with y = 0); ``self_collision`` (collide the capsules with each other, all pairs
+    but a body and its parent, siblings and capsules that overlap in the zero pose; default
+    off); ``contact_frequency`` ω (rad/s: contact stiffness ``m ω²`` per
     body, resting penetration ``g / ω²``), ``contact_damping`` (ratio ζ), ``friction`` (μ),
     ``slip_speed`` (m/s, below which friction is viscous), ``limit_frequency`` (rad/s) and
     ``limit_damping`` (ratio) of the joint-limit springs.
@@ -176,6 +178,7 @@ class ArticulatedBody:
             current["integrator"],
             current["servo_mode"],
             bool(current["ground"]),
+            bool(current["self_collision"]),
             *numbers,
         )
 

@@ -190,6 +190,7 @@ impl ArticulatedBody {
         integrator: &str,
         servo_mode: &str,
         ground: bool,
+        self_collision: bool,
         contact_frequency: f64,
         contact_damping: f64,
         friction: f64,
@@ -212,6 +213,7 @@ impl ArticulatedBody {
             integrator,
             servo_mode,
             ground,
+            self_collision,
             contact_frequency,
             contact_damping,
             friction,
@@ -378,6 +380,7 @@ impl ArticulatedBody {
             if s.servo_mode == ServoMode::Stable { "stable" } else { "explicit" },
         )?;
         d.set_item("ground", s.ground)?;
+        d.set_item("self_collision", s.self_collision)?;
         d.set_item("contact_frequency", s.contact_frequency)?;
         d.set_item("contact_damping", s.contact_damping)?;
         d.set_item("friction", s.friction)?;

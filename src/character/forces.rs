@@ -19,6 +19,16 @@
 //!   contact is recorded ([`Contact`]) and its damping is taken at the next step's velocity
 //!   in the same linear solve as the servos ([`super::servo::stable`]), as stable PD does
 //!   for the servos' `k_d`.
+//! - **Self-collision** (with [`super::Settings::self_collision`]), between the capsules of
+//!   each pair of [`Model::collision_pairs`]: at depth `d = r_i + r_j − |p_j − p_i| > 0`
+//!   (`p_i`, `p_j` the closest points of the axes) the force `f_n = max(0, k d − c v_n)`
+//!   along `n = (p_j − p_i)/|p_j − p_i|`, with `k = M ω²` on the heavier body's mass `M`
+//!   (the lighter carries the heavier's weight at depth `g/ω²`, as on the ground),
+//!   `c = 2 ζ ω √(M m)` (the critical damping of that spring on the reduced mass
+//!   `m = m_i m_j / (m_i + m_j)`), always capped at `m / (4 dt)` (explicit: a self-contact
+//!   is not part of stable PD's solve), `v_n` the normal relative velocity at
+//!   the midpoint of the overlap, and the ground's regularised friction on the tangential
+//!   relative velocity; equal and opposite on the two bodies, so it conserves momentum.
 
 use super::dynamics::Tree;
 use super::joints::quat;
@@ -26,6 +36,7 @@ use super::model::{Joint, Model, ServoMode};
 use super::servo::{ltl, ltl_solve};
 use super::spatial::spatial;
 use super::state::Push;
+use crate::geometry::segment::closest_points_of_segments;
 use crate::rotation::quat_to_rotvec;
 use glam::DVec3;
 
@@ -83,6 +94,9 @@ pub(super) fn passive(
             }
         }
     }
+    if model.settings.self_collision {
+        self_contacts(model, tree, dt);
+    }
     for (i, b) in model.bodies().iter().enumerate() {
         let (_, iv) = model.starts(i);
         if matches!(b.joint, Joint::Revolute { .. } | Joint::Ball) {
@@ -98,6 +112,50 @@ pub(super) fn passive(
 fn apply(tree: &mut Tree, i: usize, point: DVec3, force: DVec3) {
     let f = tree.rot[i].conjugate() * force;
     tree.f_ext[i] += spatial(point.cross(f), f);
+}
+
+/// The world velocity (m/s) of the world point `at` moving with body `i`.
+fn point_velocity(tree: &Tree, i: usize, at: DVec3) -> DVec3 {
+    let v = &tree.v[i];
+    let local = tree.rot[i].conjugate() * (at - tree.pos[i]);
+    tree.rot[i] * (DVec3::new(v[3], v[4], v[5]) + DVec3::new(v[0], v[1], v[2]).cross(local))
+}
+
+/// Add the self-collision forces of the module documentation to `tree.f_ext`.
+fn self_contacts(model: &Model, tree: &mut Tree, dt: f64) {
+    let s = &model.settings;
+    let bodies = model.bodies();
+    for &(i, j) in model.collision_pairs() {
+        let (Some(ci), Some(cj)) = (bodies[i].shape, bodies[j].shape) else { continue };
+        let world = |k: usize, p: DVec3| tree.pos[k] + tree.rot[k] * p;
+        let (pi, pj) = closest_points_of_segments(
+            world(i, ci.a),
+            world(i, ci.b),
+            world(j, cj.a),
+            world(j, cj.b),
+        );
+        let (gap, depth) = (pj - pi, ci.radius + cj.radius - pi.distance(pj));
+        if depth <= 0.0 || gap.length_squared() == 0.0 {
+            continue;
+        }
+        let n = gap.normalize();
+        let at = 0.5 * (pi + ci.radius * n + pj - cj.radius * n);
+        let rel = point_velocity(tree, j, at) - point_velocity(tree, i, at);
+        let (mi, mj) = (bodies[i].mass, bodies[j].mass);
+        let (heavier, reduced) = (mi.max(mj), mi * mj / (mi + mj));
+        let cap = reduced / (4.0 * dt);
+        let k = heavier * s.contact_frequency.powi(2);
+        let c =
+            (2.0 * s.contact_damping * (heavier * reduced).sqrt() * s.contact_frequency).min(cap);
+        let normal = (k * depth - c * rel.dot(n)).max(0.0);
+        let slip = rel - rel.dot(n) * n;
+        let tangent = (s.friction * normal / slip.length().max(s.slip_speed)).min(cap);
+        let force = normal * n - tangent * slip;
+        let local = |k: usize| tree.rot[k].conjugate() * (at - tree.pos[k]);
+        let (li, lj) = (local(i), local(j));
+        apply(tree, j, lj, force);
+        apply(tree, i, li, -force);
+    }
 }
 
 /// The total ground force (N, world) on `bodies` at the state of the last

@@ -22,8 +22,9 @@ pub enum Joint {
     /// `(w, x, y, z)` (4 coordinates) and its angular velocity in body axes (3 rates, rad/s).
     Ball,
     /// A free joint (6 DOF): the body's position (m, parent axes) and orientation `(w, x, y,
-    /// z)` relative to the parent frame (7 coordinates), and its spatial velocity in body
-    /// axes `[ω; v]` (6 rates: rad/s; m/s of the body frame's origin).
+    /// z)` relative to the parent frame (7 coordinates), and its rates `[ω; v]`: the angular
+    /// velocity in body axes (rad/s) and the velocity of the body frame's origin in the
+    /// parent's axes (m/s) (6 rates).
     Free,
     /// A planar joint: translation in the parent's x–y plane and rotation about its z axis
     /// (3 coordinates `[x, y, θ]`: m, m, rad; 3 rates `[vx, vy, ω]`: m/s in parent axes,
@@ -173,6 +174,10 @@ pub struct Settings {
     pub servo_mode: ServoMode,
     /// Whether the capsules collide with the ground plane `y = 0` (default true).
     pub ground: bool,
+    /// Whether the capsules of [`Model::collision_pairs`] collide with each other (default
+    /// false): penalty spring-dampers of the ground's frequency and damping ratio on the
+    /// pair's reduced mass, with the ground's friction (`super::forces`).
+    pub self_collision: bool,
     /// Natural frequency (rad/s) of a body resting on a ground contact: the penalty stiffness
     /// of a contact point is `m ω²` for a body of mass `m` (resting penetration `g/ω²`).
     pub contact_frequency: f64,
@@ -196,6 +201,7 @@ impl Default for Settings {
             integrator: Integrator::SymplecticEuler,
             servo_mode: ServoMode::Stable,
             ground: true,
+            self_collision: false,
             contact_frequency: 60.0,
             contact_damping: 1.0,
             friction: 1.0,
@@ -221,6 +227,8 @@ pub struct Model {
     pub(super) inertias: Vec<SMat>,
     /// The fixed part of each body's transform from its parent, `xlt(offset)`.
     pub(super) tree: Vec<Transform>,
+    /// The pairs `(i, j)`, `i < j`, of bodies whose capsules may collide with each other.
+    pub(super) collision_pairs: Vec<(usize, usize)>,
 }
 
 impl Model {
@@ -247,7 +255,49 @@ impl Model {
         self.inertias.push(rigid_inertia(body.mass, body.com, body.inertia));
         self.tree.push(Transform { rot: DMat3::IDENTITY, pos: body.offset });
         self.bodies.push(body);
-        Ok(self.bodies.len() - 1)
+        let new = self.bodies.len() - 1;
+        for j in 0..new {
+            if self.may_collide(j, new) {
+                self.collision_pairs.push((j, new));
+            }
+        }
+        Ok(new)
+    }
+
+    /// The pairs `(i, j)`, `i < j`, of bodies with capsules that collide with each other when
+    /// [`Settings::self_collision`] is on: all pairs but a body and its parent, two children
+    /// of one parent (they meet at the joint), and capsules that overlap in the zero pose
+    /// (where the skeleton puts them together, e.g. hips and spine at the pelvis).
+    pub fn collision_pairs(&self) -> &[(usize, usize)] {
+        &self.collision_pairs
+    }
+
+    /// Whether bodies `i < j` form a pair of [`Model::collision_pairs`].
+    fn may_collide(&self, i: usize, j: usize) -> bool {
+        let (a, b) = (&self.bodies[i], &self.bodies[j]);
+        let (Some(ca), Some(cb)) = (a.shape, b.shape) else { return false };
+        if b.parent == Some(i) || (a.parent.is_some() && a.parent == b.parent) {
+            return false;
+        }
+        let (oa, ob) = (self.zero_pose_origin(i), self.zero_pose_origin(j));
+        let (pa, pb) = crate::geometry::segment::closest_points_of_segments(
+            oa + ca.a,
+            oa + ca.b,
+            ob + cb.a,
+            ob + cb.b,
+        );
+        pa.distance(pb) >= ca.radius + cb.radius
+    }
+
+    /// Where body `i`'s frame is in the zero pose (m, world): the sum of the offsets from
+    /// the root (every joint's zero keeps the parent's axes).
+    fn zero_pose_origin(&self, mut i: usize) -> DVec3 {
+        let mut origin = self.bodies[i].offset;
+        while let Some(p) = self.bodies[i].parent {
+            origin += self.bodies[p].offset;
+            i = p;
+        }
+        origin
     }
 
     /// The bodies, parents first.

@@ -58,6 +58,7 @@ impl Snapshot for ArticulatedBody {
         let same = rebuilt.q_start == m.q_start
             && rebuilt.v_start == m.v_start
             && rebuilt.tree == m.tree
+            && rebuilt.collision_pairs == m.collision_pairs
             && rebuilt.inertias.len() == m.inertias.len()
             && rebuilt.inertias.iter().zip(&m.inertias).all(|(a, b)| near(a, b));
         check(same, "model", || "derived data do not match the bodies".into())?;

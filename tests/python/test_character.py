@@ -59,6 +59,32 @@ def test_limp_ragdoll_falls_and_rests():
     assert np.all(np.isfinite(r.q)) and r.com[1] < 0.3
 
 
+def test_self_collision_is_a_setting_that_keeps_a_ball_on_a_ball():
+    # Two free balls (0.1 m, 1000 kg/m³), one dropped on the other: with self_collision
+    # the upper rests on the lower at 3r - 3g/ω² (tests/character_self_collision.rs), off it
+    # falls through to the ground.
+    m = character.Model()
+    mass = 1000 * 4 / 3 * math.pi * 0.1**3
+    for y in (0.1, 0.6):
+        m.add_body(
+            None,
+            "free",
+            mass=mass,
+            inertia=np.eye(3) * 0.4 * mass * 0.01,
+            offset=(0, y, 0),
+            shape=((0, 0, 0), (0, 0, 0), 0.1),
+        )
+    heights = []
+    for on in (True, False):
+        b = character.ArticulatedBody(m, self_collision=on)
+        assert b.settings["self_collision"] is on
+        b.step(1 / 480, 1440)
+        heights.append(0.6 + b.q[8])
+    sag = 9.81 / b.settings["contact_frequency"] ** 2
+    assert heights[0] == pytest.approx(0.3 - 3 * sag, abs=1e-4)
+    assert heights[1] == pytest.approx(0.1 - sag, abs=1e-4)
+
+
 def test_push_moves_a_free_body_by_its_impulse():
     m = character.Model()
     m.add_body(None, "free", mass=2.0, inertia=np.eye(3) * 0.1, offset=(0, 1, 0))
