@@ -48,6 +48,13 @@ fn emitter_mass_flow_is_rho_a_v() {
     assert!(v.iter().all(|v| (*v - DVec3::X).length() < 1e-6), "{:?}", v[0]);
     let front = fluid.state().positions().iter().map(|p| p.x).fold(0.0, f64::max);
     assert!((front - 1.01).abs() < S, "{front}");
+    // In the order of emission (the solver sorts its copy by cell, `src/fluid/order.rs`):
+    // particle `i` is in layer `i / 29`, about a spacing behind the layer before.
+    let x = |i: usize| fluid.state().positions()[i].x;
+    for i in 1..m {
+        let gap = if i % 29 == 0 { S } else { 0.0 };
+        assert!((x(i - 1) - x(i) - gap).abs() < 0.01 * S, "particles {} and {i}", i - 1);
+    }
 }
 
 /// A kill box 0.3 m long across the jet: the count stops growing once the jet reaches its

@@ -10,7 +10,9 @@ nozzles
 of the CFL condition. ``positions`` and ``velocities`` are read-only numpy views of the Rust
 state, updated in place (no copy); once one was taken no more blocks, emitters or kill box
 can be added (the views must stay valid). With emitters or a kill box the particle count
-changes, and they are copies instead. See docs/fluid.md.
+changes, and they are copies instead. Every per-particle array is in the order the particles
+were added (the solver sorts its own copy by cell each frame and writes back in that order).
+See docs/fluid.md.
 """
 
 from __future__ import annotations

@@ -31,6 +31,7 @@ mod emitter;
 mod kernel;
 mod model;
 mod neighbours;
+mod order;
 mod snapshot;
 mod solver;
 mod state;

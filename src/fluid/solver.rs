@@ -24,6 +24,7 @@
 use super::collider::{confine, Collider};
 use super::model::{Model, Pressure, Viscosity};
 use super::neighbours::{Neighbours, MAX_SKIN};
+use super::order::{gather, Order};
 use super::viscosity::{System, Workspace};
 use super::{State, Stats};
 use crate::error::{reserve, Error, Result};
@@ -52,6 +53,8 @@ const LIST_SUBSTEPS: f64 = 8.0;
 #[derive(Clone, Debug, Default)]
 pub struct Solver {
     neighbours: Neighbours,
+    /// The particles' order in the stepped copy (`order.rs`): Z-order of their cells.
+    order: Order,
     /// Fluid then boundary positions (m), the points of the neighbour lists.
     points: Vec<DVec3>,
     /// `∇W_ij` (1/m⁴) of every neighbour pair, in the lists' layout (chunk `i / CHUNK`,
@@ -142,6 +145,7 @@ impl Solver {
         self.viscous.clone_from(&state.viscous);
         self.emitted.clone_from(&state.emitted);
         self.emitted.resize(model.emitters.len(), model.settings.spacing);
+        self.order.start(state.len());
         for _ in 0..steps {
             if !state.is_empty() || !model.emitters.is_empty() {
                 self.frame(model, dt, &mut stats)?;
@@ -156,12 +160,13 @@ impl Solver {
         }
         let more = n.saturating_sub(state.viscous.len());
         reserve("steps", &mut state.viscous, more)?;
-        state.positions.clear();
-        state.positions.extend_from_slice(&self.points[..n]);
-        state.velocities.clone_from(&self.v);
-        state.pressure.clone_from(&self.pressure);
-        state.divergence.clone_from(&self.divergence);
-        state.viscous.clone_from(&self.viscous);
+        // Back in the state's order (`order.rs`).
+        let slots = self.order.slots();
+        gather(slots, &self.points, &mut state.positions);
+        gather(slots, &self.v, &mut state.velocities);
+        gather(slots, &self.viscous, &mut state.viscous);
+        gather(slots, &self.pressure, &mut state.pressure);
+        gather(slots, &self.divergence, &mut state.divergence);
         state.emitted.clone_from(&self.emitted);
         state.colliders.clone_from(&self.colliders);
         state.time += dt * steps as f64;
@@ -194,6 +199,7 @@ impl Solver {
                 self.pressure.resize(n + k, 0.0);
                 self.divergence.resize(n + k, 0.0);
                 self.viscous.resize(n + k, DVec3::ZERO);
+                self.order.emitted(k);
             }
         }
         let n = self.v.len();
@@ -220,6 +226,7 @@ impl Solver {
                 self.pressure[kept] = self.pressure[i];
                 self.divergence[kept] = self.divergence[i];
                 self.viscous[kept] = self.viscous[i];
+                self.order.user[kept] = self.order.user[i];
                 kept += 1;
             }
         }
@@ -228,10 +235,14 @@ impl Solver {
         self.pressure.truncate(kept);
         self.divergence.truncate(kept);
         self.viscous.truncate(kept);
+        self.order.user.truncate(kept);
     }
 
-    /// One frame of `dt` in CFL substeps.
+    /// One frame of `dt` in CFL substeps, the particles first sorted by cell (`order.rs`).
     fn frame(&mut self, model: &Model, dt: f64, stats: &mut Stats) -> Result<()> {
+        let n = self.v.len();
+        let Solver { order, points, v, viscous, pressure, divergence, .. } = self;
+        order.sort(&mut points[..n], model.support, &mut [v, viscous], &mut [pressure, divergence]);
         let mut left = dt;
         let mut taken = 0;
         while left > 0.0 {
@@ -328,7 +339,9 @@ impl Solver {
                 self.advect(model, h);
             }
         }
-        let bad = (0..n).find(|&i| !(self.points[i].is_finite() && self.v[i].is_finite()));
+        // The index reported is the particle's in the state (`order.rs`).
+        let finite = |i: &usize| self.points[*i].is_finite() && self.v[*i].is_finite();
+        let bad = (0..n).find(|i| !finite(i)).map(|i| self.order.user[i] as usize);
         self.kill(model);
         match bad {
             Some(index) => Err(Error::Diverged {
