@@ -179,3 +179,32 @@ fn the_3d_walk_is_deterministic_and_a_refused_step_changes_nothing() {
     assert!(a.step(DT, 3).is_err());
     assert_eq!((a.state(), a.phase()), (b.state(), b.phase()));
 }
+
+/// The paper's 350 N from each side (0.2 s on the torso) at the phases where it fell
+/// before (session 23: from the left at 4.5 and 4.6 s, from the right at 4.2 s).
+#[test]
+fn side_pushes_of_350_newtons_are_survived() {
+    for (at, side) in [(4.5, 1.0), (4.6, 1.0), (4.2, -1.0)] {
+        let force = DVec3::new(0.0, 0.0, 350.0 * side);
+        let w = walk(Coronal::default(), 0.0, 7.0, Some((at, force)));
+        assert!(!w.fell(), "fell after {force} N at {at} s");
+    }
+}
+
+/// Every phase of `bench/bench_biped.py --pushes` (4.0 … 4.6 s), 350 N from each side,
+/// walking on to 9 s.
+#[test]
+#[ignore = "full size: 14 walks of 9 s"]
+fn side_pushes_of_350_newtons_are_survived_at_every_phase() {
+    let mut fell = vec![];
+    for k in 0..7 {
+        let at = 4.0 + 0.1 * k as f64;
+        for side in [1.0, -1.0] {
+            let force = DVec3::new(0.0, 0.0, 350.0 * side);
+            if walk(Coronal::default(), 0.0, 9.0, Some((at, force))).fell() {
+                fell.push((at, side));
+            }
+        }
+    }
+    assert!(fell.is_empty(), "fell after 350 N at (time, side): {fell:?}");
+}

@@ -420,8 +420,8 @@ class Biped:
     + coronal_cd·d_z + coronal_cv·v_z`` (rad, rad/m, rad s/m; positive puts the foot to +z;
     ``coronal_swing_hip`` abducts). The torso's world orientation (upright, heading +x) is
     servoed through the stance hip, which so holds the twist; the stance hip's torque about the
-    stance leg's axis (hip to the foot's centre of pressure) is capped at what the foot's
-    friction holds (none in the air), or the leg spins on a lightly loaded foot. Coordinates ``q`` (25,): the
+    stance leg's axis (hip to the foot's centre of pressure) is capped at half of what the
+    foot's friction holds (none in the air), or the leg spins on a lightly loaded foot. Coordinates ``q`` (25,): the
     torso's position (m) and quaternion ``(w, x, y, z)``, then per leg the hip's quaternion,
     the knee's angle, the ankle's quaternion; rates ``qd`` (20,). The coronal keywords are
     refused with ``dims=2``. One class for both: the controller, its gait keywords and

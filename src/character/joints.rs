@@ -76,26 +76,31 @@ pub(super) fn bias(joint: Joint, x_j: &Transform, qd: &[f64]) -> SVec {
     }
 }
 
-/// `out = q ⊕ h q̇` for every joint of `model`: angles and free- and planar-joint positions by `h q̇`,
-/// quaternions by `q exp(h ω / 2)` (ω in body axes), renormalised.
+/// `out = q ⊕ h q̇` for every joint of `model` ([`integrate_joint`]).
 pub fn integrate(model: &Model, q: &[f64], qd: &[f64], h: f64, out: &mut [f64]) {
     for (i, b) in model.bodies().iter().enumerate() {
         let (iq, iv) = model.starts(i);
-        let (q, qd, out) = (&q[iq..], &qd[iv..], &mut out[iq..]);
-        match b.joint {
-            Joint::Fixed => {}
-            Joint::Revolute { .. } => out[0] = q[0] + h * qd[0],
-            Joint::Ball => store(turn(quat(q), qd, h), &mut out[..4]),
-            Joint::Free => {
-                for k in 0..3 {
-                    out[k] = q[k] + h * qd[3 + k];
-                }
-                store(turn(quat(&q[3..]), qd, h), &mut out[3..7]);
+        integrate_joint(b.joint, &q[iq..], &qd[iv..], h, &mut out[iq..]);
+    }
+}
+
+/// `out = q ⊕ h q̇` for one joint (its coordinates and rates first in `q`, `qd`, `out`):
+/// angles and free- and planar-joint positions by `h q̇`, quaternions by `q exp(h ω / 2)`
+/// (ω in body axes), renormalised.
+pub(super) fn integrate_joint(joint: Joint, q: &[f64], qd: &[f64], h: f64, out: &mut [f64]) {
+    match joint {
+        Joint::Fixed => {}
+        Joint::Revolute { .. } => out[0] = q[0] + h * qd[0],
+        Joint::Ball => store(turn(quat(q), qd, h), &mut out[..4]),
+        Joint::Free => {
+            for k in 0..3 {
+                out[k] = q[k] + h * qd[3 + k];
             }
-            Joint::Planar => {
-                for k in 0..3 {
-                    out[k] = q[k] + h * qd[k];
-                }
+            store(turn(quat(&q[3..]), qd, h), &mut out[3..7]);
+        }
+        Joint::Planar => {
+            for k in 0..3 {
+                out[k] = q[k] + h * qd[k];
             }
         }
     }
@@ -146,28 +151,32 @@ fn turn(q: DQuat, w: &[f64], h: f64) -> DQuat {
     (q * DQuat::from_scaled_axis(h * DVec3::new(w[0], w[1], w[2]))).normalize()
 }
 
-/// `out = target ⊖ q` per degree of freedom: angle differences, and for quaternions the
-/// rotation vector of `q⁻¹ q̄` (body axes, angle in `[0, π]`); free joints get the position
-/// difference and rotation vector, planar joints the differences of `[x, y, θ]`.
+/// `out = target ⊖ q` per degree of freedom of `model` ([`difference_joint`]).
 pub fn difference(model: &Model, target: &[f64], q: &[f64], out: &mut [f64]) {
     for (i, b) in model.bodies().iter().enumerate() {
         let (iq, iv) = model.starts(i);
-        let (t, q, out) = (&target[iq..], &q[iq..], &mut out[iv..]);
-        match b.joint {
-            Joint::Fixed => {}
-            Joint::Revolute { .. } => out[0] = t[0] - q[0],
-            Joint::Ball => out[..3].copy_from_slice(&quat_to_rotvec(quat(q).conjugate() * quat(t))),
-            Joint::Free => {
-                out[..3]
-                    .copy_from_slice(&quat_to_rotvec(quat(&q[3..]).conjugate() * quat(&t[3..])));
-                for k in 0..3 {
-                    out[3 + k] = t[k] - q[k];
-                }
+        difference_joint(b.joint, &target[iq..], &q[iq..], &mut out[iv..]);
+    }
+}
+
+/// `out = t ⊖ q` for one joint (its coordinates first in `t`, `q`, its rates in `out`):
+/// angle differences, and for quaternions the rotation vector of `q⁻¹ t` (body axes, angle
+/// in `[0, π]`); free joints get the position difference and rotation vector, planar joints
+/// the differences of `[x, y, θ]`.
+pub(super) fn difference_joint(joint: Joint, t: &[f64], q: &[f64], out: &mut [f64]) {
+    match joint {
+        Joint::Fixed => {}
+        Joint::Revolute { .. } => out[0] = t[0] - q[0],
+        Joint::Ball => out[..3].copy_from_slice(&quat_to_rotvec(quat(q).conjugate() * quat(t))),
+        Joint::Free => {
+            out[..3].copy_from_slice(&quat_to_rotvec(quat(&q[3..]).conjugate() * quat(&t[3..])));
+            for k in 0..3 {
+                out[3 + k] = t[k] - q[k];
             }
-            Joint::Planar => {
-                for k in 0..3 {
-                    out[k] = t[k] - q[k];
-                }
+        }
+        Joint::Planar => {
+            for k in 0..3 {
+                out[k] = t[k] - q[k];
             }
         }
     }

@@ -15,7 +15,7 @@
 //! (the servos' implicit damping is lost on that step; the contacts' is kept).
 
 use super::dynamics::Tree;
-use super::joints::{difference, integrate};
+use super::joints::{difference, difference_joint, integrate_joint};
 use super::model::{Model, Servo};
 use nalgebra::DMatrix;
 
@@ -27,9 +27,6 @@ pub(super) struct ServoWork {
     bias: Vec<f64>,
     zero: Vec<f64>,
     servo: Vec<f64>,
-    /// `M + dt Σ Jᵀ C J` before the servos' damping and the factorisation (for a clamped
-    /// step's second solve).
-    inertia: DMatrix<f64>,
 }
 
 /// The servoed degrees of freedom: `(first dof, count, servo)` per servoed joint.
@@ -85,14 +82,14 @@ pub(super) fn stable(
     w.bias.resize(nv, 0.0);
     w.zero.resize(nv, 0.0);
     w.servo.resize(nv, 0.0);
-    integrate(model, q, qd, dt, &mut w.q_pred);
-    difference(model, targets, &w.q_pred, &mut w.diff);
+    // `q̄ ⊖ (q ⊕ dt q̇)` of the servoed joints only (the others' are not read).
+    for (i, b) in model.bodies().iter().enumerate().filter(|(_, b)| b.servo.is_some()) {
+        let (iq, iv) = model.starts(i);
+        integrate_joint(b.joint, &q[iq..], &qd[iv..], dt, &mut w.q_pred[iq..]);
+        difference_joint(b.joint, &targets[iq..], &w.q_pred[iq..], &mut w.diff[iv..]);
+    }
     tree.rnea(model, &w.zero, &mut w.bias);
     tree.crba_with_contacts(model, dt);
-    if w.inertia.shape() != (nv, nv) {
-        w.inertia = DMatrix::zeros(nv, nv);
-    }
-    w.inertia.copy_from(&tree.mass_matrix);
     w.servo.fill(0.0);
     for (iv, n, s) in servos(model) {
         for (k, &v) in qd.iter().enumerate().skip(iv).take(n) {
@@ -112,7 +109,9 @@ pub(super) fn stable(
         }
     }
     if clamped {
-        tree.mass_matrix.copy_from(&w.inertia);
+        // `M + dt Σ Jᵀ C J` again (the factorisation overwrote it; the same operations on
+        // the same values as above, and cheaper than keeping a copy on every step).
+        tree.crba_with_contacts(model, dt);
         solve(tree, w, tau, qdd);
     }
 }
@@ -177,46 +176,58 @@ impl Paths {
 /// only the entries `(i, j)` with `j` on `i`'s path are read or written, so the cost is
 /// `Σ depth²` instead of `n³ / 6` (two legs do not couple). `false` if `a` is not positive
 /// definite.
+///
+/// Storage (for [`ltl_solve`]): `L(i, j)`, `j < i`, is written at `(j, i)`, in column `i`
+/// (contiguous: each update runs down two columns), and the diagonal holds the pivots'
+/// reciprocals `1 / L(i, i)`, so that no solve divides (a division's latency sits on the
+/// back-substitution's chain of dependent updates).
 pub(super) fn ltl(a: &mut DMatrix<f64>, paths: &Paths) -> bool {
     let n = a.nrows();
     let a = a.as_mut_slice();
     for k in (0..paths.len()).rev() {
-        let d = a[k + k * n];
+        let (before, from_k) = a.split_at_mut(k * n);
+        let col_k = &mut from_k[..n];
+        let d = col_k[k];
         if d.is_nan() || d <= 0.0 {
             return false;
         }
-        let d = d.sqrt();
-        a[k + k * n] = d;
+        let r = 1.0 / d.sqrt();
+        col_k[k] = r;
         let path = paths.of(k);
         for &i in path {
-            a[k + i * n] /= d;
+            col_k[i] *= r;
         }
         for (m, &i) in path.iter().enumerate() {
-            let lki = a[k + i * n];
+            let (lki, col_i) = (col_k[i], &mut before[i * n..(i + 1) * n]);
             for &j in &path[m..] {
-                a[i + j * n] -= lki * a[k + j * n];
+                col_i[j] -= lki * col_k[j];
             }
         }
     }
     true
 }
 
-/// Solve `Lᵀ L x = b` in place (`b` becomes `x`) with the factor `l` of [`ltl`]
-/// (Featherstone 2008, Table 6.4: back-substitution along each path to the root).
+/// Solve `Lᵀ L x = b` in place (`b` becomes `x`) with the factor `l` of [`ltl`] (its
+/// storage: `L(i, j)` at `(j, i)`, reciprocal pivots on the diagonal) (Featherstone 2008,
+/// Table 6.4: back-substitution along each path to the root).
 pub(super) fn ltl_solve(l: &DMatrix<f64>, paths: &Paths, b: &mut [f64]) {
     let n = l.nrows();
     let l = l.as_slice();
     for i in (0..paths.len()).rev() {
-        b[i] /= l[i + i * n];
+        let col = &l[i * n..(i + 1) * n];
+        let x = b[i] * col[i];
+        b[i] = x;
         for &j in paths.of(i) {
-            b[j] -= l[i + j * n] * b[i];
+            b[j] -= col[j] * x;
         }
     }
     for i in 0..paths.len() {
+        let col = &l[i * n..(i + 1) * n];
+        let mut x = b[i];
         for &j in paths.of(i) {
-            b[i] -= l[i + j * n] * b[j];
+            x -= col[j] * b[j];
         }
-        b[i] /= l[i + i * n];
+        b[i] = x * col[i];
     }
 }
 

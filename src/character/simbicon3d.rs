@@ -17,10 +17,11 @@
 //!   `τ_A = −τ_torso − τ_B` (world), so that the hips apply `τ_torso` to the torso. The
 //!   torso's yaw is part of `τ_torso`: the stance hip holds the twist (the heading).
 //! - **The stance foot's grip** (ours): the stance hip's torque about the stance leg's axis
-//!   (from the hip through the foot's centre of pressure) is clamped to what the foot's
-//!   friction holds against turning about it ([`grip`]); the leg turns about that axis on
-//!   the hip's torque alone, and without the cap a lightly loaded stance foot let the leg
-//!   spin (350 N from behind, the descent; measured, docs/character.md).
+//!   (from the hip through the foot's centre of pressure) is clamped to half of what the
+//!   foot's friction holds against turning about it ([`grip`], [`GRIP_MARGIN`]); the leg
+//!   turns about that axis on the hip's torque alone, and without the cap a lightly loaded
+//!   stance foot let the leg spin (350 N from behind, the descent), at the full limit a
+//!   foot on its edge after a push from the side (measured, docs/character.md).
 //! - Hip torques are clamped to `±max_torque` per component in the thigh's axes. Knees
 //!   (hinges) and ankles (ball joints, target `R_z(θ)`, no roll or twist) are servos of the
 //!   model, stable PD by default, with the gait's gains.
@@ -244,19 +245,26 @@ fn clamp_joint(world: DVec3, rot: DQuat, limit: f64) -> (DVec3, DVec3) {
     (local, rot * local)
 }
 
+/// The fraction of the stance foot's Coulomb limit against turning that the stance hip may
+/// use ([`grip`]): the hip's torque is not the only load turning the leg (the swing leg's
+/// and the leg's own reactions also do), so a hip torque at the full limit let the leg spin
+/// after 350 N from a side (measured, docs/character.md: at 1 it fell at 3 of the 14 side
+/// and phase pairs, at 0.25 at 4, at 0.5 and 0.75 at none).
+const GRIP_MARGIN: f64 = 0.5;
+
 /// What the stance foot's friction holds against the leg turning about its own axis: the
 /// unit axis from the hip through the foot's centre of pressure and the largest torque
-/// about it (N m), `μ Σ f_n,i ρ_i` over the foot's contacts (`ρ_i` a contact's distance
-/// from the axis: every contact sliding at its Coulomb limit); in the air, the axis from the
-/// hip to the ankle and no torque. The whole stance leg (thigh, shin, foot) turns about
+/// about it (N m), [`GRIP_MARGIN`] times `μ Σ f_n,i ρ_i` over the foot's contacts (`ρ_i` a
+/// contact's distance from the axis; the sum: every contact sliding at its Coulomb limit);
+/// in the air, the axis from the hip to the ankle and no torque. The whole stance leg (thigh, shin, foot) turns about
 /// that axis on the hip's torque alone: its other joints are inside it, the hip's force
 /// passes through the axis, and a foot on its toes pivots about them.
 fn grip(model: &Model, tree: &Tree, stance: [usize; 4], dt: f64) -> (DVec3, f64) {
-    let (feet, stiff) = ([stance[2], stance[3]], implicit(model));
+    let stiff = implicit(model);
+    let [heel, toes] = [stance[2], stance[3]].map(|b| contacts(model, tree, b, dt, stiff));
+    let feet = || heel.iter().chain(&toes).flatten();
     let (mut load, mut moment) = (0.0, DVec3::ZERO);
-    for (contact, _, force) in
-        feet.iter().flat_map(|&b| contacts(model, tree, b, dt, stiff)).flatten()
-    {
+    for (contact, _, force) in feet() {
         load += force.y;
         moment += force.y * contact.point;
     }
@@ -267,12 +275,10 @@ fn grip(model: &Model, tree: &Tree, stance: [usize; 4], dt: f64) -> (DVec3, f64)
     let centre = moment / load;
     let axis = (centre - hip).normalize();
     let mut held = 0.0;
-    for (contact, _, force) in
-        feet.iter().flat_map(|&b| contacts(model, tree, b, dt, stiff)).flatten()
-    {
+    for (contact, _, force) in feet() {
         held += force.y * (contact.point - centre).reject_from_normalized(axis).length();
     }
-    (axis, model.settings.friction * held)
+    (axis, GRIP_MARGIN * model.settings.friction * held)
 }
 
 /// SIMBICON's controls in 3-D into the walker's state: the hips' torques, and the knees'
