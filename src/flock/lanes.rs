@@ -20,9 +20,9 @@
 use super::cells::Cells;
 use super::Settings;
 use glam::DVec3;
+use rayon::prelude::*;
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::__m256d;
-use rayon::prelude::*;
 use std::ops::Range;
 
 /// Boids a group sweeps together.
@@ -139,19 +139,27 @@ impl Group<'_> {
         let inv = avx._mm256_div_pd(one, count);
         let steering = [
             (set.separation, rules.steer(ax, ay, vx, vy)),
-            (set.alignment, rules.steer(avx._mm256_mul_pd(ux, inv), avx._mm256_mul_pd(uy, inv), vx, vy)),
-            (set.cohesion, rules.steer(avx._mm256_mul_pd(ox, inv), avx._mm256_mul_pd(oy, inv), vx, vy)),
+            (
+                set.alignment,
+                rules.steer(avx._mm256_mul_pd(ux, inv), avx._mm256_mul_pd(uy, inv), vx, vy),
+            ),
+            (
+                set.cohesion,
+                rules.steer(avx._mm256_mul_pd(ox, inv), avx._mm256_mul_pd(oy, inv), vx, vy),
+            ),
         ];
         let (mut sx, mut sy) = (zero, zero);
         for (k, (weight, (x, y))) in steering.into_iter().enumerate() {
             let weight = avx._mm256_set1_pd(weight);
             let (x, y) = (avx._mm256_mul_pd(weight, x), avx._mm256_mul_pd(weight, y));
-            (sx, sy) = if k == 0 { (x, y) } else { (avx._mm256_add_pd(sx, x), avx._mm256_add_pd(sy, y)) };
+            (sx, sy) =
+                if k == 0 { (x, y) } else { (avx._mm256_add_pd(sx, x), avx._mm256_add_pd(sy, y)) };
         }
         let (sx, sy) = rules.clamp(sx, sy);
         // No neighbour in view: no acceleration (`+0`, as `solver::rules` returns).
         let any = avx._mm256_cmp_pd::<_CMP_NEQ_OQ>(count, zero);
-        let [x, y]: [[f64; LANES]; 2] = [avx._mm256_and_pd(any, sx), avx._mm256_and_pd(any, sy)].map(cast);
+        let [x, y]: [[f64; LANES]; 2] =
+            [avx._mm256_and_pd(any, sx), avx._mm256_and_pd(any, sy)].map(cast);
         std::array::from_fn(|l| DVec3::new(x[l], y[l], 0.0))
     }
 }
@@ -200,7 +208,8 @@ impl Rules {
         let sx = avx._mm256_sub_pd(avx._mm256_mul_pd(x, scale), vx);
         let sy = avx._mm256_sub_pd(avx._mm256_mul_pd(y, scale), vy);
         let (sx, sy) = self.clamp(sx, sy);
-        let some = avx._mm256_cmp_pd::<{ std::arch::x86_64::_CMP_NEQ_OQ }>(length, avx._mm256_setzero_pd());
+        let some = avx
+            ._mm256_cmp_pd::<{ std::arch::x86_64::_CMP_NEQ_OQ }>(length, avx._mm256_setzero_pd());
         (avx._mm256_and_pd(some, sx), avx._mm256_and_pd(some, sy))
     }
 

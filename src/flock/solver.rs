@@ -84,7 +84,8 @@ impl Solver {
                     Task { model, cos_half, cells, columns, flock: &flock, first, acceleration };
                 #[cfg(target_arch = "x86_64")]
                 if let Some(simd) = avx {
-                    return simd.vectorize(|| task.run(Some(|g: Group| g.accelerations(simd, set))));
+                    return simd
+                        .vectorize(|| task.run(Some(|g: Group| g.accelerations(simd, set))));
                 }
                 task.run(None::<fn(Group) -> [DVec3; LANES]>);
             });

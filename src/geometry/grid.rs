@@ -245,9 +245,26 @@ mod tests {
 
     #[test]
     fn floor_is_floor_then_as() {
-        let xs = [0.0, -0.0, 0.5, -0.5, 1.0, -1.0, -1.5, 2.0_f64.powi(52) + 0.5, -2.0_f64.powi(53),
-            1e300, -1e300, f64::INFINITY, f64::NEG_INFINITY, f64::NAN, -(2.0_f64.powi(63)),
-            2.0_f64.powi(63), -1e-300, 7.999_999_999_999_999];
+        let xs = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1.5,
+            2.0_f64.powi(52) + 0.5,
+            -2.0_f64.powi(53),
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            -(2.0_f64.powi(63)),
+            2.0_f64.powi(63),
+            -1e-300,
+            7.999_999_999_999_999,
+        ];
         for x in xs {
             assert_eq!(super::floor(x), x.floor() as i64, "{x}");
         }
