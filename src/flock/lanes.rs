@@ -7,15 +7,22 @@
 //! of `cells.rs` visits them, in the same order) and does the arithmetic of
 //! `solver::flocking` on them in the same order, so the sums are bitwise the scalar sweep's:
 //! a candidate a lane does not see adds `+0` (the scalar sweep adds `±0`, which leaves a sum
-//! that started at `+0` unchanged too), and no fused multiply-add is introduced.
+//! that started at `+0` unchanged too), and no fused multiply-add is introduced. The three
+//! rules' steering from those sums (`solver::rules`: three square roots and divisions a
+//! boid, and the clamps to `max_force`) is done in the same lanes ([`Rules`]), the same
+//! operations in the same order with the branches as selects, so the accelerations too are
+//! bitwise the scalar code's.
 //!
 //! Positions and velocities are read as structures of arrays in the sorted order
 //! ([`Columns`], refilled after every sort); the gather of a candidate's four values is then
 //! four loads from sequential memory, broadcast to the lanes.
 
 use super::cells::Cells;
-use glam::DVec2;
+use super::Settings;
+use glam::DVec3;
 use rayon::prelude::*;
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::__m256d;
 use std::ops::Range;
 
 /// Boids a group sweeps together.
@@ -29,16 +36,6 @@ pub(super) struct Columns {
     y: Vec<f64>,
     vx: Vec<f64>,
     vy: Vec<f64>,
-}
-
-/// The sums of one boid's neighbours in view (see `solver::flocking`): away from the close
-/// ones (`-Σ d / |d|²`), their velocities, their offsets `Σ d` (m) and their number.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Sums {
-    pub(super) away: DVec2,
-    pub(super) velocity: DVec2,
-    pub(super) offset: DVec2,
-    pub(super) count: f64,
 }
 
 impl Columns {
@@ -72,10 +69,11 @@ pub(super) struct Group<'a> {
 
 #[cfg(target_arch = "x86_64")]
 impl Group<'_> {
-    /// The sums of the group's boids, lane by lane, with AVX2 (call inside
-    /// [`pulp::x86::V3::vectorize`], so that it is compiled for it).
+    /// The flocking accelerations (m/s²) of the group's boids, lane by lane, with AVX2 (call
+    /// inside [`pulp::x86::V3::vectorize`], so that it is compiled for it): the sums of the
+    /// neighbours in view, then the three rules' steering ([`Rules`]).
     #[inline(always)]
-    pub(super) fn sums(self, simd: pulp::x86::V3) -> [Sums; LANES] {
+    pub(super) fn accelerations(self, simd: pulp::x86::V3, set: &Settings) -> [DVec3; LANES] {
         use pulp::bytemuck::cast;
         use std::arch::x86_64::{__m256d, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ};
         let avx = simd.avx;
@@ -137,13 +135,94 @@ impl Group<'_> {
                 }
             }
         }
-        let [count, ax, ay, ux, uy, ox, oy]: [[f64; LANES]; 7] =
-            [count, ax, ay, ux, uy, ox, oy].map(cast);
-        std::array::from_fn(|l| Sums {
-            away: DVec2::new(ax[l], ay[l]),
-            velocity: DVec2::new(ux[l], uy[l]),
-            offset: DVec2::new(ox[l], oy[l]),
-            count: count[l],
-        })
+        let rules = Rules::new(simd, set);
+        let inv = avx._mm256_div_pd(one, count);
+        let steering = [
+            (set.separation, rules.steer(ax, ay, vx, vy)),
+            (
+                set.alignment,
+                rules.steer(avx._mm256_mul_pd(ux, inv), avx._mm256_mul_pd(uy, inv), vx, vy),
+            ),
+            (
+                set.cohesion,
+                rules.steer(avx._mm256_mul_pd(ox, inv), avx._mm256_mul_pd(oy, inv), vx, vy),
+            ),
+        ];
+        let (mut sx, mut sy) = (zero, zero);
+        for (k, (weight, (x, y))) in steering.into_iter().enumerate() {
+            let weight = avx._mm256_set1_pd(weight);
+            let (x, y) = (avx._mm256_mul_pd(weight, x), avx._mm256_mul_pd(weight, y));
+            (sx, sy) =
+                if k == 0 { (x, y) } else { (avx._mm256_add_pd(sx, x), avx._mm256_add_pd(sy, y)) };
+        }
+        let (sx, sy) = rules.clamp(sx, sy);
+        // No neighbour in view: no acceleration (`+0`, as `solver::rules` returns).
+        let any = avx._mm256_cmp_pd::<_CMP_NEQ_OQ>(count, zero);
+        let [x, y]: [[f64; LANES]; 2] =
+            [avx._mm256_and_pd(any, sx), avx._mm256_and_pd(any, sy)].map(cast);
+        std::array::from_fn(|l| DVec3::new(x[l], y[l], 0.0))
+    }
+}
+
+/// `solver::rules` in the lanes, the same operations in the same order on `x` and `y` (the
+/// third component of the scalar code is `+0` throughout for a flat flock with weights
+/// `≥ 0`, and adds `+0` to every squared length): each rule's steering
+/// `desired · (max_speed / |desired|) - v` (none where `desired` is zero), at most `max_force`
+/// long, then their weighted sum, at most `max_force`. Square roots and divisions are
+/// correctly rounded in AVX2 as in scalar code, and the branches become selects, so the
+/// results are bitwise the scalar ones.
+#[cfg(target_arch = "x86_64")]
+struct Rules {
+    simd: pulp::x86::V3,
+    max_speed: std::arch::x86_64::__m256d,
+    max_force: std::arch::x86_64::__m256d,
+    max_force2: std::arch::x86_64::__m256d,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Rules {
+    #[inline(always)]
+    fn new(simd: pulp::x86::V3, set: &Settings) -> Self {
+        let avx = simd.avx;
+        Rules {
+            simd,
+            max_speed: avx._mm256_set1_pd(set.max_speed),
+            max_force: avx._mm256_set1_pd(set.max_force),
+            max_force2: avx._mm256_set1_pd(set.max_force * set.max_force),
+        }
+    }
+
+    /// `x · x + y · y`.
+    #[inline(always)]
+    fn length2(&self, x: __m256d, y: __m256d) -> __m256d {
+        let avx = self.simd.avx;
+        avx._mm256_add_pd(avx._mm256_mul_pd(x, x), avx._mm256_mul_pd(y, y))
+    }
+
+    /// Reynolds' steering towards the desired direction `(x, y)` at velocity `(vx, vy)`.
+    #[inline(always)]
+    fn steer(&self, x: __m256d, y: __m256d, vx: __m256d, vy: __m256d) -> (__m256d, __m256d) {
+        let avx = self.simd.avx;
+        let length = avx._mm256_sqrt_pd(self.length2(x, y));
+        let scale = avx._mm256_div_pd(self.max_speed, length);
+        let sx = avx._mm256_sub_pd(avx._mm256_mul_pd(x, scale), vx);
+        let sy = avx._mm256_sub_pd(avx._mm256_mul_pd(y, scale), vy);
+        let (sx, sy) = self.clamp(sx, sy);
+        let some = avx
+            ._mm256_cmp_pd::<{ std::arch::x86_64::_CMP_NEQ_OQ }>(length, avx._mm256_setzero_pd());
+        (avx._mm256_and_pd(some, sx), avx._mm256_and_pd(some, sy))
+    }
+
+    /// `(x, y)` at most `max_force` long (glam's `clamp_length_max`:
+    /// `max · (v / sqrt(|v|²))` where `|v|² > max²`).
+    #[inline(always)]
+    fn clamp(&self, x: __m256d, y: __m256d) -> (__m256d, __m256d) {
+        let avx = self.simd.avx;
+        let length2 = self.length2(x, y);
+        let length = avx._mm256_sqrt_pd(length2);
+        let over = avx._mm256_cmp_pd::<{ std::arch::x86_64::_CMP_GT_OQ }>(length2, self.max_force2);
+        let cx = avx._mm256_mul_pd(self.max_force, avx._mm256_div_pd(x, length));
+        let cy = avx._mm256_mul_pd(self.max_force, avx._mm256_div_pd(y, length));
+        (avx._mm256_blendv_pd(x, cx, over), avx._mm256_blendv_pd(y, cy, over))
     }
 }

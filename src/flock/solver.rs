@@ -12,7 +12,7 @@
 //! semi-implicit Euler `v += a dt` (speed capped at `max_speed`), `p += v dt`.
 
 use super::cells::Cells;
-use super::lanes::{Columns, Group, Sums, LANES};
+use super::lanes::{Columns, Group, LANES};
 use super::steering::{self, Behaviour, Steering, View};
 use super::{Model, Settings, State};
 use crate::error::{Error, Result};
@@ -84,9 +84,10 @@ impl Solver {
                     Task { model, cos_half, cells, columns, flock: &flock, first, acceleration };
                 #[cfg(target_arch = "x86_64")]
                 if let Some(simd) = avx {
-                    return simd.vectorize(|| task.run(Some(|g: Group| g.sums(simd))));
+                    return simd
+                        .vectorize(|| task.run(Some(|g: Group| g.accelerations(simd, set))));
                 }
-                task.run(None::<fn(Group) -> [Sums; LANES]>);
+                task.run(None::<fn(Group) -> [DVec3; LANES]>);
             });
             let cells = &mut self.cells;
             (&mut cells.velocities, &mut cells.positions, &self.acceleration)
@@ -132,7 +133,7 @@ struct Task<'a> {
 
 impl Task<'_> {
     #[inline(always)]
-    fn run(self, lanes: Option<impl Fn(Group) -> [Sums; LANES]>) {
+    fn run(self, lanes: Option<impl Fn(Group) -> [DVec3; LANES]>) {
         let Task { model, cos_half, cells, columns, flock, first, acceleration } = self;
         let set = &model.settings;
         let flat = cells.flat();
@@ -142,14 +143,11 @@ impl Task<'_> {
                 Some(sweep) => group(set, cos_half, cells, columns, first, a.len()).map(sweep),
                 None => None,
             };
-            let sums = swept.map_or([None; LANES], |s| s.map(Some));
-            for (l, (a, sums)) in a.iter_mut().zip(sums).enumerate() {
+            let swept = swept.map_or([None; LANES], |s| s.map(Some));
+            for (l, (a, swept)) in a.iter_mut().zip(swept).enumerate() {
                 let s = first + l;
-                let own = match sums {
-                    Some(m) => {
-                        let v = DVec2::of(cells.velocities[s]);
-                        rules(set, v, m.away, m.velocity, m.offset, m.count)
-                    }
+                let own = match swept {
+                    Some(own) => own,
                     None if flat => flocking::<DVec2>(set, cos_half, cells, s),
                     None => flocking::<DVec3>(set, cos_half, cells, s),
                 };
@@ -327,8 +325,8 @@ mod tests {
     use super::*;
     use crate::geometry::grid::random_points;
 
-    /// The lanes' sweep (AVX2; skipped on a CPU without it) gives every boid of a group
-    /// bitwise the acceleration of the scalar 2-D sweep, with coincident boids, boids at rest,
+    /// The lanes' sweep and rules (AVX2; skipped on a CPU without it) give every boid of a
+    /// group bitwise the acceleration of the scalar 2-D sweep and rules, with coincident boids, boids at rest,
     /// narrow and full fields of view, radii whose inverse is inexact, and groups whose rows
     /// run past the end of the bucket table (without the check of `group` the test fails
     /// there: 2003 boids, radius 1.3 m); and most groups of a dense flock take the lanes.
@@ -369,11 +367,9 @@ mod tests {
                     continue;
                 };
                 grouped += 1;
-                let sums = simd.vectorize(|| g.sums(simd));
-                for (l, m) in sums.iter().enumerate() {
+                let got = simd.vectorize(|| g.accelerations(simd, &set));
+                for (l, &got) in got.iter().enumerate() {
                     let s = first + l;
-                    let v = DVec2::of(cells.velocities[s]);
-                    let got = rules(&set, v, m.away, m.velocity, m.offset, m.count);
                     let want = flocking::<DVec2>(&set, cos_half, &cells, s);
                     let bits = |a: DVec3| a.to_array().map(f64::to_bits);
                     assert_eq!(bits(got), bits(want), "{n} boids, radius {h}, slot {s}");
