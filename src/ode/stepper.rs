@@ -139,10 +139,11 @@ impl Workspace {
         } else {
             self.explicit_step(hist, sys, t, y, h)?;
         }
-        if let Some(bad) = self.y_new.iter().position(|x| !x.is_finite()) {
+        // One pass without an early exit (it vectorises), then the first bad component.
+        if self.y_new.iter().fold(false, |bad, x| bad | !x.is_finite()) {
             return Err(Error::Diverged {
                 step: 0,
-                index: bad,
+                index: self.y_new.iter().position(|x| !x.is_finite()).unwrap_or(0),
                 reason: format!("{} produced a non-finite state", hist.method().name()),
             });
         }

@@ -57,14 +57,16 @@ impl OdeSystem for Dynamics<'_> {
 
 /// The vector of slot `i` in a buffer of 3 values per slot.
 fn at(x: &[f64], i: usize) -> DVec3 {
-    DVec3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2])
+    DVec3::from_slice(&x[3 * i..3 * i + 3])
 }
 
 /// Add `a` to slot `i` of a buffer of 3 values per slot.
 fn add(f: &mut [f64], i: usize, a: DVec3) {
-    f[3 * i] += a.x;
-    f[3 * i + 1] += a.y;
-    f[3 * i + 2] += a.z;
+    // One bounds check for the three.
+    let f = &mut f[3 * i..3 * i + 3];
+    f[0] += a.x;
+    f[1] += a.y;
+    f[2] += a.z;
 }
 
 impl Dynamics<'_> {
@@ -91,8 +93,10 @@ impl Dynamics<'_> {
                             .zip(&external[start..start + len])
                             .for_each(|(f, e)| *f = 0.0 + e),
                     }
-                    for k in (0..fc.len() / 3).filter(|&k| !alive[c * CHUNK + k]) {
-                        fc[3 * k..3 * k + 3].fill(0.0);
+                    for (f, _) in
+                        fc.chunks_exact_mut(3).zip(&alive[c * CHUNK..]).filter(|(_, &a)| !a)
+                    {
+                        f.fill(0.0);
                     }
                     return;
                 }
@@ -169,13 +173,16 @@ impl Dynamics<'_> {
         let (alive, inv_mass) = (self.alive, self.inv_mass);
         dx.par_chunks_mut(3 * CHUNK).zip(f.par_chunks_mut(3 * CHUNK)).enumerate().for_each(
             |(c, (dxc, fc))| {
-                for k in 0..dxc.len() / 3 {
-                    let i = c * CHUNK + k;
-                    if alive[i] && inv_mass[i] > 0.0 {
-                        fc[3 * k..3 * k + 3].iter_mut().for_each(|a| *a *= inv_mass[i]);
+                let slots = c * CHUNK..;
+                let each = fc.chunks_exact_mut(3).zip(dxc.chunks_exact_mut(3));
+                for ((a, dx), (&alive, &inv_m)) in
+                    each.zip(alive[slots.clone()].iter().zip(&inv_mass[slots]))
+                {
+                    if alive && inv_m > 0.0 {
+                        a.iter_mut().for_each(|a| *a *= inv_m);
                     } else {
-                        fc[3 * k..3 * k + 3].fill(0.0);
-                        dxc[3 * k..3 * k + 3].fill(0.0);
+                        a.fill(0.0);
+                        dx.fill(0.0);
                     }
                 }
             },

@@ -191,21 +191,26 @@ impl Step<'_> {
         if velocity_form && self.model.colliders.is_empty() {
             return self.linear_steps(dt, steps);
         }
+        // Only the slots that stay put need their state kept; without emitters they and
+        // their state are the same at every step of the call, so they are found once.
+        let keep_still = |solver: &mut Solver, state: &State| {
+            let (x, v) = state.y.split_at(3 * n);
+            solver.still.clear();
+            solver.still.extend(
+                (0..n).filter(|&i| !state.alive[i] || state.inv_mass[i] == 0.0).map(|i| {
+                    let mut kept = [0.0; 6];
+                    kept[..3].copy_from_slice(&x[3 * i..3 * i + 3]);
+                    kept[3..].copy_from_slice(&v[3 * i..3 * i + 3]);
+                    (i, kept)
+                }),
+            );
+        };
+        let colliders = !self.model.colliders.is_empty();
+        if !colliders && !age_each_step {
+            keep_still(self.solver, self.state);
+        }
         for s in 0..steps {
-            if self.model.colliders.is_empty() {
-                // Only the slots that stay put need their state kept.
-                let (still, state) = (&mut self.solver.still, &*self.state);
-                let (x, v) = state.y.split_at(3 * n);
-                still.clear();
-                still.extend((0..n).filter(|&i| !state.alive[i] || state.inv_mass[i] == 0.0).map(
-                    |i| {
-                        let mut kept = [0.0; 6];
-                        kept[..3].copy_from_slice(&x[3 * i..3 * i + 3]);
-                        kept[3..].copy_from_slice(&v[3 * i..3 * i + 3]);
-                        (i, kept)
-                    },
-                ));
-            } else {
+            if colliders {
                 // The contacts read the state the step started from.
                 let (backup, y) = (&mut self.solver.backup, &self.state.y);
                 backup.resize(y.len(), 0.0);
@@ -213,6 +218,8 @@ impl Step<'_> {
                     .par_chunks_mut(6 * CHUNK)
                     .zip(y.par_chunks(6 * CHUNK))
                     .for_each(|(b, y)| b.copy_from_slice(y));
+            } else if age_each_step {
+                keep_still(self.solver, self.state);
             }
             if let Err(e) = self.one_step(dt, gravity, sparse, constant, velocity_form) {
                 if !age_each_step {
