@@ -114,11 +114,10 @@ fn apply(tree: &mut Tree, i: usize, point: DVec3, force: DVec3) {
     tree.f_ext[i] += spatial(point.cross(f), f);
 }
 
-/// The world velocity (m/s) of the world point `at` moving with body `i`.
-fn point_velocity(tree: &Tree, i: usize, at: DVec3) -> DVec3 {
+/// The world velocity (m/s) of the point `point` (m, body frame) of body `i`.
+fn point_velocity(tree: &Tree, i: usize, point: DVec3) -> DVec3 {
     let v = &tree.v[i];
-    let local = tree.rot[i].conjugate() * (at - tree.pos[i]);
-    tree.rot[i] * (DVec3::new(v[3], v[4], v[5]) + DVec3::new(v[0], v[1], v[2]).cross(local))
+    tree.rot[i] * (DVec3::new(v[3], v[4], v[5]) + DVec3::new(v[0], v[1], v[2]).cross(point))
 }
 
 /// Add the self-collision forces of the module documentation to `tree.f_ext`.
@@ -140,7 +139,9 @@ fn self_contacts(model: &Model, tree: &mut Tree, dt: f64) {
         }
         let n = gap.normalize();
         let at = 0.5 * (pi + ci.radius * n + pj - cj.radius * n);
-        let rel = point_velocity(tree, j, at) - point_velocity(tree, i, at);
+        let local = |k: usize| tree.rot[k].conjugate() * (at - tree.pos[k]);
+        let (li, lj) = (local(i), local(j));
+        let rel = point_velocity(tree, j, lj) - point_velocity(tree, i, li);
         let (mi, mj) = (bodies[i].mass, bodies[j].mass);
         let (heavier, reduced) = (mi.max(mj), mi * mj / (mi + mj));
         let cap = reduced / (4.0 * dt);
@@ -151,8 +152,6 @@ fn self_contacts(model: &Model, tree: &mut Tree, dt: f64) {
         let slip = rel - rel.dot(n) * n;
         let tangent = (s.friction * normal / slip.length().max(s.slip_speed)).min(cap);
         let force = normal * n - tangent * slip;
-        let local = |k: usize| tree.rot[k].conjugate() * (at - tree.pos[k]);
-        let (li, lj) = (local(i), local(j));
         apply(tree, j, lj, force);
         apply(tree, i, li, -force);
     }
@@ -204,9 +203,7 @@ pub(super) fn contacts(
             continue;
         }
         let point = end + tree.rot[i].conjugate() * (-shape.radius * DVec3::Y);
-        let v = &tree.v[i];
-        let local = DVec3::new(v[3], v[4], v[5]) + DVec3::new(v[0], v[1], v[2]).cross(point);
-        let vel = tree.rot[i] * local;
+        let vel = point_velocity(tree, i, point);
         let normal = (k * depth - c * vel.y).max(0.0);
         let slip = DVec3::new(vel.x, 0.0, vel.z);
         let tangent = (s.friction * normal / slip.length().max(s.slip_speed)).min(cap);

@@ -256,9 +256,10 @@ const GRIP_MARGIN: f64 = 0.5;
 /// unit axis from the hip through the foot's centre of pressure and the largest torque
 /// about it (N m), [`GRIP_MARGIN`] times `μ Σ f_n,i ρ_i` over the foot's contacts (`ρ_i` a
 /// contact's distance from the axis; the sum: every contact sliding at its Coulomb limit);
-/// in the air, the axis from the hip to the ankle and no torque. The whole stance leg (thigh, shin, foot) turns about
-/// that axis on the hip's torque alone: its other joints are inside it, the hip's force
-/// passes through the axis, and a foot on its toes pivots about them.
+/// in the air, the axis from the hip to the ankle and no torque. The whole stance leg
+/// (thigh, shin, foot) turns about that axis on the hip's torque alone: its other joints are
+/// inside it, the hip's force passes through the axis, and a foot on its toes pivots about
+/// them.
 fn grip(model: &Model, tree: &Tree, stance: [usize; 4], dt: f64) -> (DVec3, f64) {
     let stiff = implicit(model);
     let [heel, toes] = [stance[2], stance[3]].map(|b| contacts(model, tree, b, dt, stiff));

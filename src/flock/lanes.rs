@@ -75,7 +75,7 @@ impl Group<'_> {
     #[inline(always)]
     pub(super) fn accelerations(self, simd: pulp::x86::V3, set: &Settings) -> [DVec3; LANES] {
         use pulp::bytemuck::cast;
-        use std::arch::x86_64::{__m256d, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ};
+        use std::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ};
         let avx = simd.avx;
         let Group { columns: c, first, rows, h2, separation2, cc, sees_all } = self;
         let lane = |a: &[f64]| -> __m256d {
@@ -137,25 +137,16 @@ impl Group<'_> {
         }
         let rules = Rules::new(simd, set);
         let inv = avx._mm256_div_pd(one, count);
-        let steering = [
-            (set.separation, rules.steer(ax, ay, vx, vy)),
-            (
-                set.alignment,
-                rules.steer(avx._mm256_mul_pd(ux, inv), avx._mm256_mul_pd(uy, inv), vx, vy),
-            ),
-            (
-                set.cohesion,
-                rules.steer(avx._mm256_mul_pd(ox, inv), avx._mm256_mul_pd(oy, inv), vx, vy),
-            ),
-        ];
-        let (mut sx, mut sy) = (zero, zero);
-        for (k, (weight, (x, y))) in steering.into_iter().enumerate() {
+        let weighted = |weight: f64, (x, y): (__m256d, __m256d)| {
             let weight = avx._mm256_set1_pd(weight);
-            let (x, y) = (avx._mm256_mul_pd(weight, x), avx._mm256_mul_pd(weight, y));
-            (sx, sy) =
-                if k == 0 { (x, y) } else { (avx._mm256_add_pd(sx, x), avx._mm256_add_pd(sy, y)) };
-        }
-        let (sx, sy) = rules.clamp(sx, sy);
+            (avx._mm256_mul_pd(weight, x), avx._mm256_mul_pd(weight, y))
+        };
+        let (sx, sy) = weighted(set.separation, rules.steer(ax, ay, vx, vy));
+        let (mul, add) = (|a, b| avx._mm256_mul_pd(a, b), |a, b| avx._mm256_add_pd(a, b));
+        let (x, y) = weighted(set.alignment, rules.steer(mul(ux, inv), mul(uy, inv), vx, vy));
+        let (sx, sy) = (add(sx, x), add(sy, y));
+        let (x, y) = weighted(set.cohesion, rules.steer(mul(ox, inv), mul(oy, inv), vx, vy));
+        let (sx, sy) = rules.clamp(add(sx, x), add(sy, y));
         // No neighbour in view: no acceleration (`+0`, as `solver::rules` returns).
         let any = avx._mm256_cmp_pd::<_CMP_NEQ_OQ>(count, zero);
         let [x, y]: [[f64; LANES]; 2] =
@@ -174,9 +165,9 @@ impl Group<'_> {
 #[cfg(target_arch = "x86_64")]
 struct Rules {
     simd: pulp::x86::V3,
-    max_speed: std::arch::x86_64::__m256d,
-    max_force: std::arch::x86_64::__m256d,
-    max_force2: std::arch::x86_64::__m256d,
+    max_speed: __m256d,
+    max_force: __m256d,
+    max_force2: __m256d,
 }
 
 #[cfg(target_arch = "x86_64")]

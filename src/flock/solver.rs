@@ -326,10 +326,11 @@ mod tests {
     use crate::geometry::grid::random_points;
 
     /// The lanes' sweep and rules (AVX2; skipped on a CPU without it) give every boid of a
-    /// group bitwise the acceleration of the scalar 2-D sweep and rules, with coincident boids, boids at rest,
-    /// narrow and full fields of view, radii whose inverse is inexact, and groups whose rows
-    /// run past the end of the bucket table (without the check of `group` the test fails
-    /// there: 2003 boids, radius 1.3 m); and most groups of a dense flock take the lanes.
+    /// group bitwise the acceleration of the scalar 2-D sweep and rules, with coincident
+    /// boids, boids at rest, narrow and full fields of view, radii whose inverse is inexact,
+    /// and groups whose rows run past the end of the bucket table (without the check of
+    /// `group` the test fails there: 2003 boids, radius 1.3 m); and most groups of a dense
+    /// flock take the lanes.
     #[test]
     fn lanes_match_the_scalar_sweep_bitwise() {
         let Some(simd) = pulp::x86::V3::try_new() else { return };

@@ -242,6 +242,7 @@ pub(crate) fn random_points(n: usize, seed: u64, scale: f64) -> Vec<DVec3> {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
 
     #[test]
     fn floor_is_floor_then_as() {
@@ -266,10 +267,9 @@ mod tests {
             7.999_999_999_999_999,
         ];
         for x in xs {
-            assert_eq!(super::floor(x), x.floor() as i64, "{x}");
+            assert_eq!(floor(x), x.floor() as i64, "{x}");
         }
     }
-    use super::*;
 
     #[test]
     fn matches_brute_force() {
