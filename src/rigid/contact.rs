@@ -26,7 +26,7 @@
 //!
 //! The narrow phases that find the contacts are in `rigid::narrow`.
 
-use glam::{DQuat, DVec3};
+use glam::{DMat3, DQuat, DVec3};
 
 /// Penetration tolerated without correction (m).
 pub const SLOP: f64 = 1e-4;
@@ -69,18 +69,29 @@ pub(crate) struct Contact {
     pub impulse: [f64; 3],
 }
 
-/// The dynamic quantities the solver reads per body: inverse mass and inverse principal
-/// moments (zero for a fixed body) and the principal frame.
+/// The dynamic quantities the solver reads per body: inverse mass (1/kg) and inverse inertia
+/// tensor in world axes (1/(kg m²), [`world_inverse_inertias`]), both zero for a fixed body.
 pub(crate) struct Bodies<'a> {
     pub inv_mass: &'a [f64],
-    pub inv_moments: &'a [DVec3],
-    pub q: &'a [DQuat],
+    pub inv_inertia: &'a [DMat3],
+}
+
+/// The inverse inertia tensors in world axes, `R diag(1/I) Rᵀ` with `R` the rotation of each
+/// body's principal frame `q` and `1/I` its inverse principal moments, into `out`: made once
+/// per pose, so that each of a contact's responses is one matrix–vector product instead of
+/// two quaternion rotations.
+pub(crate) fn world_inverse_inertias(q: &[DQuat], inv_moments: &[DVec3], out: &mut Vec<DMat3>) {
+    out.clear();
+    out.extend(q.iter().zip(inv_moments).map(|(&q, &d)| {
+        let r = DMat3::from_quat(q);
+        DMat3::from_cols(r.x_axis * d.x, r.y_axis * d.y, r.z_axis * d.z) * r.transpose()
+    }));
 }
 
 impl Bodies<'_> {
     /// `I⁻¹ w` in the world frame for body `i`.
     fn inv_inertia(&self, i: usize, w: DVec3) -> DVec3 {
-        self.q[i] * ((self.q[i].conjugate() * w) * self.inv_moments[i])
+        self.inv_inertia[i] * w
     }
 
     /// Fill the contact's angular responses (see [`Contact::spin`]), compliances, effective
@@ -115,12 +126,12 @@ impl Bodies<'_> {
             w[b] -= j[0] * sb[0] + j[1] * sb[1] + j[2] * sb[2];
         }
     }
+}
 
-    /// Velocity of the contact point of `a` relative to `b`'s.
-    fn relative_velocity(&self, c: &Contact, v: &[DVec3], w: &[DVec3]) -> DVec3 {
-        let va = v[c.a] + w[c.a].cross(c.ra);
-        va - c.b.map_or(DVec3::ZERO, |b| v[b] + w[b].cross(c.rb))
-    }
+/// Velocity of the contact point of `a` relative to `b`'s.
+fn relative_velocity(c: &Contact, v: &[DVec3], w: &[DVec3]) -> DVec3 {
+    let va = v[c.a] + w[c.a].cross(c.ra);
+    va - c.b.map_or(DVec3::ZERO, |b| v[b] + w[b].cross(c.rb))
 }
 
 /// Start each contact from the impulses that the same contact ended the previous step with
@@ -183,9 +194,11 @@ fn friction(c: &mut Contact, vel: DVec3) -> [f64; 2] {
     let old = [c.impulse[1], c.impulse[2]];
     let mut t = [old[0] - c.mass[1] * vel.dot(c.t1), old[1] - c.mass[2] * vel.dot(c.t2)];
     let limit = c.mu * c.impulse[0];
-    let len = (t[0] * t[0] + t[1] * t[1]).sqrt();
-    if len > limit {
-        let s = if len > 0.0 { limit / len } else { 0.0 };
+    // Compared squared (`limit ≥ 0`): a contact inside the cone, as resting ones mostly are,
+    // takes no square root (its latency was the sweep's longest wait).
+    let squared = t[0] * t[0] + t[1] * t[1];
+    if squared > limit * limit {
+        let s = limit / squared.sqrt();
         t = [t[0] * s, t[1] * s];
     }
     c.impulse[1] = t[0];
@@ -199,7 +212,7 @@ fn friction(c: &mut Contact, vel: DVec3) -> [f64; 2] {
 /// velocities. Returns the largest speed change of the contact along `n`, `t1`, `t2` that
 /// its own impulses made, `|Δλ| / m_eff` (m/s).
 fn solve(c: &mut Contact, bodies: &Bodies<'_>, v: &mut [DVec3], w: &mut [DVec3]) -> f64 {
-    let vel = bodies.relative_velocity(c, v, w);
+    let vel = relative_velocity(c, v, w);
     let dt = friction(c, vel);
     let vn = vel.dot(c.n) + c.coupling[0] * dt[0] + c.coupling[1] * dt[1];
     let new = (c.impulse[0] + c.mass[0] * (c.target - vn)).max(0.0);
@@ -230,7 +243,7 @@ pub(crate) struct Islands {
     depth: Vec<usize>,
     queue: Vec<usize>,
     neighbours: (Vec<usize>, Vec<usize>),
-    held: (Vec<f64>, Vec<DVec3>),
+    held: (Vec<f64>, Vec<DMat3>),
     layer: Vec<Contact>,
 }
 
@@ -342,11 +355,11 @@ impl Islands {
         };
         self.unsettled.retain(|&k| layer(&contacts[k]) != UNSUPPORTED);
         self.unsettled.sort_unstable_by_key(|&k| (layer(&contacts[k]), k));
-        let (inv_mass, inv_moments) = &mut self.held;
+        let (inv_mass, inv_inertia) = &mut self.held;
         inv_mass.clear();
         inv_mass.extend_from_slice(bodies.inv_mass);
-        inv_moments.clear();
-        inv_moments.extend_from_slice(bodies.inv_moments);
+        inv_inertia.clear();
+        inv_inertia.extend_from_slice(bodies.inv_inertia);
         let (mut from, mut frozen) = (0, 0);
         while from < self.unsettled.len() {
             let level = layer(&contacts[self.unsettled[from]]);
@@ -355,16 +368,13 @@ impl Islands {
             // Hold every body below this layer.
             while frozen < self.queue.len() && depth[self.queue[frozen]] < level {
                 inv_mass[self.queue[frozen]] = 0.0;
-                inv_moments[self.queue[frozen]] = DVec3::ZERO;
+                inv_inertia[self.queue[frozen]] = DMat3::ZERO;
                 frozen += 1;
             }
             // The layer's contacts, prepared for the held bodies, swept, and their impulses
             // kept (the originals keep their responses for the position pass).
-            let held = Bodies {
-                inv_mass: inv_mass.as_slice(),
-                inv_moments: inv_moments.as_slice(),
-                q: bodies.q,
-            };
+            let held =
+                Bodies { inv_mass: inv_mass.as_slice(), inv_inertia: inv_inertia.as_slice() };
             self.layer.clear();
             self.layer.extend(self.unsettled[from..to].iter().map(|&k| contacts[k]));
             for c in self.layer.iter_mut() {
@@ -444,15 +454,9 @@ impl Islands {
 }
 
 /// Move each contact's gap to its value after the velocity step, `gap + h v_n`, to first order.
-pub(crate) fn advance_gaps(
-    contacts: &mut [Contact],
-    bodies: &Bodies<'_>,
-    h: f64,
-    v: &[DVec3],
-    w: &[DVec3],
-) {
+pub(crate) fn advance_gaps(contacts: &mut [Contact], h: f64, v: &[DVec3], w: &[DVec3]) {
     for c in contacts.iter_mut() {
-        c.gap += h * bodies.relative_velocity(c, v, w).dot(c.n);
+        c.gap += h * relative_velocity(c, v, w).dot(c.n);
     }
 }
 
@@ -488,4 +492,28 @@ pub(crate) fn correct_positions(
         }
     }
     pushed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The world inverse inertia undoes the world inertia `I w = q ((q̄ w) ⊙ I_k)` of
+    /// rotated bodies with unequal principal moments (a transposed rotation fails this).
+    #[test]
+    fn world_inverse_inertias_invert_the_rotated_inertia() {
+        let moments = [DVec3::new(0.5, 2.0, 7.0), DVec3::new(3.0, 0.1, 1.0)];
+        let q = [
+            DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7),
+            DQuat::from_axis_angle(DVec3::new(-2.0, 0.5, 1.0).normalize(), 2.9),
+        ];
+        let inverse = moments.map(|m| DVec3::ONE / m);
+        let mut out = Vec::new();
+        world_inverse_inertias(&q, &inverse, &mut out);
+        for i in 0..2 {
+            let w = DVec3::new(0.3, -1.2, 0.8);
+            let inertia_w = q[i] * ((q[i].conjugate() * w) * moments[i]);
+            assert!((out[i] * inertia_w - w).length() < 1e-14, "body {i}");
+        }
+    }
 }

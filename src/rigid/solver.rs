@@ -11,7 +11,7 @@ use super::narrow::{Placed, Touch};
 use super::{Model, State};
 use crate::error::{Error, Result};
 use crate::geometry::Solid;
-use glam::{DQuat, DVec3};
+use glam::{DMat3, DQuat, DVec3};
 
 mod coupled;
 mod detect;
@@ -38,6 +38,8 @@ pub struct Solver {
     islands: contact::Islands,
     points: Vec<DVec3>,
     omega: Vec<DVec3>,
+    /// Each body's inverse inertia tensor in world axes at the current pose (1/(kg m²)).
+    inv_inertia: Vec<DMat3>,
     placed: Vec<Placed>,
     dx: Vec<DVec3>,
     dtheta: Vec<DVec3>,

@@ -201,7 +201,8 @@ impl Solver {
     fn solve_velocities(&mut self, model: &Model, h: f64, m: Methods) -> Result<()> {
         let (x, v, q, _) = &mut *self.scratch;
         let mass = mass_of(model);
-        let bodies = Bodies { inv_mass: &model.inv_mass, inv_moments: &model.inv_moments, q };
+        contact::world_inverse_inertias(q, &model.inv_moments, &mut self.inv_inertia);
+        let bodies = Bodies { inv_mass: &model.inv_mass, inv_inertia: &self.inv_inertia };
         for c in self.contacts.iter_mut() {
             bodies.prepare(c);
         }
@@ -262,8 +263,7 @@ impl Solver {
     /// integrator; the contacts' gaps advanced with them.
     fn drift(&mut self, model: &Model, h: f64) {
         let (x, v, q, pi) = &mut *self.scratch;
-        let bodies = Bodies { inv_mass: &model.inv_mass, inv_moments: &model.inv_moments, q };
-        contact::advance_gaps(&mut self.contacts, &bodies, h, v, &self.omega);
+        contact::advance_gaps(&mut self.contacts, h, v, &self.omega);
         for i in (0..model.len()).filter(|&i| !model.fixed[i]) {
             pi[i] = (q[i].conjugate() * self.omega[i]) * model.moments[i];
             x[i] += h * v[i];
@@ -305,7 +305,8 @@ impl Solver {
         }
         let sweeps = sweeps(&self.contacts, model, impulse);
         let mass = mass_of(model);
-        let bodies = Bodies { inv_mass: &model.inv_mass, inv_moments: &model.inv_moments, q };
+        contact::world_inverse_inertias(q, &model.inv_moments, &mut self.inv_inertia);
+        let bodies = Bodies { inv_mass: &model.inv_mass, inv_inertia: &self.inv_inertia };
         let s = Kinematics { x, q, v: &[], w: &[] };
         impulse_rows(model, &s, &mut self.rows, &mut self.row_mass);
         for _ in 0..sweeps {
