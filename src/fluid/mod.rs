@@ -27,6 +27,7 @@
 
 mod boundary;
 mod collider;
+mod density;
 mod emitter;
 mod kernel;
 mod model;

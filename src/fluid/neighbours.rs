@@ -76,17 +76,23 @@ impl Neighbours {
         self.lists.resize_with(queries.div_ceil(CHUNK), Vec::new);
         let chunks = self.ends.par_chunks_mut(CHUNK).zip(&mut self.lists);
         chunks.zip(candidates).enumerate().for_each(|(c, ((ends, list), near))| {
-            list.clear();
+            // Without a branch (half the candidates are in, in no pattern): every candidate
+            // is written, the end advances past the near ones. The buffer holds at least the
+            // chunk's candidates and is never shortened (no fill at each update); what lies
+            // past the last end is stale.
+            if list.len() < near.len() {
+                list.resize(near.len(), 0);
+            }
+            let mut len = 0;
             for (k, end) in ends.iter_mut().enumerate() {
                 let i = c * CHUNK + k;
                 let p = points[i];
                 for &j in &near[span(candidate_ends, i)] {
-                    if (points[j as usize] - p).length_squared() < h2 {
-                        list.push(j);
-                    }
+                    list[len] = j;
+                    len += usize::from((points[j as usize] - p).length_squared() < h2);
                 }
                 // At most `CHUNK` times the points (< 2³² / CHUNK in any real use).
-                *end = list.len() as u32;
+                *end = len as u32;
             }
         });
     }

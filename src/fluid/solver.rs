@@ -22,6 +22,7 @@
 //!   (a free surface, as SPlisHSPlasH does).
 
 use super::collider::{confine, Collider};
+use super::density::{Pass, LANES};
 use super::model::{Model, Pressure, Viscosity};
 use super::neighbours::{Neighbours, MAX_SKIN};
 use super::order::{gather, Order};
@@ -87,6 +88,10 @@ pub struct Solver {
     normals: Vec<DVec3>,
     /// Velocity change scratch (m/s); PBF's position corrections (m).
     dv: Vec<DVec3>,
+    /// WCSPH's pressure velocity change (m/s).
+    dp: Vec<DVec3>,
+    /// `V / ρ̂` per particle (m³), XSPH's weight of a neighbour.
+    weight: Vec<f64>,
     /// PBF: the positions at the start of the substep (m).
     x0: Vec<DVec3>,
     /// The stepped copy of the state's emitter distances (m).
@@ -303,7 +308,7 @@ impl Solver {
                     self.solve(model, h, Solve::Divergence, max_iterations, divergence_tolerance);
                 stats.divergence_iterations += it;
                 stats.divergence_error = stats.divergence_error.max(err);
-                self.non_pressure(model, h, gravity, stats);
+                self.non_pressure(model, h, gravity, false, stats);
                 let (it, err, max) =
                     self.solve(model, h, Solve::Density, max_iterations, density_tolerance);
                 stats.density_iterations += it;
@@ -328,13 +333,12 @@ impl Solver {
                 let (mean, max) = compression(&self.residual);
                 stats.density_error = stats.density_error.max(mean);
                 stats.max_density_error = stats.max_density_error.max(max);
-                self.non_pressure(model, h, gravity, stats);
                 let c2 = sound_speed * sound_speed / 7.0;
                 for ((p, k), &r) in self.pressure.iter_mut().zip(&mut self.k).zip(&self.density) {
                     *p = (c2 * (r.powi(7) - 1.0)).max(0.0);
                     *k = *p / (r * r);
                 }
-                self.apply(model, h);
+                self.non_pressure(model, h, gravity, true, stats);
                 self.move_colliders(h);
                 self.advect(model, h);
             }
@@ -386,48 +390,48 @@ impl Solver {
     }
 
     /// Densities `ρ̂`, the kernel values and gradients of every pair and, if `factors`,
-    /// DFSPH's `α`.
+    /// DFSPH's `α` (`density.rs`).
     fn densities(&mut self, model: &Model, factors: bool) {
         let Solver { neighbours, points, density, alpha, gradients, values, .. } = self;
-        let (h, kernel, vol, n) =
-            (model.support, model.settings.kernel, model.volume, density.len());
-        let vb = &model.boundary_volume;
+        let n = density.len();
+        let pass = Pass {
+            neighbours,
+            points,
+            n,
+            kernel: model.settings.kernel,
+            h: model.support,
+            volume: model.volume,
+            boundary_volume: &model.boundary_volume,
+            factors,
+        };
         gradients.resize_with(n.div_ceil(CHUNK), Vec::new);
         values.resize_with(n.div_ceil(CHUNK), Vec::new);
+        #[cfg(target_arch = "x86_64")]
+        let avx = pulp::x86::V3::try_new();
         let chunks = density.par_chunks_mut(CHUNK).zip(alpha.par_chunks_mut(CHUNK));
         let chunks = chunks.zip(gradients.par_iter_mut().zip(values));
         chunks.enumerate().for_each(|(c, ((rho, a), (grads, values)))| {
-            grads.clear();
-            values.clear();
-            for (k, (rho, a)) in rho.iter_mut().zip(a).enumerate() {
-                let i = c * CHUNK + k;
-                let (mut r, mut g, mut s) = (vol * kernel.value(0.0, h), DVec3::ZERO, 0.0);
-                for &j in neighbours.neighbours(i) {
-                    let j = j as usize;
-                    let d = points[i] - points[j];
-                    let w = if j < n { vol } else { vb[j - n] };
-                    let distance = d.length();
-                    let value = kernel.value(distance, h);
-                    r += w * value;
-                    values.push(value);
-                    // `Kernel::gradient` without its second square root.
-                    let gradient = if distance == 0.0 {
-                        DVec3::ZERO
-                    } else {
-                        d * (kernel.derivative(distance, h) / distance)
-                    };
-                    grads.push(gradient);
-                    if factors {
-                        let gw = gradient * w;
-                        g += gw;
-                        if j < n {
-                            s += gw.length_squared();
+            // Written by span; never shortened (no fill each substep), stale past the end.
+            let pairs = pass.neighbours.span(c * CHUNK + rho.len() - 1).end;
+            if grads.len() < pairs {
+                grads.resize(pairs, DVec3::ZERO);
+                values.resize(pairs, 0.0);
+            }
+            let mut k = 0;
+            #[cfg(target_arch = "x86_64")]
+            if let Some(simd) = avx {
+                simd.vectorize(|| {
+                    while k + LANES <= rho.len() {
+                        let got = pass.lanes(simd, c * CHUNK + k, grads, values);
+                        for (l, (r, f)) in got.into_iter().enumerate() {
+                            (rho[k + l], a[k + l]) = (r, f);
                         }
+                        k += LANES;
                     }
-                }
-                *rho = r;
-                s += g.length_squared();
-                *a = if s > 1e-9 / (h * h) { 1.0 / s } else { 0.0 };
+                });
+            }
+            for k in k..rho.len() {
+                (rho[k], a[k]) = pass.one(c * CHUNK + k, grads, values);
             }
         });
     }
@@ -441,28 +445,49 @@ impl Solver {
     /// `v_i += g + ν Σ_j (V / ρ̂_j) (v_j - v_i) W_ij` (the `W_ij` of the last
     /// [`Solver::densities`]), and over `dt` (s) surface tension (Akinci et al. 2013,
     /// [`super::Settings::surface_tension`]); then, instead of XSPH, the implicit viscosity
-    /// solve ([`Viscosity::Implicit`], the `viscosity` module) over `dt`.
-    fn non_pressure(&mut self, model: &Model, dt: f64, g: DVec3, stats: &mut Stats) {
+    /// solve ([`Viscosity::Implicit`], the `viscosity` module) over `dt`. With `pressure`
+    /// (WCSPH), the same pass over the pairs also finds the pressure's velocity change of
+    /// [`Solver::apply`] with the pressures `k`, added last (it reads no velocity): the same
+    /// bits as a separate pass, one pass over the pairs fewer.
+    fn non_pressure(
+        &mut self,
+        model: &Model,
+        dt: f64,
+        g: DVec3,
+        pressure: bool,
+        stats: &mut Stats,
+    ) {
         let gamma = model.settings.surface_tension;
         if gamma > 0.0 {
             self.normals_now(model);
         }
-        let mut dv = std::mem::take(&mut self.dv);
-        let Solver { neighbours, points, v, density, normals, values, .. } = &*self;
-        let (sup, vol, n) = (model.support, model.volume, v.len());
+        let (mut dv, mut dp) = (std::mem::take(&mut self.dv), std::mem::take(&mut self.dp));
+        let n = self.v.len();
+        dp.resize(n, DVec3::ZERO);
+        let mut weight = std::mem::take(&mut self.weight);
+        weight.resize(n, 0.0);
+        let vol = model.volume;
+        weight.par_iter_mut().zip(&self.density).for_each(|(w, d)| *w = vol / d);
+        let Solver { neighbours, points, v, density, normals, values, gradients, k, .. } = &*self;
+        let (sup, vb) = (model.support, &model.boundary_volume);
         let nu = match model.settings.viscosity {
             Viscosity::Xsph(c) => c,
             Viscosity::Implicit(_) => 0.0,
         };
         let mass = model.volume * model.settings.rest_density;
-        let pairs = nu > 0.0 || gamma > 0.0;
-        dv.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let (mut sum, mut tension) = (DVec3::ZERO, DVec3::ZERO);
-            let near = neighbours.neighbours(i).iter().zip(&values[i / CHUNK][neighbours.span(i)]);
-            for (&j, &w) in near.filter(|_| pairs) {
+        let viscous = nu > 0.0 || gamma > 0.0;
+        dv.par_iter_mut().zip(&mut dp).enumerate().for_each(|(i, (out, out_p))| {
+            let (mut sum, mut tension, mut push) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
+            let span = neighbours.span(i);
+            let near = neighbours.neighbours(i).iter().zip(&values[i / CHUNK][span.clone()]);
+            let near = near.zip(&gradients[i / CHUNK][span]);
+            for ((&j, &w), &gradient) in near.filter(|_| viscous || pressure) {
                 let j = j as usize;
-                if j < n {
-                    sum += (v[j] - v[i]) * (vol / density[j] * w);
+                if pressure {
+                    push += pressure_term(gradient, i, j, k, vol, vb);
+                }
+                if viscous && j < n {
+                    sum += (v[j] - v[i]) * (weight[j] * w);
                     let d = points[i] - points[j];
                     let r = if gamma > 0.0 { d.length() } else { 0.0 };
                     if r > 0.0 {
@@ -473,9 +498,10 @@ impl Solver {
                 }
             }
             *out = g + sum * nu - tension * (gamma * dt);
+            *out_p = push * -dt;
         });
         self.v.par_iter_mut().zip(&dv).for_each(|(v, dv)| *v += *dv);
-        self.dv = dv;
+        (self.dv, self.weight) = (dv, weight);
         if let Viscosity::Implicit(nu) = model.settings.viscosity {
             let (mut w, mut v, mut warm) = (
                 std::mem::take(&mut self.implicit),
@@ -487,6 +513,10 @@ impl Solver {
             stats.viscosity_iterations += it;
             stats.viscosity_error = stats.viscosity_error.max(err);
         }
+        if pressure {
+            self.v.par_iter_mut().zip(&dp).for_each(|(v, dp)| *v += *dp);
+        }
+        self.dp = dp;
     }
 
     /// The implicit-viscosity system `(I - dt ν ∇²) v = v*` (Weiler et al. 2018, eq. 11)
@@ -532,14 +562,12 @@ impl Solver {
     /// `Δv_i = -dt [Σ_j V (k_i + k_j) ∇W_ij + Σ_b V_b k_i ∇W_ib]` with this iteration's `k`.
     fn apply(&mut self, model: &Model, h: f64) {
         let mut dv = std::mem::take(&mut self.dv);
-        let (vol, n, k) = (model.volume, self.v.len(), &self.k);
-        let vb = &model.boundary_volume;
+        let (vol, k, vb) = (model.volume, &self.k, &model.boundary_volume);
         dv.par_iter_mut().enumerate().for_each(|(i, out)| {
             let mut sum = DVec3::ZERO;
             let (near, grads) = self.pairs(i);
             for (&j, &g) in near.iter().zip(grads) {
-                let j = j as usize;
-                sum += if j < n { g * (vol * (k[i] + k[j])) } else { g * (vb[j - n] * k[i]) };
+                sum += pressure_term(g, i, j as usize, k, vol, vb);
             }
             *out = sum * -h;
         });
@@ -689,7 +717,7 @@ impl Solver {
                 confine(c, x, v, margin);
             }
         });
-        self.non_pressure(model, h, DVec3::ZERO, stats);
+        self.non_pressure(model, h, DVec3::ZERO, false, stats);
         (iterations, mean, largest)
     }
 
@@ -749,6 +777,19 @@ impl Solver {
         self.densities(model, false);
         out.clear();
         out.extend(self.density.iter().map(|r| r * model.settings.rest_density));
+    }
+}
+
+/// Pair `(i, j)`'s term of the pressure's velocity change `Δv_i = -dt Σ` ([`Solver::apply`]):
+/// `V (k_i + k_j) ∇W_ij` for a fluid neighbour `j < n` (`n = k.len()`), `V_b k_i ∇W_ib` for a
+/// boundary point.
+#[inline(always)]
+fn pressure_term(gradient: DVec3, i: usize, j: usize, k: &[f64], vol: f64, vb: &[f64]) -> DVec3 {
+    let n = k.len();
+    if j < n {
+        gradient * (vol * (k[i] + k[j]))
+    } else {
+        gradient * (vb[j - n] * k[i])
     }
 }
 
