@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import kinema
-from kinema.crowd import Crowd, crossings, door_goals, flow_rate
+from kinema.crowd import Crowd, crossings, door_goals, fields, flow_rate
 
 
 def circle(n: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -198,3 +198,37 @@ def test_door_goals_point_to_the_narrowed_door_then_through_it() -> None:
         door_goals(p, door, -1.0)
     with pytest.raises(ValueError, match="positions"):
         door_goals([[np.nan, 0.0]], door, 0.25)
+
+
+def test_fields_match_a_direct_numpy_sum() -> None:
+    """Density and velocity fields against the sums of Helbing, Johansson & Al-Abideen 2007
+    (eqs. 1-2) written out in numpy over every agent and grid point, without the cut-off (an
+    agent beyond 4 R along x or y weighs at most e^-16 / (pi R^2) = 7e-8 /m^2), on a crowd
+    that has walked."""
+    p, g = circle(40, 6.0)
+    c = Crowd("orca")
+    c.add_agents(p, g)
+    c.step(0.1, 30)
+    xs, ys, r = np.linspace(-7, 7, 29), np.linspace(-6, 6.5, 23), 0.7
+    density, velocity = fields(c.positions, c.velocities, xs, ys, r)
+    assert density.shape == (23, 29) and velocity.shape == (23, 29, 2)
+    d = c.positions[None, None, :, :] - np.stack(np.meshgrid(xs, ys), axis=-1)[:, :, None, :]
+    w = np.exp(-(d**2).sum(axis=-1) / r**2)
+    want = w.sum(axis=-1) / (np.pi * r**2)
+    np.testing.assert_allclose(density, want, rtol=1e-6, atol=5e-7)
+    mean = (w[..., None] * c.velocities[None, None]).sum(axis=2) / w.sum(axis=-1)[..., None]
+    some = want > 0.05
+    assert some.sum() > 50
+    np.testing.assert_allclose(velocity[some], mean[some], rtol=0, atol=2e-5)
+    assert np.abs(velocity[some]).max() > 0.5
+    for kwargs, arg in [
+        ({"xs": [0.0, 0.0]}, "xs"),
+        ({"ys": [[0.0]]}, "ys"),
+        ({"radius": -1.0}, "radius"),
+        ({"velocities": np.zeros((3, 2))}, "velocities"),
+        ({"positions": np.full((40, 2), np.nan)}, "positions"),
+    ]:
+        args = {"positions": c.positions, "velocities": c.velocities, "xs": xs, "ys": ys}
+        args["radius"] = r
+        with pytest.raises(ValueError, match=arg):
+            fields(**(args | kwargs))
