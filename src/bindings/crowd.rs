@@ -283,6 +283,9 @@ fn crowd_door_goals<'py>(
     })
 }
 
+/// A density and a velocity field (`crowd_fields`).
+type Fields<'py> = (Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>);
+
 /// The density (agents/m², `(ny · nx,)`) and velocity (m/s, `(ny · nx, 2)`) fields of agents at
 /// `positions` moving at `velocities` (N, 2) at the grid points `xs` × `ys` ((nx, 1), (ny, 1);
 /// m), Gaussian radius `radius` (m); `crate::crowd::metrics::fields`.
@@ -294,7 +297,7 @@ fn crowd_fields<'py>(
     xs: PyReadonlyArrayDyn<'py, f64>,
     ys: PyReadonlyArrayDyn<'py, f64>,
     radius: f64,
-) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+) -> PyResult<Fields<'py>> {
     let (p, v) = (points(&positions, "positions")?, points(&velocities, "velocities")?);
     let xs: Vec<f64> = rows::<1>(&xs, "xs", &[1])?.iter().map(|x| x[0]).collect();
     let ys: Vec<f64> = rows::<1>(&ys, "ys", &[1])?.iter().map(|y| y[0]).collect();

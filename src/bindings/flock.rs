@@ -193,7 +193,7 @@ impl Flock {
     fn cohesion(&self, py: Python<'_>, radius: Option<f64>) -> PyResult<f64> {
         let positions = self.flock.state().positions();
         let radius = radius.unwrap_or(self.flock.model().settings().neighbour_radius);
-        Ok(detached(py, || crate::flock::cohesion(positions, radius))?)
+        detached(py, || crate::flock::cohesion(positions, radius))
     }
 }
 

@@ -126,10 +126,8 @@ impl Bounds {
     /// Count boid `i` at `p` (m) in cell `c` flying at `v` (m/s).
     #[inline]
     pub(super) fn add(&mut self, c: [i64; 3], p: DVec3, v: DVec3, i: u32) {
-        for k in 0..3 {
-            self.lo[k] = self.lo[k].min(c[k]);
-            self.hi[k] = self.hi[k].max(c[k]);
-        }
+        self.lo = std::array::from_fn(|k| self.lo[k].min(c[k]));
+        self.hi = std::array::from_fn(|k| self.hi[k].max(c[k]));
         self.z = [self.z[0].min(p.z), self.z[1].max(p.z)];
         self.still &= v.z == 0.0;
         if !(p.is_finite() && v.is_finite()) {
