@@ -73,3 +73,63 @@ fn flow_through_a_door_of_known_crossings() {
     assert_eq!(metrics::flow_rate(&c), Some(1.0));
     assert!(metrics::crossings(&refs, &times, v(1.0, 1.0), v(1.0, 1.0)).is_err());
 }
+
+/// The fields of Helbing, Johansson & Al-Abideen 2007 on known crowds: one agent gives the
+/// Gaussian `exp(-d²/R²) / (π R²)` and its own velocity, nothing beyond the cut-off; a
+/// square lattice of spacing `a` gives the density `1/a²` inside it (the lattice sum of the
+/// Gaussian is `1/a²` to `~4 exp(-π² R²/a²)`, Poisson summation) and a linear velocity field
+/// `v = (0.5 y, -0.25 x)` its value at the point (a symmetric weight reproduces linear fields
+/// there, to the same order).
+#[test]
+fn density_and_velocity_fields_of_known_crowds() {
+    let r = 0.8;
+    let xs: Vec<f64> = (0..41).map(|i| -4.0 + 0.2 * i as f64).collect();
+    let ys: Vec<f64> = (0..31).map(|j| -3.0 + 0.2 * j as f64).collect();
+    let (mut rho, mut vel) = (vec![0.0; 41 * 31], vec![DVec2::ZERO; 41 * 31]);
+    let (p, u) = (v(0.3, -0.1), v(1.2, -0.7));
+    metrics::fields(&[p], &[u], &xs, &ys, r, &mut rho, &mut vel).unwrap();
+    for (j, &y) in ys.iter().enumerate() {
+        for (i, &x) in xs.iter().enumerate() {
+            let d = p - v(x, y);
+            let k = j * xs.len() + i;
+            if d.x.abs() < 4.0 * r && d.y.abs() < 4.0 * r {
+                let want = (-d.length_squared() / (r * r)).exp() / (std::f64::consts::PI * r * r);
+                assert!((rho[k] - want).abs() <= 1e-13 * want, "{x} {y}: {} {want}", rho[k]);
+                assert!((vel[k] - u).length() < 1e-15, "{x} {y}: {}", vel[k]);
+            } else {
+                assert_eq!((rho[k], vel[k]), (0.0, DVec2::ZERO), "{x} {y}");
+            }
+        }
+    }
+    // A lattice of spacing 0.5 m (4 agents/m²) over [-10, 10]², measured inside [-2, 2]².
+    let a = 0.5;
+    let lattice: Vec<DVec2> =
+        (-20..=20).flat_map(|j| (-20..=20).map(move |i| v(a * i as f64, a * j as f64))).collect();
+    let flow: Vec<DVec2> = lattice.iter().map(|q| v(0.5 * q.y, -0.25 * q.x)).collect();
+    let xs: Vec<f64> = (0..9).map(|i| -2.0 + 0.5 * i as f64 + 0.13).collect();
+    let ys: Vec<f64> = (0..9).map(|j| -2.0 + 0.5 * j as f64 - 0.21).collect();
+    let (mut rho, mut vel) = (vec![0.0; 81], vec![DVec2::ZERO; 81]);
+    metrics::fields(&lattice, &flow, &xs, &ys, 1.0, &mut rho, &mut vel).unwrap();
+    for (j, &y) in ys.iter().enumerate() {
+        for (i, &x) in xs.iter().enumerate() {
+            let k = j * 9 + i;
+            assert!((rho[k] - 4.0).abs() < 2e-6, "{x} {y}: {}", rho[k]);
+            assert!((vel[k] - v(0.5 * y, -0.25 * x)).length() < 2e-6, "{x} {y}: {}", vel[k]);
+        }
+    }
+    // Bad input is named and nothing is written.
+    let mut rho = vec![7.0; 81];
+    let bad = |e: kinema::Error| e.to_string();
+    for (xs_, ys_, radius, arg) in [
+        (vec![0.0, 0.0], vec![0.0], 1.0, "xs"),
+        (vec![0.0], vec![f64::NAN], 1.0, "ys"),
+        (vec![0.0], vec![0.0], 0.0, "radius"),
+        (vec![0.0, 1.0], vec![0.0], 1.0, "density"),
+    ] {
+        let e = metrics::fields(&lattice, &flow, &xs_, &ys_, radius, &mut rho[..1], &mut vel[..1]);
+        assert!(bad(e.unwrap_err()).contains(arg), "{arg}");
+    }
+    let e = metrics::fields(&lattice, &flow[1..], &xs, &ys, 1.0, &mut rho, &mut vel).unwrap_err();
+    assert!(bad(e).contains("velocities"));
+    assert!(rho.iter().all(|&d| d == 7.0));
+}

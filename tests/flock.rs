@@ -1,9 +1,9 @@
 //! Flocks: the polarisation order parameter rises for an aligned flock and stays low without
-//! alignment; separation keeps boids apart; 2-D stays planar; several states of one model;
+//! alignment, and the flock stays one cluster while it orders; separation keeps boids apart; 2-D stays planar; several states of one model;
 //! bitwise the same on one and two threads; snapshots; bad arguments.
 
 use glam::DVec3;
-use kinema::flock::{polarisation, Flock, Settings, Solver, State};
+use kinema::flock::{cohesion, polarisation, Flock, Settings, Solver, State};
 use kinema::snapshot::{Snapshot, Stamped};
 
 /// Uniform numbers in `[0, 1)` (Knuth's MMIX LCG).
@@ -47,28 +47,67 @@ fn min_distance(p: &[DVec3]) -> f64 {
     best
 }
 
-/// The polarisation every 50 steps over 400 steps of 0.1 s.
-fn polarisations(settings: Settings) -> Vec<f64> {
+/// The polarisation and the cohesion (largest cluster at the neighbour radius) every 50 steps
+/// over 400 steps of 0.1 s.
+fn polarisations(settings: Settings) -> (Vec<f64>, Vec<f64>) {
     let (p, v) = square(100, 10.0, 3);
     let mut flock = Flock::new(settings, &p, &v).unwrap();
-    let mut out = vec![polarisation(flock.state().velocities())];
-    for _ in 0..8 {
-        flock.step(0.1, 50).unwrap();
-        out.push(polarisation(flock.state().velocities()));
+    let measure = |f: &Flock| {
+        let p = f.state().positions();
+        (polarisation(f.state().velocities()), cohesion(p, settings.neighbour_radius).unwrap())
+    };
+    let (mut phi, mut together) = (Vec::new(), Vec::new());
+    for k in 0..9 {
+        if k > 0 {
+            flock.step(0.1, 50).unwrap();
+        }
+        let (a, b) = measure(&flock);
+        phi.push(a);
+        together.push(b);
         assert!(flock.state().positions().iter().all(|p| p.z == 0.0), "a 2-D flock stays planar");
     }
-    out
+    (phi, together)
 }
 
 #[test]
 fn polarisation_rises_with_alignment_and_stays_low_without() {
-    let aligned = polarisations(settings());
-    eprintln!("aligned {aligned:.3?}");
+    let (aligned, together) = polarisations(settings());
+    eprintln!("aligned {aligned:.3?}, largest cluster {together:.3?}");
     assert!(aligned[0] < 0.2, "random headings start disordered: {aligned:?}");
     assert!(aligned[8] > 0.9, "{aligned:?}");
-    let free = polarisations(Settings { alignment: 0.0, ..settings() });
-    eprintln!("without alignment {free:.3?}");
+    assert!(together.iter().all(|&c| c >= 0.95), "the flock stays one cluster: {together:?}");
+    let (free, apart) = polarisations(Settings { alignment: 0.0, ..settings() });
+    eprintln!("without alignment {free:.3?}, largest cluster {apart:.3?}");
     assert!(free.iter().all(|&phi| phi < 0.4), "{free:?}");
+    let (_, scattered) = polarisations(Settings { alignment: 0.0, cohesion: 0.0, ..settings() });
+    eprintln!("neither alignment nor cohesion: largest cluster {scattered:.3?}");
+    assert!(scattered[8] < 0.8, "without cohesion the flock breaks up: {scattered:?}");
+}
+
+/// The cohesion measure on configurations of known clusters: a chain of boids 1 m apart is
+/// one cluster at radius 1.5 m and single boids at 0.9 m; two chains of 6 and 4 boids 10 m
+/// apart give 0.6; 3-D, no boids, bad radius and positions.
+#[test]
+fn cohesion_is_the_largest_clusters_fraction() {
+    let chain = |n: usize, x0: f64| (0..n).map(move |k| DVec3::new(x0 + k as f64, 0.5, -2.0));
+    let one: Vec<DVec3> = chain(10, 0.0).collect();
+    assert_eq!(cohesion(&one, 1.5).unwrap(), 1.0);
+    assert_eq!(cohesion(&one, 0.9).unwrap(), 0.1);
+    let two: Vec<DVec3> = chain(4, 20.0).chain(chain(6, 0.0)).collect();
+    assert_eq!(cohesion(&two, 1.5).unwrap(), 0.6);
+    let helix: Vec<DVec3> = (0..50)
+        .map(|k| {
+            let a = 0.3 * k as f64;
+            DVec3::new(3.0 * a.cos(), 3.0 * a.sin(), 0.2 * k as f64)
+        })
+        .collect();
+    assert_eq!(cohesion(&helix, 1.0).unwrap(), 1.0);
+    assert_eq!(cohesion(&helix, 0.5).unwrap(), 0.02);
+    assert_eq!(cohesion(&[], 1.0).unwrap(), 0.0);
+    assert!(cohesion(&one, 0.0).unwrap_err().to_string().contains("radius"));
+    let mut bad = one.clone();
+    bad[3].y = f64::NAN;
+    assert!(cohesion(&bad, 1.0).unwrap_err().to_string().contains("positions"));
 }
 
 #[test]

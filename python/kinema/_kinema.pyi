@@ -196,6 +196,7 @@ class Flock:
     @property
     def time(self) -> float: ...
     def polarisation(self) -> float: ...
+    def cohesion(self, radius: float | None = None) -> float: ...
 
 # --- crowd ---
 @final
@@ -250,6 +251,9 @@ def crowd_crossings(frames: _F64, times: _F64, a: list[float], b: list[float]) -
 def crowd_door_goals(
     positions: _F64, a: list[float], b: list[float], radius: float, reach: float
 ) -> _F64: ...
+def crowd_fields(
+    positions: _F64, velocities: _F64, xs: _F64, ys: _F64, radius: float
+) -> tuple[_F64, _F64]: ...
 
 # --- fluid ---
 @final

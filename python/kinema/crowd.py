@@ -7,8 +7,9 @@ with goals (:meth:`Crowd.add_agents`), then ``step`` it. Coordinates are 2-D in 
 ground (world ``x`` and ``z``). ``positions``, ``velocities`` and ``goals`` are read-only
 numpy views of the Rust state, updated in place; once one was taken no more agents can be
 added. :meth:`Crowd.metrics` reports collisions, times to goal and path lengths, and
-:func:`flow_rate` the flow through a door from crossing times; :func:`door_goals` gives goals
-that lead agents out through a door. See docs/crowd.md.
+:func:`flow_rate` the flow through a door from crossing times, :func:`fields` the density and
+velocity fields; :func:`door_goals` gives goals that lead agents out through a door. See
+docs/crowd.md.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 from kinema import _kinema
 from kinema._array import as_batch, real
 
-__all__ = ["Crowd", "crossings", "door_goals", "flow_rate"]
+__all__ = ["Crowd", "crossings", "door_goals", "fields", "flow_rate"]
 
 
 def _points(value: object, name: str) -> np.ndarray:
@@ -231,3 +232,29 @@ def flow_rate(times: Any) -> float:
     if t.size < 2 or not t[-1] > t[0]:
         return float("nan")
     return float((t.size - 1) / (t[-1] - t[0]))
+
+
+def fields(
+    positions: Any, velocities: Any, xs: Any, ys: Any, radius: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The local density (agents/m², shape ``(len(ys), len(xs))``) and velocity (m/s,
+    ``(len(ys), len(xs), 2)``) of agents at ``positions`` ``(N, 2)`` (m) moving at
+    ``velocities`` ``(N, 2)`` (m/s), at the grid points ``(xs[i], ys[j])`` (m, each strictly
+    increasing), as Helbing, Johansson & Al-Abideen 2007 (eqs. 1-2) measure crowds: each agent
+    spread over the Gaussian ``exp(-d²/R²) / (π R²)`` of ``radius`` ``R`` (m), the velocity the
+    same weights' mean (zero where no agent is within ``4 R``; weights beyond ``4 R`` along
+    ``x`` or ``y`` are left out). E.g. ``fields(crowd.positions, crowd.velocities, xs, ys,
+    0.7)``; the speed field is ``np.linalg.norm(velocity, axis=-1)``."""
+    x = np.ascontiguousarray(xs, dtype=np.float64)
+    y = np.ascontiguousarray(ys, dtype=np.float64)
+    for name, axis in (("xs", x), ("ys", y)):
+        if axis.ndim != 1:
+            raise ValueError(f"{name}: expected shape (n,), got {axis.shape}")
+    density, velocity = _kinema.crowd_fields(
+        _points(positions, "positions"),
+        _points(velocities, "velocities"),
+        x.reshape(-1, 1),
+        y.reshape(-1, 1),
+        real(radius, "radius"),
+    )
+    return density.reshape(y.size, x.size), velocity.reshape(y.size, x.size, 2)

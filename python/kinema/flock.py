@@ -109,6 +109,12 @@ class Flock:
         1 when all fly one way, about ``1 / sqrt(N)`` for random headings."""
         return self._f.polarisation()
 
+    def cohesion(self, radius: float | None = None) -> float:
+        """The fraction of the boids in the largest cluster, boids linked when closer than
+        ``radius`` (m; default the neighbour radius) and clusters the connected sets of links
+        (Grégoire & Chaté 2004): 1 for one flock, about ``1 / N`` for scattered boids."""
+        return self._f.cohesion(None if radius is None else real(radius, "radius"))
+
     def add_behaviour(
         self,
         kind: str,

@@ -283,6 +283,38 @@ fn crowd_door_goals<'py>(
     })
 }
 
+/// A density and a velocity field (`crowd_fields`).
+type Fields<'py> = (Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>);
+
+/// The density (agents/m², `(ny · nx,)`) and velocity (m/s, `(ny · nx, 2)`) fields of agents at
+/// `positions` moving at `velocities` (N, 2) at the grid points `xs` × `ys` ((nx, 1), (ny, 1);
+/// m), Gaussian radius `radius` (m); `crate::crowd::metrics::fields`.
+#[pyfunction]
+fn crowd_fields<'py>(
+    py: Python<'py>,
+    positions: PyReadonlyArrayDyn<'py, f64>,
+    velocities: PyReadonlyArrayDyn<'py, f64>,
+    xs: PyReadonlyArrayDyn<'py, f64>,
+    ys: PyReadonlyArrayDyn<'py, f64>,
+    radius: f64,
+) -> PyResult<Fields<'py>> {
+    let (p, v) = (points(&positions, "positions")?, points(&velocities, "velocities")?);
+    let xs: Vec<f64> = rows::<1>(&xs, "xs", &[1])?.iter().map(|x| x[0]).collect();
+    let ys: Vec<f64> = rows::<1>(&ys, "ys", &[1])?.iter().map(|y| y[0]).collect();
+    let n = xs.len().saturating_mul(ys.len());
+    let mut density = crate::error::filled("xs", n, 0.0)?;
+    let mut velocity = crate::error::filled("xs", n, DVec2::ZERO)?;
+    detached(py, || {
+        crate::crowd::metrics::fields(&p, &v, &xs, &ys, radius, &mut density, &mut velocity)
+    })?;
+    let velocity = compute::<2>(py, n, &[2], |out| {
+        let out = zeroed(out);
+        out.iter_mut().zip(&velocity).for_each(|(o, u)| *o = u.to_array());
+        Ok(())
+    })?;
+    Ok((out1(py, &density)?, velocity))
+}
+
 fn points_shaped(
     arr: &PyReadonlyArrayDyn<'_, f64>,
     arg: &str,
@@ -298,5 +330,6 @@ fn points_shaped(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(crowd_crossings, m)?)?;
     m.add_function(wrap_pyfunction!(crowd_door_goals, m)?)?;
+    m.add_function(wrap_pyfunction!(crowd_fields, m)?)?;
     m.add_class::<Crowd>()
 }

@@ -186,6 +186,15 @@ impl Flock {
     fn polarisation(&self) -> f64 {
         crate::flock::polarisation(self.flock.state().velocities())
     }
+
+    /// The fraction of boids in the largest cluster of boids closer than `radius` (m; default
+    /// the neighbour radius) (Grégoire & Chaté 2004), in (0, 1].
+    #[pyo3(signature = (radius=None))]
+    fn cohesion(&self, py: Python<'_>, radius: Option<f64>) -> PyResult<f64> {
+        let positions = self.flock.state().positions();
+        let radius = radius.unwrap_or(self.flock.model().settings().neighbour_radius);
+        detached(py, || crate::flock::cohesion(positions, radius))
+    }
 }
 
 /// Register the class.

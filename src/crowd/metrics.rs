@@ -3,7 +3,10 @@
 //! measure of van den Berg et al. 2011, §7), time to goal, path length over the straight
 //! line from start to goal, and the flow through a line segment (a door) as the number of
 //! crossings over the time between the first and the last, `J = (N - 1) / (t_N - t_1)`
-//! (Seyfried et al. 2009, "New insights into pedestrian flow through bottlenecks", §3).
+//! (Seyfried et al. 2009, "New insights into pedestrian flow through bottlenecks", §3), and
+//! the density and velocity fields of Helbing, Johansson & Al-Abideen (2007, "Dynamics of
+//! crowd disasters: an empirical study", eqs. 1–2): Gaussian-weighted sums over the agents
+//! at the points of a grid ([`fields`]).
 //!
 //! Two agents collide when their discs overlap by more than [`EPSILON`]; an agent collides
 //! with an obstacle when its disc reaches more than [`EPSILON`] over one of the polygon's
@@ -287,6 +290,89 @@ pub fn door_goals(
         let e = if (p - a).dot(left) < 0.0 && dist > 1e-9 { to / dist } else { left };
         *g = p + reach * e;
     }
+    Ok(())
+}
+
+/// Cut-off of the fields' Gaussian weight, in units of `radius`: a weight is left out when
+/// the agent is farther than this along `x` or `y`, where it is below `e⁻¹⁶ ≈ 1.1·10⁻⁷` of the
+/// peak.
+pub const FIELD_CUTOFF: f64 = 4.0;
+
+/// The local density (agents/m²) and velocity (m/s) fields of agents at `positions` (m)
+/// moving at `velocities` (m/s), at the points `(xs[i], ys[j])` (m) of a grid, as Helbing,
+/// Johansson & Al-Abideen (2007, eqs. 1–2) measure crowds:
+/// `ρ(r) = Σ_j f(r_j - r)` with `f(d) = exp(-|d|²/R²) / (π R²)` (each agent spread over a
+/// Gaussian of integral 1; `R` = `radius`, m), and `V(r) = Σ_j v_j f(r_j - r) / Σ_j f(r_j - r)`
+/// (zero where no agent is within [`FIELD_CUTOFF`] `R`). Written row by row (`y` outer):
+/// `density[j · xs.len() + i]`, `velocity[j · xs.len() + i]`. Each point sums its agents in
+/// index order: the same bits on any thread count.
+///
+/// # Errors
+/// `positions` or `velocities` not finite, or not one velocity per position; `xs` or `ys`
+/// not finite and strictly increasing; `radius` not finite and positive; `density` or
+/// `velocity` not one per grid point. Nothing is written then.
+pub fn fields(
+    positions: &[DVec2],
+    velocities: &[DVec2],
+    xs: &[f64],
+    ys: &[f64],
+    radius: f64,
+    density: &mut [f64],
+    velocity: &mut [DVec2],
+) -> Result<()> {
+    for (arg, points) in [("positions", positions), ("velocities", velocities)] {
+        if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+            return Err(Error::invalid(arg, "contains NaN or infinity").at(i));
+        }
+    }
+    if velocities.len() != positions.len() {
+        return Err(Error::invalid("velocities", "expected one velocity per position"));
+    }
+    for (arg, axis) in [("xs", xs), ("ys", ys)] {
+        if let Some(i) = axis.iter().position(|x| !x.is_finite()) {
+            return Err(Error::invalid(arg, "contains NaN or infinity").at(i));
+        }
+        if let Some(i) = axis.windows(2).position(|w| w[1] <= w[0]) {
+            return Err(Error::invalid(arg, "must be strictly increasing").at(i + 1));
+        }
+    }
+    if !(radius.is_finite() && radius > 0.0) {
+        return Err(Error::invalid("radius", "must be finite and > 0"));
+    }
+    let points = xs.len() * ys.len();
+    if density.len() != points || velocity.len() != points {
+        return Err(Error::invalid("density", "expected one value per grid point"));
+    }
+    if xs.is_empty() {
+        return Ok(());
+    }
+    let (inv_r2, cutoff) = (1.0 / (radius * radius), FIELD_CUTOFF * radius);
+    let norm = inv_r2 / std::f64::consts::PI;
+    let rows = density.par_chunks_mut(xs.len()).zip(velocity.par_chunks_mut(xs.len()));
+    rows.zip(ys).for_each(|((density, velocity), &y)| {
+        // The weights' sums first, then scaled in place.
+        density.fill(0.0);
+        velocity.fill(DVec2::ZERO);
+        for (p, v) in positions.iter().zip(velocities) {
+            let dy = p.y - y;
+            if dy.abs() >= cutoff {
+                continue;
+            }
+            let wy = (-dy * dy * inv_r2).exp();
+            let first = xs.partition_point(|&x| x <= p.x - cutoff);
+            let end = xs.partition_point(|&x| x < p.x + cutoff);
+            for i in first..end {
+                let dx = p.x - xs[i];
+                let w = wy * (-dx * dx * inv_r2).exp();
+                density[i] += w;
+                velocity[i] += *v * w;
+            }
+        }
+        for (d, u) in density.iter_mut().zip(velocity) {
+            *u = if *d > 0.0 { *u / *d } else { DVec2::ZERO };
+            *d *= norm;
+        }
+    });
     Ok(())
 }
 

@@ -14,23 +14,146 @@
 //! the thread count nor on the steps before; a boid's neighbours are then read from a few
 //! contiguous ranges, and consecutive boids read nearly the same ones.
 //!
-//! The positions and velocities live here in that order for all the steps of one
-//! [`super::Solver::step`] call ([`Cells::load`] from the state, [`Cells::store`] back): each
-//! step re-sorts them from the previous step's order, which is nearly the new one (boids move
-//! less than a cell a step), so the counting sort and the copy into the new order read
-//! memory nearly in sequence instead of at random (Green 2008 keeps particles sorted the same
-//! way). Buffers only grow.
+//! The positions and velocities live in that order for all the steps of one
+//! [`super::Solver::step`] call ([`Moved::load`] from the state, [`Moved::store`] back): a
+//! step reads the sorted boids ([`Cells`]) and writes the moved ones ([`Moved`]) in the same
+//! slots, with their new cells and the bounds of those cells, and the next step re-sorts them
+//! from that order, which is nearly the new one (boids move less than a cell a step), so the
+//! counting sort and the copy into the new order read memory nearly in sequence instead of
+//! at random (Green 2008 keeps particles sorted the same way). Buffers only grow.
 
 use crate::geometry::grid::{cell_of, sort_by_bucket};
 use glam::DVec3;
 use rayon::prelude::*;
+
+/// Boids a parallel task of [`Moved::load`] measures.
+const CHUNK: usize = 4096;
+
+/// The boids as loaded or as a step moved them, in the slots of the [`Cells`] order of that
+/// step (index order when loaded): what the next [`Cells::sort`] sorts.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Moved {
+    /// Positions (m).
+    pub(super) positions: Vec<DVec3>,
+    /// Velocities (m/s).
+    pub(super) velocities: Vec<DVec3>,
+    /// Cells of the positions.
+    pub(super) cells: Vec<[i64; 3]>,
+    /// What the next sort needs to know of them all.
+    pub(super) bounds: Bounds,
+}
+
+impl Moved {
+    /// Take the boids at `positions` flying at `velocities`, in index order, into cells of
+    /// size `h` (m).
+    ///
+    /// # Panics
+    /// If the slices differ in length or hold 2³² boids or more (callers check).
+    pub(super) fn load(&mut self, positions: &[DVec3], velocities: &[DVec3], h: f64) {
+        let n = positions.len();
+        assert!(velocities.len() == n && n < u32::MAX as usize);
+        self.positions.clear();
+        self.positions.extend_from_slice(positions);
+        self.velocities.clear();
+        self.velocities.extend_from_slice(velocities);
+        self.cells.resize(n, [0; 3]);
+        let inv_h = 1.0 / h;
+        self.bounds = (
+            self.cells.par_chunks_mut(CHUNK),
+            positions.par_chunks(CHUNK),
+            velocities.par_chunks(CHUNK),
+        )
+            .into_par_iter()
+            .enumerate()
+            .map(|(k, (cells, p, v))| {
+                let mut bounds = Bounds::EMPTY;
+                for (j, (c, (p, v))) in cells.iter_mut().zip(p.iter().zip(v)).enumerate() {
+                    *c = cell_of(*p, inv_h);
+                    bounds.add(*c, *p, *v, (k * CHUNK + j) as u32);
+                }
+                bounds
+            })
+            .reduce(|| Bounds::EMPTY, Bounds::join);
+    }
+
+    /// Write the boids back to `positions` and `velocities` in index order; `cells` is the
+    /// order they are in.
+    pub(super) fn store(
+        &self,
+        cells: &mut Cells,
+        positions: &mut [DVec3],
+        velocities: &mut [DVec3],
+    ) {
+        let rank = cells.update_rank();
+        (positions, velocities, rank).into_par_iter().for_each(|(p, v, &s)| {
+            (*p, *v) = (self.positions[s as usize], self.velocities[s as usize]);
+        });
+    }
+}
+
+/// The bounds of the boids' cells, whether they fly in one plane of constant `z`, and the
+/// lowest boid whose position or velocity is not finite: gathered boid by boid, joined in
+/// any order with the same result.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Bounds {
+    /// Lowest and highest cell along each axis.
+    lo: [i64; 3],
+    hi: [i64; 3],
+    /// Lowest and highest position `z` (m).
+    z: [f64; 2],
+    /// Every velocity `z` is zero.
+    still: bool,
+    /// The lowest index of a boid not finite (`u32::MAX`: none).
+    pub(super) bad: u32,
+}
+
+impl Default for Bounds {
+    fn default() -> Self {
+        Bounds::EMPTY
+    }
+}
+
+impl Bounds {
+    /// The bounds of no boid.
+    pub(super) const EMPTY: Bounds = Bounds {
+        lo: [i64::MAX; 3],
+        hi: [i64::MIN; 3],
+        z: [f64::INFINITY, f64::NEG_INFINITY],
+        still: true,
+        bad: u32::MAX,
+    };
+
+    /// Count boid `i` at `p` (m) in cell `c` flying at `v` (m/s).
+    #[inline]
+    pub(super) fn add(&mut self, c: [i64; 3], p: DVec3, v: DVec3, i: u32) {
+        self.lo = std::array::from_fn(|k| self.lo[k].min(c[k]));
+        self.hi = std::array::from_fn(|k| self.hi[k].max(c[k]));
+        self.z = [self.z[0].min(p.z), self.z[1].max(p.z)];
+        self.still &= v.z == 0.0;
+        if !(p.is_finite() && v.is_finite()) {
+            self.bad = self.bad.min(i);
+        }
+    }
+
+    /// The bounds of both sets of boids.
+    pub(super) fn join(self, other: Bounds) -> Bounds {
+        Bounds {
+            lo: std::array::from_fn(|k| self.lo[k].min(other.lo[k])),
+            hi: std::array::from_fn(|k| self.hi[k].max(other.hi[k])),
+            z: [self.z[0].min(other.z[0]), self.z[1].max(other.z[1])],
+            still: self.still & other.still,
+            bad: self.bad.min(other.bad),
+        }
+    }
+}
 
 /// Boids sorted by cell (see the module docs).
 #[derive(Clone, Debug, Default)]
 pub(super) struct Cells {
     /// The boid in each sorted slot.
     pub(super) order: Vec<u32>,
-    /// The sorted slot of each boid (the inverse of `order`).
+    /// The sorted slot of each boid (the inverse of `order`), as of the last
+    /// [`Cells::update_rank`].
     pub(super) rank: Vec<u32>,
     /// Positions in sorted order (m).
     pub(super) positions: Vec<DVec3>,
@@ -38,14 +161,11 @@ pub(super) struct Cells {
     pub(super) velocities: Vec<DVec3>,
     /// Cells in sorted order.
     cells: Vec<[i64; 3]>,
-    /// Scratch of a sort: the cell and the bucket of each slot before it, the slot each new
-    /// slot comes from, and the buffers of the new order (swapped with the ones above).
-    cell: Vec<[i64; 3]>,
+    /// Scratch of a sort: the bucket of each slot before it, the slot each new slot comes
+    /// from, and the order after it (swapped with `order`).
     bucket: Vec<u32>,
     from: Vec<u32>,
     next_order: Vec<u32>,
-    next_positions: Vec<DVec3>,
-    next_velocities: Vec<DVec3>,
     /// Start of each bucket in the sorted order (`buckets + 1` entries).
     start: Vec<u32>,
     /// The widened box's lowest cell.
@@ -54,68 +174,47 @@ pub(super) struct Cells {
     stride: [u64; 2],
     /// Buckets minus one (a power of two minus one).
     mask: u64,
-    /// Squared neighbour radius (m²).
+    /// Inverse of the cells' size (1/m) and squared neighbour radius (m²).
+    inv_h: f64,
     h2: f64,
     /// Every boid lies in one layer of cells along z: only that layer is visited.
     planar: bool,
-    /// Every boid has the first one's `z` and a zero velocity `z` (a 2-D flock).
+    /// Every boid has the same `z` and a zero velocity `z` (a 2-D flock).
     flat: bool,
     /// The widened box has at most as many cells as there are buckets: one cell a bucket.
     dense: bool,
 }
 
 impl Cells {
-    /// Take the boids at `positions` flying at `velocities`, in index order (not yet sorted).
-    ///
-    /// # Panics
-    /// If the slices differ in length or hold 2³² boids or more (callers check).
-    pub(super) fn load(&mut self, positions: &[DVec3], velocities: &[DVec3]) {
-        let n = positions.len();
-        assert!(velocities.len() == n && n < u32::MAX as usize);
-        self.positions.clear();
-        self.positions.extend_from_slice(positions);
-        self.velocities.clear();
-        self.velocities.extend_from_slice(velocities);
+    /// Start a call of `n` boids, loaded in index order ([`Moved::load`]), in cells of size
+    /// `h` (m).
+    pub(super) fn load(&mut self, n: usize, h: f64) {
         self.order.clear();
         self.order.extend(0..n as u32);
-        self.rank.clone_from(&self.order);
+        (self.inv_h, self.h2) = (1.0 / h, h * h);
     }
 
-    /// Write the boids back to `positions` and `velocities` in index order.
-    pub(super) fn store(&self, positions: &mut [DVec3], velocities: &mut [DVec3]) {
-        (positions, velocities, &self.rank).into_par_iter().for_each(|(p, v, &s)| {
-            (*p, *v) = (self.positions[s as usize], self.velocities[s as usize]);
-        });
+    /// The cell of a boid at `p` (m).
+    #[inline]
+    pub(super) fn cell_of(&self, p: DVec3) -> [i64; 3] {
+        cell_of(p, self.inv_h)
     }
 
-    /// Sort the boids into cells of size `h` (m), from the order they are in.
-    pub(super) fn sort(&mut self, h: f64) {
-        let n = self.positions.len();
-        let inv_h = 1.0 / h;
-        self.h2 = h * h;
-        self.cell.resize(n, [0; 3]);
-        self.cell.par_iter_mut().zip(&self.positions).for_each(|(c, p)| *c = cell_of(*p, inv_h));
-        let (lo, hi) = self
-            .cell
-            .par_iter()
-            .fold_with(([i64::MAX; 3], [i64::MIN; 3]), |(lo, hi), c| {
-                (std::array::from_fn(|k| lo[k].min(c[k])), std::array::from_fn(|k| hi[k].max(c[k])))
-            })
-            .reduce(
-                || ([i64::MAX; 3], [i64::MIN; 3]),
-                |a, b| {
-                    (
-                        std::array::from_fn(|k| a.0[k].min(b.0[k])),
-                        std::array::from_fn(|k| a.1[k].max(b.1[k])),
-                    )
-                },
-            );
+    /// The sorted slot of each boid (`rank`), computed afresh.
+    pub(super) fn update_rank(&mut self) -> &[u32] {
+        self.rank.resize(self.order.len(), 0);
+        for (s, &i) in self.order.iter().enumerate() {
+            self.rank[i as usize] = s as u32;
+        }
+        &self.rank
+    }
+
+    /// Sort the `moved` boids, in the slots of this order, into cells.
+    pub(super) fn sort(&mut self, moved: &Moved) {
+        let n = moved.positions.len();
+        let Bounds { lo, hi, z, still, .. } = moved.bounds;
         self.planar = n == 0 || lo[2] == hi[2];
-        let z = self.positions.first().map_or(0.0, |p| p.z);
-        self.flat = self.planar
-            && (&self.positions, &self.velocities)
-                .into_par_iter()
-                .all(|(p, v)| p.z == z && v.z == 0.0);
+        self.flat = self.planar && (n == 0 || (z[0] == z[1] && still));
         // The box widened by one cell each side; its extents in wrapping arithmetic (exact
         // for any flock whose box has fewer than 2⁶⁴ cells).
         self.origin = std::array::from_fn(|k| lo[k].wrapping_sub(1));
@@ -130,18 +229,17 @@ impl Cells {
         self.mask = buckets as u64 - 1;
         self.dense = boxed <= buckets as u64;
         let mut bucket = std::mem::take(&mut self.bucket);
-        bucket.resize(n, 0);
-        let this = &*self;
-        bucket.par_iter_mut().zip(&this.cell).for_each(|(b, c)| *b = this.bucket_of(*c));
+        bucket.clear();
+        bucket.extend(moved.cells.iter().map(|&c| self.bucket_of(c)));
         self.bucket = bucket;
         // Stable by the slot before: within a bucket still in the previous order, which was by
         // index; a boid that changed bucket is moved into place by index (a few swaps).
         sort_by_bucket(&self.bucket, buckets, &mut self.start, &mut self.from, |_, _| {});
-        let (order, from) = (&self.order, &self.from);
-        self.next_order.resize(n, 0);
-        self.next_order.par_iter_mut().zip(from).for_each(|(o, &f)| *o = order[f as usize]);
-        let (next, from, bucket) = (&mut self.next_order, &mut self.from, &self.bucket);
-        for k in 1..n {
+        let (order, next, from, bucket) =
+            (&self.order, &mut self.next_order, &mut self.from, &self.bucket);
+        next.resize(n, 0);
+        for k in 0..n {
+            next[k] = order[from[k] as usize];
             let mut j = k;
             while j > 0
                 && bucket[from[j - 1] as usize] == bucket[from[j] as usize]
@@ -152,23 +250,17 @@ impl Cells {
                 j -= 1;
             }
         }
-        self.next_positions.resize(n, DVec3::ZERO);
-        self.next_velocities.resize(n, DVec3::ZERO);
+        std::mem::swap(&mut self.order, &mut self.next_order);
+        self.positions.resize(n, DVec3::ZERO);
+        self.velocities.resize(n, DVec3::ZERO);
         self.cells.resize(n, [0; 3]);
-        let (p, v, c) = (&self.positions, &self.velocities, &self.cell);
-        (&mut self.next_positions, &mut self.next_velocities, &mut self.cells)
+        (&mut self.positions, &mut self.velocities, &mut self.cells)
             .into_par_iter()
             .zip(&self.from)
-            .for_each(|((np, nv, nc), &f)| {
+            .for_each(|((p, v, c), &f)| {
                 let f = f as usize;
-                (*np, *nv, *nc) = (p[f], v[f], c[f]);
+                (*p, *v, *c) = (moved.positions[f], moved.velocities[f], moved.cells[f]);
             });
-        std::mem::swap(&mut self.positions, &mut self.next_positions);
-        std::mem::swap(&mut self.velocities, &mut self.next_velocities);
-        std::mem::swap(&mut self.order, &mut self.next_order);
-        for (s, &i) in self.order.iter().enumerate() {
-            self.rank[i as usize] = s as u32;
-        }
     }
 
     /// Squared neighbour radius (m²).
@@ -176,7 +268,7 @@ impl Cells {
         self.h2
     }
 
-    /// Whether every boid has the first one's `z` and a zero velocity `z` (a 2-D flock).
+    /// Whether every boid has the same `z` and a zero velocity `z` (a 2-D flock).
     pub(super) fn flat(&self) -> bool {
         self.flat
     }
@@ -287,11 +379,13 @@ mod tests {
             (Vec::new(), 0.1),
         ] {
             let n = pts.len();
-            let mut cells = Cells::default();
-            cells.load(&pts, &pts);
-            cells.sort(h);
+            let (mut cells, mut moved) = (Cells::default(), Moved::default());
+            moved.load(&pts, &pts, h);
+            cells.load(n, h);
+            cells.sort(&moved);
+            let rank = cells.update_rank().to_vec();
             for i in 0..n {
-                let s = cells.rank[i] as usize;
+                let s = rank[i] as usize;
                 assert_eq!(cells.order[s] as usize, i);
                 let mut got = Vec::new();
                 cells.for_each_candidate(s, |t, next| {
@@ -310,18 +404,24 @@ mod tests {
             }
             // Move every point by up to a cell and re-sort from this order: the order is
             // the one sorting the moved points afresh gives.
-            let moved: Vec<DVec3> = pts
+            let shifted: Vec<DVec3> = pts
                 .iter()
                 .enumerate()
                 .map(|(k, p)| *p + h * DVec3::new((k % 7) as f64 / 7.0 - 0.5, 0.3, 0.0))
                 .collect();
-            cells.positions.iter_mut().zip(&cells.order).for_each(|(p, &i)| *p = moved[i as usize]);
-            cells.sort(h);
-            let mut fresh = Cells::default();
-            fresh.load(&moved, &pts);
-            fresh.sort(h);
+            let in_order = |v: &[DVec3]| -> Vec<DVec3> {
+                cells.order.iter().map(|&i| v[i as usize]).collect()
+            };
+            let (p, v) = (in_order(&shifted), in_order(&pts));
+            let mut again = Moved::default();
+            again.load(&p, &v, h);
+            cells.sort(&again);
+            let (mut fresh, mut loaded) = (Cells::default(), Moved::default());
+            loaded.load(&shifted, &pts, h);
+            fresh.load(n, h);
+            fresh.sort(&loaded);
             assert_eq!(cells.order, fresh.order, "{n} points");
-            assert_eq!(cells.rank, fresh.rank);
+            assert_eq!(cells.update_rank(), fresh.update_rank());
             assert_eq!(cells.positions, fresh.positions);
             assert_eq!(cells.velocities, fresh.velocities);
         }

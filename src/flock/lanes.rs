@@ -13,14 +13,11 @@
 //! operations in the same order with the branches as selects, so the accelerations too are
 //! bitwise the scalar code's.
 //!
-//! Positions and velocities are read as structures of arrays in the sorted order
-//! ([`Columns`], refilled after every sort); the gather of a candidate's four values is then
-//! four loads from sequential memory, broadcast to the lanes.
+//! A candidate's position and velocity are read from the sorted copies (`cells.rs`) in
+//! sequence, each component broadcast to the lanes.
 
-use super::cells::Cells;
 use super::Settings;
 use glam::DVec3;
-use rayon::prelude::*;
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::__m256d;
 use std::ops::Range;
@@ -28,34 +25,12 @@ use std::ops::Range;
 /// Boids a group sweeps together.
 pub(super) const LANES: usize = 4;
 
-/// Positions (m) and velocities (m/s) of a flat flock in the cells' sorted order, one array
-/// per component.
-#[derive(Clone, Debug, Default)]
-pub(super) struct Columns {
-    x: Vec<f64>,
-    y: Vec<f64>,
-    vx: Vec<f64>,
-    vy: Vec<f64>,
-}
-
-impl Columns {
-    /// Copy the sorted positions and velocities of `cells` (a flat flock: `x`, `y` only).
-    pub(super) fn load(&mut self, cells: &Cells) {
-        let n = cells.positions.len();
-        for c in [&mut self.x, &mut self.y, &mut self.vx, &mut self.vy] {
-            c.resize(n, 0.0);
-        }
-        (&mut self.x, &mut self.y, &mut self.vx, &mut self.vy)
-            .into_par_iter()
-            .zip((&cells.positions, &cells.velocities))
-            .for_each(|((x, y, vx, vy), (p, v))| (*x, *y, *vx, *vy) = (p.x, p.y, v.x, v.y));
-    }
-}
-
 /// The inputs of one group's sweep: the boids in slots `first..first + LANES` (all in one
 /// row of cells), and their candidates' slots per row of cells, `rows[row][lane]`.
 pub(super) struct Group<'a> {
-    pub(super) columns: &'a Columns,
+    /// The flock's positions (m) and velocities (m/s) in the cells' sorted order.
+    pub(super) positions: &'a [DVec3],
+    pub(super) velocities: &'a [DVec3],
     pub(super) first: usize,
     pub(super) rows: [[Range<usize>; LANES]; 3],
     /// Squared neighbour radius and separation distance (m²).
@@ -77,11 +52,12 @@ impl Group<'_> {
         use pulp::bytemuck::cast;
         use std::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ};
         let avx = simd.avx;
-        let Group { columns: c, first, rows, h2, separation2, cc, sees_all } = self;
-        let lane = |a: &[f64]| -> __m256d {
-            cast::<[f64; LANES], _>(a[first..first + LANES].try_into().unwrap())
+        let Group { positions, velocities, first, rows, h2, separation2, cc, sees_all } = self;
+        let lane = |a: &[DVec3], k: usize| -> __m256d {
+            cast::<[f64; LANES], _>(std::array::from_fn(|l| a[first + l][k]))
         };
-        let (px, py, vx, vy) = (lane(&c.x), lane(&c.y), lane(&c.vx), lane(&c.vy));
+        let (px, py) = (lane(positions, 0), lane(positions, 1));
+        let (vx, vy) = (lane(velocities, 0), lane(velocities, 1));
         let all = f64::from_bits(u64::MAX);
         let sees_all: __m256d = cast(sees_all.map(|a| if a { all } else { 0.0 }));
         let cc: __m256d = cast(cc);
@@ -90,26 +66,28 @@ impl Group<'_> {
         let (zero, one) = (avx._mm256_setzero_pd(), avx._mm256_set1_pd(1.0));
         let sign = avx._mm256_set1_pd(-0.0);
         let [mut count, mut ax, mut ay, mut ux, mut uy, mut ox, mut oy] = [zero; 7];
-        for row in &rows {
+        for (r, row) in rows.iter().enumerate() {
             // Slots as f64 (exact below 2⁵³): lane l keeps the candidates in row[l].
             let lo: __m256d = cast(row.clone().map(|r| r.start as f64));
             let hi: __m256d = cast(row.clone().map(|r| r.end as f64));
+            // The group's own boids are candidates in the middle row (`dy = 0`) only.
+            let mine = r == 1;
+            let mut slot = avx._mm256_set1_pd(row[0].start as f64);
             for t in row[0].start..row[LANES - 1].end {
-                let slot = avx._mm256_set1_pd(t as f64);
-                let dx = avx._mm256_sub_pd(avx._mm256_broadcast_sd(&c.x[t]), px);
-                let dy = avx._mm256_sub_pd(avx._mm256_broadcast_sd(&c.y[t]), py);
+                let dx = avx._mm256_sub_pd(avx._mm256_broadcast_sd(&positions[t].x), px);
+                let dy = avx._mm256_sub_pd(avx._mm256_broadcast_sd(&positions[t].y), py);
                 let d2 = avx._mm256_add_pd(avx._mm256_mul_pd(dx, dx), avx._mm256_mul_pd(dy, dy));
                 let dot = avx._mm256_add_pd(avx._mm256_mul_pd(dx, vx), avx._mm256_mul_pd(dy, vy));
-                let near = avx._mm256_and_pd(
+                let mut near = avx._mm256_and_pd(
                     avx._mm256_and_pd(
                         avx._mm256_cmp_pd::<_CMP_GE_OQ>(slot, lo),
                         avx._mm256_cmp_pd::<_CMP_LT_OQ>(slot, hi),
                     ),
-                    avx._mm256_and_pd(
-                        avx._mm256_cmp_pd::<_CMP_NEQ_OQ>(slot, own),
-                        avx._mm256_cmp_pd::<_CMP_LT_OQ>(d2, h2),
-                    ),
+                    avx._mm256_cmp_pd::<_CMP_LT_OQ>(d2, h2),
                 );
+                if mine {
+                    near = avx._mm256_and_pd(near, avx._mm256_cmp_pd::<_CMP_NEQ_OQ>(slot, own));
+                }
                 let front = avx._mm256_cmp_pd::<_CMP_GE_OQ>(
                     avx._mm256_mul_pd(dot, avx._mm256_andnot_pd(sign, dot)),
                     avx._mm256_mul_pd(cc, d2),
@@ -117,8 +95,8 @@ impl Group<'_> {
                 let seen = avx._mm256_and_pd(near, avx._mm256_or_pd(sees_all, front));
                 let w = avx._mm256_and_pd(seen, one);
                 count = avx._mm256_add_pd(count, w);
-                let tvx = avx._mm256_broadcast_sd(&c.vx[t]);
-                let tvy = avx._mm256_broadcast_sd(&c.vy[t]);
+                let tvx = avx._mm256_broadcast_sd(&velocities[t].x);
+                let tvy = avx._mm256_broadcast_sd(&velocities[t].y);
                 ux = avx._mm256_add_pd(ux, avx._mm256_mul_pd(tvx, w));
                 uy = avx._mm256_add_pd(uy, avx._mm256_mul_pd(tvy, w));
                 ox = avx._mm256_add_pd(ox, avx._mm256_mul_pd(dx, w));
@@ -133,6 +111,7 @@ impl Group<'_> {
                     ax = avx._mm256_sub_pd(ax, avx._mm256_mul_pd(dx, q));
                     ay = avx._mm256_sub_pd(ay, avx._mm256_mul_pd(dy, q));
                 }
+                slot = avx._mm256_add_pd(slot, one);
             }
         }
         let rules = Rules::new(simd, set);

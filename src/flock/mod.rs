@@ -9,9 +9,10 @@
 //! add as weighted forces ([`Steering`], `steering.rs`).
 //!
 //! The flock is split as every system of kinema is: a [`Model`] (the settings), a [`State`]
-//! (positions, velocities, time) and a [`Solver`] (cells and accelerations), so one model and
-//! one solver can advance several states. [`Flock`] is the three together. [`polarisation`]
-//! is the order parameter of Vicsek et al. (1995).
+//! (positions, velocities, time) and a [`Solver`] (the sorted and the moved boids), so one
+//! model and one solver can advance several states. [`Flock`] is the three together.
+//! [`polarisation`] is the order parameter of Vicsek et al. (1995), [`cohesion`] the largest
+//! cluster's share (Grégoire & Chaté 2004).
 
 mod cells;
 mod lanes;
@@ -26,7 +27,7 @@ pub use solver::Solver;
 pub use state::{State, MAX_BOIDS};
 pub use steering::{Behaviour, Steering};
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use glam::DVec3;
 
 /// A flock: a [`Model`] with one [`State`] and a [`Solver`], its methods delegating to them.
@@ -93,4 +94,47 @@ pub fn polarisation(velocities: &[DVec3]) -> f64 {
     }
     let sum: DVec3 = velocities.iter().map(|v| v.normalize_or_zero()).sum();
     sum.length() / velocities.len() as f64
+}
+
+/// The cohesion of a flock: the fraction of its boids in the largest cluster, boids linked
+/// when closer than `radius` (m) and clusters the connected sets of links (Grégoire & Chaté
+/// 2004, "Onset of collective and cohesive motion"): 1 for one flock, about `1/N` for boids
+/// all farther apart than `radius`; 0 for no boids. Neighbours from the shared grid
+/// (`geometry/grid.rs`), clusters by union–find.
+///
+/// # Errors
+/// `radius` not finite and positive; a position not finite (`positions`, the lowest index).
+pub fn cohesion(positions: &[DVec3], radius: f64) -> Result<f64> {
+    if !(radius.is_finite() && radius > 0.0) {
+        return Err(Error::invalid("radius", "must be finite and > 0"));
+    }
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(Error::invalid("positions", "contains NaN or infinity").at(i));
+    }
+    let n = positions.len();
+    if n == 0 {
+        return Ok(0.0);
+    }
+    let mut grid = crate::geometry::grid::Grid::default();
+    grid.build(positions, n, radius);
+    // Union–find with path halving; each cluster's root is its lowest boid.
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    let root = |parent: &mut [u32], mut i: u32| {
+        while parent[i as usize] != i {
+            parent[i as usize] = parent[parent[i as usize] as usize];
+            i = parent[i as usize];
+        }
+        i
+    };
+    for i in 0..n as u32 {
+        for &j in grid.neighbours(i as usize) {
+            let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+            parent[a.max(b) as usize] = a.min(b);
+        }
+    }
+    let mut size = vec![0u32; n];
+    for i in 0..n as u32 {
+        size[root(&mut parent, i) as usize] += 1;
+    }
+    Ok(f64::from(*size.iter().max().unwrap_or(&0)) / n as f64)
 }

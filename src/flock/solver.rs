@@ -11,8 +11,8 @@
 //! `max_force` long. The acceleration is the weighted sum, again at most `max_force`; then
 //! semi-implicit Euler `v += a dt` (speed capped at `max_speed`), `p += v dt`.
 
-use super::cells::Cells;
-use super::lanes::{Columns, Group, LANES};
+use super::cells::{Bounds, Cells, Moved};
+use super::lanes::{Group, LANES};
 use super::steering::{self, Behaviour, Steering, View};
 use super::{Model, Settings, State};
 use crate::error::{Error, Result};
@@ -25,12 +25,10 @@ const CHUNK: usize = 512;
 /// Workspaces of a flock step (see the module docs).
 #[derive(Clone, Debug, Default)]
 pub struct Solver {
-    /// The boids of the call, sorted by cell.
+    /// The boids of the step, sorted by cell.
     cells: Cells,
-    /// Accelerations of the step (m/s²), `N`, in the cells' sorted order.
-    acceleration: Vec<DVec3>,
-    /// The sorted positions and velocities of a flat flock, by component.
-    columns: Columns,
+    /// The boids the step moved, in the same slots.
+    moved: Moved,
 }
 
 impl Solver {
@@ -59,11 +57,14 @@ impl Solver {
         }
         let set = &model.settings;
         let cos_half = (0.5 * set.field_of_view).cos();
-        self.cells.load(&state.positions, &state.velocities);
-        self.acceleration.resize(n, DVec3::ZERO);
+        self.moved.load(&state.positions, &state.velocities, set.neighbour_radius);
+        self.cells.load(n, set.neighbour_radius);
         let mut time = state.time;
         for step in 0..steps {
-            self.cells.sort(set.neighbour_radius);
+            self.cells.sort(&self.moved);
+            if !model.steering.is_empty() {
+                self.cells.update_rank();
+            }
             let cells = &self.cells;
             let flock = View {
                 positions: &cells.positions,
@@ -71,89 +72,120 @@ impl Solver {
                 rank: &cells.rank,
                 time,
             };
-            let flat = cells.flat();
-            if flat {
-                self.columns.load(cells);
-            }
             #[cfg(target_arch = "x86_64")]
-            let avx = pulp::x86::V3::try_new().filter(|_| flat);
-            let columns = &self.columns;
-            self.acceleration.par_chunks_mut(CHUNK).enumerate().for_each(|(k, acceleration)| {
-                let first = k * CHUNK;
-                let task =
-                    Task { model, cos_half, cells, columns, flock: &flock, first, acceleration };
-                #[cfg(target_arch = "x86_64")]
-                if let Some(simd) = avx {
-                    return simd
-                        .vectorize(|| task.run(Some(|g: Group| g.accelerations(simd, set))));
-                }
-                task.run(None::<fn(Group) -> [DVec3; LANES]>);
-            });
-            let cells = &mut self.cells;
-            (&mut cells.velocities, &mut cells.positions, &self.acceleration)
+            let avx = pulp::x86::V3::try_new().filter(|_| cells.flat());
+            let Moved { positions, velocities, cells: moved_cells, .. } = &mut self.moved;
+            let chunks = (
+                positions.par_chunks_mut(CHUNK),
+                velocities.par_chunks_mut(CHUNK),
+                moved_cells.par_chunks_mut(CHUNK),
+            );
+            self.moved.bounds = chunks
                 .into_par_iter()
-                .for_each(|(v, p, a)| {
-                    *v = (*v + *a * dt).clamp_length_max(set.max_speed);
-                    *p += *v * dt;
-                });
+                .enumerate()
+                .map(|(k, (p, v, c))| {
+                    let task = Task { model, cos_half, dt, cells, flock: &flock, first: k * CHUNK };
+                    #[cfg(target_arch = "x86_64")]
+                    if let Some(simd) = avx {
+                        return simd.vectorize(Avx2 { task, simd, p, v, c });
+                    }
+                    task.run(None, p, v, c)
+                })
+                .reduce(|| Bounds::EMPTY, Bounds::join);
             time += dt;
-            if let Some(index) =
-                (cells.positions.par_iter(), cells.velocities.par_iter(), &cells.order)
-                    .into_par_iter()
-                    .filter(|(p, v, _)| !(p.is_finite() && v.is_finite()))
-                    .map(|(_, _, &i)| i as usize)
-                    .min()
-            {
+            if self.moved.bounds.bad != u32::MAX {
                 return Err(Error::Diverged {
                     step,
-                    index,
+                    index: self.moved.bounds.bad as usize,
                     reason: "non-finite boid position or velocity".into(),
                 });
             }
         }
-        self.cells.store(&mut state.positions, &mut state.velocities);
+        self.moved.store(&mut self.cells, &mut state.positions, &mut state.velocities);
         state.time = time;
         Ok(())
     }
 }
 
-/// The accelerations of the boids in the sorted slots `first..first + acceleration.len()`:
-/// a flat flock's boids four at a time where `lanes` sweeps them (`lanes.rs`, with AVX2) and
-/// they can be ([`group`]), else one at a time.
+/// The boids in the sorted slots `first..first + len` moved by one step of `dt` (s): their
+/// accelerations (a flat flock's boids four at a time where `lanes` sweeps them, `lanes.rs`
+/// with AVX2, and they can be, [`group`]; else one at a time), then semi-implicit Euler.
 struct Task<'a> {
     model: &'a Model,
     cos_half: f64,
+    dt: f64,
     cells: &'a Cells,
-    /// The flock's sorted positions and velocities by component (flat flocks only).
-    columns: &'a Columns,
     flock: &'a View<'a>,
     first: usize,
-    acceleration: &'a mut [DVec3],
 }
 
 impl Task<'_> {
+    /// Write the moved boids' positions, velocities and cells into `p`, `v` and `c` (the
+    /// task's slots), and return their [`Bounds`].
     #[inline(always)]
-    fn run(self, lanes: Option<impl Fn(Group) -> [DVec3; LANES]>) {
-        let Task { model, cos_half, cells, columns, flock, first, acceleration } = self;
+    fn run(
+        self,
+        #[cfg(target_arch = "x86_64")] simd: Option<pulp::x86::V3>,
+        #[cfg(not(target_arch = "x86_64"))] simd: Option<()>,
+        p: &mut [DVec3],
+        v: &mut [DVec3],
+        c: &mut [[i64; 3]],
+    ) -> Bounds {
+        let Task { model, cos_half, dt, cells, flock, first } = self;
         let set = &model.settings;
         let flat = cells.flat();
-        for (g, a) in acceleration.chunks_mut(LANES).enumerate() {
+        let mut bounds = Bounds::EMPTY;
+        for (g, ((p, v), c)) in
+            p.chunks_mut(LANES).zip(v.chunks_mut(LANES)).zip(c.chunks_mut(LANES)).enumerate()
+        {
             let first = first + g * LANES;
-            let swept = match &lanes {
-                Some(sweep) => group(set, cos_half, cells, columns, first, a.len()).map(sweep),
-                None => None,
-            };
+            let mut swept: Option<[DVec3; LANES]> = None;
+            #[cfg(target_arch = "x86_64")]
+            if let Some(simd) = simd {
+                if let Some(g) = group(set, cos_half, cells, first, p.len()) {
+                    swept = Some(g.accelerations(simd, set));
+                }
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            let _ = simd;
             let swept = swept.map_or([None; LANES], |s| s.map(Some));
-            for (l, (a, swept)) in a.iter_mut().zip(swept).enumerate() {
+            for (l, (((p, v), c), swept)) in p.iter_mut().zip(v).zip(c).zip(swept).enumerate() {
                 let s = first + l;
                 let own = match swept {
                     Some(own) => own,
                     None if flat => flocking::<DVec2>(set, cos_half, cells, s),
                     None => flocking::<DVec3>(set, cos_half, cells, s),
                 };
-                *a = behaviours(set, &model.steering, flock, cells.order[s] as usize, own);
+                let i = cells.order[s];
+                let a = behaviours(set, &model.steering, flock, i as usize, own);
+                *v = (cells.velocities[s] + a * dt).clamp_length_max(set.max_speed);
+                *p = cells.positions[s] + *v * dt;
+                *c = cells.cell_of(*p);
+                bounds.add(*c, *p, *v, i);
             }
         }
+        bounds
+    }
+}
+
+/// A task run with the lanes' sweep inside [`pulp::x86::V3::vectorize`], so that it is
+/// compiled for AVX2 (`call` is inlined there).
+#[cfg(target_arch = "x86_64")]
+struct Avx2<'a, 'b> {
+    task: Task<'a>,
+    simd: pulp::x86::V3,
+    p: &'b mut [DVec3],
+    v: &'b mut [DVec3],
+    c: &'b mut [[i64; 3]],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl pulp::NullaryFnOnce for Avx2<'_, '_> {
+    type Output = Bounds;
+
+    #[inline(always)]
+    fn call(self) -> Bounds {
+        self.task.run(Some(self.simd), self.p, self.v, self.c)
     }
 }
 
@@ -271,8 +303,7 @@ fn rules<V: Vector>(set: &Settings, v: V, away: V, velocity: V, offset: V, count
 fn group<'a>(
     set: &Settings,
     cos_half: f64,
-    cells: &Cells,
-    columns: &'a Columns,
+    cells: &'a Cells,
     first: usize,
     len: usize,
 ) -> Option<Group<'a>> {
@@ -294,7 +325,8 @@ fn group<'a>(
     let view: [(bool, f64); LANES] =
         std::array::from_fn(|l| view(set, cos_half, DVec2::of(cells.velocities[first + l])));
     Some(Group {
-        columns,
+        positions: &cells.positions,
+        velocities: &cells.velocities,
         first,
         rows,
         h2: cells.h2(),
@@ -355,16 +387,14 @@ mod tests {
                 ..Settings::default()
             };
             let cos_half = (0.5 * fov).cos();
-            let mut cells = Cells::default();
-            cells.load(&p, &v);
-            cells.sort(set.neighbour_radius);
+            let (mut cells, mut moved) = (Cells::default(), Moved::default());
+            moved.load(&p, &v, set.neighbour_radius);
+            cells.load(n, set.neighbour_radius);
+            cells.sort(&moved);
             assert!(cells.flat());
-            let mut columns = Columns::default();
-            columns.load(&cells);
             let mut grouped = 0;
             for first in (0..n).step_by(LANES) {
-                let Some(g) = group(&set, cos_half, &cells, &columns, first, LANES.min(n - first))
-                else {
+                let Some(g) = group(&set, cos_half, &cells, first, LANES.min(n - first)) else {
                     continue;
                 };
                 grouped += 1;

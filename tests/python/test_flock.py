@@ -156,3 +156,14 @@ def test_follow_keeps_boids_on_a_path() -> None:
         f.add_behaviour("follow", path=[[0.0, 0.0]])
     with pytest.raises(ValueError, match="path"):
         f.add_behaviour("follow", path=[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+
+
+def test_cohesion_is_the_largest_clusters_fraction() -> None:
+    """Two chains of boids 1 m apart, 7 and 3 boids, 20 m between them: at the neighbour
+    radius 1.5 m the largest cluster holds 0.7 of the flock; at 0.9 m every boid is alone."""
+    x = np.r_[np.arange(7.0), 30.0 + np.arange(3.0)]
+    f = Flock(np.c_[x, np.zeros(10)], np.ones((10, 2)), neighbour_radius=1.5)
+    assert f.cohesion() == 0.7
+    assert f.cohesion(0.9) == 0.1
+    with pytest.raises(ValueError, match="radius"):
+        f.cohesion(-1.0)
