@@ -204,7 +204,8 @@ pub(super) fn contacts(
         let centre = tree.pos[i] + tree.rot[i] * end;
         let depth = shape.radius - centre.y;
         if depth > 0.0 {
-            *slot = Some(spring.touch(tree, i, centre - shape.radius * DVec3::Y, DVec3::Y, depth));
+            let point = end + tree.rot[i].conjugate() * (-shape.radius * DVec3::Y);
+            *slot = Some(spring.touch(tree, i, point, DVec3::Y, depth));
         }
     }
     out
@@ -233,19 +234,18 @@ impl Spring {
         Spring { k, c, mu, slip_speed: s.slip_speed, cap, weight: 1.0 }
     }
 
-    /// The contact of body `i` at `at` (m, world, on the capsule's surface) at `depth` (m,
-    /// > 0) along the unit normal `n` (world, out of the touched shape): the contact, the
-    /// point in the body's frame and the force (N, world),
-    /// `w (max(0, k d − c v·n) n − c_t v_t)`, `c_t = μ f_n / max(|v_t|, v_s)`.
+    /// The contact of body `i` at `point` (m, body frame, on the capsule's surface) at
+    /// `depth` (m, > 0) along the unit normal `n` (world, out of the touched shape): the
+    /// contact, the point and the force (N, world), `w (max(0, k d − c v·n) n − c_t v_t)`,
+    /// `c_t = μ f_n / max(|v_t|, v_s)`.
     fn touch(
         &self,
         tree: &Tree,
         i: usize,
-        at: DVec3,
+        point: DVec3,
         n: DVec3,
         depth: f64,
     ) -> (Contact, DVec3, DVec3) {
-        let point = tree.rot[i].conjugate() * (at - tree.pos[i]);
         let vel = point_velocity(tree, i, point);
         let (w, vn) = (self.weight, vel.dot(n));
         let normal = w * (self.k * depth - self.c * vn).max(0.0);
@@ -253,7 +253,7 @@ impl Spring {
         let tangent = (self.mu * normal / slip.length().max(self.slip_speed)).min(self.cap);
         let contact = Contact {
             body: i,
-            point: at,
+            point: tree.pos[i] + tree.rot[i] * point,
             direction: n,
             normal: if normal > 0.0 { w * self.c } else { 0.0 },
             tangent,
@@ -263,8 +263,8 @@ impl Spring {
 }
 
 /// Add the forces of body `i`'s capsule's contacts with `model`'s colliders to
-/// `tree.f_ext` (and with `implicit` record them in `tree.contacts`). Per collider, with `a`, `b` the capsule's ends (world), `r` its
-/// radius, `φ` the collider's signed distance ([`crate::geometry::Shape::distance`]) and `n`
+/// `tree.f_ext` (and with `implicit` record them in `tree.contacts`). Per collider, with
+/// `a`, `b` the capsule's ends (world), `r` its radius, `φ` the collider's signed distance ([`crate::geometry::Shape::distance`]) and `n`
 /// its normal: every end with `φ < r` touches at depth `r − φ` along `n`; and the axis's
 /// deepest point `p(t)` ([`crate::geometry::Shape::deepest_on_segment`]), when it lies
 /// inside the axis and deeper than both ends (the capsule across a box's edge or a sphere),
@@ -282,7 +282,9 @@ fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, dt: f64, implicit
         }
     };
     let Some(shape) = model.bodies()[i].shape else { return };
-    let (a, b) = (tree.pos[i] + tree.rot[i] * shape.a, tree.pos[i] + tree.rot[i] * shape.b);
+    let (pos, rot) = (tree.pos[i], tree.rot[i]);
+    let local = |p: DVec3| rot.conjugate() * (p - pos);
+    let (a, b) = (pos + rot * shape.a, pos + rot * shape.b);
     let (r, length) = (shape.radius, a.distance(b));
     for collider in model.colliders() {
         let geometry = &collider.shape;
@@ -297,7 +299,7 @@ fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, dt: f64, implicit
             let (d, n) = geometry.distance(end);
             least = least.min(d);
             if d < r {
-                let touch = spring.touch(tree, i, end - r * n, n, r - d);
+                let touch = spring.touch(tree, i, local(end - r * n), n, r - d);
                 each(tree, touch);
             }
         }
@@ -307,7 +309,7 @@ fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, dt: f64, implicit
         let (d, n) = geometry.distance(p);
         if s > 0.0 && d < r && d < least - 1e-12 {
             spring.weight = if r > 0.0 { (s / r).min(1.0) } else { 1.0 };
-            let touch = spring.touch(tree, i, p - r * n, n, r - d);
+            let touch = spring.touch(tree, i, local(p - r * n), n, r - d);
             each(tree, touch);
         }
     }
