@@ -113,6 +113,9 @@ impl ArticulatedModel {
     }
 }
 
+/// A capsule as Python sees it: its axis's ends (m, body frame) and radius (m).
+type CapsuleTuple = ([f64; 3], [f64; 3], f64);
+
 /// An articulated body; see `kinema.character.ArticulatedBody` for the API.
 #[pyclass(module = "kinema._kinema")]
 pub struct ArticulatedBody {
@@ -350,7 +353,7 @@ impl ArticulatedBody {
     }
 
     /// Each body's capsule `(a, b, radius)` (m, body frame), or None.
-    fn capsules(&self) -> Vec<Option<([f64; 3], [f64; 3], f64)>> {
+    fn capsules(&self) -> Vec<Option<CapsuleTuple>> {
         let shape = |b: &Body| b.shape.map(|c| (c.a.to_array(), c.b.to_array(), c.radius));
         self.body.model().bodies().iter().map(shape).collect()
     }
