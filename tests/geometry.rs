@@ -137,3 +137,39 @@ fn each_mistake_is_named_and_planes_are_made_unit() {
     assert_eq!(arg_of(material(0.5, f64::INFINITY).unwrap_err()), "friction");
     assert!(material(0.0, 0.0).is_ok() && material(1.0, 2.0).is_ok());
 }
+
+/// The deepest point of a segment in a shape is where the signed distance along it is least:
+/// checked against 20,001 samples of the segment for every shape, on segments crossing a
+/// box's edge and corner, lying in it, missing it, and crossing the other shapes.
+#[test]
+fn the_deepest_point_of_a_segment_is_the_least_distance_along_it() {
+    let shapes = [
+        Shape::Box(Cuboid {
+            center: DVec3::new(0.1, -0.2, 0.3),
+            rotation: DQuat::from_rotation_y(0.4) * DQuat::from_rotation_x(0.3),
+            half: DVec3::new(0.5, 0.2, 0.3),
+        }),
+        Shape::Sphere(Sphere { center: DVec3::new(0.2, 0.1, 0.0), radius: 0.3 }),
+        Shape::Capsule(Capsule { a: DVec3::new(-0.4, 0.0, 0.2), b: DVec3::Z, radius: 0.1 }),
+        Shape::Plane(Plane { point: DVec3::ZERO, normal: DVec3::new(0.3, 1.0, -0.2).normalize() }),
+    ];
+    let segments = [
+        (DVec3::new(-1.0, 0.3, -0.2), DVec3::new(1.2, -0.1, 0.9)),
+        (DVec3::new(0.7, 0.5, 0.6), DVec3::new(-0.2, -0.6, -0.4)),
+        (DVec3::new(0.0, 0.9, 0.0), DVec3::new(0.3, 1.4, 0.1)),
+        (DVec3::new(0.05, -0.2, 0.3), DVec3::new(0.15, -0.2, 0.3)),
+        (DVec3::new(-2.0, -0.35, 0.0), DVec3::new(2.0, 0.2, 0.6)),
+    ];
+    for shape in shapes {
+        for (a, b) in segments {
+            let t = shape.deepest_on_segment(a, b);
+            assert!((0.0..=1.0).contains(&t));
+            let found = shape.distance(a.lerp(b, t)).0;
+            let sampled = (0..=20_000)
+                .map(|k| shape.distance(a.lerp(b, k as f64 / 20_000.0)).0)
+                .fold(f64::INFINITY, f64::min);
+            assert!(found <= sampled + 1e-12, "{shape:?} {a} {b}: {found} > {sampled}");
+            assert!(found > sampled - 2.0 * a.distance(b) / 20_000.0, "{found} vs {sampled}");
+        }
+    }
+}

@@ -4,7 +4,8 @@ A :class:`Model` is a kinematic tree of rigid bodies joined by revolute (hinge),
 free (6 DOF), planar (x, y, turn about z) and fixed joints, built body by body (parents first). An
 :class:`ArticulatedBody` steps it with Featherstone's articulated-body algorithm (forward
 dynamics in O(n); the CRBA and RNEA for stable PD), semi-implicit Euler or RK4, joint limits
-as stiff one-sided springs, penalty ground contact on the plane y = 0 with friction, PD or
+as stiff one-sided springs, penalty contact with friction on the plane y = 0 and on static
+colliders (:meth:`ArticulatedBody.add_collider`: planes, spheres, capsules, boxes), PD or
 stable PD servos (Tan, Liu & Turk 2011) and timed pushes. :meth:`Ragdoll.from_skeleton`
 builds a limp ragdoll from an ASF or BVH skeleton; :class:`Tracker` makes the ragdoll of a
 CMU skeleton follow a clip with PD servos and a measured root assistance. :class:`Biped`
@@ -26,6 +27,7 @@ import numpy as np
 
 from kinema import _kinema
 from kinema._array import as_vector3, real
+from kinema.geometry import Box, Capsule, Plane, Sphere, shape_params
 
 __all__ = ["ArticulatedBody", "Biped", "Model", "Ragdoll", "Tracker"]
 
@@ -37,6 +39,23 @@ def _index(value: object, name: str) -> int:
     if isinstance(value, bool) or not isinstance(value, SupportsIndex):
         raise TypeError(f"{name}: expected an integer, got {type(value).__name__}")
     return operator.index(value)
+
+
+def _collider(c: Any) -> tuple[str, list[float], float | None]:
+    """A :mod:`kinema.geometry` shape as an articulated collider: its kind, parameters and
+    friction (``None``: the body's). Penalty contacts have no restitution, and the colliders
+    are static."""
+    kind, params = shape_params(c)
+    if c.restitution is not None:
+        raise ValueError(
+            "restitution: articulated contacts are damped springs without restitution; "
+            "leave it None"
+        )
+    if isinstance(c, Sphere) and c.inside:
+        raise ValueError("inside: articulated bodies collide with the outside of a sphere only")
+    if any(as_vector3(c.velocity, "velocity")):
+        raise ValueError("velocity: articulated colliders are static (velocity 0)")
+    return kind, params, None if c.friction is None else real(c.friction, "friction")
 
 
 def _floats(value: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
@@ -235,6 +254,16 @@ class ArticulatedBody:
             _index(body, "body"), gain, real(kd, "kd"), real(max_torque, "max_torque")
         )
 
+    def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> int:
+        """Add a static collider (a :mod:`kinema.geometry` shape: a plane of any normal, a
+        sphere, a capsule or an oriented box; a staircase is a list of boxes) touched by every
+        capsule with the ground's contact spring, damping and regularised friction along the
+        shape's closest-point normal (docs/character.md, "Colliders"); returns its index. The
+        shape's ``friction`` (``None``: the ``friction`` setting) is its Coulomb μ; it takes
+        no ``restitution`` and no ``velocity``. Bad shapes raise ``ValueError`` naming the
+        argument."""
+        return int(self._b.add_collider(*_collider(collider)))
+
     def push(self, body: int, force: Any, duration: float) -> None:
         """Apply ``force`` (N, world axes) at body ``body``'s centre of mass during the next
         ``duration`` seconds."""
@@ -274,6 +303,14 @@ class ArticulatedBody:
     def masses(self) -> np.ndarray:
         """Body masses (kg), in order."""
         return np.array(self._b.masses())
+
+    def capsules(self) -> list[tuple[np.ndarray, np.ndarray, float] | None]:
+        """Each body's collision capsule ``(a, b, radius)``: its axis's ends (m, body frame:
+        world ``positions()[i] + R_i a``) and radius (m); ``None`` for a body without one."""
+        return [
+            None if c is None else (np.array(c[0]), np.array(c[1]), float(c[2]))
+            for c in self._b.capsules()
+        ]
 
     def positions(self) -> np.ndarray:
         """World positions of the body frames ``(n, 3)`` (m)."""
@@ -507,6 +544,11 @@ class Biped:
         """Advance ``steps`` steps of ``dt`` seconds (controller, then dynamics, per step).
         Raises :class:`kinema.SimulationError` on divergence, leaving the biped as it was."""
         self._w.step(real(dt, "dt"), _index(steps, "steps"))
+
+    def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> int:
+        """Add a static collider under the feet, as :meth:`ArticulatedBody.add_collider`; the
+        controller takes a foot in it for a foot on the ground. Returns its index."""
+        return int(self._w.add_collider(*_collider(collider)))
 
     def push(self, force: Any, duration: float, body: str | int = "torso") -> None:
         """Push ``body`` (a name or index; default the torso) with ``force`` (N, world, 3

@@ -113,6 +113,9 @@ impl ArticulatedModel {
     }
 }
 
+/// A capsule as Python sees it: its axis's ends (m, body frame) and radius (m).
+type CapsuleTuple = ([f64; 3], [f64; 3], f64);
+
 /// An articulated body; see `kinema.character.ArticulatedBody` for the API.
 #[pyclass(module = "kinema._kinema")]
 pub struct ArticulatedBody {
@@ -229,6 +232,14 @@ impl ArticulatedBody {
         Ok(())
     }
 
+    /// Add a static collider of kind `kind` with the shape's parameters `p`
+    /// (`super::geometry::shape`) and Coulomb `friction` (None: the settings'); returns its
+    /// index.
+    fn add_collider(&mut self, kind: &str, p: Vec<f64>, friction: Option<f64>) -> PyResult<usize> {
+        let (shape, _) = super::geometry::shape(kind, &p, 0)?;
+        Ok(self.body.model_mut().add_collider(shape, friction)?)
+    }
+
     /// Set (or with `kp` None remove) the PD servo of body `body`'s joint.
     fn set_servo(&mut self, body: Int, kp: Option<f64>, kd: f64, max_torque: f64) -> PyResult<()> {
         let servo = kp.map(|kp| Servo { kp, kd, max_torque });
@@ -339,6 +350,12 @@ impl ArticulatedBody {
     /// Body names, in order.
     fn names(&self) -> Vec<String> {
         self.body.model().bodies().iter().map(|b| b.name.clone()).collect()
+    }
+
+    /// Each body's capsule `(a, b, radius)` (m, body frame), or None.
+    fn capsules(&self) -> Vec<Option<CapsuleTuple>> {
+        let shape = |b: &Body| b.shape.map(|c| (c.a.to_array(), c.b.to_array(), c.radius));
+        self.body.model().bodies().iter().map(shape).collect()
     }
 
     /// Body masses (kg), in order.

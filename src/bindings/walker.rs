@@ -66,6 +66,14 @@ macro_rules! walker_class {
                 super::error::detached(py, || walker.step(dt, steps))
             }
 
+            /// Add a static collider of kind `kind` with the shape's parameters `p`
+            /// (`super::geometry::shape`) and Coulomb `friction` (None: the ground's);
+            /// returns its index.
+            fn add_collider(&mut self, kind: &str, p: Vec<f64>, friction: Option<f64>) -> PyResult<usize> {
+                let (shape, _) = super::geometry::shape(kind, &p, 0)?;
+                Ok(self.walker.add_collider(shape, friction)?)
+            }
+
             /// Push the torso (body 0) or another body with `force` (N, world) for
             /// `duration` s.
             fn push(&mut self, body: super::args::Int, force: [f64; 3], duration: f64) -> PyResult<()> {

@@ -99,9 +99,17 @@ impl Tree {
         if changed {
             self.dof_paths.build(&self.dof_parents);
         }
-        let ends = model.bodies().iter().filter_map(|b| b.shape).map(|c| 1 + (c.a != c.b) as usize);
-        let ends: usize = ends.sum();
-        self.contacts.reserve(ends.saturating_sub(self.contacts.len()));
+        // At most a contact per capsule end with the ground, and per end and one inner
+        // contact with each collider (`super::forces`).
+        let colliders = model.colliders().len();
+        let most: usize = model
+            .bodies()
+            .iter()
+            .filter_map(|b| b.shape)
+            .map(|c| 1 + (c.a != c.b) as usize)
+            .map(|ends| ends + colliders * (ends + 1))
+            .sum();
+        self.contacts.reserve(most.saturating_sub(self.contacts.len()));
     }
 
     /// Positions, orientations, velocities and velocity products of every body at
@@ -186,7 +194,8 @@ impl Tree {
 
     /// `M + dt Σ Jᵀ C J` by the CRBA into [`Tree::mass_matrix`] for the recorded
     /// [`Tree::contacts`]: `J` a contact point's world velocity per joint rate, `C =
-    /// diag(c_t, c_n, c_t)` (world) its viscous coefficients. With it, `(M + dt Jᵀ C J) q̈ = …`
+    /// c_t (1 − n nᵀ) + c_n n nᵀ` (world, `n` the contact's normal: `+Y` on the ground, the
+    /// collider's closest-point normal otherwise) its viscous coefficients. With it, `(M + dt Jᵀ C J) q̈ = …`
     /// takes the contacts' damping at the next step's velocity, `−C J (q̇ + dt q̈)` (the
     /// explicit part `−C J q̇` is in [`Tree::f_ext`]). Each contact adds to its body's
     /// inertia the 6 × 6 `dt Gᵀ C_b G` (body axes, `G = [−p×, 1]` the point's velocity from
@@ -197,7 +206,7 @@ impl Tree {
         for c in &self.contacts {
             let rot = self.rot[c.body];
             let p = super::spatial::skew(rot.conjugate() * (c.point - self.pos[c.body]));
-            let up = super::spatial::vec3(rot.conjugate() * DVec3::Y);
+            let up = super::spatial::vec3(rot.conjugate() * c.direction);
             let cb = nalgebra::Matrix3::identity() * c.tangent
                 + up * up.transpose() * (c.normal - c.tangent);
             let mut d = SMat::zeros();

@@ -40,14 +40,16 @@ use crate::geometry::segment::closest_points_of_segments;
 use crate::rotation::quat_to_rotvec;
 use glam::DVec3;
 
-/// A ground contact of the last [`passive`] of an implicit step: the body, the contact
-/// point (m, world) and the viscous coefficients (N s/m) of its force, `c_n` on the normal
-/// velocity (zero when the normal force is clamped at zero) and `c_t` on the tangential
-/// velocity (friction's `μ f_n / max(|v_t|, v_s)`).
+/// A contact (ground or collider) of the last [`passive`] of an implicit step: the body, the
+/// contact point (m, world), its unit normal (world, out of the touched surface) and the
+/// viscous coefficients (N s/m) of its force, `c_n` on the normal velocity (zero when the
+/// normal force is clamped at zero) and `c_t` on the tangential velocity (friction's
+/// `μ f_n / max(|v_t|, v_s)`).
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Contact {
     pub body: usize,
     pub point: DVec3,
+    pub direction: DVec3,
     pub normal: f64,
     pub tangent: f64,
 }
@@ -92,6 +94,11 @@ pub(super) fn passive(
                     tree.contacts.push(contact);
                 }
             }
+        }
+    }
+    if !model.colliders().is_empty() {
+        for i in 0..model.bodies().len() {
+            collider_contacts(model, tree, i, dt, implicit);
         }
     }
     if model.settings.self_collision {
@@ -189,34 +196,123 @@ pub(super) fn contacts(
     implicit: bool,
 ) -> [Option<(Contact, DVec3, DVec3)>; 2] {
     let mut out = [None; 2];
-    let (s, b) = (&model.settings, &model.bodies()[i]);
+    let b = &model.bodies()[i];
     let Some(shape) = b.shape else { return out };
-    // Viscous coefficients above m / (4 dt) would overshoot in an explicit step.
-    let cap = if implicit { f64::INFINITY } else { b.mass / (4.0 * dt) };
-    let k = b.mass * s.contact_frequency.powi(2);
-    let c = (2.0 * s.contact_damping * b.mass * s.contact_frequency).min(cap);
+    let spring = Spring::new(model, i, dt, implicit, model.settings.friction);
     let ends: &[DVec3] = if shape.a == shape.b { &[shape.a][..] } else { &[shape.a, shape.b][..] };
     for (slot, &end) in out.iter_mut().zip(ends) {
         let centre = tree.pos[i] + tree.rot[i] * end;
         let depth = shape.radius - centre.y;
-        if depth <= 0.0 {
-            continue;
+        if depth > 0.0 {
+            let point = end + tree.rot[i].conjugate() * (-shape.radius * DVec3::Y);
+            *slot = Some(spring.touch(tree, i, point, DVec3::Y, depth));
         }
-        let point = end + tree.rot[i].conjugate() * (-shape.radius * DVec3::Y);
+    }
+    out
+}
+
+/// The penalty spring-damper of body `i`'s contacts (the module documentation): stiffness
+/// `k = m ω²`, damping `c = 2 ζ m ω` and friction coefficient `mu`, the viscous coefficients
+/// capped at `m / (4 dt)` unless `implicit`; `weight` scales the whole force (1 but for
+/// the inner contacts of [`collider_contacts`]).
+struct Spring {
+    k: f64,
+    c: f64,
+    mu: f64,
+    slip_speed: f64,
+    cap: f64,
+    weight: f64,
+}
+
+impl Spring {
+    fn new(model: &Model, i: usize, dt: f64, implicit: bool, mu: f64) -> Spring {
+        let (s, m) = (&model.settings, model.bodies()[i].mass);
+        // Viscous coefficients above m / (4 dt) would overshoot in an explicit step.
+        let cap = if implicit { f64::INFINITY } else { m / (4.0 * dt) };
+        let k = m * s.contact_frequency.powi(2);
+        let c = (2.0 * s.contact_damping * m * s.contact_frequency).min(cap);
+        Spring { k, c, mu, slip_speed: s.slip_speed, cap, weight: 1.0 }
+    }
+
+    /// The contact of body `i` at `point` (m, body frame, on the capsule's surface) at
+    /// `depth` (m, > 0) along the unit normal `n` (world, out of the touched shape): the
+    /// contact, the point and the force (N, world), `w (max(0, k d − c v·n) n − c_t v_t)`,
+    /// `c_t = μ f_n / max(|v_t|, v_s)`.
+    fn touch(
+        &self,
+        tree: &Tree,
+        i: usize,
+        point: DVec3,
+        n: DVec3,
+        depth: f64,
+    ) -> (Contact, DVec3, DVec3) {
         let vel = point_velocity(tree, i, point);
-        let normal = (k * depth - c * vel.y).max(0.0);
-        let slip = DVec3::new(vel.x, 0.0, vel.z);
-        let tangent = (s.friction * normal / slip.length().max(s.slip_speed)).min(cap);
-        let friction = -tangent * slip;
+        let (w, vn) = (self.weight, vel.dot(n));
+        let normal = w * (self.k * depth - self.c * vn).max(0.0);
+        let slip = vel - vn * n;
+        let tangent = (self.mu * normal / slip.length().max(self.slip_speed)).min(self.cap);
         let contact = Contact {
             body: i,
             point: tree.pos[i] + tree.rot[i] * point,
-            normal: if normal > 0.0 { c } else { 0.0 },
+            direction: n,
+            normal: if normal > 0.0 { w * self.c } else { 0.0 },
             tangent,
         };
-        *slot = Some((contact, point, DVec3::new(friction.x, normal, friction.z)));
+        (contact, point, normal * n - tangent * slip)
     }
-    out
+}
+
+/// Add the forces of body `i`'s capsule's contacts with `model`'s colliders to
+/// `tree.f_ext` (and with `implicit` record them in `tree.contacts`). Per collider, with
+/// `a`, `b` the capsule's ends (world), `r` its radius, `φ` the collider's signed distance ([`crate::geometry::Shape::distance`]) and `n`
+/// its normal: every end with `φ < r` touches at depth `r − φ` along `n`; and the axis's
+/// deepest point `p(t)` ([`crate::geometry::Shape::deepest_on_segment`]), when it lies
+/// inside the axis and deeper than both ends (the capsule across a box's edge or a sphere),
+/// touches with its force weighted by `min(1, s / r)`, `s` its distance along the axis to
+/// the nearer end (near an end, that end's contact already holds it); "deeper" by more
+/// than 1e-12 m, so that a capsule lying on a face (a plateau of `φ`) keeps its two end
+/// contacts only, whatever point of the plateau the search returns. A capsule whose axis
+/// midpoint is farther than `r + |b − a| / 2` from the collider is skipped (the signed
+/// distance changes by at most the distance moved).
+fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, dt: f64, implicit: bool) {
+    let each = |tree: &mut Tree, (contact, point, force): (Contact, DVec3, DVec3)| {
+        apply(tree, i, point, force);
+        if implicit {
+            tree.contacts.push(contact);
+        }
+    };
+    let Some(shape) = model.bodies()[i].shape else { return };
+    let (pos, rot) = (tree.pos[i], tree.rot[i]);
+    let local = |p: DVec3| rot.conjugate() * (p - pos);
+    let (a, b) = (pos + rot * shape.a, pos + rot * shape.b);
+    let (r, length) = (shape.radius, a.distance(b));
+    for collider in model.colliders() {
+        let geometry = &collider.shape;
+        if geometry.distance(0.5 * (a + b)).0 >= r + 0.5 * length {
+            continue;
+        }
+        let mu = collider.friction.unwrap_or(model.settings.friction);
+        let mut spring = Spring::new(model, i, dt, implicit, mu);
+        let ends: &[DVec3] = if length == 0.0 { &[a][..] } else { &[a, b][..] };
+        let mut least = f64::INFINITY;
+        for &end in ends {
+            let (d, n) = geometry.distance(end);
+            least = least.min(d);
+            if d < r {
+                let touch = spring.touch(tree, i, local(end - r * n), n, r - d);
+                each(tree, touch);
+            }
+        }
+        let t = geometry.deepest_on_segment(a, b);
+        let s = t.min(1.0 - t) * length;
+        let p = a.lerp(b, t);
+        let (d, n) = geometry.distance(p);
+        if s > 0.0 && d < r && d < least - 1e-12 {
+            spring.weight = if r > 0.0 { (s / r).min(1.0) } else { 1.0 };
+            let touch = spring.touch(tree, i, local(p - r * n), n, r - d);
+            each(tree, touch);
+        }
+    }
 }
 
 /// The joint-limit torques into `tau`; the joint-space inertia is computed and factorised

@@ -1,7 +1,8 @@
 //! Articulated characters in reduced coordinates: a kinematic tree of rigid bodies joined by
 //! revolute, ball, free and fixed joints, its dynamics by Featherstone's recursive
-//! algorithms ("Rigid Body Dynamics Algorithms", 2008: RNEA, CRBA, ABA), ground contact,
-//! joint limits, PD and stable PD servos (Tan, Liu & Turk 2011), and ragdolls built from
+//! algorithms ("Rigid Body Dynamics Algorithms", 2008: RNEA, CRBA, ABA), contact with the
+//! ground and with static colliders (planes, spheres, capsules, boxes: a staircase), joint
+//! limits, PD and stable PD servos (Tan, Liu & Turk 2011), and ragdolls built from
 //! motion-capture skeletons.
 //!
 //! Conventions, stated once: spatial vectors are **angular first** (`[ω; v]`, `[n; f]`) in
@@ -11,11 +12,13 @@
 //!
 //! - `spatial.rs`: spatial vectors, cross products, Plücker transforms, rigid inertias
 //!   (Featherstone ch. 2).
-//! - `model.rs`: the [`Model`] (bodies, joints, shapes, limits, servos, settings).
+//! - `model.rs`: the [`Model`] (bodies, joints, shapes, limits, servos, settings, static
+//!   colliders).
 //! - `state.rs`: the [`State`] (`q`, `q̇`, time, servo targets, torques, pushes).
 //! - `joints.rs`: joint transforms and motion subspaces (Table 4.1), `⊕`/`⊖` on coordinates.
 //! - `dynamics.rs`: kinematics, RNEA (Table 5.1), CRBA (Table 6.2), ABA (Table 7.1).
-//! - `forces.rs`: damping, joint limits, pushes, penalty ground contact with friction.
+//! - `forces.rs`: damping, joint limits, pushes, penalty contact with friction against the
+//!   ground and static colliders (planes, spheres, capsules, boxes).
 //! - `servo.rs`: PD and stable PD (Tan et al. 2011, eq. 5–8).
 //! - `solver.rs`: the [`Solver`] (forward dynamics of a step, symplectic Euler, RK4).
 //! - `ragdoll.rs`: a model from an ASF or a BVH skeleton.
@@ -47,7 +50,9 @@ pub use biped::{hip_height, link_boxes, planar_biped, LEFT, RIGHT, TORSO};
 pub use biped3d::{biped3d, link_boxes_3d, FOOT_WIDTH, HIP_WIDTH, LEFT_3D, RIGHT_3D, TORSO_3D};
 pub use dynamics::Tree;
 pub use joints::{difference, integrate};
-pub use model::{Body, Capsule, Integrator, Joint, Limits, Model, Servo, ServoMode, Settings};
+pub use model::{
+    Body, Capsule, Collider, Integrator, Joint, Limits, Model, Servo, ServoMode, Settings,
+};
 pub use ragdoll::{ragdoll, ragdoll_bvh, RagdollOptions};
 pub use simbicon::{Gait, Phase, Pose, Walker};
 pub use simbicon3d::{Coronal, Walker3d};

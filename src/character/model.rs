@@ -1,10 +1,11 @@
 //! The articulated model: a kinematic tree of rigid bodies joined by revolute, ball, free
 //! and fixed joints, with masses, capsule shapes, joint limits, damping, PD servos and the
 //! settings of ground contact and integration. Built body by body ([`Model::add_body`],
-//! parents first), read-only during a step.
+//! parents first), with static colliders ([`Model::add_collider`]); read-only during a step.
 
 use super::spatial::{rigid_inertia, SMat, Transform};
 use crate::error::{Error, Result};
+use crate::geometry::Shape;
 use glam::{DMat3, DQuat, DVec3};
 
 /// The joint between a body and its parent (or the world).
@@ -142,6 +143,18 @@ pub struct Body {
     pub servo: Option<Servo>,
 }
 
+/// A static collider of the bodies' capsules: one of the shared shapes
+/// ([`crate::geometry::Shape`]: a plane of any normal, a sphere, a capsule or an oriented
+/// box), touched by the capsules through the ground's penalty spring-dampers and regularised
+/// Coulomb friction along its closest-point normal (`super::forces`).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
+pub struct Collider {
+    /// The shape (m, world), checked by [`Shape::checked`].
+    pub shape: Shape,
+    /// Its Coulomb friction coefficient μ (`None`: [`Settings::friction`]).
+    pub friction: Option<f64>,
+}
+
 /// Time integrator of [`super::Solver::step`].
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Integrator {
@@ -229,6 +242,8 @@ pub struct Model {
     pub(super) tree: Vec<Transform>,
     /// The pairs `(i, j)`, `i < j`, of bodies whose capsules may collide with each other.
     pub(super) collision_pairs: Vec<(usize, usize)>,
+    /// The static colliders of the capsules, in the order added.
+    pub(super) colliders: Vec<Collider>,
 }
 
 impl Model {
@@ -298,6 +313,25 @@ impl Model {
             i = p;
         }
         origin
+    }
+
+    /// Add a static collider touched by every body's capsule ([`Collider`]) and return its
+    /// index. A model without colliders pays nothing for them.
+    ///
+    /// # Errors
+    /// A shape that [`Shape::checked`] refuses (its argument named: `point`, `normal`,
+    /// `center`, `radius`, `a`, `b`, `half_extents`, `orientation`); a negative or non-finite
+    /// `friction`.
+    pub fn add_collider(&mut self, shape: Shape, friction: Option<f64>) -> Result<usize> {
+        let collider = Collider { shape: shape.checked()?, friction };
+        check_collider(&collider)?;
+        self.colliders.push(collider);
+        Ok(self.colliders.len() - 1)
+    }
+
+    /// The static colliders, in the order added.
+    pub fn colliders(&self) -> &[Collider] {
+        &self.colliders
     }
 
     /// The bodies, parents first.
@@ -427,6 +461,14 @@ fn check_body(body: &Body, index: usize) -> Result<()> {
         }
     }
     check_servo(body.joint, body.servo.as_ref())
+}
+
+/// The checks of [`Model::add_collider`] on a collider whose shape is already checked.
+pub(super) fn check_collider(c: &Collider) -> Result<()> {
+    if c.friction.is_some_and(|mu| !(mu.is_finite() && mu >= 0.0)) {
+        return Err(Error::invalid("friction", "must be finite and >= 0"));
+    }
+    Ok(())
 }
 
 fn check_servo(joint: Joint, servo: Option<&Servo>) -> Result<()> {

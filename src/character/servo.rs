@@ -260,7 +260,8 @@ mod tests {
 
     /// The contacts' terms of the CRBA are `dt Jᵀ C J`: for any rates, `q̇ᵀ (M_c − M) q̇`
     /// equals `dt Σ (c_t |v_t|² + c_n v_n²)` with `v` each contact point's world velocity
-    /// from the bodies' velocities of the kinematics (an independent route to `J q̇`).
+    /// from the bodies' velocities of the kinematics (an independent route to `J q̇`) and
+    /// `v_n` along the contact's normal (the ground's `+Y`, a collider's tilted one).
     #[test]
     fn the_contacts_damping_adds_dt_jt_c_j_to_the_mass_matrix() {
         let dt = 1e-3;
@@ -271,11 +272,14 @@ mod tests {
         for (n, &(body, local)) in points.iter().enumerate() {
             let (tangent, normal) = (1000.0 * (n + 1) as f64, 300.0 * (n + 2) as f64);
             let point = tree.pos[body] + tree.rot[body] * local;
-            tree.contacts.push(Contact { body, point, normal, tangent });
+            // The ground's normal, and a collider's tilted one.
+            let direction = [DVec3::Y, DVec3::new(0.3, 1.0, -0.4).normalize()][n];
+            tree.contacts.push(Contact { body, point, direction, normal, tangent });
             let v = &tree.v[body];
             let w = DVec3::new(v[0], v[1], v[2]);
             let vel = tree.rot[body] * (DVec3::new(v[3], v[4], v[5]) + w.cross(local));
-            expected += dt * (tangent * (vel.x * vel.x + vel.z * vel.z) + normal * vel.y * vel.y);
+            let vn = vel.dot(direction);
+            expected += dt * (tangent * (vel.length_squared() - vn * vn) + normal * vn * vn);
         }
         tree.crba(&model);
         let plain = tree.mass_matrix.clone();

@@ -207,6 +207,19 @@ impl Walker {
         &self.model
     }
 
+    /// Add a static collider under the feet ([`Model::add_collider`]); the controller takes
+    /// a foot in it for a foot on the ground. Returns its index.
+    ///
+    /// # Errors
+    /// Those of [`Model::add_collider`].
+    pub fn add_collider(
+        &mut self,
+        shape: crate::geometry::Shape,
+        friction: Option<f64>,
+    ) -> Result<usize> {
+        self.model.add_collider(shape, friction)
+    }
+
     /// The biped's state (coordinates `[x, y, θ, hip, knee, ankle (right), hip, knee,
     /// ankle (left)]`).
     pub fn state(&self) -> &State {
@@ -313,11 +326,17 @@ pub(super) fn vertical(model: &Model) -> (DVec3, DVec3, f64) {
     (up, DVec3::new(up.y, -up.x, 0.0), (-up.x).atan2(up.y))
 }
 
-/// Whether body `foot`'s capsule reaches below the ground plane.
+/// Whether body `foot`'s capsule reaches below the ground plane or into a collider (its
+/// axis's deepest point closer than its radius).
 pub(super) fn touches(model: &Model, tree: &Tree, foot: usize) -> bool {
     let Some(c) = model.bodies()[foot].shape else { return false };
     let (pos, rot) = (tree.positions()[foot], tree.orientations()[foot]);
-    [c.a, c.b].iter().any(|&e| (pos + rot * e).y < c.radius)
+    let (a, b) = (pos + rot * c.a, pos + rot * c.b);
+    a.y.min(b.y) < c.radius
+        || model
+            .colliders()
+            .iter()
+            .any(|k| k.shape.distance(a.lerp(b, k.shape.deepest_on_segment(a, b))).0 < c.radius)
 }
 
 /// The legs as (swing, stance) in FSM state `state`.

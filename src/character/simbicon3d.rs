@@ -150,6 +150,19 @@ impl Walker3d {
         &self.model
     }
 
+    /// Add a static collider under the feet ([`Model::add_collider`]); the controller takes
+    /// a foot in it for a foot on the ground. Returns its index.
+    ///
+    /// # Errors
+    /// Those of [`Model::add_collider`].
+    pub fn add_collider(
+        &mut self,
+        shape: crate::geometry::Shape,
+        friction: Option<f64>,
+    ) -> Result<usize> {
+        self.model.add_collider(shape, friction)
+    }
+
     /// The biped's state (coordinates as [`biped3d`]'s).
     pub fn state(&self) -> &State {
         &self.state

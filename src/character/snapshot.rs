@@ -1,12 +1,14 @@
 //! Articulated snapshots: the body's (model and state), a state's alone, stamped with its
 //! model's fingerprint so that it is restored only onto it, the walkers' and the mocap
-//! tracker's.
+//! tracker's. A model's colliders are stored with it (snapshot version 18; earlier versions
+//! are refused by their version, as every snapshot is).
 
-use super::model::Joint;
+use super::model::{check_collider, Joint};
 use super::simbicon::SERVOED;
 use super::simbicon3d::SERVOED_3D;
 use super::{biped3d, planar_biped, ArticulatedBody, Model, State, Tracker, Walker, Walker3d};
 use crate::error::Result;
+use crate::geometry::Shape;
 use crate::snapshot::{check, finite, Snapshot, Stamped};
 
 impl Stamped for State {
@@ -62,9 +64,24 @@ impl Snapshot for ArticulatedBody {
             && rebuilt.inertias.len() == m.inertias.len()
             && rebuilt.inertias.iter().zip(&m.inertias).all(|(a, b)| near(a, b));
         check(same, "model", || "derived data do not match the bodies".into())?;
+        check_colliders(&self.model)?;
         self.model.check_settings()?;
         self.state.validate(&self.model)
     }
+}
+
+/// Check a decoded model's colliders as [`Model::add_collider`] would (a plane's normal
+/// unit to 1e-9).
+fn check_colliders(model: &Model) -> Result<()> {
+    for c in model.colliders() {
+        c.shape.checked()?;
+        check_collider(c)?;
+        if let Shape::Plane(p) = c.shape {
+            let unit = (p.normal.length() - 1.0).abs() < 1e-9;
+            check(unit, "normal", || "a plane collider's normal must be unit".into())?;
+        }
+    }
+    Ok(())
 }
 
 impl Snapshot for Walker {
@@ -77,6 +94,8 @@ impl Snapshot for Walker {
         for body in SERVOED {
             rebuilt.set_servo(body, self.model.bodies()[body].servo)?;
         }
+        check_colliders(&self.model)?;
+        rebuilt.colliders.clone_from(&self.model.colliders);
         check(rebuilt == self.model, "model", || "not the planar biped".into())?;
         self.model.check_settings()?;
         self.gait.check()?;
@@ -96,6 +115,8 @@ impl Snapshot for Walker3d {
         for body in SERVOED_3D {
             rebuilt.set_servo(body, self.model.bodies()[body].servo)?;
         }
+        check_colliders(&self.model)?;
+        rebuilt.colliders.clone_from(&self.model.colliders);
         check(rebuilt == self.model, "model", || "not the 3-D biped".into())?;
         self.model.check_settings()?;
         self.gait.check()?;

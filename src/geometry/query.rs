@@ -3,8 +3,11 @@
 //!
 //! For a point exactly on a sphere's centre or a capsule's axis, where every direction is
 //! nearest, the normal is `+Y`. Inside a box the nearest face gives the normal.
+//!
+//! [`Shape::deepest_on_segment`]: the point of a segment of least signed distance, for shapes
+//! swept along a segment (capsules) touching a shape.
 
-use super::segment::closest_point_on_segment;
+use super::segment::{closest_point_on_segment, closest_points_of_segments};
 use super::shape::{Capsule, Cuboid, Plane, Shape, Sphere};
 use glam::DVec3;
 
@@ -76,5 +79,64 @@ impl Shape {
     pub fn closest_point(&self, p: DVec3) -> DVec3 {
         let (d, n) = self.distance(p);
         p - d * n
+    }
+
+    /// The parameter `t ∈ [0, 1]` of the point `a + t (b − a)` of the segment `a`–`b` (m) of
+    /// least signed distance to the shape (the segment's deepest point inside it, or nearest
+    /// outside). A plane's distance is linear along the segment: the lower end (`a` on a tie).
+    /// A sphere's and a capsule's: the closest points of the segment to the centre or axis
+    /// ([`closest_point_on_segment`], [`closest_points_of_segments`]). A box's signed distance
+    /// is convex along any line (the signed distance of a convex set is convex), so its
+    /// minimum is found by golden-section search (63 evaluations; the bracket shrinks to
+    /// `0.618⁵⁹ ≈ 5e-13`, but near a smooth minimum its values compare equal within rounding
+    /// once `t` is within about `√ε ≈ 1e-8` of it; on a plateau, where the segment runs
+    /// parallel to a face, any of its points).
+    pub fn deepest_on_segment(&self, a: DVec3, b: DVec3) -> f64 {
+        let d = b - a;
+        let along = |p: DVec3| {
+            let l2 = d.length_squared();
+            if l2 > 0.0 {
+                ((p - a).dot(d) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            }
+        };
+        match self {
+            Shape::Plane(s) => {
+                if s.distance(b).0 < s.distance(a).0 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            Shape::Sphere(s) => along(closest_point_on_segment(a, b, s.center)),
+            Shape::Capsule(s) => along(closest_points_of_segments(a, b, s.a, s.b).0),
+            Shape::Box(s) => {
+                const INV_PHI: f64 = 0.618_033_988_749_894_8;
+                let f = |t: f64| s.distance(a + t * d).0;
+                let (mut lo, mut hi) = (0.0, 1.0);
+                let (mut x1, mut x2) = (hi - INV_PHI * (hi - lo), lo + INV_PHI * (hi - lo));
+                let (mut f1, mut f2) = (f(x1), f(x2));
+                for _ in 0..58 {
+                    if f1 <= f2 {
+                        hi = x2;
+                        (x2, f2) = (x1, f1);
+                        x1 = hi - INV_PHI * (hi - lo);
+                        f1 = f(x1);
+                    } else {
+                        lo = x1;
+                        (x1, f1) = (x2, f2);
+                        x2 = lo + INV_PHI * (hi - lo);
+                        f2 = f(x2);
+                    }
+                }
+                let t = 0.5 * (lo + hi);
+                // The ends are candidates too (the search never evaluates them).
+                [(f(0.0), 0.0), (f(t), t), (f(1.0), 1.0)]
+                    .into_iter()
+                    .fold((f64::INFINITY, 0.0), |best, c| if c.0 < best.0 { c } else { best })
+                    .1
+            }
+        }
     }
 }

@@ -16,7 +16,7 @@ DEMOS: dict[str, str] = {
     "mocap": "a CMU walk on its skeleton, edited by IK to step over an obstacle (GIF)",
     "fluid": "an SPH dam break (DFSPH), particles coloured by speed (GIF)",
     "crowd": "ORCA circle crossing and a social-force bottleneck (GIFs), boids round spheres",
-    "biped": "the 3-D SIMBICON walker, pushed from the side and recovering (GIF)",
+    "biped": "the 3-D SIMBICON walker pushed from the side, a ragdoll down stairs (GIFs)",
     "skin": "a CMU walk skinned on a procedural body, written as glTF (.glb) and a GIF",
     "hair": "a sphere head turning and nodding with thousands of elastic-rod strands (GIF)",
 }

@@ -1,0 +1,97 @@
+"""Static colliders of articulated bodies from Python: the shared kinema.geometry shapes,
+resting on a box at the analytic penetration, pickles keeping them, bad input named."""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kinema import character, geometry, mocap
+from kinema.rotation import Rotation
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
+
+
+def ball(radius: float = 0.1, height: float = 1.0) -> character.ArticulatedBody:
+    """A free ball of water density at ``height`` (m), no ground."""
+    m = character.Model()
+    mass = 1000.0 * 4.0 / 3.0 * np.pi * radius**3
+    m.add_body(
+        None,
+        "free",
+        mass=mass,
+        inertia=np.eye(3) * 0.4 * mass * radius**2,
+        offset=(0.0, height, 0.0),
+        shape=((0, 0, 0), (0, 0, 0), radius),
+    )
+    return character.ArticulatedBody(m, ground=False)
+
+
+def test_a_ball_rests_on_a_turned_box_at_the_analytic_penetration():
+    """On the top face of a box turned about y (the face stays level), a ball of one contact
+    point sinks g/ω² (ω the contact frequency); with a plane of any normal likewise along
+    it; without colliders it falls (no ground)."""
+    w = 60.0
+    top = 0.5
+    box = geometry.Box((0.0, top - 0.1, 0.0), (0.5, 0.1, 0.5), Rotation.from_rotvec([0, 0.7, 0]))
+    b = ball()
+    assert b.add_collider(box) == 0
+    b.step(1 / 480, 960)
+    assert b.q[1] + 1.0 == pytest.approx(top + 0.1 - 9.81 / w**2, abs=1e-3 * 9.81 / w**2)
+    normal = np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2])
+    p = ball()
+    p.configure(gravity=-9.81 * normal, friction=0.0)
+    p.add_collider(geometry.Plane((0.0, 0.2, 0.0), normal))
+    p.step(1 / 480, 960)
+    centre = np.array([0.0, 1.0, 0.0]) + p.q[:3]
+    height = (centre - [0.0, 0.2, 0.0]) @ normal
+    assert height == pytest.approx(0.1 - 9.81 / w**2, abs=1e-3 * 9.81 / w**2)
+    free = ball()
+    free.step(1 / 480, 960)
+    assert free.q[1] < -1.0
+
+
+def test_pickles_keep_the_colliders():
+    sk = mocap.read_asf(DATA / "07-walk.asf")
+    r = character.Ragdoll.from_skeleton(sk, clearance=0.5)
+    r.add_collider(geometry.Box((0.0, 0.2, 0.0), (0.3, 0.2, 0.3), friction=0.4))
+    r.step(1 / 480, 100)
+    back = pickle.loads(pickle.dumps(r))
+    r.step(1 / 480, 100)
+    back.step(1 / 480, 100)
+    assert np.array_equal(r.q, back.q) and np.array_equal(r.qd, back.qd)
+    b = character.Biped()
+    b.add_collider(geometry.Box((3.0, -0.05, 0.0), (1.0, 0.1, 1.0)))
+    b.step(1e-3, 200)
+    again = pickle.loads(pickle.dumps(b))
+    b.step(1e-3, 200)
+    again.step(1e-3, 200)
+    assert np.array_equal(b.q, again.q)
+
+
+def test_bad_colliders_name_the_argument():
+    b = ball()
+    nan = float("nan")
+    cases = [
+        (geometry.Box((nan, 0, 0), (1, 1, 1)), "center"),
+        (geometry.Box((0, 0, 0), (1, 0, 1)), "half_extents"),
+        (geometry.Box((0, 0, 0), (1, float("inf"), 1)), "half_extents"),
+        (geometry.Plane((0, 0, 0), (0, 0, 0)), "normal"),
+        (geometry.Sphere((0, 0, 0), -1.0), "radius"),
+        (geometry.Box((0, 0, 0), (1, 1, 1), friction=-0.5), "friction"),
+        (geometry.Box((0, 0, 0), (1, 1, 1), restitution=0.5), "restitution"),
+        (geometry.Box((0, 0, 0), (1, 1, 1), velocity=(1, 0, 0)), "velocity"),
+        (geometry.Sphere((0, 0, 0), 1.0, inside=True), "inside"),
+    ]
+    for shape, name in cases:
+        with pytest.raises(ValueError, match=name):
+            b.add_collider(shape)
+        with pytest.raises(ValueError, match=name):
+            character.Biped().add_collider(shape)
+    with pytest.raises(TypeError, match="collider"):
+        b.add_collider((0, 0, 0))
+    b.step(1 / 480, 480)
+    assert b.q[1] < -1.0  # none of them was added
