@@ -76,7 +76,8 @@ struct Forces {
     /// force (N), `3 capacity` values: made once per call without damping, at each evaluation
     /// with it.
     base: Vec<f64>,
-    /// The external forces (N) by coordinate (`3 capacity` values, zero when none are set).
+    /// Whether external forces are set, and they (N) by coordinate (`3 capacity` values).
+    any_external: bool,
     external: Vec<f64>,
     /// The force of the spring starting at slot `a` on that slot, at entry `a + 1` of each
     /// coordinate's `capacity + 1` values (N); zero where no spring starts, and at entry 0.
@@ -112,6 +113,27 @@ fn mask(keep: bool) -> u64 {
         u64::MAX
     } else {
         0
+    }
+}
+
+/// Rows of three values (`x, y, z` per slot) into one array per coordinate (`out`: the `x`
+/// of every slot, then the `y`, then the `z`).
+fn by_coordinate(rows: &[f64], out: &mut [f64]) {
+    let n = rows.len() / 3;
+    let (xs, rest) = out.split_at_mut(n);
+    let (ys, zs) = rest.split_at_mut(n);
+    for (((row, x), y), z) in rows.chunks_exact(3).zip(xs).zip(ys).zip(zs) {
+        (*x, *y, *z) = (row[0], row[1], row[2]);
+    }
+}
+
+/// The inverse of [`by_coordinate`].
+fn by_row(coordinates: &[f64], rows: &mut [f64]) {
+    let n = rows.len() / 3;
+    let (xs, rest) = coordinates.split_at(n);
+    let (ys, zs) = rest.split_at(n);
+    for (((row, x), y), z) in rows.chunks_exact_mut(3).zip(xs).zip(ys).zip(zs) {
+        (row[0], row[1], row[2]) = (*x, *y, *z);
     }
 }
 
@@ -162,8 +184,12 @@ impl Forces {
                     _ => {}
                 }
             }
-            for (b, e) in base.iter_mut().zip(external) {
-                *b += e;
+            // Without external forces, `+ 0` is left out: the sum is never `-0`, so it changes
+            // nothing.
+            if self.any_external {
+                for (b, e) in base.iter_mut().zip(external) {
+                    *b += e;
+                }
             }
         }
     }
@@ -296,19 +322,19 @@ impl ChainWork {
         {
             buffer.resize(6 * n, 0.0);
         }
-        let (x, v) = state.y.split_at(3 * n);
-        for c in 0..3 {
-            for i in 0..n {
-                self.y[c * n + i] = x[3 * i + c];
-                self.y[(3 + c) * n + i] = v[3 * i + c];
-            }
-        }
+        let ((x, v), (to_x, to_v)) = (state.y.split_at(3 * n), self.y.split_at_mut(3 * n));
+        by_coordinate(x, to_x);
+        by_coordinate(v, to_v);
         let forces = &mut self.forces;
         forces.n = n;
         forces.base.resize(3 * n, 0.0);
         forces.external.resize(3 * n, 0.0);
-        forces.springs.clear();
+        // Entries 0 and `n` of each coordinate stay zero; the others are written by every
+        // evaluation when there are springs.
         forces.springs.resize(3 * (n + 1), 0.0);
+        for c in 0..3 {
+            (forces.springs[c * (n + 1)], forces.springs[c * (n + 1) + n]) = (0.0, 0.0);
+        }
         forces.linked.clear();
         forces.linked.resize(n, 0);
         forces.rest.resize(n, 0.0);
@@ -318,15 +344,9 @@ impl ChainWork {
         forces
             .movable
             .extend(state.alive.iter().zip(&state.inv_mass).map(|(&a, &inv)| mask(a && inv > 0.0)));
-        match state.external.is_empty() {
-            true => forces.external.fill(0.0),
-            false => {
-                for c in 0..3 {
-                    for i in 0..n {
-                        forces.external[c * n + i] = state.external[3 * i + c];
-                    }
-                }
-            }
+        forces.any_external = !state.external.is_empty();
+        if forces.any_external {
+            by_coordinate(&state.external, &mut forces.external);
         }
         (forces.stiffness, forces.damping, forces.linear) = (0.0, 0.0, true);
         forces.any_spring = false;
@@ -339,6 +359,9 @@ impl ChainWork {
                 forces.linear = *damping == 0.0 && rest.iter().all(|&l| l == 0.0);
                 forces.any_spring = !pairs.is_empty();
             }
+        }
+        if !forces.any_spring {
+            forces.springs.fill(0.0);
         }
         forces.varying = model.forces.iter().any(|f| matches!(f, Force::Damping { .. }));
         if !forces.varying {
@@ -435,13 +458,9 @@ impl ChainWork {
     /// Write the state `y` back into `state` (interleaved, positions then velocities).
     fn write_back(&self, state: &mut [f64]) {
         let n = self.forces.n;
-        let (x, v) = state.split_at_mut(3 * n);
-        for c in 0..3 {
-            for i in 0..n {
-                x[3 * i + c] = self.y[c * n + i];
-                v[3 * i + c] = self.y[(3 + c) * n + i];
-            }
-        }
+        let ((x, v), (from_x, from_v)) = (state.split_at_mut(3 * n), self.y.split_at(3 * n));
+        by_row(from_x, x);
+        by_row(from_v, v);
     }
 }
 
