@@ -793,3 +793,138 @@ fn general_path_calls_leave_the_ages_pending_and_count_only_good_steps() {
     assert_eq!(s.ages()[0].to_bits(), 0.1f64.to_bits());
     assert!(vel(&s, 0).x.is_finite());
 }
+
+/// A random system that `Solver::step` steps by the chain path (`particles/chain.rs`): up to
+/// 60 live particles and a few dead slots, some pinned, values with signed zeros and springs
+/// of zero length among them, gravity, damping and one set of springs from slot `a` to `a + 1`
+/// with gaps, in a random order, external forces on some. With `general`, an emitter that
+/// emits nothing routes every step through the general path (an emitter rules the chain path
+/// out) without changing any value.
+fn random_chain(seed: u64, general: bool) -> ParticleSystem {
+    let mut state = seed;
+    let mut draw = move || {
+        // SplitMix64, as a uniform number in [0, 1).
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let live = 2 + (draw() * 59.0) as usize;
+    let capacity = live + (draw() * 3.0) as usize;
+    // A signed zero or a uniform number in [-scale, scale).
+    fn value(draw: &mut impl FnMut() -> f64, scale: f64) -> f64 {
+        match (draw() * 8.0) as u32 {
+            0 => -0.0,
+            1 => 0.0,
+            _ => scale * (2.0 * draw() - 1.0),
+        }
+    }
+    let mut vector = |scale: f64| {
+        DVec3::new(value(&mut draw, scale), value(&mut draw, scale), value(&mut draw, scale))
+    };
+    let mut x: Vec<DVec3> = (0..live).map(|_| vector(1.0)).collect();
+    let v: Vec<DVec3> = (0..live).map(|_| vector(3.0)).collect();
+    x[1] = x[0]; // a spring of zero length, if one joins them
+    let masses: Vec<f64> =
+        (0..live).map(|_| if draw() < 0.1 { f64::INFINITY } else { 0.5 + 1.5 * draw() }).collect();
+    let mut s = ParticleSystem::new(&x, &v, &masses, capacity).unwrap();
+    let linear = draw() < 0.3;
+    let pairs: Vec<[usize; 2]> =
+        (0..capacity - 1).filter(|_| draw() < 0.8).map(|a| [a, a + 1]).collect();
+    let rest =
+        pairs.iter().map(|_| if linear || draw() < 0.3 { 0.0 } else { 0.5 * draw() }).collect();
+    let springs = Force::Springs {
+        pairs,
+        rest,
+        stiffness: 50.0 + 200.0 * draw(),
+        damping: if linear { 0.0 } else { 2.0 * draw() },
+    };
+    let mut forces = vec![springs];
+    if draw() < 0.7 {
+        forces.push(Force::Gravity { g: G });
+    }
+    if draw() < 0.5 {
+        forces.push(Force::Damping { rate: 0.5 * draw() });
+    }
+    if draw() < 0.3 {
+        forces.push(Force::Gravity { g: DVec3::new(0.3, 0.0, -0.2) });
+    }
+    let first = (draw() * forces.len() as f64) as usize;
+    forces.rotate_left(first);
+    for force in forces {
+        s.add_force(force).unwrap();
+    }
+    if draw() < 0.5 {
+        let external: Vec<f64> = (0..3 * capacity).map(|_| value(&mut draw, 2.0)).collect();
+        s.set_external_forces(&external).unwrap();
+    }
+    if general {
+        s.add_emitter(Emitter {
+            rate: 0.0,
+            position: DVec3::ZERO,
+            position_spread: 0.0,
+            velocity: DVec3::ZERO,
+            velocity_spread: 0.0,
+            lifespan: 1.0,
+            mass: 1.0,
+            seed: 0,
+            appearance: Appearance::default(),
+        })
+        .unwrap();
+    }
+    s
+}
+
+#[test]
+fn chain_path_is_bitwise_the_general_path() {
+    // Every explicit method on 40 random chains, in calls of several steps and of one.
+    let methods = [
+        Method::ExplicitEuler,
+        Method::Midpoint,
+        Method::Heun,
+        Method::Rk4,
+        Method::SymplecticEuler,
+        Method::VelocityVerlet,
+    ];
+    for seed in 0..40 {
+        for method in methods {
+            let (mut chain, mut general) = (random_chain(seed, false), random_chain(seed, true));
+            for steps in [7, 1, 12] {
+                chain.step(1e-3, steps, method).unwrap();
+                general.step(1e-3, steps, method).unwrap();
+                assert!(same_state(&chain, &general), "seed {seed}, {method:?}");
+            }
+            assert!(chain.positions().iter().any(|&x| x != 0.0));
+        }
+    }
+}
+
+#[test]
+fn chain_path_failure_keeps_the_last_good_step_and_names_it() {
+    // A chain at a step far beyond its stability limit grows by orders of magnitude a step until it
+    // overflows; the chain path stops where the general path does, names the same step and
+    // particle, and leaves the state of the steps before.
+    for (seed, method) in
+        [(3, Method::ExplicitEuler), (8, Method::Rk4), (5, Method::SymplecticEuler)]
+    {
+        let (mut chain, mut general) = (random_chain(seed, false), random_chain(seed, true));
+        let (dt, steps) = (30.0, 400);
+        let err = chain.step(dt, steps, method).unwrap_err();
+        let reference = general.step(dt, steps, method).unwrap_err();
+        let (
+            kinema::Error::Diverged { step, index, .. },
+            kinema::Error::Diverged { step: s2, index: i2, .. },
+        ) = (&err, &reference)
+        else {
+            panic!("{err} / {reference}");
+        };
+        assert_eq!((step, index), (s2, i2), "{method:?}");
+        assert!(*step > 2, "{err}");
+        assert!(same_state(&chain, &general));
+        let mut fresh = random_chain(seed, false);
+        fresh.step(dt, *step, method).unwrap();
+        assert!(same_state(&chain, &fresh));
+        assert!(chain.positions().iter().chain(chain.velocities()).all(|x| x.is_finite()));
+    }
+}

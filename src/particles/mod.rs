@@ -24,6 +24,7 @@
 //! several states. [`ParticleSystem`] is the three together.
 
 mod certify;
+mod chain;
 mod collide;
 mod dynamics;
 mod emit;

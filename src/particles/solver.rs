@@ -3,6 +3,7 @@
 //! the sparse Jacobian's buffers) and the counters of its last call. It carries nothing that a
 //! later step reads, so one solver advances any number of states of one [`Model`].
 
+use super::chain::{self, ChainWork};
 use super::explicit::Rollback;
 use super::jacobian::JacobianWork;
 use super::linear::LinearImplicit;
@@ -31,6 +32,8 @@ pub struct Solver {
     pub(super) jacobian: JacobianWork,
     /// Implicit Euler of linear models in velocity form, with its kept factorisation.
     pub(super) linear: LinearImplicit,
+    /// The explicit methods' buffers for chains of springs ([`chain::takes`]).
+    pub(super) chain: ChainWork,
     /// Counters of the last call (also of the good steps of a call that failed).
     pub(super) stats: StepStats,
 }
@@ -164,7 +167,8 @@ impl Step<'_> {
     /// state it started from ([`Workspace::step`] writes nothing when it fails, and nothing
     /// after it can fail) and forgets the multistep history. Without emitters no slot is born
     /// or dies (only emitted particles have finite lifespans), so the ages are advanced after
-    /// the call, as the explicit kernel does.
+    /// the call, as the explicit kernel does. Explicit methods on chains without colliders or
+    /// emitters ([`chain::takes`]) take [`Step::chain_steps`], bitwise the same steps.
     fn general_steps(&mut self, dt: f64, steps: usize, gravity: DVec3, sparse: bool) -> Result<()> {
         self.state.summary.state = None;
         self.state.settle_ages();
@@ -173,7 +177,7 @@ impl Step<'_> {
         // Within a call without emitters the masses and live slots stay as they are. The
         // velocity form's check of the model is skipped when it is set up for this model.
         let history = self.state.history.as_ref().expect("history created in step");
-        let model = self.model;
+        let (model, method) = (self.model, history.method());
         let slots = *self.state.summary.slots.get_or_insert_with(crate::ode::fresh_key);
         let velocity_form = sparse
             && !age_each_step
@@ -208,6 +212,9 @@ impl Step<'_> {
         let colliders = !self.model.colliders.is_empty();
         if !colliders && !age_each_step {
             keep_still(self.solver, self.state);
+            if chain::takes(model, method) {
+                return self.chain_steps(dt, steps);
+            }
         }
         for s in 0..steps {
             if colliders {
