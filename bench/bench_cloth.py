@@ -10,12 +10,15 @@ freedom (the pinned ones eliminated), preconditioned by pyamg's smoothed aggrega
 with the rigid motions as near-null space (the method of kinema's default solver; the tol-1e-3 table
 uses Jacobi) or by Jacobi, to the same relative tolerance. Position Based Dynamics (pypbd, Bender et al.) runs the same grid with its
 default solver iterations when it is installed: a different method (constraint projection, no
-linear solve), what a user wanting speed over accuracy would pick instead.
+linear solve), what a user wanting speed over accuracy would pick instead; so does Newton's
+Vertex Block Descent (Chen et al. 2024) on the hanging square, on Warp's CPU backend (this
+machine has no GPU), when newton is installed.
 
 The first tables run the defaults a new user gets on the cotton-like square hung from two
 corners and on a drape over a sphere onto the ground, wall and CPU time (process_time).
 
 Run: python bench/bench_cloth.py [--quick] [--defaults-only] [--sizes 32 64 128 256] [--steps 10]
+[--newton-max 64]
 (--quick: 16² and 32² grids, 3 steps, the solver trade on 24² for 10 steps, the explicit limit
 on an 8² cloth.)
 """
@@ -246,6 +249,75 @@ def time_pbd(n: int, steps: int) -> float | None:
     return (time.perf_counter() - start) / steps
 
 
+def newton_hanging(n: int, substeps: int = 10, iterations: int = 10):
+    """Newton's VBD (Chen et al. 2024, "Vertex Block Descent") on the hanging square, on this
+    machine's CPU (Warp's CPU backend; Newton is built for GPUs): 1 m, n x n vertices, two
+    corners pinned, 1 kg/m² spread evenly, gravity along -z (Newton's up axis). Its membrane is
+    neo-Hookean with Lamé moduli (μ, λ) per unit rest area; the small-strain match of the
+    Baraff–Witkin stretch and shear stiffnesses (`ψ = k_s/2 ε²` along a warp or weft, `k_sh/2 γ²`
+    in shear) is μ = k_sh, λ = k_s - 2 k_sh; damping 0.1 s of each stiffness; the dihedral
+    bending stiffness as kinema's `bend`. Substeps and iterations as Newton's cloth examples
+    (10 x 10 a frame of 1/60 s). Returns a function stepping one frame, one returning the
+    positions (N, 3) and the triangles (T, 3), or None when newton is not installed."""
+    try:
+        import newton
+        import warp as wp
+    except ImportError:
+        return None
+    wp.config.quiet = True
+    shear, stretch = MATERIAL["shear"], MATERIAL["stretch"]
+    spacing = 1.0 / (n - 1)
+    builder = newton.ModelBuilder()
+    builder.add_cloth_grid(
+        pos=wp.vec3(-0.5, -0.5, 0.0),
+        rot=wp.quat_identity(),
+        vel=wp.vec3(0.0, 0.0, 0.0),
+        dim_x=n - 1,
+        dim_y=n - 1,
+        cell_x=spacing,
+        cell_y=spacing,
+        mass=MATERIAL["density"] / n**2,
+        tri_ke=shear,
+        tri_ka=stretch - 2 * shear,
+        tri_kd=MATERIAL["damping"] * shear,
+        edge_ke=MATERIAL["bend"],
+        edge_kd=MATERIAL["damping"] * MATERIAL["bend"],
+        particle_radius=0.2 * spacing,
+    )
+    for corner in (0, n - 1):
+        builder.particle_flags[corner] &= ~newton.ParticleFlags.ACTIVE
+        builder.particle_mass[corner] = 0.0
+    builder.color(include_bending=True)
+    model = builder.finalize(device="cpu")
+    solver = newton.solvers.SolverVBD(model=model, iterations=iterations)
+    states, control = [model.state(), model.state()], model.control()
+    pipeline = newton.CollisionPipeline(model)
+    contacts = pipeline.contacts()
+
+    def frame() -> None:
+        for _ in range(substeps):
+            states[0].clear_forces()
+            pipeline.collide(states[0], contacts)
+            solver.step(states[0], states[1], control, contacts, DT / substeps)
+            states.reverse()
+
+    return frame, lambda: states[0].particle_q.numpy(), model.tri_indices.numpy()
+
+
+def newton_row(n: int, steps: int) -> str:
+    """Wall and CPU ms per frame of 1/60 s and the largest edge stretch after 30 + ``steps``
+    frames of `newton_hanging(n)`, as table cells."""
+    made = newton_hanging(n)
+    if made is None:
+        return "not installed | | |"
+    frame, positions, triangles = made
+    rest = positions().copy()
+    for _ in range(30):
+        frame()
+    wall, cpu, _ = timed(lambda: frame() or 0.0, steps)
+    return f"{1e3 * wall:.0f} | {1e3 * cpu:.0f} | {edge_stretch(positions(), rest, triangles):.3f}"
+
+
 def hanging(n: int) -> Cloth:
     """The default (cotton-like) n x n square of 1 m, flat, pinned at two corners."""
     return kinema_cloth(n)
@@ -263,9 +335,14 @@ def drape(n: int) -> Cloth:
 
 def largest_stretch(cloth: Cloth, rest: np.ndarray) -> float:
     """The largest edge length over its rest length."""
-    t = cloth.triangles
+    return edge_stretch(cloth.positions, rest, cloth.triangles)
+
+
+def edge_stretch(x: np.ndarray, rest: np.ndarray, triangles: np.ndarray) -> float:
+    """The largest length over rest length of the triangles' edges, positions ``x`` and
+    ``rest`` (N, 3) m, ``triangles`` (T, 3)."""
+    t = triangles
     edges = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
-    x = cloth.positions
     length = np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
     return float((length / np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)).max())
 
@@ -315,7 +392,7 @@ def numpy_at_tol(n: int, steps: int, multigrid: bool) -> tuple[float, float, flo
     return 1e3 * wall, 1e3 * cpu, its
 
 
-def defaults_tables(sizes: list[int], steps: int, numpy_max: int) -> None:
+def defaults_tables(sizes: list[int], steps: int, numpy_max: int, newton_max: int) -> None:
     """The at-the-defaults tables (issue #21)."""
     print(
         "At the defaults a new user gets (default cotton-like material; `step(dt)`: sparse"
@@ -326,10 +403,26 @@ def defaults_tables(sizes: list[int], steps: int, numpy_max: int) -> None:
         "| scene | grid | wall ms/step | CPU ms/step | CG its/step | substeps/step | largest edge stretch |"
     )
     print("|---|---|---:|---:|---:|---:|---:|")
+    hung = {}
     for name, scene in (("hanging from two corners", hanging), ("drape over a sphere", drape)):
         for n in sizes:
             w, c, its, sub, st = at_defaults(scene, n, steps if n <= 64 else max(2, steps // 3))
             print(f"| {name} | {n}² | {w:.1f} | {c:.1f} | {its:.0f} | {sub:.2f} | {st:.3f} |")
+            if scene is hanging:
+                hung[n] = (w, c, st)
+    print()
+    print(
+        "The hanging square against Newton's VBD (10 substeps x 10 iterations a frame, as its"
+        " cloth examples; Warp's CPU backend, one thread), ms per frame of 1/60 s from 0.5 s on:"
+    )
+    print(
+        "| grid | kinema wall | kinema CPU | kinema stretch | Newton VBD wall | Newton VBD CPU"
+        " | Newton VBD stretch |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for n in (n for n in sizes if n <= newton_max):
+        w, c, st = hung[n]
+        print(f"| {n}² | {w:.1f} | {c:.1f} | {st:.3f} | {newton_row(n, steps)} |")
     if sp is None:
         return
     print()
@@ -410,6 +503,9 @@ def main() -> None:
         "--numpy-max", type=int, default=128, help="largest grid for the numpy reference"
     )
     parser.add_argument(
+        "--newton-max", type=int, default=64, help="largest grid for Newton's VBD (CPU)"
+    )
+    parser.add_argument(
         "--defaults-only", action="store_true", help="only the at-the-defaults tables"
     )
     args = parser.parse_args()
@@ -423,7 +519,7 @@ def main() -> None:
         "Threads: kinema 1 (set_num_threads(1)), numpy/scipy 1 (OPENBLAS_NUM_THREADS=1), pypbd its own."
     )
     print()
-    defaults_tables(sizes, base_steps, args.numpy_max)
+    defaults_tables(sizes, base_steps, args.numpy_max, args.newton_max)
     if args.defaults_only:
         return
     print()
