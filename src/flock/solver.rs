@@ -157,7 +157,10 @@ impl Task<'_> {
                     None => flocking::<DVec3>(set, cos_half, cells, s),
                 };
                 let i = cells.order[s];
-                let a = behaviours(set, &model.steering, flock, i as usize, own);
+                let a = match model.steering.as_slice() {
+                    [] => own,
+                    list => behaviours(set, list, flock, i as usize, own),
+                };
                 *v = (cells.velocities[s] + a * dt).clamp_length_max(set.max_speed);
                 *p = cells.positions[s] + *v * dt;
                 *c = cells.cell_of(*p);
