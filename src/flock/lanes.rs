@@ -36,10 +36,10 @@ pub(super) struct Group<'a> {
     /// Squared neighbour radius and separation distance (m²).
     pub(super) h2: f64,
     pub(super) separation2: f64,
-    /// `cos_half |v|` times its absolute value per lane (the field of view, `solver::flocking`),
-    /// and whether the lane's boid sees all round.
-    pub(super) cc: [f64; LANES],
-    pub(super) sees_all: [bool; LANES],
+    /// The cosine of half the field of view, and whether that is a full circle
+    /// (`solver::view`).
+    pub(super) cos_half: f64,
+    pub(super) full_circle: bool,
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -51,29 +51,42 @@ impl Group<'_> {
     pub(super) fn accelerations(self, simd: pulp::x86::V3, set: &Settings) -> [DVec3; LANES] {
         use pulp::bytemuck::cast;
         let avx = simd.avx;
-        let Group { positions, velocities, first, rows, h2, separation2, cc, sees_all } = self;
+        use std::arch::x86_64::_CMP_EQ_OQ;
+        let Group { positions, velocities, first, rows, h2, separation2, cos_half, full_circle } =
+            self;
         let lane = |a: &[DVec3], k: usize| -> __m256d {
             cast::<[f64; LANES], _>(std::array::from_fn(|l| a[first + l][k]))
         };
-        let all = f64::from_bits(u64::MAX);
+        let zero = avx._mm256_setzero_pd();
+        let (vx, vy) = (lane(velocities, 0), lane(velocities, 1));
+        // `solver::view` in the lanes: `c = cos_half |v|`, `c |c|`, and whether the boid sees
+        // all round (a full circle, or at rest).
+        let speed = avx._mm256_sqrt_pd(
+            avx._mm256_add_pd(avx._mm256_mul_pd(vx, vx), avx._mm256_mul_pd(vy, vy)),
+        );
+        let c = avx._mm256_mul_pd(avx._mm256_set1_pd(cos_half), speed);
+        let cc = avx._mm256_mul_pd(c, avx._mm256_andnot_pd(avx._mm256_set1_pd(-0.0), c));
+        let all = avx._mm256_castsi256_pd(avx._mm256_set1_epi64x(-i64::from(full_circle)));
+        let sees_all = avx._mm256_or_pd(all, avx._mm256_cmp_pd::<_CMP_EQ_OQ>(speed, zero));
+        // Slots are below 2³² (`cells.rs`): exact as f64.
+        let slot = |s: usize| s as u32 as f64;
         let boids = Boids {
             px: lane(positions, 0),
             py: lane(positions, 1),
-            vx: lane(velocities, 0),
-            vy: lane(velocities, 1),
-            cc: cast(cc),
-            sees_all: cast(sees_all.map(|a| if a { all } else { 0.0 })),
-            own: cast(std::array::from_fn::<f64, LANES, _>(|l| (first + l) as f64)),
+            vx,
+            vy,
+            cc,
+            sees_all,
+            own: cast(std::array::from_fn::<f64, LANES, _>(|l| slot(first + l))),
             h2: avx._mm256_set1_pd(h2),
             separation2: avx._mm256_set1_pd(separation2),
         };
-        let zero = avx._mm256_setzero_pd();
         let mut sums =
             Sums { count: zero, ax: zero, ay: zero, ux: zero, uy: zero, ox: zero, oy: zero };
         // The row loop specialised on whether it holds the group's own boids (the middle row,
         // `dy = 0`) and whether a lane sees all round (rare: the field-of-view test is then
         // needed as well as skipped).
-        let any_all = sees_all.iter().any(|&a| a);
+        let any_all = avx._mm256_movemask_pd(sees_all) != 0;
         for (r, row) in rows.iter().enumerate() {
             match (r == 1, any_all) {
                 (false, false) => {
@@ -114,7 +127,8 @@ impl Group<'_> {
 }
 
 /// A group's boids in the lanes: positions (m), velocities (m/s), the field of view
-/// ([`Group::cc`], [`Group::sees_all`] as masks), their slots, the squared radii (m²).
+/// (`c |c|` with `c = cos_half |v|`, and whether the boid sees all round, a mask), their
+/// slots, the squared radii (m²).
 #[cfg(target_arch = "x86_64")]
 struct Boids {
     px: __m256d,
@@ -166,8 +180,8 @@ impl Boids {
         let (zero, one) = (avx._mm256_setzero_pd(), avx._mm256_set1_pd(1.0));
         let sign = avx._mm256_set1_pd(-0.0);
         // Slots as f64 (exact below 2⁵³): lane l keeps the candidates in row[l].
-        let lo: __m256d = cast(row.clone().map(|r| r.start as f64));
-        let hi: __m256d = cast(row.clone().map(|r| r.end as f64));
+        let lo: __m256d = cast(row.clone().map(|r| r.start as u32 as f64));
+        let hi: __m256d = cast(row.clone().map(|r| r.end as u32 as f64));
         let (start, end) = (row[0].start, row[LANES - 1].end);
         let mut slot = avx._mm256_set1_pd(start as f64);
         for (p, v) in positions[start..end].iter().zip(&velocities[start..end]) {
@@ -205,13 +219,13 @@ impl Boids {
                 avx._mm256_cmp_pd::<_CMP_LT_OQ>(d2, self.separation2),
                 avx._mm256_cmp_pd::<_CMP_GT_OQ>(d2, zero),
             );
-            // Rare: divide only when a lane has a close candidate (the others add 0).
-            if avx._mm256_movemask_pd(close) != 0 {
-                let q =
-                    avx._mm256_and_pd(avx._mm256_and_pd(close, seen), avx._mm256_div_pd(one, d2));
-                *ax = avx._mm256_sub_pd(*ax, avx._mm256_mul_pd(dx, q));
-                *ay = avx._mm256_sub_pd(*ay, avx._mm256_mul_pd(dy, q));
-            }
+            // Every candidate divides, without a branch: a branch on whether a lane has a
+            // close one was taken by about a quarter of the candidates and mispredicted
+            // (`perf`), while the division unit is otherwise idle. The others add `±0`,
+            // which leaves the sums unchanged (never `-0`).
+            let q = avx._mm256_and_pd(avx._mm256_and_pd(close, seen), avx._mm256_div_pd(one, d2));
+            *ax = avx._mm256_sub_pd(*ax, avx._mm256_mul_pd(dx, q));
+            *ay = avx._mm256_sub_pd(*ay, avx._mm256_mul_pd(dy, q));
             slot = avx._mm256_add_pd(slot, one);
         }
     }
