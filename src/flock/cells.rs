@@ -25,6 +25,7 @@
 use crate::geometry::grid::{cell_of, sort_by_bucket};
 use glam::DVec3;
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Boids a parallel task of [`Moved::load`] measures.
 const CHUNK: usize = 4096;
@@ -273,15 +274,33 @@ impl Cells {
         self.flat
     }
 
-    /// The slots of the candidates of the boid in slot `s` in the row of cells `dy` (-1, 0
-    /// or 1) next to it, if the flock is dense and planar and the row's three buckets do not
-    /// wrap round the table's end: the slots [`Cells::for_each_candidate`] visits for that
-    /// row, in the same order.
-    pub(super) fn row(&self, s: usize, dy: i64) -> Option<std::ops::Range<usize>> {
-        let c = self.cells[s];
-        let first = self.bucket_of([c[0].wrapping_sub(1), c[1].wrapping_add(dy), c[2]]) as usize;
-        (self.dense && self.planar && first + 3 < self.start.len())
-            .then(|| self.start[first] as usize..self.start[first + 3] as usize)
+    /// The slots of the candidates of the boids in slots `first..first + L`, all in the row
+    /// of cells of the first, per row of cells next to them (`dy` = -1, 0, 1) and boid, if
+    /// the flock is dense and planar and none of those rows' three buckets wrap round the
+    /// table's end: the slots [`Cells::for_each_candidate`] visits for each, in the same
+    /// order. The buckets are the first boid's row's, offset by the cells between them
+    /// (numbers are row-major, so the same bucket as the boid's own numbering).
+    pub(super) fn rows<const L: usize>(&self, first: usize) -> Option<[[Range<usize>; L]; 3]> {
+        if !(self.dense && self.planar) {
+            return None;
+        }
+        let c = self.cells[first];
+        let base = u64::from(self.bucket_of([c[0].wrapping_sub(1), c[1].wrapping_sub(1), c[2]]));
+        // A row's first bucket beyond this runs past the table's end.
+        let last = self.start.len() - 4;
+        let mut rows: [[Range<usize>; L]; 3] = std::array::from_fn(|_| [(); L].map(|_| 0..0));
+        for (dy, row) in (0u64..).zip(&mut rows) {
+            let base = base.wrapping_add(dy.wrapping_mul(self.stride[0]));
+            for (boid, r) in self.cells[first..first + L].iter().zip(row) {
+                let dx = boid[0].wrapping_sub(c[0]) as u64;
+                let bucket = (base.wrapping_add(dx) & self.mask) as usize;
+                if bucket > last {
+                    return None;
+                }
+                *r = self.start[bucket] as usize..self.start[bucket + 3] as usize;
+            }
+        }
+        Some(rows)
     }
 
     /// Whether the boids in slots `a` and `b` lie in one row of cells.

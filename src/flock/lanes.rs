@@ -36,10 +36,10 @@ pub(super) struct Group<'a> {
     /// Squared neighbour radius and separation distance (m²).
     pub(super) h2: f64,
     pub(super) separation2: f64,
-    /// `cos_half |v|` times its absolute value per lane (the field of view, `solver::flocking`),
-    /// and whether the lane's boid sees all round.
-    pub(super) cc: [f64; LANES],
-    pub(super) sees_all: [bool; LANES],
+    /// The cosine of half the field of view, and whether that is a full circle
+    /// (`solver::view`).
+    pub(super) cos_half: f64,
+    pub(super) full_circle: bool,
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -50,70 +50,62 @@ impl Group<'_> {
     #[inline(always)]
     pub(super) fn accelerations(self, simd: pulp::x86::V3, set: &Settings) -> [DVec3; LANES] {
         use pulp::bytemuck::cast;
-        use std::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ};
         let avx = simd.avx;
-        let Group { positions, velocities, first, rows, h2, separation2, cc, sees_all } = self;
+        use std::arch::x86_64::_CMP_EQ_OQ;
+        let Group { positions, velocities, first, rows, h2, separation2, cos_half, full_circle } =
+            self;
         let lane = |a: &[DVec3], k: usize| -> __m256d {
             cast::<[f64; LANES], _>(std::array::from_fn(|l| a[first + l][k]))
         };
-        let (px, py) = (lane(positions, 0), lane(positions, 1));
+        let zero = avx._mm256_setzero_pd();
         let (vx, vy) = (lane(velocities, 0), lane(velocities, 1));
-        let all = f64::from_bits(u64::MAX);
-        let sees_all: __m256d = cast(sees_all.map(|a| if a { all } else { 0.0 }));
-        let cc: __m256d = cast(cc);
-        let own: __m256d = cast(std::array::from_fn::<f64, LANES, _>(|l| (first + l) as f64));
-        let (h2, separation2) = (avx._mm256_set1_pd(h2), avx._mm256_set1_pd(separation2));
-        let (zero, one) = (avx._mm256_setzero_pd(), avx._mm256_set1_pd(1.0));
-        let sign = avx._mm256_set1_pd(-0.0);
-        let [mut count, mut ax, mut ay, mut ux, mut uy, mut ox, mut oy] = [zero; 7];
+        // `solver::view` in the lanes: `c = cos_half |v|`, `c |c|`, and whether the boid sees
+        // all round (a full circle, or at rest).
+        let speed = avx._mm256_sqrt_pd(
+            avx._mm256_add_pd(avx._mm256_mul_pd(vx, vx), avx._mm256_mul_pd(vy, vy)),
+        );
+        let c = avx._mm256_mul_pd(avx._mm256_set1_pd(cos_half), speed);
+        let cc = avx._mm256_mul_pd(c, avx._mm256_andnot_pd(avx._mm256_set1_pd(-0.0), c));
+        let all = avx._mm256_castsi256_pd(avx._mm256_set1_epi64x(-i64::from(full_circle)));
+        let sees_all = avx._mm256_or_pd(all, avx._mm256_cmp_pd::<_CMP_EQ_OQ>(speed, zero));
+        // Slots are below 2³² (`cells.rs`): exact as f64.
+        let slot = |s: usize| s as u32 as f64;
+        let boids = Boids {
+            px: lane(positions, 0),
+            py: lane(positions, 1),
+            vx,
+            vy,
+            cc,
+            sees_all,
+            own: cast(std::array::from_fn::<f64, LANES, _>(|l| slot(first + l))),
+            h2: avx._mm256_set1_pd(h2),
+            separation2: avx._mm256_set1_pd(separation2),
+        };
+        let mut sums =
+            Sums { count: zero, ax: zero, ay: zero, ux: zero, uy: zero, ox: zero, oy: zero };
+        // The row loop specialised on whether it holds the group's own boids (the middle row,
+        // `dy = 0`) and whether a lane sees all round (rare: the field-of-view test is then
+        // needed as well as skipped).
+        let any_all = avx._mm256_movemask_pd(sees_all) != 0;
         for (r, row) in rows.iter().enumerate() {
-            // Slots as f64 (exact below 2⁵³): lane l keeps the candidates in row[l].
-            let lo: __m256d = cast(row.clone().map(|r| r.start as f64));
-            let hi: __m256d = cast(row.clone().map(|r| r.end as f64));
-            // The group's own boids are candidates in the middle row (`dy = 0`) only.
-            let mine = r == 1;
-            let mut slot = avx._mm256_set1_pd(row[0].start as f64);
-            for t in row[0].start..row[LANES - 1].end {
-                let dx = avx._mm256_sub_pd(avx._mm256_broadcast_sd(&positions[t].x), px);
-                let dy = avx._mm256_sub_pd(avx._mm256_broadcast_sd(&positions[t].y), py);
-                let d2 = avx._mm256_add_pd(avx._mm256_mul_pd(dx, dx), avx._mm256_mul_pd(dy, dy));
-                let dot = avx._mm256_add_pd(avx._mm256_mul_pd(dx, vx), avx._mm256_mul_pd(dy, vy));
-                let mut near = avx._mm256_and_pd(
-                    avx._mm256_and_pd(
-                        avx._mm256_cmp_pd::<_CMP_GE_OQ>(slot, lo),
-                        avx._mm256_cmp_pd::<_CMP_LT_OQ>(slot, hi),
-                    ),
-                    avx._mm256_cmp_pd::<_CMP_LT_OQ>(d2, h2),
-                );
-                if mine {
-                    near = avx._mm256_and_pd(near, avx._mm256_cmp_pd::<_CMP_NEQ_OQ>(slot, own));
+            match (r == 1, any_all) {
+                (false, false) => {
+                    boids.row::<false, false>(simd, positions, velocities, row, &mut sums)
                 }
-                let front = avx._mm256_cmp_pd::<_CMP_GE_OQ>(
-                    avx._mm256_mul_pd(dot, avx._mm256_andnot_pd(sign, dot)),
-                    avx._mm256_mul_pd(cc, d2),
-                );
-                let seen = avx._mm256_and_pd(near, avx._mm256_or_pd(sees_all, front));
-                let w = avx._mm256_and_pd(seen, one);
-                count = avx._mm256_add_pd(count, w);
-                let tvx = avx._mm256_broadcast_sd(&velocities[t].x);
-                let tvy = avx._mm256_broadcast_sd(&velocities[t].y);
-                ux = avx._mm256_add_pd(ux, avx._mm256_mul_pd(tvx, w));
-                uy = avx._mm256_add_pd(uy, avx._mm256_mul_pd(tvy, w));
-                ox = avx._mm256_add_pd(ox, avx._mm256_mul_pd(dx, w));
-                oy = avx._mm256_add_pd(oy, avx._mm256_mul_pd(dy, w));
-                let close = avx._mm256_and_pd(
-                    avx._mm256_cmp_pd::<_CMP_LT_OQ>(d2, separation2),
-                    avx._mm256_cmp_pd::<_CMP_GT_OQ>(d2, zero),
-                );
-                // Rare: divide only when a lane has a close candidate (the others add 0).
-                if avx._mm256_movemask_pd(close) != 0 {
-                    let q = avx._mm256_and_pd(close, avx._mm256_div_pd(w, d2));
-                    ax = avx._mm256_sub_pd(ax, avx._mm256_mul_pd(dx, q));
-                    ay = avx._mm256_sub_pd(ay, avx._mm256_mul_pd(dy, q));
+                (true, false) => {
+                    boids.row::<true, false>(simd, positions, velocities, row, &mut sums)
                 }
-                slot = avx._mm256_add_pd(slot, one);
+                (false, true) => {
+                    boids.row::<false, true>(simd, positions, velocities, row, &mut sums)
+                }
+                (true, true) => {
+                    boids.row::<true, true>(simd, positions, velocities, row, &mut sums)
+                }
             }
         }
+        let Sums { count, ax, ay, ux, uy, ox, oy } = sums;
+        let (vx, vy) = (boids.vx, boids.vy);
+        let one = avx._mm256_set1_pd(1.0);
         let rules = Rules::new(simd, set);
         let inv = avx._mm256_div_pd(one, count);
         let weighted = |weight: f64, (x, y): (__m256d, __m256d)| {
@@ -127,10 +119,115 @@ impl Group<'_> {
         let (x, y) = weighted(set.cohesion, rules.steer(mul(ox, inv), mul(oy, inv), vx, vy));
         let (sx, sy) = rules.clamp(add(sx, x), add(sy, y));
         // No neighbour in view: no acceleration (`+0`, as `solver::rules` returns).
-        let any = avx._mm256_cmp_pd::<_CMP_NEQ_OQ>(count, zero);
+        let any = avx._mm256_cmp_pd::<{ std::arch::x86_64::_CMP_NEQ_OQ }>(count, zero);
         let [x, y]: [[f64; LANES]; 2] =
             [avx._mm256_and_pd(any, sx), avx._mm256_and_pd(any, sy)].map(cast);
         std::array::from_fn(|l| DVec3::new(x[l], y[l], 0.0))
+    }
+}
+
+/// A group's boids in the lanes: positions (m), velocities (m/s), the field of view
+/// (`c |c|` with `c = cos_half |v|`, and whether the boid sees all round, a mask), their
+/// slots, the squared radii (m²).
+#[cfg(target_arch = "x86_64")]
+struct Boids {
+    px: __m256d,
+    py: __m256d,
+    vx: __m256d,
+    vy: __m256d,
+    cc: __m256d,
+    sees_all: __m256d,
+    own: __m256d,
+    h2: __m256d,
+    separation2: __m256d,
+}
+
+/// The sums of a sweep per lane (`solver::flocking`): the number of neighbours seen,
+/// `-Σ d / |d|²` over the close ones (`ax`, `ay`), their velocities (`ux`, `uy`) and offsets
+/// (`ox`, `oy`).
+#[cfg(target_arch = "x86_64")]
+struct Sums {
+    count: __m256d,
+    ax: __m256d,
+    ay: __m256d,
+    ux: __m256d,
+    uy: __m256d,
+    ox: __m256d,
+    oy: __m256d,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Boids {
+    /// Add the candidates of one row of cells, `row[lane]` (slots), to the lanes' sums:
+    /// `MINE`, the row holds the group's own boids (each lane skips its own slot); `ALL`,
+    /// some lane sees all round. A seen candidate adds its velocity and offset themselves
+    /// (a mask instead of the scalar sweep's product by the weight 1; an unseen one adds
+    /// `+0` where the scalar sweep adds `±0`: a sum that starts at `+0` is never `-0`, so
+    /// both leave it unchanged).
+    #[inline(always)]
+    fn row<const MINE: bool, const ALL: bool>(
+        &self,
+        simd: pulp::x86::V3,
+        positions: &[DVec3],
+        velocities: &[DVec3],
+        row: &[Range<usize>; LANES],
+        sums: &mut Sums,
+    ) {
+        use pulp::bytemuck::cast;
+        use std::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ};
+        let avx = simd.avx;
+        let Sums { count, ax, ay, ux, uy, ox, oy } = sums;
+        let (zero, one) = (avx._mm256_setzero_pd(), avx._mm256_set1_pd(1.0));
+        let sign = avx._mm256_set1_pd(-0.0);
+        // Slots as f64 (exact below 2⁵³): lane l keeps the candidates in row[l].
+        let lo: __m256d = cast(row.clone().map(|r| r.start as u32 as f64));
+        let hi: __m256d = cast(row.clone().map(|r| r.end as u32 as f64));
+        let (start, end) = (row[0].start, row[LANES - 1].end);
+        let mut slot = avx._mm256_set1_pd(start as f64);
+        for (p, v) in positions[start..end].iter().zip(&velocities[start..end]) {
+            let dx = avx._mm256_sub_pd(avx._mm256_broadcast_sd(&p.x), self.px);
+            let dy = avx._mm256_sub_pd(avx._mm256_broadcast_sd(&p.y), self.py);
+            let d2 = avx._mm256_add_pd(avx._mm256_mul_pd(dx, dx), avx._mm256_mul_pd(dy, dy));
+            let dot =
+                avx._mm256_add_pd(avx._mm256_mul_pd(dx, self.vx), avx._mm256_mul_pd(dy, self.vy));
+            let mut near = avx._mm256_and_pd(
+                avx._mm256_and_pd(
+                    avx._mm256_cmp_pd::<_CMP_GE_OQ>(slot, lo),
+                    avx._mm256_cmp_pd::<_CMP_LT_OQ>(slot, hi),
+                ),
+                avx._mm256_cmp_pd::<_CMP_LT_OQ>(d2, self.h2),
+            );
+            if MINE {
+                near = avx._mm256_and_pd(near, avx._mm256_cmp_pd::<_CMP_NEQ_OQ>(slot, self.own));
+            }
+            let mut front = avx._mm256_cmp_pd::<_CMP_GE_OQ>(
+                avx._mm256_mul_pd(dot, avx._mm256_andnot_pd(sign, dot)),
+                avx._mm256_mul_pd(self.cc, d2),
+            );
+            if ALL {
+                front = avx._mm256_or_pd(self.sees_all, front);
+            }
+            let seen = avx._mm256_and_pd(near, front);
+            *count = avx._mm256_add_pd(*count, avx._mm256_and_pd(seen, one));
+            let tvx = avx._mm256_broadcast_sd(&v.x);
+            let tvy = avx._mm256_broadcast_sd(&v.y);
+            *ux = avx._mm256_add_pd(*ux, avx._mm256_and_pd(seen, tvx));
+            *uy = avx._mm256_add_pd(*uy, avx._mm256_and_pd(seen, tvy));
+            *ox = avx._mm256_add_pd(*ox, avx._mm256_and_pd(seen, dx));
+            *oy = avx._mm256_add_pd(*oy, avx._mm256_and_pd(seen, dy));
+            let close = avx._mm256_and_pd(
+                avx._mm256_cmp_pd::<_CMP_LT_OQ>(d2, self.separation2),
+                avx._mm256_cmp_pd::<_CMP_GT_OQ>(d2, zero),
+            );
+            // Every candidate divides, without a branch: a branch on whether a lane has a
+            // close one was taken by about a quarter of the candidates and mispredicted
+            // (`perf`), while the division unit is otherwise idle. The others add `±0`,
+            // which leaves the sums unchanged (never `-0`).
+            let q = avx._mm256_and_pd(avx._mm256_and_pd(close, seen), avx._mm256_div_pd(one, d2));
+            *ax = avx._mm256_sub_pd(*ax, avx._mm256_mul_pd(dx, q));
+            *ay = avx._mm256_sub_pd(*ay, avx._mm256_mul_pd(dy, q));
+            slot = avx._mm256_add_pd(slot, one);
+        }
     }
 }
 

@@ -157,7 +157,10 @@ impl Task<'_> {
                     None => flocking::<DVec3>(set, cos_half, cells, s),
                 };
                 let i = cells.order[s];
-                let a = behaviours(set, &model.steering, flock, i as usize, own);
+                let a = match model.steering.as_slice() {
+                    [] => own,
+                    list => behaviours(set, list, flock, i as usize, own),
+                };
                 *v = (cells.velocities[s] + a * dt).clamp_length_max(set.max_speed);
                 *p = cells.positions[s] + *v * dt;
                 *c = cells.cell_of(*p);
@@ -310,20 +313,15 @@ fn group<'a>(
     if len != LANES || !cells.same_row(first, first + LANES - 1) {
         return None;
     }
-    let mut rows: [[std::ops::Range<usize>; LANES]; 3] = Default::default();
-    for (row, dy) in rows.iter_mut().zip(-1..=1) {
-        for (l, r) in row.iter_mut().enumerate() {
-            *r = cells.row(first + l, dy)?;
-        }
-        // The union of the lanes' ranges is the first's start to the last's end only if they
-        // follow each other in the table: a row whose buckets run past the table's end onto
-        // its start (the numbers of a layer are offset by the layer, `cells.rs`) does not.
+    let rows = cells.rows::<LANES>(first)?;
+    // The union of the lanes' ranges is the first's start to the last's end only if they
+    // follow each other in the table: a row whose buckets run past the table's end onto its
+    // start (the numbers of a layer are offset by the layer, `cells.rs`) does not.
+    for row in &rows {
         if row.windows(2).any(|w| w[1].start < w[0].start || w[1].end < w[0].end) {
             return None;
         }
     }
-    let view: [(bool, f64); LANES] =
-        std::array::from_fn(|l| view(set, cos_half, DVec2::of(cells.velocities[first + l])));
     Some(Group {
         positions: &cells.positions,
         velocities: &cells.velocities,
@@ -331,8 +329,8 @@ fn group<'a>(
         rows,
         h2: cells.h2(),
         separation2: set.separation_distance * set.separation_distance,
-        cc: view.map(|(_, cc)| cc),
-        sees_all: view.map(|(all, _)| all),
+        cos_half,
+        full_circle: set.field_of_view >= std::f64::consts::TAU,
     })
 }
 
