@@ -223,7 +223,7 @@ class Scene:
         :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
         obstacles only), :class:`kinema.character.Biped` and
         :class:`kinema.character.ArticulatedBody` (a :class:`~kinema.character.Ragdoll` too;
-        their own ground, no colliders), :class:`kinema.character.Tracker` (no options; each
+        their own ground and colliders, none from the scene), :class:`kinema.character.Tracker` (no options; each
         step ``dt / substeps`` must be a whole number of the clip's frames, e.g. ``dt=1/120``
         for a CMU clip),
         :class:`kinema.rods.Rod` and :class:`kinema.rods.Hair` (their own static colliders
