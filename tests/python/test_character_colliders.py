@@ -59,8 +59,12 @@ def test_pickles_keep_the_colliders():
     sk = mocap.read_asf(DATA / "07-walk.asf")
     r = character.Ragdoll.from_skeleton(sk, clearance=0.5)
     r.add_collider(geometry.Box((0.0, 0.2, 0.0), (0.3, 0.2, 0.3), friction=0.4))
+    r.add_collider(geometry.Box((0.5, 0.1, 0.0), (0.4, 0.1, 0.4), velocity=(0.3, 0.0, 0.1)))
     r.step(1 / 480, 100)
     back = pickle.loads(pickle.dumps(r))
+    for a, b in zip(back.colliders(), r.colliders(), strict=True):  # where they are, moving
+        assert geometry.shape_params(a) == geometry.shape_params(b) and a.velocity == b.velocity
+    assert r.colliders()[1].center[0] == pytest.approx(0.5 + 0.3 * 100 / 480)
     r.step(1 / 480, 100)
     back.step(1 / 480, 100)
     assert np.array_equal(r.q, back.q) and np.array_equal(r.qd, back.qd)
