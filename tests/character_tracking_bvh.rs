@@ -68,8 +68,9 @@ fn the_bvh_reference_pose_is_the_hierarchys_forward_kinematics() {
 
 /// The jumps of CMU 01_01 (frames 1–601 of the BVH, 5 s) tracked at the defaults by the
 /// ragdoll of the BVH hierarchy (31 bodies, unlimited ball joints): every frame reported, the
-/// root within ROOT m of the clip's, the joints within JOINT rad RMS on average, and the hand
-/// of God measured, finite and carrying part of the weight.
+/// root within 0.4 m of the clip's (measured 0.248 at most, 0.059 on average), the joints
+/// within 0.15 rad RMS on average (0.085), and the hand of God measured, finite and carrying
+/// between half and twice the weight on average (0.86; up to 3.8 times at the jumps).
 #[test]
 fn the_cmu_jumps_are_tracked_from_the_bvh_with_a_measured_assistance() {
     let (_, _, mut t) = tracker(0, TrackingOptions::default());
@@ -91,6 +92,6 @@ fn the_cmu_jumps_are_tracked_from_the_bvh_with_a_measured_assistance() {
         max(&r, |f| f.assist_torque)
     );
     assert!(r.iter().all(|f| f.assist_force.is_finite() && f.assist_torque.is_finite()));
-    assert!(root < 1.0 && joint < 1.0);
-    assert!(force > 0.0);
+    assert!(root < 0.4 && joint < 0.15, "root {root} m, joints {joint} rad");
+    assert!(force > 0.5 * weight && force < 2.0 * weight, "assistance {force} N");
 }
