@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from kinema import character as _character
 from kinema import cloth as _cloth
 from kinema import fluid as _fluid
 from kinema import particles as _particles
@@ -175,6 +176,19 @@ def of_scene(scene: Any) -> Geometry:
         elif isinstance(s, Character):
             j = s.joints(scene.time)
             g.segments[f"character{i}"] = np.stack([j[s._bones[:, 0]], j[s._bones[:, 1]]], axis=1)
+        elif isinstance(s, (_character.ArticulatedBody, _character.Tracker)):
+            x, q = s.positions(), s.orientations()
+            for b, (name, c) in enumerate(zip(s.names, s.capsules(), strict=True)):
+                if c is not None:
+                    v, t = capsule(*c)
+                    g.meshes[f"ragdoll{i}_{b}_{name}"] = (
+                        Rotation.from_quat(q[b]).apply(v) + x[b],
+                        t,
+                    )
+            colliders = s.colliders() if isinstance(s, _character.ArticulatedBody) else []
+            for k, collider in enumerate(colliders):
+                (p, r), (v, t) = shape_frame(collider), shape_mesh(collider)
+                g.meshes[f"ragdoll{i}_collider{k}"] = (Rotation.from_quat(r).apply(v) + p, t)
     return g
 
 

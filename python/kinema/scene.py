@@ -579,7 +579,8 @@ class Scene:
     # ------------------------------------------------------------------ output
     def export_obj(self, directory: str | os.PathLike[str], prefix: str = "frame") -> Path:
         """Write the current frame's meshes (cloth, rigid bodies, animated spheres, fluid
-        surfaces; one OBJ object each, in metres) to ``directory/<prefix>_<frame:05d>.obj`` and return the path.
+        surfaces, the capsules and colliders of articulated bodies and trackers; one OBJ
+        object each, in metres) to ``directory/<prefix>_<frame:05d>.obj`` and return the path.
         Call it from ``run(on_frame=...)`` for an OBJ sequence (Blender imports them as
         a sequence)."""
         from kinema import _geometry

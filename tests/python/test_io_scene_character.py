@@ -139,3 +139,25 @@ def test_the_viewer_draws_the_capsules_where_the_bodies_are(recorded, key):
         v = drawn["ragdoll0_collider0"].frames[-1][0]
         local = BOX.orientation.inv().apply(v - BOX.center)
         np.testing.assert_allclose(np.abs(local), np.broadcast_to(BOX.half_extents, v.shape), 1e-9)
+
+
+@pytest.mark.parametrize("key", ["ragdoll", "tracker"])
+def test_obj_frames_and_pictures_draw_the_capsules(recorded, key, tmp_path):
+    """``Scene.export_obj`` (and ``kinema.plot``, from the same ``kinema._geometry.of_scene``)
+    draw every body's capsule at the body's current frame, and a ragdoll's colliders."""
+    from kinema import _geometry
+
+    scenes, _ = recorded
+    scene, body = scenes[key]
+    meshes = _geometry.of_scene(scene).meshes
+    x, q = body.positions(), body.orientations()
+    for b, (name, (a, tip, r)) in enumerate(zip(body.names, body.capsules(), strict=True)):
+        v, _ = meshes[f"ragdoll0_{b}_{name}"]
+        turn = Rotation.from_quat(q[b], scalar_first=True)
+        ends = x[b] + turn.apply(a), x[b] + turn.apply(tip)
+        np.testing.assert_allclose(_segment_distance(v, *ends), r, atol=1e-9)
+    colliders = [n for n in meshes if "collider" in n]
+    assert colliders == (["ragdoll0_collider0", "ragdoll0_collider1"] if key == "ragdoll" else [])
+    path = scene.export_obj(tmp_path)
+    objects = [line for line in path.read_text().splitlines() if line.startswith("o ")]
+    assert len(objects) == len(meshes)
