@@ -505,10 +505,21 @@ class ArticulatedBody:
     def set_targets(self, targets: list[float]) -> None: ...
     def set_torques(self, torques: list[float]) -> None: ...
     def add_collider(
-        self, kind: str, p: list[float], friction: float | None, velocity: list[float]
+        self,
+        kind: str,
+        p: list[float],
+        friction: float | None,
+        velocity: list[float],
+        angular_velocity: list[float],
     ) -> int: ...
     def set_collider(
-        self, index: int, kind: str, p: list[float], friction: float | None, velocity: list[float]
+        self,
+        index: int,
+        kind: str,
+        p: list[float],
+        friction: float | None,
+        velocity: list[float],
+        angular_velocity: list[float],
     ) -> None: ...
     def push(self, body: int, force: list[float], duration: float) -> None: ...
     @property

@@ -270,27 +270,39 @@ class ArticulatedBody:
             _index(body, "body"), gain, real(kd, "kd"), real(max_torque, "max_torque")
         )
 
-    def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> int:
+    def add_collider(
+        self, collider: Plane | Sphere | Capsule | Box, angular_velocity: Any = (0.0, 0.0, 0.0)
+    ) -> int:
         """Add a collider (a :mod:`kinema.geometry` shape: a plane of any normal, a sphere, a
         capsule or an oriented box; a staircase is a list of boxes) touched by every capsule
         with the ground's contact spring, damping and regularised friction along the shape's
         closest-point normal (docs/character.md, "Colliders"); returns its index (for
         :meth:`set_collider`). The shape's ``friction`` (``None``: the ``friction`` setting)
-        is its Coulomb μ; its ``velocity`` (m/s, default 0: static) makes it kinematic: it is
-        where given at the body's current time and translates at that velocity, and the
-        contacts' damping and friction act on the velocity relative to it. It takes no
-        ``restitution``. Bad shapes raise ``ValueError`` naming the argument."""
-        return int(self._b.add_collider(*_collider(collider)))
+        is its Coulomb μ; its ``velocity`` (m/s) and ``angular_velocity`` (rad/s, world,
+        about its centre: a plane's point, a capsule's midpoint; both default 0: static) make
+        it kinematic: it is where given at the body's current time and moves so from then
+        on, and the contacts' damping and friction act on the velocity relative to its
+        surface's. It takes no ``restitution``. Bad shapes raise ``ValueError`` naming the
+        argument."""
+        spin = as_vector3(angular_velocity, "angular_velocity")
+        return int(self._b.add_collider(*_collider(collider), spin))
 
-    def set_collider(self, index: int, collider: Plane | Sphere | Capsule | Box) -> None:
+    def set_collider(
+        self,
+        index: int,
+        collider: Plane | Sphere | Capsule | Box,
+        angular_velocity: Any = (0.0, 0.0, 0.0),
+    ) -> None:
         """Move collider ``index``: ``collider`` (a shape of the same kind and size: radius,
         half extents, a capsule's length) is its pose at the body's current time, its
-        ``velocity`` (m/s) the one it translates at from then on, its ``friction`` its μ. To
-        carry a body on a platform following any path, set it every frame:
+        ``velocity`` (m/s) and ``angular_velocity`` (rad/s, about its centre) how it moves
+        from then on, its ``friction`` its μ. To carry a body on a platform following any
+        path, set it every frame:
         ``set_collider(i, Box(path(t), half, velocity=(path(t + dt) - path(t)) / dt))``
         before ``step``. A shape of another kind or size raises ``ValueError`` naming
         ``shape``."""
-        self._b.set_collider(_index(index, "index"), *_collider(collider))
+        spin = as_vector3(angular_velocity, "angular_velocity")
+        self._b.set_collider(_index(index, "index"), *_collider(collider), spin)
 
     def colliders(self) -> list[Plane | Sphere | Capsule | Box]:
         """The colliders, in the order added, as :mod:`kinema.geometry` shapes where they are

@@ -170,18 +170,24 @@ pub struct ArticulatedBody {
 }
 
 impl ArticulatedBody {
-    /// A collider of `shape` at the body's current time, moving at `velocity`.
+    /// A collider of `shape` at the body's current time, moving at `velocity` and turning at
+    /// `angular_velocity` (each checked finite here, so that adding one cannot fail halfway).
     fn collider(
         &self,
         shape: Shape,
         friction: Option<f64>,
         velocity: [f64; 3],
+        angular_velocity: [f64; 3],
     ) -> PyResult<Collider> {
-        let velocity = DVec3::from_array(velocity);
-        if !velocity.is_finite() {
-            return Err(Error::invalid("velocity", "must be finite").into());
+        let (velocity, angular_velocity) =
+            (DVec3::from_array(velocity), DVec3::from_array(angular_velocity));
+        for (name, v) in [("velocity", velocity), ("angular_velocity", angular_velocity)] {
+            if !v.is_finite() {
+                return Err(Error::invalid(name, "must be finite").into());
+            }
         }
-        Ok(Collider { shape, friction, velocity, since: self.body.state().time() })
+        let since = self.body.state().time();
+        Ok(Collider { shape, friction, velocity, angular_velocity, since })
     }
 }
 
@@ -294,24 +300,27 @@ impl ArticulatedBody {
     }
 
     /// Add a collider of kind `kind` with the shape's parameters `p`
-    /// (`super::geometry::shape`), Coulomb `friction` (None: the settings') and `velocity`
-    /// (m/s, world; it is at `p` now); returns its index.
+    /// (`super::geometry::shape`), Coulomb `friction` (None: the settings'), `velocity`
+    /// (m/s, world) and `angular_velocity` (rad/s, world, about its centre; it is at `p`
+    /// now); returns its index.
     fn add_collider(
         &mut self,
         kind: &str,
         p: Vec<f64>,
         friction: Option<f64>,
         velocity: [f64; 3],
+        angular_velocity: [f64; 3],
     ) -> PyResult<usize> {
         let (shape, _) = super::geometry::shape(kind, &p, 0)?;
-        let collider = self.collider(shape, friction, velocity)?;
+        let collider = self.collider(shape, friction, velocity, angular_velocity)?;
         let index = self.body.model_mut().add_collider(shape, friction)?;
         self.body.model_mut().set_collider(index, collider)?;
         Ok(index)
     }
 
     /// Move collider `index` to the shape `p` of kind `kind` (same kind and size) at the
-    /// body's current time, translating at `velocity` (m/s, world) from then on.
+    /// body's current time, translating at `velocity` (m/s, world) and turning at
+    /// `angular_velocity` (rad/s, world, about its centre) from then on.
     fn set_collider(
         &mut self,
         index: Int,
@@ -319,10 +328,11 @@ impl ArticulatedBody {
         p: Vec<f64>,
         friction: Option<f64>,
         velocity: [f64; 3],
+        angular_velocity: [f64; 3],
     ) -> PyResult<()> {
         let index = index.count("index")?;
         let (shape, _) = super::geometry::shape(kind, &p, 0)?;
-        let collider = self.collider(shape, friction, velocity)?;
+        let collider = self.collider(shape, friction, velocity, angular_velocity)?;
         Ok(self.body.model_mut().set_collider(index, collider)?)
     }
 

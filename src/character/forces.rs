@@ -19,7 +19,8 @@
 //!   contact is recorded ([`Contact`]) and its damping is taken at the next step's velocity
 //!   in the same linear solve as the servos ([`super::servo::stable`]), as stable PD does
 //!   for the servos' `k_d`. Against a moving collider the damping and friction act on the
-//!   velocity relative to the collider's (constant over a step, so the solve is unchanged).
+//!   velocity relative to the collider's surface (taken as known in the solve, as the
+//!   surface's motion is prescribed).
 //! - **Self-collision** (with [`super::Settings::self_collision`]), between the capsules of
 //!   each pair of [`Model::collision_pairs`]: at depth `d = r_i + r_j − |p_j − p_i| > 0`
 //!   (`p_i`, `p_j` the closest points of the axes) the force `f_n = max(0, k d − c v_n)`
@@ -294,7 +295,7 @@ fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, time: f64, dt: f6
     let (r, length) = (shape.radius, a.distance(b));
     for collider in model.colliders() {
         let geometry = &collider.at(time);
-        let surface = collider.velocity;
+        let surface = |p: DVec3| collider.surface_velocity(geometry, p);
         if geometry.distance(0.5 * (a + b)).0 >= r + 0.5 * length {
             continue;
         }
@@ -306,7 +307,8 @@ fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, time: f64, dt: f6
             let (d, n) = geometry.distance(end);
             least = least.min(d);
             if d < r {
-                let touch = spring.touch(tree, i, local(end - r * n), n, r - d, surface);
+                let p = end - r * n;
+                let touch = spring.touch(tree, i, local(p), n, r - d, surface(p));
                 each(tree, touch);
             }
         }
@@ -316,7 +318,8 @@ fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, time: f64, dt: f6
         let (d, n) = geometry.distance(p);
         if s > 0.0 && d < r && d < least - 1e-12 {
             spring.weight = if r > 0.0 { (s / r).min(1.0) } else { 1.0 };
-            let touch = spring.touch(tree, i, local(p - r * n), n, r - d, surface);
+            let q = p - r * n;
+            let touch = spring.touch(tree, i, local(q), n, r - d, surface(q));
             each(tree, touch);
         }
     }

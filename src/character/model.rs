@@ -1,8 +1,8 @@
 //! The articulated model: a kinematic tree of rigid bodies joined by revolute, ball, free
 //! and fixed joints, with masses, capsule shapes, joint limits, damping, PD servos and the
 //! settings of ground contact and integration. Built body by body ([`Model::add_body`],
-//! parents first), with colliders ([`Model::add_collider`], static or translating at a
-//! velocity, [`Model::set_collider`]); read-only during a step.
+//! parents first), with colliders ([`Model::add_collider`], static or moving at constant
+//! velocities, [`Model::set_collider`]); read-only during a step.
 
 use super::spatial::{rigid_inertia, SMat, Transform};
 use crate::error::{Error, Result};
@@ -147,28 +147,45 @@ pub struct Body {
 /// A collider of the bodies' capsules: one of the shared shapes ([`crate::geometry::Shape`]:
 /// a plane of any normal, a sphere, a capsule or an oriented box), touched by the capsules
 /// through the ground's penalty spring-dampers and regularised Coulomb friction along its
-/// closest-point normal (`super::forces`), static or kinematic: it translates at `velocity`,
-/// and the contacts' damping and friction act on the capsule's velocity relative to it.
+/// closest-point normal (`super::forces`), static or kinematic: it translates at `velocity`
+/// and turns at `angular_velocity` about its centre, and the contacts' damping and friction
+/// act on the capsule's velocity relative to its surface's.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct Collider {
     /// The shape (m, world) at time `since`, checked by [`Shape::checked`].
     pub shape: Shape,
     /// Its Coulomb friction coefficient μ (`None`: [`Settings::friction`]).
     pub friction: Option<f64>,
-    /// The velocity (m/s, world) the shape translates at: zero for a static collider.
+    /// The velocity (m/s, world) the shape's centre ([`Shape::centre`]) translates at: zero
+    /// for a static collider.
     pub velocity: DVec3,
+    /// The angular velocity (rad/s, world) the shape turns at about its centre.
+    pub angular_velocity: DVec3,
     /// The time (s, the bodies' clock, [`super::State::time`]) at which it is at `shape`.
     pub since: f64,
 }
 
 impl Collider {
-    /// The shape at time `t` (s): `shape` translated by `velocity (t − since)`.
+    /// The shape at time `t` (s): `shape` turned about its centre by
+    /// `exp(angular_velocity (t − since))`, then translated by `velocity (t − since)`.
     pub fn at(&self, t: f64) -> Shape {
-        if self.velocity == DVec3::ZERO {
+        let h = t - self.since;
+        let shape = if self.angular_velocity == DVec3::ZERO {
             self.shape
         } else {
-            self.shape.translated(self.velocity * (t - self.since))
+            self.shape.turned(DQuat::from_scaled_axis(self.angular_velocity * h))
+        };
+        if self.velocity == DVec3::ZERO {
+            shape
+        } else {
+            shape.translated(self.velocity * h)
         }
+    }
+
+    /// The velocity (m/s, world) of the collider's surface at the world point `p` of the
+    /// shape `at` gives at that time: `velocity + angular_velocity × (p − centre)`.
+    pub fn surface_velocity(&self, at: &Shape, p: DVec3) -> DVec3 {
+        self.velocity + self.angular_velocity.cross(p - at.centre())
     }
 }
 
@@ -340,8 +357,13 @@ impl Model {
     /// `center`, `radius`, `a`, `b`, `half_extents`, `orientation`); a negative or non-finite
     /// `friction`.
     pub fn add_collider(&mut self, shape: Shape, friction: Option<f64>) -> Result<usize> {
-        let collider =
-            Collider { shape: shape.checked()?, friction, velocity: DVec3::ZERO, since: 0.0 };
+        let collider = Collider {
+            shape: shape.checked()?,
+            friction,
+            velocity: DVec3::ZERO,
+            angular_velocity: DVec3::ZERO,
+            since: 0.0,
+        };
         check_collider(&collider)?;
         self.colliders.push(collider);
         Ok(self.colliders.len() - 1)
@@ -350,7 +372,7 @@ impl Model {
     /// Move collider `index` (a kinematic collider): `collider` replaces it, its shape of the
     /// same kind and size (radius, half extents, a capsule's length to 1e-9 relative; only
     /// the pose changes), at `collider.shape` at time `collider.since` and translating at
-    /// `collider.velocity` from then on. Set it between steps, e.g. every frame with the
+    /// `collider.velocity` and turning at `collider.angular_velocity` from then on. Set it between steps, e.g. every frame with the
     /// pose at the body's time and the velocity to the next frame's pose.
     ///
     /// # Errors
@@ -512,6 +534,9 @@ pub(super) fn check_collider(c: &Collider) -> Result<()> {
     }
     if !c.velocity.is_finite() {
         return Err(Error::invalid("velocity", "must be finite"));
+    }
+    if !c.angular_velocity.is_finite() {
+        return Err(Error::invalid("angular_velocity", "must be finite"));
     }
     if !c.since.is_finite() {
         return Err(Error::invalid("since", "must be finite"));

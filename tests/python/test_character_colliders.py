@@ -110,6 +110,8 @@ def test_bad_colliders_name_the_argument():
     ]:
         with pytest.raises(ValueError, match=name):
             b.set_collider(0, shape)
+    with pytest.raises(ValueError, match="angular_velocity"):
+        b.set_collider(0, geometry.Box((0, 0, 0), (1, 1, 1)), angular_velocity=(0, nan, 0))
     with pytest.raises(ValueError, match="index"):
         b.set_collider(1, geometry.Box((0, 0, 0), (1, 1, 1)))
     (box,) = b.colliders()  # as it was: at (0, -3, 0) when added, moving down
@@ -156,3 +158,22 @@ def test_a_capsule_on_a_platform_moved_every_frame_follows_it():
 
     assert np.ptp(offsets(True)) < 0.012
     assert np.ptp(offsets(False)) > 0.2
+
+
+def test_a_turning_box_turns_and_drags_from_python():
+    """A box added with an angular velocity is reported turned at the body's time (its
+    orientation ``exp(ω t)``, its centre fixed), and drags a ball resting on it off the axis
+    into motion along the table's surface velocity ``Ω × x`` (the ball rolls, at 2/7 of it:
+    tests/character_moving_colliders.rs)."""
+    b = ball(radius=0.1, height=0.1 - 9.81 / 60.0**2)
+    m = b.q.copy()
+    m[0] = 0.5
+    b.q = m
+    b.add_collider(geometry.Box((0.0, -0.2, 0.0), (3.0, 0.2, 3.0)), angular_velocity=(0, 2.0, 0))
+    b.step(1e-3, 100)
+    (box,) = b.colliders()
+    np.testing.assert_allclose(box.center, (0.0, -0.2, 0.0), atol=1e-12)
+    turn = box.orientation.as_rotvec()
+    np.testing.assert_allclose(turn, (0.0, 2.0 * b.time, 0.0), atol=1e-9)
+    v = b.qd[3:6]
+    assert v[2] < -0.1 and abs(v[2]) > 5 * abs(v[0])  # along Ω × x = (0, 0, -1) at x = 0.5
