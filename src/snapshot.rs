@@ -23,7 +23,7 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 
 /// Version of the snapshot layout; raised whenever a stored type changes its fields.
-pub const VERSION: u32 = 18;
+pub const VERSION: u32 = 19;
 
 /// A type that can be stored as a snapshot, under a tag naming it.
 pub trait Snapshot: Serialize + DeserializeOwned {

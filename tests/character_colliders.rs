@@ -3,35 +3,16 @@
 //! contact forces along a box's closest-point normal on its side and edge, the CMU ragdoll
 //! falling limp down a staircase of boxes, snapshots and bad input.
 
+mod articulated;
+
+use articulated::capsule;
 use glam::{DQuat, DVec3};
-use kinema::character::{
-    ragdoll, ArticulatedBody, Body, Capsule, Joint, Model, RagdollOptions, Servo, Settings,
-};
+use kinema::character::{ragdoll, ArticulatedBody, Joint, Model, RagdollOptions, Servo, Settings};
 use kinema::geometry::{Cuboid, Plane, Shape};
 use kinema::snapshot::Snapshot;
 use kinema::Error;
 
 const G: f64 = 9.81;
-
-/// A free capsule of radius `r` (m, water density) from `a` to `b` (body frame, the frame at
-/// `at`, world axes).
-fn capsule(a: DVec3, b: DVec3, r: f64, at: DVec3) -> Body {
-    let shape = Capsule { a, b, radius: r };
-    let (mass, com, inertia) = shape.mass_properties(1000.0);
-    Body {
-        name: String::new(),
-        parent: None,
-        joint: Joint::Free,
-        offset: at,
-        mass,
-        com,
-        inertia,
-        shape: Some(shape),
-        limits: None,
-        damping: 0.0,
-        servo: None,
-    }
-}
 
 /// A box of half extents `half` at `center` turned by `rotation`.
 fn cuboid(center: DVec3, rotation: DQuat, half: DVec3) -> Shape {

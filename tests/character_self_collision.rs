@@ -2,30 +2,17 @@
 //! at the analytic penetration, momentum kept through a collision, the pairs' filter, and a
 //! limp CMU ragdoll that no longer falls through itself.
 
+mod articulated;
+
+use articulated::capsule;
 use glam::DVec3;
-use kinema::character::{
-    ragdoll, ArticulatedBody, Body, Capsule, Joint, Model, RagdollOptions, Settings,
-};
+use kinema::character::{ragdoll, ArticulatedBody, Body, Model, RagdollOptions, Settings};
 use kinema::geometry::segment::closest_points_of_segments;
 use kinema::mocap::parse_asf;
 
 /// A free ball of radius `r` (m, water density) at `at`.
 fn ball(r: f64, at: DVec3) -> Body {
-    let shape = Capsule { a: DVec3::ZERO, b: DVec3::ZERO, radius: r };
-    let (mass, com, inertia) = shape.mass_properties(1000.0);
-    Body {
-        name: String::new(),
-        parent: None,
-        joint: Joint::Free,
-        offset: at,
-        mass,
-        com,
-        inertia,
-        shape: Some(shape),
-        limits: None,
-        damping: 0.0,
-        servo: None,
-    }
+    capsule(DVec3::ZERO, DVec3::ZERO, r, at)
 }
 
 fn two_balls(settings: Settings, lower: Body, upper: Body) -> ArticulatedBody {

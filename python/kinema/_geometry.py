@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from kinema import character as _character
 from kinema import cloth as _cloth
 from kinema import fluid as _fluid
 from kinema import particles as _particles
@@ -71,6 +72,70 @@ def cylinder(radius: float, height: float, sectors: int = 16) -> tuple[np.ndarra
     return v, np.array(tris, dtype=np.int64)
 
 
+PLANE_SIZE = 10.0
+"""Side (m) of the square drawn for an (infinite) plane collider, centred at its point."""
+
+
+def turn_y_to(direction: Any) -> np.ndarray:
+    """The shortest turn ``(w, x, y, z)`` taking +Y onto ``direction`` (the identity for a
+    zero vector, half a turn about X for -Y)."""
+    d = np.asarray(direction, dtype=np.float64)
+    n = float(np.linalg.norm(d))
+    if n == 0.0:
+        return np.array([1.0, 0.0, 0.0, 0.0])
+    d = d / n
+    if d[1] < -1.0 + 1e-12:
+        return np.array([0.0, 1.0, 0.0, 0.0])
+    q = np.array([1.0 + d[1], d[2], 0.0, -d[0]])  # (1 + Y·d, Y × d)
+    return q / np.linalg.norm(q)
+
+
+def shape_frame(shape: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The frame of a :mod:`kinema.geometry` shape: position (m) and orientation
+    ``(w, x, y, z)``; :func:`shape_mesh` is the shape in that frame. A plane's frame sits at
+    its point with +Y along its normal, a capsule's at its axis's midpoint with +Y along it."""
+    from kinema import geometry
+
+    kind, p = geometry.shape_params(shape)
+    if kind == "plane":
+        return np.array(p[:3]), turn_y_to(p[3:6])
+    if kind == "sphere":
+        return np.array(p[:3]), np.array([1.0, 0.0, 0.0, 0.0])
+    if kind == "capsule":
+        a, b = np.array(p[:3]), np.array(p[3:6])
+        return 0.5 * (a + b), turn_y_to(b - a)
+    return np.array(p[:3]), np.array(p[3:7])
+
+
+def shape_mesh(shape: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The triangle mesh of a :mod:`kinema.geometry` shape in its :func:`shape_frame`: a
+    square of side :data:`PLANE_SIZE` in the x–z plane for a plane, a sphere, a capsule along
+    Y, a box."""
+    from kinema import geometry
+
+    kind, p = geometry.shape_params(shape)
+    if kind == "plane":
+        h = 0.5 * PLANE_SIZE
+        v = np.array([[-h, 0.0, -h], [h, 0.0, -h], [h, 0.0, h], [-h, 0.0, h]])
+        return v, np.array([[0, 2, 1], [0, 3, 2]], dtype=np.int64)
+    if kind == "sphere":
+        return uv_sphere(p[3])
+    if kind == "capsule":
+        return uv_sphere(p[6], stretch=float(np.linalg.norm(np.subtract(p[3:6], p[:3]))))
+    return box(p[7:10])
+
+
+def capsule(a: Any, b: Any, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """The triangle mesh of the capsule of ``radius`` (m) around the segment ``a``–``b`` (m),
+    in the frame of ``a`` and ``b``."""
+    from kinema import geometry
+
+    c = geometry.Capsule(a, b, radius)
+    x, q = shape_frame(c)
+    v, t = shape_mesh(c)
+    return Rotation.from_quat(q).apply(v) + x, t
+
+
 def body_mesh(shape: Any) -> tuple[np.ndarray, np.ndarray]:
     """The body-frame triangle mesh of a :mod:`kinema.rigid` shape."""
     if isinstance(shape, _rigid.Sphere):
@@ -111,6 +176,19 @@ def of_scene(scene: Any) -> Geometry:
         elif isinstance(s, Character):
             j = s.joints(scene.time)
             g.segments[f"character{i}"] = np.stack([j[s._bones[:, 0]], j[s._bones[:, 1]]], axis=1)
+        elif isinstance(s, (_character.ArticulatedBody, _character.Tracker)):
+            x, q = s.positions(), s.orientations()
+            for b, (name, c) in enumerate(zip(s.names, s.capsules(), strict=True)):
+                if c is not None:
+                    v, t = capsule(*c)
+                    g.meshes[f"ragdoll{i}_{b}_{name}"] = (
+                        Rotation.from_quat(q[b]).apply(v) + x[b],
+                        t,
+                    )
+            colliders = s.colliders() if isinstance(s, _character.ArticulatedBody) else []
+            for k, collider in enumerate(colliders):
+                (p, r), (v, t) = shape_frame(collider), shape_mesh(collider)
+                g.meshes[f"ragdoll{i}_collider{k}"] = (Rotation.from_quat(r).apply(v) + p, t)
     return g
 
 

@@ -41,10 +41,10 @@ def _index(value: object, name: str) -> int:
     return operator.index(value)
 
 
-def _collider(c: Any) -> tuple[str, list[float], float | None]:
-    """A :mod:`kinema.geometry` shape as an articulated collider: its kind, parameters and
-    friction (``None``: the body's). Penalty contacts have no restitution, and the colliders
-    are static."""
+def _collider(c: Any) -> tuple[str, list[float], float | None, list[float]]:
+    """A :mod:`kinema.geometry` shape as an articulated collider: its kind, parameters,
+    friction (``None``: the body's) and velocity (m/s). Penalty contacts have no
+    restitution."""
     kind, params = shape_params(c)
     if c.restitution is not None:
         raise ValueError(
@@ -53,9 +53,25 @@ def _collider(c: Any) -> tuple[str, list[float], float | None]:
         )
     if isinstance(c, Sphere) and c.inside:
         raise ValueError("inside: articulated bodies collide with the outside of a sphere only")
-    if any(as_vector3(c.velocity, "velocity")):
-        raise ValueError("velocity: articulated colliders are static (velocity 0)")
-    return kind, params, None if c.friction is None else real(c.friction, "friction")
+    friction = None if c.friction is None else real(c.friction, "friction")
+    return kind, params, friction, as_vector3(c.velocity, "velocity")
+
+
+def _shape(
+    kind: str, p: list[float], friction: float | None, velocity: list[float]
+) -> Plane | Sphere | Capsule | Box:
+    """A compiled collider ``(kind, parameters, friction, velocity)`` as a
+    :mod:`kinema.geometry` shape."""
+    from kinema.rotation import Rotation
+
+    if kind == "plane":
+        return Plane(p[:3], p[3:6], friction=friction, velocity=velocity)
+    if kind == "sphere":
+        return Sphere(p[:3], p[3], friction=friction, velocity=velocity)
+    if kind == "capsule":
+        return Capsule(p[:3], p[3:6], p[6], friction=friction, velocity=velocity)
+    orientation = Rotation.from_quat(p[3:7])
+    return Box(p[:3], p[7:10], orientation, friction=friction, velocity=velocity)
 
 
 def _floats(value: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
@@ -254,15 +270,45 @@ class ArticulatedBody:
             _index(body, "body"), gain, real(kd, "kd"), real(max_torque, "max_torque")
         )
 
-    def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> int:
-        """Add a static collider (a :mod:`kinema.geometry` shape: a plane of any normal, a
-        sphere, a capsule or an oriented box; a staircase is a list of boxes) touched by every
-        capsule with the ground's contact spring, damping and regularised friction along the
-        shape's closest-point normal (docs/character.md, "Colliders"); returns its index. The
-        shape's ``friction`` (``None``: the ``friction`` setting) is its Coulomb μ; it takes
-        no ``restitution`` and no ``velocity``. Bad shapes raise ``ValueError`` naming the
+    def add_collider(
+        self, collider: Plane | Sphere | Capsule | Box, angular_velocity: Any = (0.0, 0.0, 0.0)
+    ) -> int:
+        """Add a collider (a :mod:`kinema.geometry` shape: a plane of any normal, a sphere, a
+        capsule or an oriented box; a staircase is a list of boxes) touched by every capsule
+        with the ground's contact spring, damping and regularised friction along the shape's
+        closest-point normal (docs/character.md, "Colliders"); returns its index (for
+        :meth:`set_collider`). The shape's ``friction`` (``None``: the ``friction`` setting)
+        is its Coulomb μ; its ``velocity`` (m/s) and ``angular_velocity`` (rad/s, world,
+        about its centre: a plane's point, a capsule's midpoint; both default 0: static) make
+        it kinematic: it is where given at the body's current time and moves so from then
+        on, and the contacts' damping and friction act on the velocity relative to its
+        surface's. It takes no ``restitution``. Bad shapes raise ``ValueError`` naming the
         argument."""
-        return int(self._b.add_collider(*_collider(collider)))
+        spin = as_vector3(angular_velocity, "angular_velocity")
+        return int(self._b.add_collider(*_collider(collider), spin))
+
+    def set_collider(
+        self,
+        index: int,
+        collider: Plane | Sphere | Capsule | Box,
+        angular_velocity: Any = (0.0, 0.0, 0.0),
+    ) -> None:
+        """Move collider ``index``: ``collider`` (a shape of the same kind and size: radius,
+        half extents, a capsule's length) is its pose at the body's current time, its
+        ``velocity`` (m/s) and ``angular_velocity`` (rad/s, about its centre) how it moves
+        from then on, its ``friction`` its μ. To carry a body on a platform following any
+        path, set it every frame:
+        ``set_collider(i, Box(path(t), half, velocity=(path(t + dt) - path(t)) / dt))``
+        before ``step``. A shape of another kind or size raises ``ValueError`` naming
+        ``shape``."""
+        spin = as_vector3(angular_velocity, "angular_velocity")
+        self._b.set_collider(_index(index, "index"), *_collider(collider), spin)
+
+    def colliders(self) -> list[Plane | Sphere | Capsule | Box]:
+        """The colliders, in the order added, as :mod:`kinema.geometry` shapes where they are
+        at the body's current time (m, world), each with its ``friction`` (``None``: the
+        setting's) and ``velocity`` (m/s)."""
+        return [_shape(*c) for c in self._b.colliders()]
 
     def push(self, body: int, force: Any, duration: float) -> None:
         """Apply ``force`` (N, world axes) at body ``body``'s centre of mass during the next
@@ -547,8 +593,12 @@ class Biped:
 
     def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> int:
         """Add a static collider under the feet, as :meth:`ArticulatedBody.add_collider`; the
-        controller takes a foot in it for a foot on the ground. Returns its index."""
-        return int(self._w.add_collider(*_collider(collider)))
+        controller takes a foot in it for a foot on the ground. Returns its index. A walker's
+        colliders are static: a ``velocity`` raises ``ValueError``."""
+        kind, params, friction, velocity = _collider(collider)
+        if any(velocity):
+            raise ValueError("velocity: a walker's colliders are static (velocity 0)")
+        return int(self._w.add_collider(kind, params, friction))
 
     def push(self, force: Any, duration: float, body: str | int = "torso") -> None:
         """Push ``body`` (a name or index; default the torso) with ``force`` (N, world, 3
@@ -630,8 +680,10 @@ class Biped:
 
 
 class Tracker:
-    """The ragdoll of an ASF ``skeleton`` tracking ``motion`` (an AMC clip of it) frame by
-    frame (docs/character.md, "Mocap tracking").
+    """The ragdoll of an ASF ``skeleton`` tracking ``motion`` (an AMC clip of it), or of a
+    BVH ``skeleton`` tracking its motion (both from :func:`kinema.mocap.read_bvh`; ``scale``,
+    metres per file unit, is then required), frame by frame (docs/character.md, "Mocap
+    tracking").
 
     Every hinge and ball joint gets a stable PD servo (``kp`` N m/rad, ``kd`` N m s/rad,
     ``max_torque`` N m; ``kp=0``: limp) towards the clip's next frame; the root gets a
@@ -661,15 +713,18 @@ class Tracker:
         min_radius: float = 0.02,
         damping: float = 2.0,
     ) -> None:
-        if not isinstance(skeleton, _kinema.AsfSkeleton):
+        if not isinstance(skeleton, (_kinema.AsfSkeleton, _kinema.BvhSkeleton)):
             raise TypeError(
-                "skeleton: expected an ASF skeleton (kinema.mocap.read_asf), "
-                f"got {type(skeleton).__name__}"
+                "skeleton: expected an ASF or a BVH skeleton (kinema.mocap.read_asf, "
+                f"read_bvh), got {type(skeleton).__name__}"
             )
         if not isinstance(motion, _kinema.AmcMotion):
             raise TypeError(
-                f"motion: expected a motion (kinema.mocap.read_amc), got {type(motion).__name__}"
+                "motion: expected a motion (kinema.mocap.read_amc, read_bvh), "
+                f"got {type(motion).__name__}"
             )
+        if scale is None and isinstance(skeleton, _kinema.BvhSkeleton):
+            raise ValueError("scale: required for a BVH skeleton (metres per file unit)")
         ragdoll = [
             real(density, "density"),
             real(radius_ratio, "radius_ratio"),
@@ -744,3 +799,15 @@ class Tracker:
     def positions(self) -> np.ndarray:
         """World positions of the body frames ``(n, 3)`` (m)."""
         return self._t.positions()
+
+    def orientations(self) -> np.ndarray:
+        """World orientations of the body frames ``(n, 4)`` as ``(w, x, y, z)``."""
+        return self._t.orientations()
+
+    def capsules(self) -> list[tuple[np.ndarray, np.ndarray, float] | None]:
+        """Each body's capsule ``(a, b, radius)`` (m, body frame), as
+        :meth:`ArticulatedBody.capsules`."""
+        return [
+            None if c is None else (np.array(c[0]), np.array(c[1]), float(c[2]))
+            for c in self._t.capsules()
+        ]

@@ -223,7 +223,7 @@ class Scene:
         :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
         obstacles only), :class:`kinema.character.Biped` and
         :class:`kinema.character.ArticulatedBody` (a :class:`~kinema.character.Ragdoll` too;
-        their own ground, no colliders), :class:`kinema.character.Tracker` (no options; each
+        their own ground and colliders, none from the scene), :class:`kinema.character.Tracker` (no options; each
         step ``dt / substeps`` must be a whole number of the clip's frames, e.g. ``dt=1/120``
         for a CMU clip),
         :class:`kinema.rods.Rod` and :class:`kinema.rods.Hair` (their own static colliders
@@ -579,7 +579,8 @@ class Scene:
     # ------------------------------------------------------------------ output
     def export_obj(self, directory: str | os.PathLike[str], prefix: str = "frame") -> Path:
         """Write the current frame's meshes (cloth, rigid bodies, animated spheres, fluid
-        surfaces; one OBJ object each, in metres) to ``directory/<prefix>_<frame:05d>.obj`` and return the path.
+        surfaces, the capsules and colliders of articulated bodies and trackers; one OBJ
+        object each, in metres) to ``directory/<prefix>_<frame:05d>.obj`` and return the path.
         Call it from ``run(on_frame=...)`` for an OBJ sequence (Blender imports them as
         a sequence)."""
         from kinema import _geometry

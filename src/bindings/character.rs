@@ -9,11 +9,12 @@ use super::pickle::{reduce, Reduced};
 use super::view::view;
 use super::walker::walker_class;
 use crate::character::{
-    link_boxes, ragdoll, ragdoll_bvh, ArticulatedBody as Core, Body, Capsule, Gait, Integrator,
-    Joint, Limits, Model, Pose, RagdollOptions, Servo, ServoMode, Settings, State,
-    Walker as WalkerCore,
+    link_boxes, ragdoll, ragdoll_bvh, ArticulatedBody as Core, Body, Capsule, Collider, Gait,
+    Integrator, Joint, Limits, Model, Pose, RagdollOptions, Servo, ServoMode, Settings, State,
+    Tree, Walker as WalkerCore,
 };
 use crate::error::Error;
+use crate::geometry::Shape;
 use crate::snapshot::Snapshot;
 use glam::{DMat3, DQuat, DVec3};
 use numpy::PyArrayDyn;
@@ -114,7 +115,51 @@ impl ArticulatedModel {
 }
 
 /// A capsule as Python sees it: its axis's ends (m, body frame) and radius (m).
-type CapsuleTuple = ([f64; 3], [f64; 3], f64);
+pub(super) type CapsuleTuple = ([f64; 3], [f64; 3], f64);
+
+/// A collider as Python sees it: its kind, the shape's parameters, its friction and velocity.
+type ColliderTuple = (&'static str, Vec<f64>, Option<f64>, [f64; 3]);
+
+/// Each body's capsule of `model`, or None.
+pub(super) fn capsules(model: &Model) -> Vec<Option<CapsuleTuple>> {
+    let shape = |b: &Body| b.shape.map(|c| (c.a.to_array(), c.b.to_array(), c.radius));
+    model.bodies().iter().map(shape).collect()
+}
+
+/// The colliders of `model` where they are at `time` (s).
+fn colliders(model: &Model, time: f64) -> Vec<ColliderTuple> {
+    let each = |c: &Collider| {
+        let (kind, p) = super::geometry::params(&c.at(time));
+        (kind, p, c.friction, c.velocity.to_array())
+    };
+    model.colliders().iter().map(each).collect()
+}
+
+/// The world positions of `tree`'s body frames (n, 3) in m, as a new array.
+pub(super) fn positions<'py>(
+    py: Python<'py>,
+    tree: &Tree,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let p = tree.positions();
+    compute::<3>(py, p.len(), &[3], |out| {
+        let out = zeroed(out);
+        out.iter_mut().zip(p).for_each(|(o, v)| *o = v.to_array());
+        Ok(())
+    })
+}
+
+/// The world orientations of `tree`'s body frames (n, 4) as (w, x, y, z), as a new array.
+pub(super) fn orientations<'py>(
+    py: Python<'py>,
+    tree: &Tree,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let r = tree.orientations();
+    compute::<4>(py, r.len(), &[4], |out| {
+        let out = zeroed(out);
+        out.iter_mut().zip(r).for_each(|(o, q)| *o = [q.w, q.x, q.y, q.z]);
+        Ok(())
+    })
+}
 
 /// An articulated body; see `kinema.character.ArticulatedBody` for the API.
 #[pyclass(module = "kinema._kinema")]
@@ -122,6 +167,28 @@ pub struct ArticulatedBody {
     body: Core,
     /// The state at the last `_mark` (a scene's undo point).
     saved: Option<State>,
+}
+
+impl ArticulatedBody {
+    /// A collider of `shape` at the body's current time, moving at `velocity` and turning at
+    /// `angular_velocity` (each checked finite here, so that adding one cannot fail halfway).
+    fn collider(
+        &self,
+        shape: Shape,
+        friction: Option<f64>,
+        velocity: [f64; 3],
+        angular_velocity: [f64; 3],
+    ) -> PyResult<Collider> {
+        let (velocity, angular_velocity) =
+            (DVec3::from_array(velocity), DVec3::from_array(angular_velocity));
+        for (name, v) in [("velocity", velocity), ("angular_velocity", angular_velocity)] {
+            if !v.is_finite() {
+                return Err(Error::invalid(name, "must be finite").into());
+            }
+        }
+        let since = self.body.state().time();
+        Ok(Collider { shape, friction, velocity, angular_velocity, since })
+    }
 }
 
 #[pymethods]
@@ -232,12 +299,41 @@ impl ArticulatedBody {
         Ok(())
     }
 
-    /// Add a static collider of kind `kind` with the shape's parameters `p`
-    /// (`super::geometry::shape`) and Coulomb `friction` (None: the settings'); returns its
-    /// index.
-    fn add_collider(&mut self, kind: &str, p: Vec<f64>, friction: Option<f64>) -> PyResult<usize> {
+    /// Add a collider of kind `kind` with the shape's parameters `p`
+    /// (`super::geometry::shape`), Coulomb `friction` (None: the settings'), `velocity`
+    /// (m/s, world) and `angular_velocity` (rad/s, world, about its centre; it is at `p`
+    /// now); returns its index.
+    fn add_collider(
+        &mut self,
+        kind: &str,
+        p: Vec<f64>,
+        friction: Option<f64>,
+        velocity: [f64; 3],
+        angular_velocity: [f64; 3],
+    ) -> PyResult<usize> {
         let (shape, _) = super::geometry::shape(kind, &p, 0)?;
-        Ok(self.body.model_mut().add_collider(shape, friction)?)
+        let collider = self.collider(shape, friction, velocity, angular_velocity)?;
+        let index = self.body.model_mut().add_collider(shape, friction)?;
+        self.body.model_mut().set_collider(index, collider)?;
+        Ok(index)
+    }
+
+    /// Move collider `index` to the shape `p` of kind `kind` (same kind and size) at the
+    /// body's current time, translating at `velocity` (m/s, world) and turning at
+    /// `angular_velocity` (rad/s, world, about its centre) from then on.
+    fn set_collider(
+        &mut self,
+        index: Int,
+        kind: &str,
+        p: Vec<f64>,
+        friction: Option<f64>,
+        velocity: [f64; 3],
+        angular_velocity: [f64; 3],
+    ) -> PyResult<()> {
+        let index = index.count("index")?;
+        let (shape, _) = super::geometry::shape(kind, &p, 0)?;
+        let collider = self.collider(shape, friction, velocity, angular_velocity)?;
+        Ok(self.body.model_mut().set_collider(index, collider)?)
     }
 
     /// Set (or with `kp` None remove) the PD servo of body `body`'s joint.
@@ -354,8 +450,13 @@ impl ArticulatedBody {
 
     /// Each body's capsule `(a, b, radius)` (m, body frame), or None.
     fn capsules(&self) -> Vec<Option<CapsuleTuple>> {
-        let shape = |b: &Body| b.shape.map(|c| (c.a.to_array(), c.b.to_array(), c.radius));
-        self.body.model().bodies().iter().map(shape).collect()
+        capsules(self.body.model())
+    }
+
+    /// The colliders as `(kind, parameters, friction, velocity)` (`super::geometry::params`:
+    /// the shape where it is at the body's time, m, world; m/s), in the order added.
+    fn colliders(&self) -> Vec<ColliderTuple> {
+        colliders(self.body.model(), self.body.state().time())
     }
 
     /// Body masses (kg), in order.
@@ -365,22 +466,12 @@ impl ArticulatedBody {
 
     /// World positions of the body frames (n, 3) in m (a new array).
     fn positions<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        let p: Vec<DVec3> = self.body.kinematics().positions().to_vec();
-        compute::<3>(py, p.len(), &[3], |out| {
-            let out = zeroed(out);
-            out.iter_mut().zip(&p).for_each(|(o, v)| *o = v.to_array());
-            Ok(())
-        })
+        positions(py, self.body.kinematics())
     }
 
     /// World orientations of the body frames (n, 4) as (w, x, y, z) (a new array).
     fn orientations<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        let r: Vec<DQuat> = self.body.kinematics().orientations().to_vec();
-        compute::<4>(py, r.len(), &[4], |out| {
-            let out = zeroed(out);
-            out.iter_mut().zip(&r).for_each(|(o, q)| *o = [q.w, q.x, q.y, q.z]);
-            Ok(())
-        })
+        orientations(py, self.body.kinematics())
     }
 
     /// The settings as a dict.

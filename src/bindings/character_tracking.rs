@@ -3,14 +3,15 @@
 
 use super::args::Int;
 use super::array::{compute, zeroed};
+use super::character::CapsuleTuple;
 use super::error::detached;
-use super::mocap::{PyMotion, PySkeleton};
+use super::mocap::{PyBvhSkeleton, PyMotion, PySkeleton};
 use super::pickle::{reduce, Reduced};
 use crate::character::{
-    FrameReport, RagdollOptions, Settings, State, Tracker as Core, TrackingOptions,
+    FrameReport, RagdollOptions, Settings, State, TrackedSkeleton, Tracker as Core, TrackingOptions,
 };
+use crate::error::Error;
 use crate::snapshot::Snapshot;
-use glam::DVec3;
 use numpy::PyArrayDyn;
 use pyo3::prelude::*;
 
@@ -29,7 +30,7 @@ impl Tracker {
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        skeleton: PyRef<'_, PySkeleton>,
+        skeleton: &Bound<'_, PyAny>,
         motion: PyRef<'_, PyMotion>,
         ragdoll: [f64; 5],
         scale: Option<f64>,
@@ -40,9 +41,18 @@ impl Tracker {
         assist_damping: f64,
         substeps: Int,
     ) -> PyResult<Self> {
-        let sk = &skeleton.skeleton;
+        let (skeleton, unit): (TrackedSkeleton, _) = if let Ok(sk) = skeleton.cast::<PySkeleton>() {
+            let sk = &sk.borrow().skeleton;
+            (sk.into(), Some(sk.metres_per_unit()))
+        } else if let Ok(sk) = skeleton.cast::<PyBvhSkeleton>() {
+            (TrackedSkeleton::from(&sk.borrow().skeleton), None)
+        } else {
+            return Err(Error::invalid("skeleton", "expected an ASF or a BVH skeleton").into());
+        };
         let [density, radius_ratio, min_radius, damping, clearance] = ragdoll;
-        let scale = scale.unwrap_or_else(|| sk.metres_per_unit());
+        let Some(scale) = scale.or(unit) else {
+            return Err(Error::invalid("scale", "required for a BVH skeleton (m per unit)").into());
+        };
         let ragdoll =
             RagdollOptions { density, scale, radius_ratio, min_radius, damping, clearance };
         let options = TrackingOptions {
@@ -53,7 +63,7 @@ impl Tracker {
             assist_damping,
             substeps: substeps.count("substeps")?,
         };
-        let tracker = Core::new(sk, &motion.motion, &ragdoll, Settings::default(), options)?;
+        let tracker = Core::new(skeleton, &motion.motion, &ragdoll, Settings::default(), options)?;
         Ok(Tracker { tracker, saved: None })
     }
 
@@ -152,12 +162,17 @@ impl Tracker {
 
     /// World positions of the body frames (n, 3) in m.
     fn positions<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        let p: Vec<DVec3> = self.tracker.body_mut().kinematics().positions().to_vec();
-        compute::<3>(py, p.len(), &[3], |out| {
-            let out = zeroed(out);
-            out.iter_mut().zip(&p).for_each(|(o, v)| *o = v.to_array());
-            Ok(())
-        })
+        super::character::positions(py, self.tracker.body_mut().kinematics())
+    }
+
+    /// World orientations of the body frames (n, 4) as (w, x, y, z).
+    fn orientations<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        super::character::orientations(py, self.tracker.body_mut().kinematics())
+    }
+
+    /// Each body's capsule `(a, b, radius)` (m, body frame), or None.
+    fn capsules(&self) -> Vec<Option<CapsuleTuple>> {
+        super::character::capsules(self.tracker.body().model())
     }
 }
 

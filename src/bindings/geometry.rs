@@ -34,3 +34,19 @@ pub(crate) fn shape<'a>(kind: &str, p: &'a [f64], tail: usize) -> PyResult<(Shap
     };
     Ok((shape, &p[need..]))
 }
+
+/// The kind and parameters of `shape`, laid out as [`shape`] reads them.
+pub(crate) fn params(shape: &Shape) -> (&'static str, Vec<f64>) {
+    match *shape {
+        Shape::Plane(p) => ("plane", [p.point.to_array(), p.normal.to_array()].concat()),
+        Shape::Sphere(s) => ("sphere", [&s.center.to_array()[..], &[s.radius]].concat()),
+        Shape::Capsule(c) => {
+            ("capsule", [&c.a.to_array()[..], &c.b.to_array(), &[c.radius]].concat())
+        }
+        Shape::Box(b) => {
+            let r = b.rotation;
+            let q = [r.w, r.x, r.y, r.z];
+            ("box", [&b.center.to_array()[..], &q, &b.half.to_array()].concat())
+        }
+    }
+}

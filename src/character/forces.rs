@@ -18,7 +18,9 @@
 //!   be `m / 4`). When the step solves stable PD ([`implicit`]) they are not capped: each
 //!   contact is recorded ([`Contact`]) and its damping is taken at the next step's velocity
 //!   in the same linear solve as the servos ([`super::servo::stable`]), as stable PD does
-//!   for the servos' `k_d`.
+//!   for the servos' `k_d`. Against a moving collider the damping and friction act on the
+//!   velocity relative to the collider's surface (taken as known in the solve, as the
+//!   surface's motion is prescribed).
 //! - **Self-collision** (with [`super::Settings::self_collision`]), between the capsules of
 //!   each pair of [`Model::collision_pairs`]: at depth `d = r_i + r_j − |p_j − p_i| > 0`
 //!   (`p_i`, `p_j` the closest points of the axes) the force `f_n = max(0, k d − c v_n)`
@@ -61,7 +63,8 @@ pub(super) fn implicit(model: &Model) -> bool {
 }
 
 /// Add the body forces (contacts, pushes) to `tree.f_ext` and the joint forces (applied
-/// torques, damping, limits) to `tau`, at the state of the last [`Tree::kinematics`].
+/// torques, damping, limits) to `tau`, at the state of the last [`Tree::kinematics`] and
+/// `time` (s: where the moving colliders are).
 /// Pushes act with weight `min(remaining, dt) / dt` (the impulse of a push ending inside
 /// the step). With `implicit`, the contacts' viscous coefficients are not capped and the
 /// contacts are recorded in `tree.contacts` for the solve.
@@ -72,6 +75,7 @@ pub(super) fn passive(
     qd: &[f64],
     torques: &[f64],
     pushes: &[Push],
+    time: f64,
     dt: f64,
     implicit: bool,
     tree: &mut Tree,
@@ -98,7 +102,7 @@ pub(super) fn passive(
     }
     if !model.colliders().is_empty() {
         for i in 0..model.bodies().len() {
-            collider_contacts(model, tree, i, dt, implicit);
+            collider_contacts(model, tree, i, time, dt, implicit);
         }
     }
     if model.settings.self_collision {
@@ -205,7 +209,7 @@ pub(super) fn contacts(
         let depth = shape.radius - centre.y;
         if depth > 0.0 {
             let point = end + tree.rot[i].conjugate() * (-shape.radius * DVec3::Y);
-            *slot = Some(spring.touch(tree, i, point, DVec3::Y, depth));
+            *slot = Some(spring.touch(tree, i, point, DVec3::Y, depth, DVec3::ZERO));
         }
     }
     out
@@ -235,9 +239,10 @@ impl Spring {
     }
 
     /// The contact of body `i` at `point` (m, body frame, on the capsule's surface) at
-    /// `depth` (m, > 0) along the unit normal `n` (world, out of the touched shape): the
-    /// contact, the point and the force (N, world), `w (max(0, k d − c v·n) n − c_t v_t)`,
-    /// `c_t = μ f_n / max(|v_t|, v_s)`.
+    /// `depth` (m, > 0) along the unit normal `n` (world, out of the touched shape) of a
+    /// surface moving at `surface` (m/s, world): the contact, the point and the force (N,
+    /// world), `w (max(0, k d − c v·n) n − c_t v_t)`, `c_t = μ f_n / max(|v_t|, v_s)`, `v`
+    /// the point's velocity relative to the surface.
     fn touch(
         &self,
         tree: &Tree,
@@ -245,8 +250,9 @@ impl Spring {
         point: DVec3,
         n: DVec3,
         depth: f64,
+        surface: DVec3,
     ) -> (Contact, DVec3, DVec3) {
-        let vel = point_velocity(tree, i, point);
+        let vel = point_velocity(tree, i, point) - surface;
         let (w, vn) = (self.weight, vel.dot(n));
         let normal = w * (self.k * depth - self.c * vn).max(0.0);
         let slip = vel - vn * n;
@@ -262,8 +268,9 @@ impl Spring {
     }
 }
 
-/// Add the forces of body `i`'s capsule's contacts with `model`'s colliders to
-/// `tree.f_ext` (and with `implicit` record them in `tree.contacts`). Per collider, with
+/// Add the forces of body `i`'s capsule's contacts with `model`'s colliders, where they are
+/// at `time` ([`super::model::Collider::at`]), to `tree.f_ext` (and with `implicit` record
+/// them in `tree.contacts`); velocities are relative to the collider's. Per collider, with
 /// `a`, `b` the capsule's ends (world), `r` its radius, `φ` the collider's signed distance ([`crate::geometry::Shape::distance`]) and `n`
 /// its normal: every end with `φ < r` touches at depth `r − φ` along `n`; and the axis's
 /// deepest point `p(t)` ([`crate::geometry::Shape::deepest_on_segment`]), when it lies
@@ -274,7 +281,7 @@ impl Spring {
 /// contacts only, whatever point of the plateau the search returns. A capsule whose axis
 /// midpoint is farther than `r + |b − a| / 2` from the collider is skipped (the signed
 /// distance changes by at most the distance moved).
-fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, dt: f64, implicit: bool) {
+fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, time: f64, dt: f64, implicit: bool) {
     let each = |tree: &mut Tree, (contact, point, force): (Contact, DVec3, DVec3)| {
         apply(tree, i, point, force);
         if implicit {
@@ -287,7 +294,8 @@ fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, dt: f64, implicit
     let (a, b) = (pos + rot * shape.a, pos + rot * shape.b);
     let (r, length) = (shape.radius, a.distance(b));
     for collider in model.colliders() {
-        let geometry = &collider.shape;
+        let geometry = &collider.at(time);
+        let surface = |p: DVec3| collider.surface_velocity(geometry, p);
         if geometry.distance(0.5 * (a + b)).0 >= r + 0.5 * length {
             continue;
         }
@@ -299,7 +307,8 @@ fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, dt: f64, implicit
             let (d, n) = geometry.distance(end);
             least = least.min(d);
             if d < r {
-                let touch = spring.touch(tree, i, local(end - r * n), n, r - d);
+                let p = end - r * n;
+                let touch = spring.touch(tree, i, local(p), n, r - d, surface(p));
                 each(tree, touch);
             }
         }
@@ -309,7 +318,8 @@ fn collider_contacts(model: &Model, tree: &mut Tree, i: usize, dt: f64, implicit
         let (d, n) = geometry.distance(p);
         if s > 0.0 && d < r && d < least - 1e-12 {
             spring.weight = if r > 0.0 { (s / r).min(1.0) } else { 1.0 };
-            let touch = spring.touch(tree, i, local(p - r * n), n, r - d);
+            let q = p - r * n;
+            let touch = spring.touch(tree, i, local(q), n, r - d, surface(q));
             each(tree, touch);
         }
     }

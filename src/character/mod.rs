@@ -27,8 +27,8 @@
 //! - `biped3d.rs`: the 3-D biped of SIMBICON (torso, ball hips, hinge knees, ball ankles).
 //! - `simbicon3d.rs`: SIMBICON in 3-D and the [`Walker3d`] (Yin et al. 2007, §5).
 //! - `snapshot.rs`: snapshots of states and of [`ArticulatedBody`].
-//! - `tracking.rs`: a ragdoll tracking a mocap clip with PD servos and a measured root
-//!   assistance ([`Tracker`]).
+//! - `tracking.rs`: a ragdoll tracking a mocap clip (ASF or BVH) with PD servos and a
+//!   measured root assistance ([`Tracker`]).
 
 mod biped;
 mod biped3d;
@@ -58,7 +58,7 @@ pub use simbicon::{Gait, Phase, Pose, Walker};
 pub use simbicon3d::{Coronal, Walker3d};
 pub use solver::Solver;
 pub use state::{Push, State};
-pub use tracking::{FrameReport, Tracker, TrackingOptions};
+pub use tracking::{FrameReport, TrackedSkeleton, Tracker, TrackingOptions};
 
 use crate::error::Result;
 use glam::DVec3;

@@ -1,7 +1,8 @@
 //! The articulated model: a kinematic tree of rigid bodies joined by revolute, ball, free
 //! and fixed joints, with masses, capsule shapes, joint limits, damping, PD servos and the
 //! settings of ground contact and integration. Built body by body ([`Model::add_body`],
-//! parents first), with static colliders ([`Model::add_collider`]); read-only during a step.
+//! parents first), with colliders ([`Model::add_collider`], static or moving at constant
+//! velocities, [`Model::set_collider`]); read-only during a step.
 
 use super::spatial::{rigid_inertia, SMat, Transform};
 use crate::error::{Error, Result};
@@ -143,16 +144,49 @@ pub struct Body {
     pub servo: Option<Servo>,
 }
 
-/// A static collider of the bodies' capsules: one of the shared shapes
-/// ([`crate::geometry::Shape`]: a plane of any normal, a sphere, a capsule or an oriented
-/// box), touched by the capsules through the ground's penalty spring-dampers and regularised
-/// Coulomb friction along its closest-point normal (`super::forces`).
+/// A collider of the bodies' capsules: one of the shared shapes ([`crate::geometry::Shape`]:
+/// a plane of any normal, a sphere, a capsule or an oriented box), touched by the capsules
+/// through the ground's penalty spring-dampers and regularised Coulomb friction along its
+/// closest-point normal (`super::forces`), static or kinematic: it translates at `velocity`
+/// and turns at `angular_velocity` about its centre, and the contacts' damping and friction
+/// act on the capsule's velocity relative to its surface's.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq)]
 pub struct Collider {
-    /// The shape (m, world), checked by [`Shape::checked`].
+    /// The shape (m, world) at time `since`, checked by [`Shape::checked`].
     pub shape: Shape,
     /// Its Coulomb friction coefficient μ (`None`: [`Settings::friction`]).
     pub friction: Option<f64>,
+    /// The velocity (m/s, world) the shape's centre ([`Shape::centre`]) translates at: zero
+    /// for a static collider.
+    pub velocity: DVec3,
+    /// The angular velocity (rad/s, world) the shape turns at about its centre.
+    pub angular_velocity: DVec3,
+    /// The time (s, the bodies' clock, [`super::State::time`]) at which it is at `shape`.
+    pub since: f64,
+}
+
+impl Collider {
+    /// The shape at time `t` (s): `shape` turned about its centre by
+    /// `exp(angular_velocity (t − since))`, then translated by `velocity (t − since)`.
+    pub fn at(&self, t: f64) -> Shape {
+        let h = t - self.since;
+        let shape = if self.angular_velocity == DVec3::ZERO {
+            self.shape
+        } else {
+            self.shape.turned(DQuat::from_scaled_axis(self.angular_velocity * h))
+        };
+        if self.velocity == DVec3::ZERO {
+            shape
+        } else {
+            shape.translated(self.velocity * h)
+        }
+    }
+
+    /// The velocity (m/s, world) of the collider's surface at the world point `p` of the
+    /// shape `at` gives at that time: `velocity + angular_velocity × (p − centre)`.
+    pub fn surface_velocity(&self, at: &Shape, p: DVec3) -> DVec3 {
+        self.velocity + self.angular_velocity.cross(p - at.centre())
+    }
 }
 
 /// Time integrator of [`super::Solver::step`].
@@ -242,7 +276,7 @@ pub struct Model {
     pub(super) tree: Vec<Transform>,
     /// The pairs `(i, j)`, `i < j`, of bodies whose capsules may collide with each other.
     pub(super) collision_pairs: Vec<(usize, usize)>,
-    /// The static colliders of the capsules, in the order added.
+    /// The colliders of the capsules, in the order added.
     pub(super) colliders: Vec<Collider>,
 }
 
@@ -323,13 +357,42 @@ impl Model {
     /// `center`, `radius`, `a`, `b`, `half_extents`, `orientation`); a negative or non-finite
     /// `friction`.
     pub fn add_collider(&mut self, shape: Shape, friction: Option<f64>) -> Result<usize> {
-        let collider = Collider { shape: shape.checked()?, friction };
+        let collider = Collider {
+            shape: shape.checked()?,
+            friction,
+            velocity: DVec3::ZERO,
+            angular_velocity: DVec3::ZERO,
+            since: 0.0,
+        };
         check_collider(&collider)?;
         self.colliders.push(collider);
         Ok(self.colliders.len() - 1)
     }
 
-    /// The static colliders, in the order added.
+    /// Move collider `index` (a kinematic collider): `collider` replaces it, its shape of the
+    /// same kind and size (radius, half extents, a capsule's length to 1e-9 relative; only
+    /// the pose changes), at `collider.shape` at time `collider.since` and translating at
+    /// `collider.velocity` and turning at `collider.angular_velocity` from then on. Set it between steps, e.g. every frame with the
+    /// pose at the body's time and the velocity to the next frame's pose.
+    ///
+    /// # Errors
+    /// `index` beyond the colliders; a shape of another kind or size (`shape`), or one that
+    /// [`Shape::checked`] refuses; `friction` as [`Model::add_collider`]; a non-finite
+    /// `velocity` or `since`.
+    pub fn set_collider(&mut self, index: usize, collider: Collider) -> Result<()> {
+        let Some(old) = self.colliders.get(index) else {
+            return Err(Error::invalid("index", "no collider of that index"));
+        };
+        let collider = Collider { shape: collider.shape.checked()?, ..collider };
+        check_collider(&collider)?;
+        if !same_size(&old.shape, &collider.shape) {
+            return Err(Error::invalid("shape", "must be of the collider's kind and size"));
+        }
+        self.colliders[index] = collider;
+        Ok(())
+    }
+
+    /// The colliders, in the order added.
     pub fn colliders(&self) -> &[Collider] {
         &self.colliders
     }
@@ -463,12 +526,37 @@ fn check_body(body: &Body, index: usize) -> Result<()> {
     check_servo(body.joint, body.servo.as_ref())
 }
 
-/// The checks of [`Model::add_collider`] on a collider whose shape is already checked.
+/// The checks of [`Model::add_collider`] and [`Model::set_collider`] on a collider whose
+/// shape is already checked.
 pub(super) fn check_collider(c: &Collider) -> Result<()> {
     if c.friction.is_some_and(|mu| !(mu.is_finite() && mu >= 0.0)) {
         return Err(Error::invalid("friction", "must be finite and >= 0"));
     }
+    if !c.velocity.is_finite() {
+        return Err(Error::invalid("velocity", "must be finite"));
+    }
+    if !c.angular_velocity.is_finite() {
+        return Err(Error::invalid("angular_velocity", "must be finite"));
+    }
+    if !c.since.is_finite() {
+        return Err(Error::invalid("since", "must be finite"));
+    }
     Ok(())
+}
+
+/// Whether two shapes are of one kind and size (radius, half extents, a capsule's length to
+/// 1e-9 relative), whatever their poses.
+fn same_size(a: &Shape, b: &Shape) -> bool {
+    match (a, b) {
+        (Shape::Plane(_), Shape::Plane(_)) => true,
+        (Shape::Sphere(a), Shape::Sphere(b)) => a.radius == b.radius,
+        (Shape::Capsule(a), Shape::Capsule(b)) => {
+            let (la, lb) = (a.a.distance(a.b), b.a.distance(b.b));
+            a.radius == b.radius && (la - lb).abs() <= 1e-9 * la.max(lb)
+        }
+        (Shape::Box(a), Shape::Box(b)) => a.half == b.half,
+        _ => false,
+    }
 }
 
 fn check_servo(joint: Joint, servo: Option<&Servo>) -> Result<()> {

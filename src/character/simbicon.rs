@@ -259,7 +259,7 @@ impl Walker {
         let gait = &self.gait;
         let parts = (&self.model, &mut self.state, &mut self.solver, &mut self.phase);
         walk(parts, &mut self.start, dt, steps, |model, phase, tree, state| {
-            let down = touches(model, tree, legs(phase.state).0[2]);
+            let down = touches(model, tree, legs(phase.state).0[2], state.time);
             advance(phase, gait, down);
             control(gait, phase, model, tree, state);
         })
@@ -273,7 +273,8 @@ impl Walker {
     /// Whether each foot (right, left) touches the ground.
     pub fn feet_in_contact(&mut self) -> [bool; 2] {
         let tree = self.solver.kinematics(&self.model, &self.state);
-        [touches(&self.model, tree, RIGHT[2]), touches(&self.model, tree, LEFT[2])]
+        let t = self.state.time;
+        [touches(&self.model, tree, RIGHT[2], t), touches(&self.model, tree, LEFT[2], t)]
     }
 
     /// The kinematics of the current state.
@@ -326,9 +327,9 @@ pub(super) fn vertical(model: &Model) -> (DVec3, DVec3, f64) {
     (up, DVec3::new(up.y, -up.x, 0.0), (-up.x).atan2(up.y))
 }
 
-/// Whether body `foot`'s capsule reaches below the ground plane or into a collider (its
-/// axis's deepest point closer than its radius).
-pub(super) fn touches(model: &Model, tree: &Tree, foot: usize) -> bool {
+/// Whether body `foot`'s capsule reaches below the ground plane or into a collider where it
+/// is at `time` (its axis's deepest point closer than its radius).
+pub(super) fn touches(model: &Model, tree: &Tree, foot: usize, time: f64) -> bool {
     let Some(c) = model.bodies()[foot].shape else { return false };
     let (pos, rot) = (tree.positions()[foot], tree.orientations()[foot]);
     let (a, b) = (pos + rot * c.a, pos + rot * c.b);
@@ -336,7 +337,8 @@ pub(super) fn touches(model: &Model, tree: &Tree, foot: usize) -> bool {
         || model
             .colliders()
             .iter()
-            .any(|k| k.shape.distance(a.lerp(b, k.shape.deepest_on_segment(a, b))).0 < c.radius)
+            .map(|k| k.at(time))
+            .any(|k| k.distance(a.lerp(b, k.deepest_on_segment(a, b))).0 < c.radius)
 }
 
 /// The legs as (swing, stance) in FSM state `state`.

@@ -202,7 +202,7 @@ impl Walker3d {
         let (gait, coronal) = (&self.gait, &self.coronal);
         let parts = (&self.model, &mut self.state, &mut self.solver, &mut self.phase);
         walk(parts, &mut self.start, dt, steps, |model, phase, tree, state| {
-            let down = foot_down(model, tree, legs(phase.state).0);
+            let down = foot_down(model, tree, legs(phase.state).0, state.time);
             advance(phase, gait, down);
             control(gait, coronal, phase, model, tree, state, dt);
         })
@@ -216,7 +216,8 @@ impl Walker3d {
     /// Whether each foot (right, left; heel or toes) touches the ground.
     pub fn feet_in_contact(&mut self) -> [bool; 2] {
         let tree = self.solver.kinematics(&self.model, &self.state);
-        [foot_down(&self.model, tree, RIGHT_3D), foot_down(&self.model, tree, LEFT_3D)]
+        let t = self.state.time;
+        [foot_down(&self.model, tree, RIGHT_3D, t), foot_down(&self.model, tree, LEFT_3D, t)]
     }
 
     /// The kinematics of the current state.
@@ -230,9 +231,10 @@ fn joint_servo(gait: &Gait) -> Servo {
     Servo { kp: gait.kp, kd: gait.kd, max_torque: gait.max_torque }
 }
 
-/// Whether the heel or the toes of `leg` touch the ground.
-fn foot_down(model: &Model, tree: &Tree, leg: [usize; 4]) -> bool {
-    touches(model, tree, leg[2]) || touches(model, tree, leg[3])
+/// Whether the heel or the toes of `leg` touch the ground (or a collider where it is at
+/// `time`).
+fn foot_down(model: &Model, tree: &Tree, leg: [usize; 4], time: f64) -> bool {
+    touches(model, tree, leg[2], time) || touches(model, tree, leg[3], time)
 }
 
 /// The legs as (swing, stance) in FSM state `state`, and the swing side's sign (+1: the

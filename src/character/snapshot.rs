@@ -1,7 +1,8 @@
 //! Articulated snapshots: the body's (model and state), a state's alone, stamped with its
 //! model's fingerprint so that it is restored only onto it, the walkers' and the mocap
-//! tracker's. A model's colliders are stored with it (snapshot version 18; earlier versions
-//! are refused by their version, as every snapshot is).
+//! tracker's. A model's colliders are stored with it (snapshot version 18), with their
+//! velocities and times (19, with a tracker's ASF or BVH skeleton; earlier versions are
+//! refused by their version, as every snapshot is).
 
 use super::model::{check_collider, Joint};
 use super::simbicon::SERVOED;

@@ -60,8 +60,8 @@ impl Solver {
         ground_force(model, &self.tree, 0..model.bodies().len(), dt)
     }
 
-    /// The accelerations `qdd` (`nv`) of `state`'s inputs at `(q, q̇)` for a step `dt`
-    /// (pushes, contacts, damping, limits, applied torques, servos, gravity).
+    /// The accelerations `qdd` (`nv`) of `state`'s inputs at `(q, q̇)` and `state`'s time for
+    /// a step `dt` (pushes, contacts, damping, limits, applied torques, servos, gravity).
     pub fn accelerations(
         &mut self,
         model: &Model,
@@ -72,23 +72,27 @@ impl Solver {
         qdd: &mut [f64],
     ) {
         self.tree.kinematics(model, q, qd);
-        self.dynamics(model, state, q, qd, dt, qdd);
+        self.dynamics(model, state, q, qd, state.time, dt, qdd);
     }
 
-    /// [`Solver::accelerations`] at the kinematics of `(q, q̇)` already in the tree.
+    /// [`Solver::accelerations`] at the kinematics of `(q, q̇)` already in the tree, at
+    /// `time` (s: where the moving colliders are).
+    #[allow(clippy::too_many_arguments)]
     fn dynamics(
         &mut self,
         model: &Model,
         state: &State,
         q: &[f64],
         qd: &[f64],
+        time: f64,
         dt: f64,
         qdd: &mut [f64],
     ) {
         let tree = &mut self.tree;
         self.tau.resize(model.nv(), 0.0);
         let implicit = implicit(model);
-        passive(model, q, qd, &state.torques, &state.pushes, dt, implicit, tree, &mut self.tau);
+        let (torques, pushes) = (&state.torques, &state.pushes);
+        passive(model, q, qd, torques, pushes, time, dt, implicit, tree, &mut self.tau);
         if implicit {
             servo::stable(
                 model,
@@ -174,7 +178,7 @@ impl Solver {
         if !known {
             self.tree.kinematics(model, &sq, &sqd);
         }
-        self.dynamics(model, state, &sq, &sqd, dt, &mut acc);
+        self.dynamics(model, state, &sq, &sqd, state.time, dt, &mut acc);
         for (v, a) in state.qd.iter_mut().zip(&acc) {
             *v += dt * a;
         }
@@ -209,7 +213,7 @@ impl Solver {
             if !(known && k == 0) {
                 self.tree.kinematics(model, &sq, &sqd);
             }
-            self.dynamics(model, state, &sq, &sqd, dt, &mut acc[k]);
+            self.dynamics(model, state, &sq, &sqd, state.time + C[k] * dt, dt, &mut acc[k]);
         }
         for (j, v) in state.qd.iter_mut().enumerate() {
             *v += dt * (0..4).map(|k| B[k] * acc[k][j]).sum::<f64>();

@@ -1,13 +1,16 @@
-//! Mocap tracking: the ragdoll of an ASF skeleton follows a clip of that skeleton frame by
-//! frame with (stable) PD servos on its joints and a "hand of God" on its root, a PD force
-//! and torque towards the clip's root whose size is measured and reported.
+//! Mocap tracking: the ragdoll of an ASF or BVH skeleton follows a clip of that skeleton
+//! frame by frame with (stable) PD servos on its joints and a "hand of God" on its root, a
+//! PD force and torque towards the clip's root whose size is measured and reported.
 //!
-//! - **Reference.** Frame `k` of the clip gives the ragdoll's coordinates `q̄_k`: a hinge
-//!   its dof's angle (the hinge turns about `C eₐ`, so `C Rₐ(θ) C⁻¹` is a turn by `θ`), a
-//!   ball joint `C M C⁻¹` (the bone's rotation in its parent's frame, [`crate::mocap`]), the
-//!   root its position (m, the clip's, lifted so that the median over the clip's frames of
-//!   the lowest capsule point is on y = 0) and orientation. Rates `q̄̇_k = (q̄_{k+1} ⊖ q̄_k)
-//!   × frame rate`.
+//! - **Reference.** Frame `k` of the clip gives the ragdoll's coordinates `q̄_k`. ASF: a
+//!   hinge its dof's angle (the hinge turns about `C eₐ`, so `C Rₐ(θ) C⁻¹` is a turn by
+//!   `θ`), a ball joint `C M C⁻¹` (the bone's rotation in its parent's frame,
+//!   [`crate::mocap`]). BVH (every body's frame has world axes at rest, [`super::ragdoll_bvh`]):
+//!   a hinge its channel's angle, a ball joint the product of its rotation channels in the
+//!   order listed (the joint's rotation in its parent's frame, as BVH's forward kinematics);
+//!   position channels below the root are not simulated. The root: its position (m, the
+//!   clip's, lifted so that the median over the clip's frames of the lowest capsule point is
+//!   on y = 0) and orientation. Rates `q̄̇_k = (q̄_{k+1} ⊖ q̄_k) × frame rate`.
 //! - **Looping.** A clip shorter than the run is looped between the frames `a < b` whose
 //!   joint coordinates are closest (`a` in the first quarter, `b` in the second half): after
 //!   frame `b − 1` come `a, a + 1, …` again, the root moved by the turn about y and the
@@ -29,11 +32,11 @@
 
 use super::joints::{difference, quat};
 use super::model::{Joint, Servo};
-use super::ragdoll::{ragdoll, RagdollOptions};
+use super::ragdoll::{ragdoll, ragdoll_bvh, RagdollOptions};
 use super::servo::{ltl, ltl_solve};
 use super::{ArticulatedBody, Settings, State, Tree};
 use crate::error::{Error, Result};
-use crate::mocap::{Dof, Motion, Skeleton};
+use crate::mocap::{BvhSkeleton, Dof, Motion, Skeleton};
 use glam::{DQuat, DVec3};
 
 /// Gains and stepping of a [`Tracker`].
@@ -67,6 +70,66 @@ impl Default for TrackingOptions {
     }
 }
 
+/// The skeleton of a tracked clip: an Acclaim (ASF) skeleton or a BVH hierarchy (with a
+/// single root).
+#[derive(serde::Serialize, serde::Deserialize, Clone, Debug, PartialEq)]
+pub enum TrackedSkeleton {
+    /// An ASF skeleton ([`super::ragdoll`] builds its ragdoll).
+    Asf(Skeleton),
+    /// A BVH hierarchy ([`super::ragdoll_bvh`] builds its ragdoll).
+    Bvh(BvhSkeleton),
+}
+
+impl From<&Skeleton> for TrackedSkeleton {
+    fn from(s: &Skeleton) -> Self {
+        TrackedSkeleton::Asf(s.clone())
+    }
+}
+
+impl From<&BvhSkeleton> for TrackedSkeleton {
+    fn from(s: &BvhSkeleton) -> Self {
+        TrackedSkeleton::Bvh(s.clone())
+    }
+}
+
+impl From<&TrackedSkeleton> for TrackedSkeleton {
+    fn from(s: &TrackedSkeleton) -> Self {
+        s.clone()
+    }
+}
+
+impl TrackedSkeleton {
+    /// Values per frame of its motions.
+    fn stride(&self) -> usize {
+        match self {
+            TrackedSkeleton::Asf(s) => s.stride(),
+            TrackedSkeleton::Bvh(s) => s.stride(),
+        }
+    }
+
+    /// The checks of the skeleton's own `validate`, and a BVH hierarchy's single root.
+    fn validate(&self) -> Result<()> {
+        match self {
+            TrackedSkeleton::Asf(s) => s.validate(),
+            TrackedSkeleton::Bvh(s) => {
+                s.validate()?;
+                if s.joints.iter().skip(1).any(|j| j.parent.is_none()) {
+                    return Err(Error::invalid("skeleton", "a tracked BVH needs a single root"));
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// Its ragdoll.
+    fn ragdoll(&self, options: &RagdollOptions, settings: Settings) -> Result<super::Model> {
+        match self {
+            TrackedSkeleton::Asf(s) => ragdoll(s, options, settings),
+            TrackedSkeleton::Bvh(s) => ragdoll_bvh(s, options, settings),
+        }
+    }
+}
+
 /// What one frame of tracking measured.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameReport {
@@ -87,7 +150,7 @@ pub struct FrameReport {
 #[derive(serde::Serialize, serde::Deserialize, Clone, Debug)]
 pub struct Tracker {
     pub(super) body: ArticulatedBody,
-    pub(super) skeleton: Skeleton,
+    pub(super) skeleton: TrackedSkeleton,
     pub(super) motion: Motion,
     pub(super) ragdoll: RagdollOptions,
     pub(super) options: TrackingOptions,
@@ -112,20 +175,22 @@ pub struct Tracker {
 }
 
 impl Tracker {
-    /// The ragdoll of `skeleton` (`ragdoll` options, `settings`) at the first frame of
-    /// `motion` with its rates, servos on every hinge and ball joint.
+    /// The ragdoll of `skeleton` (an ASF [`Skeleton`] or a [`BvhSkeleton`]; `ragdoll`
+    /// options, `settings`) at the first frame of `motion` with its rates, servos on every
+    /// hinge and ball joint.
     ///
     /// # Errors
-    /// Bad ragdoll options or settings (named); a motion of another skeleton or of fewer
-    /// than 8 frames (`motion`); gains not finite and >= 0, `max_torque` not >= 0, or
-    /// `substeps` 0 (named).
+    /// Bad ragdoll options or settings (named); a BVH hierarchy with several roots
+    /// (`skeleton`); a motion of another skeleton or of fewer than 8 frames (`motion`); gains
+    /// not finite and >= 0, `max_torque` not >= 0, or `substeps` 0 (named).
     pub fn new(
-        skeleton: &Skeleton,
+        skeleton: impl Into<TrackedSkeleton>,
         motion: &Motion,
         ragdoll_options: &RagdollOptions,
         settings: Settings,
         options: TrackingOptions,
     ) -> Result<Tracker> {
+        let skeleton = skeleton.into();
         skeleton.validate()?;
         motion.validate()?;
         if motion.stride != skeleton.stride() || motion.frames < 8 {
@@ -150,7 +215,7 @@ impl Tracker {
         if options.substeps == 0 {
             return Err(Error::invalid("substeps", "must be >= 1"));
         }
-        let mut model = ragdoll(skeleton, ragdoll_options, settings)?;
+        let mut model = skeleton.ragdoll(ragdoll_options, settings)?;
         model.check_settings()?;
         if options.kp > 0.0 {
             let servo = Servo { kp: options.kp, kd: options.kd, max_torque: options.max_torque };
@@ -164,7 +229,7 @@ impl Tracker {
         let shift = -model.bodies()[0].offset;
         let mut t = Tracker {
             body: ArticulatedBody::new(model),
-            skeleton: skeleton.clone(),
+            skeleton,
             motion: motion.clone(),
             ragdoll: *ragdoll_options,
             options,
@@ -254,8 +319,47 @@ impl Tracker {
 
     /// The ragdoll coordinates of clip frame `k` (no looping) into `q`.
     fn clip_pose(&self, k: usize, q: &mut [f64]) {
-        let sk = &self.skeleton;
         let values = &self.motion.values[k * self.motion.stride..(k + 1) * self.motion.stride];
+        match &self.skeleton {
+            TrackedSkeleton::Asf(sk) => self.asf_pose(sk, values, q),
+            TrackedSkeleton::Bvh(sk) => self.bvh_pose(sk, values, q),
+        }
+    }
+
+    /// The ragdoll coordinates of the BVH frame `values` into `q` (module documentation).
+    fn bvh_pose(&self, sk: &BvhSkeleton, values: &[f64], q: &mut [f64]) {
+        let model = self.body.model();
+        let mut k = 0;
+        for (i, joint) in sk.joints.iter().enumerate() {
+            let (mut t, mut r, mut first) = (joint.offset, DQuat::IDENTITY, None);
+            for c in &joint.channels {
+                match *c {
+                    Dof::Translation(a) => t[a] = values[k],
+                    Dof::Rotation(a) => {
+                        r *= DQuat::from_axis_angle(DVec3::AXES[a], values[k]);
+                        first.get_or_insert(values[k]);
+                    }
+                    Dof::Length => {}
+                }
+                k += 1;
+            }
+            let at = model.starts(i).0;
+            let r = r.normalize();
+            match model.bodies()[i].joint {
+                Joint::Free => {
+                    let p = t * self.ragdoll.scale + self.shift;
+                    q[at..at + 3].copy_from_slice(&p.to_array());
+                    q[at + 3..at + 7].copy_from_slice(&[r.w, r.x, r.y, r.z]);
+                }
+                Joint::Revolute { .. } => q[at] = first.unwrap_or(0.0),
+                Joint::Ball => q[at..at + 4].copy_from_slice(&[r.w, r.x, r.y, r.z]),
+                _ => {}
+            }
+        }
+    }
+
+    /// The ragdoll coordinates of the ASF frame `values` into `q` (module documentation).
+    fn asf_pose(&self, sk: &Skeleton, values: &[f64], q: &mut [f64]) {
         let (mut t, mut angles) = (sk.root_position, [0.0; 3]);
         let mut j = 0;
         for dof in &sk.root_order {

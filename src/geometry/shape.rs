@@ -127,6 +127,30 @@ impl Shape {
         }
     }
 
+    /// The point a shape turns about: a plane's point, a sphere's or a box's centre, a
+    /// capsule's axis midpoint (m).
+    pub fn centre(&self) -> DVec3 {
+        match *self {
+            Shape::Plane(p) => p.point,
+            Shape::Sphere(s) => s.center,
+            Shape::Capsule(c) => 0.5 * (c.a + c.b),
+            Shape::Box(b) => b.center,
+        }
+    }
+
+    /// The shape turned by the unit quaternion `q` about [`Shape::centre`].
+    pub fn turned(&self, q: DQuat) -> Shape {
+        let c = self.centre();
+        match *self {
+            Shape::Plane(p) => Shape::Plane(Plane { normal: q * p.normal, ..p }),
+            Shape::Sphere(_) => *self,
+            Shape::Capsule(k) => {
+                Shape::Capsule(Capsule { a: c + q * (k.a - c), b: c + q * (k.b - c), ..k })
+            }
+            Shape::Box(b) => Shape::Box(Cuboid { rotation: (q * b.rotation).normalize(), ..b }),
+        }
+    }
+
     /// The shape translated by `d` (m).
     pub fn translated(&self, d: DVec3) -> Shape {
         match *self {

@@ -4,15 +4,20 @@
 of every system it holds. What has a fixed size goes in the record ``"animation"`` (one row
 per frame, like any other record): every cloth's vertex positions, every rigid body's position
 and orientation, every animated sphere's centre, every rod's and hair's vertices, every crowd's
-and flock's agents, every biped's body frames (positions and orientations), every motion-captured character's joints. What
+and flock's agents, every biped's, ragdoll's (any articulated body's) and tracker's body
+frames (positions and orientations) and the frames of a ragdoll's colliders, every
+motion-captured character's joints. What
 changes size is kept beside it, one entry per frame: the live particles of a particle or
 constrained system, a fluid's particles and its surface mesh (``Fluid.surface_mesh()`` at its
 default resolution, computed every frame while recording).
 
 ``scene.export(path)`` writes them in metres and seconds (see :mod:`kinema.io.gltf` and
 :mod:`kinema.io.usd`): a cloth as a deforming mesh; a rigid body (its shape's mesh, as
-:mod:`kinema.plot` draws it), an animated sphere and each link of a biped (its box,
-:meth:`kinema.character.Biped.link_boxes`) as rigid tracks; rods and hair as
+:mod:`kinema.plot` draws it), an animated sphere, each link of a biped (its box,
+:meth:`kinema.character.Biped.link_boxes`), each body of an articulated body or a tracker
+(its capsule, :meth:`kinema.character.ArticulatedBody.capsules`) and each of an articulated
+body's colliders (:func:`kinema._geometry.shape_mesh`; a plane as a square of 10 m) as rigid
+tracks; rods and hair as
 polylines; a character's bones as line segments; crowds (on the ground, ``(x, 0, z)``) and
 flocks (2-D ones at ``z = 0``) as points; particles and fluids as points
 and a fluid's surface as a mesh, all of whose sizes change from frame to frame.
@@ -53,9 +58,19 @@ def _width(s: Any) -> int | None:
         return 3 * len(s.positions)
     if isinstance(s, character.Biped):
         return 7 * len(s.names)
+    if isinstance(s, (character.ArticulatedBody, character.Tracker)):
+        return 7 * (len(s.names) + len(_colliders(s)))
     if isinstance(s, Character):
         return 3 * len(s.joints(0.0))
     return None
+
+
+def _colliders(s: Any) -> list[Any]:
+    """The colliders of an articulated body (:meth:`kinema.character.ArticulatedBody.colliders`;
+    a tracker has none)."""
+    from kinema import character
+
+    return s.colliders() if isinstance(s, character.ArticulatedBody) else []
 
 
 def _lifted(s: Any) -> np.ndarray:
@@ -74,7 +89,7 @@ def _lifted(s: Any) -> np.ndarray:
 
 def _row_part(scene: Any, s: Any) -> np.ndarray:
     """System ``s``'s part of a record row (see :func:`_width`)."""
-    from kinema import character, crowd, flock, rigid
+    from kinema import _geometry, character, crowd, flock, rigid
     from kinema.scene import AnimatedSphere, Character
 
     if isinstance(s, rigid.World):
@@ -85,6 +100,9 @@ def _row_part(scene: Any, s: Any) -> np.ndarray:
         return _lifted(s).ravel()
     if isinstance(s, character.Biped):
         return np.c_[s.positions(), s.orientations()].ravel()
+    if isinstance(s, (character.ArticulatedBody, character.Tracker)):
+        frames = [np.concatenate(_geometry.shape_frame(c)) for c in _colliders(s)]
+        return np.concatenate([np.c_[s.positions(), s.orientations()].ravel(), *frames])
     if isinstance(s, Character):
         return np.asarray(s.joints(scene.time)).ravel()
     return np.asarray(s.positions).ravel()
@@ -151,6 +169,17 @@ def _fixed_tracks(scene: Any, rows: np.ndarray, out: SceneTracks) -> None:
                 v, t = _geometry.box(half)
                 x, q = states[:, b, :3], states[:, b, 3:]
                 rigid_tracks.append(RigidTrack(v + centre, t, times, x, q, f"biped{i}_{name}"))
+        elif isinstance(s, (character.ArticulatedBody, character.Tracker)):
+            states = block.reshape(f, -1, 7)
+            for b, (name, c) in enumerate(zip(s.names, s.capsules(), strict=True)):
+                if c is not None:
+                    v, t = _geometry.capsule(*c)
+                    x, q = states[:, b, :3], states[:, b, 3:]
+                    rigid_tracks.append(RigidTrack(v, t, times, x, q, f"ragdoll{i}_{b}_{name}"))
+            for k, c in enumerate(_colliders(s)):
+                v, t = _geometry.shape_mesh(c)
+                x, q = states[:, len(s.names) + k, :3], states[:, len(s.names) + k, 3:]
+                rigid_tracks.append(RigidTrack(v, t, times, x, q, f"ragdoll{i}_collider{k}"))
         elif isinstance(s, AnimatedSphere):
             v, t = _geometry.uv_sphere(float(s.radius))
             q = np.tile([1.0, 0.0, 0.0, 0.0], (f, 1))
