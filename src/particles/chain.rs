@@ -333,6 +333,25 @@ impl Slopes<'_> {
     }
 }
 
+/// Slot `i`'s new values of `outs` (`o`, one coordinate) from its slopes `(kx, kv)` and its
+/// values in `ins` (`ix`, `iv`) and `outs` by `f` (see [`combine`]); always inlined, so that
+/// the loop over the slots vectorises.
+#[inline(always)]
+fn slot<const I: usize, const O: usize>(
+    i: usize,
+    (kx, kv): (f64, f64),
+    ix: &[&[f64]; I],
+    iv: &[&[f64]; I],
+    o: &mut [(&mut [f64], &mut [f64]); O],
+    f: &impl Fn(f64, f64, [[f64; 2]; I], [[f64; 2]; O]) -> [[f64; 2]; O],
+) {
+    let old = std::array::from_fn(|j| [o[j].0[i], o[j].1[i]]);
+    let new = f(kx, kv, std::array::from_fn(|j| [ix[j][i], iv[j][i]]), old);
+    for (j, [x, v]) in new.into_iter().enumerate() {
+        (o[j].0[i], o[j].1[i]) = (x, v);
+    }
+}
+
 /// One pass of a step over every coordinate and slot: the slopes at `at` (after
 /// [`Forces::evaluate`] there) and each slot's values in `ins` and `outs` (as `[position,
 /// velocity]` of one coordinate) give the new values of `outs` by `f(x', v', ins, outs)`.
@@ -352,22 +371,15 @@ fn combine<const K: u8, const I: usize, const O: usize>(
             let (xs, vs) = b.split_at_mut(3 * n);
             (&mut xs[c * n..][..n], &mut vs[c * n..][..n])
         });
-        let mut slot = |i: usize, (kx, kv): (f64, f64)| {
-            let old = std::array::from_fn(|j| [o[j].0[i], o[j].1[i]]);
-            let new = f(kx, kv, std::array::from_fn(|j| [ix[j][i], iv[j][i]]), old);
-            for (j, [x, v]) in new.into_iter().enumerate() {
-                (o[j].0[i], o[j].1[i]) = (x, v);
-            }
-        };
         if n == 0 {
             continue;
         }
-        slot(0, slopes.at::<K>(0));
+        slot(0, slopes.at::<K>(0), &ix, &iv, &mut o, &f);
         if n > 1 {
-            slot(n - 1, slopes.at::<K>(n - 1));
+            slot(n - 1, slopes.at::<K>(n - 1), &ix, &iv, &mut o, &f);
         }
         for i in 1..n.saturating_sub(1) {
-            slot(i, slopes.inner::<K>(i));
+            slot(i, slopes.inner::<K>(i), &ix, &iv, &mut o, &f);
         }
     }
 }
