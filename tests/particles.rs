@@ -797,7 +797,8 @@ fn general_path_calls_leave_the_ages_pending_and_count_only_good_steps() {
 /// A random system that `Solver::step` steps by the chain path (`particles/chain.rs`): up to
 /// 60 live particles and a few dead slots, some pinned, values with signed zeros and springs
 /// of zero length among them, gravity, damping and one set of springs from slot `a` to `a + 1`
-/// with gaps, in a random order, external forces on some. With `general`, an emitter that
+/// with gaps (or, for every third seed, linear and without gaps), in a random order, external
+/// forces on some. With `general`, an emitter that
 /// emits nothing routes every step through the general path (an emitter rules the chain path
 /// out) without changing any value.
 fn random_chain(seed: u64, general: bool) -> ParticleSystem {
@@ -829,9 +830,12 @@ fn random_chain(seed: u64, general: bool) -> ParticleSystem {
     let masses: Vec<f64> =
         (0..live).map(|_| if draw() < 0.1 { f64::INFINITY } else { 0.5 + 1.5 * draw() }).collect();
     let mut s = ParticleSystem::new(&x, &v, &masses, capacity).unwrap();
-    let linear = draw() < 0.3;
+    // Every third seed a rope through every slot, with linear springs (no gaps, as the chain
+    // path's loop without masks takes it); the others with gaps.
+    let rope = seed % 3 == 2;
+    let linear = draw() < 0.3 || rope;
     let pairs: Vec<[usize; 2]> =
-        (0..capacity - 1).filter(|_| draw() < 0.8).map(|a| [a, a + 1]).collect();
+        (0..capacity - 1).filter(|_| draw() < 0.8 || rope).map(|a| [a, a + 1]).collect();
     let rest =
         pairs.iter().map(|_| if linear || draw() < 0.3 { 0.0 } else { 0.5 * draw() }).collect();
     let springs = Force::Springs {

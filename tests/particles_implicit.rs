@@ -382,3 +382,92 @@ fn linear_net_steps_solve_implicit_euler_exactly() {
     let after: Vec<u64> = s.positions().iter().chain(s.velocities()).map(|v| v.to_bits()).collect();
     assert_eq!(before, after, "a failed step leaves the state as it was");
 }
+
+/// A linear chain with gaps (`particles/chain_implicit.rs`): 40 slots, springs from `a` to
+/// `a + 1` except at 12 and 25, slot 0 and slot 17 pinned, slot 39 dead, under gravity,
+/// damping and external forces. Implicit Euler by the chain's tridiagonal factor: every step
+/// solves `y₁ = y₀ + h f(y₁)` to rounding (the residual from the forces written out by hand),
+/// the pinned and dead slots keep their bits, the steps equal those of the general velocity
+/// form (`particles/linear.rs`, taken when a zero drag is added) to rounding, the factor is
+/// made once, in calls of one step and of several, and a step that overflows fails at its
+/// step and leaves the state as it was.
+#[test]
+fn chain_implicit_euler_solves_each_step_and_matches_the_general_velocity_form() {
+    let (n, k, h, m, rate) = (40, 2e3, 1e-2, 0.02, 0.4);
+    let xs: Vec<DVec3> =
+        (0..n - 1).map(|i| DVec3::new(0.02 * i as f64, 0.01 * (i % 3) as f64, 0.0)).collect();
+    let vs: Vec<DVec3> = (0..n - 1).map(|i| DVec3::new(0.0, 0.1, 0.3 * (i % 5) as f64)).collect();
+    let mut masses = vec![m; n - 1];
+    (masses[0], masses[17]) = (f64::INFINITY, f64::INFINITY);
+    let make = |general: bool| {
+        let mut s = ParticleSystem::new(&xs, &vs, &masses, n).unwrap();
+        let pairs: Vec<[usize; 2]> =
+            (0..n - 1).filter(|&a| a != 12 && a != 25).map(|a| [a, a + 1]).collect();
+        let rest = vec![0.0; pairs.len()];
+        s.add_force(Force::Springs { pairs, rest, stiffness: k, damping: 0.0 }).unwrap();
+        s.add_force(Force::Gravity { g: G }).unwrap();
+        s.add_force(Force::Damping { rate }).unwrap();
+        if general {
+            s.add_force(Force::Drag { linear: 0.0, quadratic: 0.0, wind: DVec3::ZERO }).unwrap();
+        }
+        let external: Vec<f64> = (0..3 * n).map(|c| 1e-2 * ((c * 7) % 5) as f64).collect();
+        s.set_external_forces(&external).unwrap();
+        (s, external)
+    };
+    let ((mut s, external), (mut general, _)) = (make(false), make(true));
+    let bits = |s: &ParticleSystem, i: usize| -> Vec<u64> {
+        let (x, v) = (&s.positions()[3 * i..3 * i + 3], &s.velocities()[3 * i..3 * i + 3]);
+        x.iter().chain(v).map(|v| v.to_bits()).collect()
+    };
+    let kept = [bits(&s, 0), bits(&s, 17), bits(&s, n - 1)];
+    let p = |x: &[f64], i: usize| DVec3::from_slice(&x[3 * i..]);
+    for call in 0..6 {
+        let (x0, v0) = (s.positions().to_vec(), s.velocities().to_vec());
+        s.step(h, 1, Method::ImplicitEuler).unwrap();
+        general.step(h, 1, Method::ImplicitEuler).unwrap();
+        assert_eq!(s.stats.factorizations, usize::from(call == 0), "one factorisation");
+        let (x1, v1) = (s.positions(), s.velocities());
+        let mut worst: f64 = 0.0;
+        for i in (1..n - 1).filter(|&i| i != 17) {
+            let mut f = m * G - rate * m * p(v1, i) + p(&external, i);
+            if i > 0 && i - 1 != 12 && i - 1 != 25 {
+                f -= k * (p(x1, i) - p(x1, i - 1));
+            }
+            if i + 1 < n && i != 12 && i != 25 {
+                f -= k * (p(x1, i) - p(x1, i + 1));
+            }
+            let rx = p(x1, i) - p(&x0, i) - h * p(v1, i);
+            let rv = p(v1, i) - p(&v0, i) - h * f / m;
+            worst = worst.max(rx.abs().max_element() / h).max(rv.abs().max_element());
+        }
+        assert!(worst < 1e-12, "implicit Euler residual {worst:e}");
+        assert_eq!([bits(&s, 0), bits(&s, 17), bits(&s, n - 1)], kept, "still slots stay put");
+        let differ = s
+            .positions()
+            .iter()
+            .chain(s.velocities())
+            .zip(general.positions().iter().chain(general.velocities()));
+        let largest = differ.map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(largest < 1e-13, "chain and general velocity form differ by {largest:e}");
+    }
+    // A call of several steps (the slots that stay put are held inside the call too).
+    s.step(h, 10, Method::ImplicitEuler).unwrap();
+    general.step(h, 10, Method::ImplicitEuler).unwrap();
+    assert_eq!([bits(&s, 0), bits(&s, 17), bits(&s, n - 1)], kept, "still slots stay put");
+    let differ = s
+        .positions()
+        .iter()
+        .chain(s.velocities())
+        .zip(general.positions().iter().chain(general.velocities()));
+    let largest = differ.map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(largest < 1e-13, "chain and general velocity form differ by {largest:e}");
+    // Particle 20 at y = 1.7e308 m: the springs' forces on it and its neighbours overflow.
+    s.state_mut()[3 * 20 + 1] = 1.7e308;
+    s.state_changed();
+    let before: Vec<u64> =
+        s.positions().iter().chain(s.velocities()).map(|v| v.to_bits()).collect();
+    let err = s.step(h, 3, Method::ImplicitEuler).unwrap_err();
+    assert!(err.to_string().contains("diverged at step 0"), "{err}");
+    let after: Vec<u64> = s.positions().iter().chain(s.velocities()).map(|v| v.to_bits()).collect();
+    assert_eq!(before, after, "a failed step leaves the state as it was");
+}

@@ -5,13 +5,20 @@
 //! for such models by itself.
 //!
 //! The state is copied once per call into one array per coordinate (`x, y, z` of the
-//! positions, then of the velocities) and written back once. An evaluation of the forces is
-//! then one pass over the springs (the force of the spring starting at each slot, zero where
-//! none starts) and, with damping, one over the slots; the slopes `[v; M⁻¹ f]` are formed in
-//! the pass that combines them into the method's next stage or state, and the springs' forces
-//! are read there at `a - 1` and `a` instead of being added where each spring points (no
-//! scattered writes). Every loop runs over contiguous arrays and is compiled for AVX2 where
-//! the CPU has it ([`crate::batch::vectorize`]; no fused multiply-add is introduced).
+//! positions, then of the velocities) and written back once. Each stage of a method is then
+//! one pass over the slots per coordinate, which forms a slot's slopes `[v; M⁻¹ f]` and at
+//! once its values of the method's next stage or state. Linear springs (rest length 0, no
+//! damping: `f = -k d`) are evaluated inside that pass, the spring ending at a slot (from
+//! `a - 1`) and the one starting at it (to `a + 1`) from the stage's positions at `a - 1`, `a`
+//! and `a + 1`, so that an evaluation writes and reads no buffer of forces; the first and the
+//! last slot are taken apart from the loop over the others, which then runs without bounds
+//! and, on one rope through every slot, without the masks of absent springs. Other springs
+//! couple the coordinates through their length and are evaluated first, in a pass of their
+//! own over the springs (each spring's force on its first end, `+0` where none starts), which
+//! the stage's pass reads at `a - 1` and `a`. Velocity damping makes the forces on single
+//! particles a pass of its own per evaluation. Every loop runs over contiguous arrays and is
+//! compiled for AVX2 where the CPU has it ([`crate::batch::vectorize`]; no fused multiply-add
+//! is introduced).
 //!
 //! Per particle the arithmetic is that of the general path (`particles/dynamics.rs` and the
 //! explicit steps of [`crate::ode::Workspace`]) in the same order, so the results are bitwise
@@ -23,15 +30,30 @@
 //! it back. Pinned and dead slots get the slopes `0` (the general path's `x' = v' = 0`) and
 //! their state is put back after each step.
 //!
-//! A step writes the next state into a second array and the two are swapped when it is
-//! finite, so a failed step leaves the last good state to write back; the error names the
-//! step and the first particle (positions before velocities) that went non-finite, as the
-//! general path does.
+//! A step writes the next state into a second array and the two are swapped. The steps of a
+//! call run in blocks of [`BLOCK`] from a copy of the state taken at the block's start, and
+//! the state is checked for non-finite values once, at the block's end: a value that goes
+//! non-finite stays so at every later step (each new value is the old one plus an increment,
+//! and `±∞ + x` and `NaN + x` are not finite), so the block holds a failed step exactly when
+//! its last state is not finite. Then the block is taken again from its copy, each step checked
+//! before it is swapped in, the same operations giving the same values, up to the step that
+//! fails; the last good state is written back and the error names the step and the first
+//! particle (positions before velocities) that went non-finite, as the general path does.
 
 use super::solver::Step;
 use super::{Force, Model};
 use crate::error::{Error, Result};
 use crate::ode::Method;
+
+/// Steps a block of a call takes between the checks of its state (see the module docs).
+const BLOCK: usize = 16;
+
+/// How an evaluation gets the springs' forces (see the module docs): linear springs joining
+/// every slot `a` to `a + 1` (one rope through all slots), linear springs with gaps (or
+/// none), or springs of any kind read from [`Forces::springs`].
+const ROPE: u8 = 0;
+const GAPS: u8 = 1;
+const BUFFER: u8 = 2;
 
 /// Whether [`super::Solver::step`] takes this path for `method` on `model` (the caller checks
 /// that there are neither colliders nor emitters): an explicit method, and forces that are
@@ -57,8 +79,10 @@ pub(super) fn takes(model: &Model, method: Method) -> bool {
 pub(super) struct ChainWork {
     /// The state, by coordinate: `6 capacity` values (positions `x, y, z`, then velocities).
     y: Vec<f64>,
-    /// The next state, written by a step and swapped with `y` when it is finite.
+    /// The next state, written by a step and swapped with `y`.
     next: Vec<f64>,
+    /// The state at the start of the current block of steps, laid out as `y`.
+    start: Vec<f64>,
     /// Two stages of the multistage methods, laid out as `y`.
     stages: [Vec<f64>; 2],
     /// Heun's first slope, or RK4's running sum `k₁ + 2 k₂ + 2 k₃`, laid out as `y`.
@@ -72,6 +96,8 @@ pub(super) struct ChainWork {
 struct Forces {
     /// Capacity.
     n: usize,
+    /// How the springs' forces are found: [`ROPE`], [`GAPS`] or [`BUFFER`].
+    kind: u8,
     /// Each slot's forces on itself (gravity, damping, in the order added) plus its external
     /// force (N), `3 capacity` values: made once per call without damping, at each evaluation
     /// with it.
@@ -79,19 +105,18 @@ struct Forces {
     /// Whether external forces are set, and they (N) by coordinate (`3 capacity` values).
     any_external: bool,
     external: Vec<f64>,
-    /// The force of the spring starting at slot `a` on that slot, at entry `a + 1` of each
-    /// coordinate's `capacity + 1` values (N); zero where no spring starts, and at entry 0.
+    /// With [`BUFFER`]: the force of the spring starting at slot `a` on that slot, at entry
+    /// `a + 1` of each coordinate's `capacity + 1` values (N); zero where no spring starts,
+    /// and at entry 0.
     springs: Vec<f64>,
-    /// Whether there is a spring; whether one starts at each slot (as a mask: all bits set,
-    /// or none), and its rest length (m).
-    any_spring: bool,
+    /// Whether a spring starts at each slot (as a mask: all bits set, or none), and its rest
+    /// length (m).
     linked: Vec<u64>,
     rest: Vec<f64>,
-    /// The springs' stiffness (N/m) and damping (N s/m), and whether every spring is linear
-    /// (rest length 0 and no damping: `f = -k d`).
+    /// The springs' stiffness `k` (N/m), `-k`, and their damping (N s/m).
     stiffness: f64,
+    minus_k: f64,
     damping: f64,
-    linear: bool,
     /// Whether the forces on single particles depend on the velocities (damping).
     varying: bool,
     /// Mass (kg) and inverse mass (1/kg) of each slot, and whether it moves (alive and not
@@ -144,15 +169,22 @@ fn part(buffer: &[f64], n: usize, j: usize) -> &[f64] {
     &buffer[j * n..][..n]
 }
 
+/// Whether every value of `values` is finite (a count, which vectorises better than a flag).
+#[inline(always)]
+fn finite(values: &[f64]) -> bool {
+    values.iter().fold(0_u64, |bad, x| bad + u64::from(!x.is_finite())) == 0
+}
+
 impl Forces {
-    /// Evaluate the forces at `at` (laid out as [`ChainWork::y`]): the forces on single
-    /// particles when they depend on the velocities, and the springs' forces.
+    /// The evaluations that precede a stage's pass at `at` (laid out as [`ChainWork::y`]):
+    /// the forces on single particles when they depend on the velocities, and the springs'
+    /// forces when they are read from [`Forces::springs`].
     #[inline(always)]
-    fn evaluate(&mut self, list: &[Force], at: &[f64]) {
+    fn evaluate<const K: u8>(&mut self, list: &[Force], at: &[f64]) {
         if self.varying {
             self.single(list, at);
         }
-        if self.any_spring {
+        if K == BUFFER {
             self.springs(at);
         }
     }
@@ -207,19 +239,9 @@ impl Forces {
         let (k, damping) = (self.stiffness, self.damping);
         let (g0, rest_g) = self.springs.split_at_mut(n + 1);
         let (g1, g2) = rest_g.split_at_mut(n + 1);
-        let g = [&mut g0[1..n], &mut g1[1..n], &mut g2[1..n]];
+        let [g0, g1, g2] = [&mut g0[1..n], &mut g1[1..n], &mut g2[1..n]];
         let x = [part(at, n, 0), part(at, n, 1), part(at, n, 2)];
-        if self.linear {
-            for (g, x) in g.into_iter().zip(x) {
-                let (from, to) = (&x[..n - 1], &x[1..]);
-                for (((g, &a), &b), &l) in g.iter_mut().zip(from).zip(to).zip(linked) {
-                    *g = masked(-k * (a - b), l);
-                }
-            }
-            return;
-        }
         let v = [part(at, n, 3), part(at, n, 4), part(at, n, 5)];
-        let [g0, g1, g2] = g;
         for i in 0..n - 1 {
             let d = [x[0][i] - x[0][i + 1], x[1][i] - x[1][i + 1], x[2][i] - x[2][i + 1]];
             let dv = [v[0][i] - v[0][i + 1], v[1][i] - v[1][i + 1], v[2][i] - v[2][i + 1]];
@@ -237,88 +259,138 @@ impl Forces {
             (g0[i], g1[i], g2[i]) = (masked(f[0], keep), masked(f[1], keep), masked(f[2], keep));
         }
     }
-
-    /// The slopes of coordinate `c` (`0..3`) at `at`, after [`Forces::evaluate`] at `at`.
-    #[inline(always)]
-    fn slopes<'a>(&'a self, at: &'a [f64], c: usize) -> Slopes<'a> {
-        let (n, springs) = (self.n, &self.springs[c * (self.n + 1)..][..self.n + 1]);
-        Slopes {
-            v: part(at, n, 3 + c),
-            base: &self.base[c * n..][..n],
-            ending: &springs[..n],
-            starting: &springs[1..],
-            inv_mass: &self.inv_mass[..n],
-            movable: &self.movable[..n],
-        }
-    }
 }
 
 /// One coordinate's slopes `(x', v') = (v, f / m)` at a stage, per slot.
 struct Slopes<'a> {
+    /// The stage's positions and velocities.
+    x: &'a [f64],
     v: &'a [f64],
     base: &'a [f64],
-    /// The force of the spring ending at each slot on its first end, and of the one starting.
-    ending: &'a [f64],
-    starting: &'a [f64],
+    /// With [`BUFFER`], each spring's force on its first end at entry `a + 1`.
+    springs: &'a [f64],
+    linked: &'a [u64],
+    minus_k: f64,
     inv_mass: &'a [f64],
     movable: &'a [u64],
 }
 
 impl Slopes<'_> {
-    /// Slot `i`'s slopes: `(v, ((base - ending) + starting) / m)`, or `(0, 0)` when it stays
-    /// put (`particles/dynamics.rs`'s accelerations).
+    /// The slopes of coordinate `c` at `at`, after [`Forces::evaluate`] at `at`.
     #[inline(always)]
-    fn at(&self, i: usize) -> (f64, f64) {
-        let f = (self.base[i] - self.ending[i]) + self.starting[i];
+    fn of<'a>(forces: &'a Forces, at: &'a [f64], c: usize) -> Slopes<'a> {
+        let n = forces.n;
+        let springs =
+            if forces.kind == BUFFER { &forces.springs[c * (n + 1)..][..n + 1] } else { &[] };
+        Slopes {
+            x: part(at, n, c),
+            v: part(at, n, 3 + c),
+            base: &forces.base[c * n..][..n],
+            springs,
+            linked: &forces.linked[..n],
+            minus_k: forces.minus_k,
+            inv_mass: &forces.inv_mass[..n],
+            movable: &forces.movable[..n],
+        }
+    }
+
+    /// Slot `i`'s slopes with the force `ending` of the spring that ends at it on its first
+    /// end and `starting` of the one that starts at it: `(v, ((base - ending) + starting) /
+    /// m)`, or `(0, 0)` when it stays put (`particles/dynamics.rs`'s accelerations).
+    #[inline(always)]
+    fn with(&self, i: usize, ending: f64, starting: f64) -> (f64, f64) {
+        let f = (self.base[i] - ending) + starting;
         let movable = self.movable[i];
         (masked(self.v[i], movable), masked(f * self.inv_mass[i], movable))
+    }
+
+    /// Slot `i`'s slopes, for any slot.
+    #[inline(always)]
+    fn at<const K: u8>(&self, i: usize) -> (f64, f64) {
+        let n = self.x.len();
+        if K == BUFFER {
+            return self.with(i, self.springs[i], self.springs[i + 1]);
+        }
+        let spring = |a: usize| masked(self.minus_k * (self.x[a] - self.x[a + 1]), self.linked[a]);
+        let ending = if i > 0 { spring(i - 1) } else { 0.0 };
+        let starting = if i + 1 < n { spring(i) } else { 0.0 };
+        self.with(i, ending, starting)
+    }
+
+    /// Slot `i`'s slopes for `0 < i < n - 1`, the springs computed without branches (and
+    /// with [`ROPE`] without masks: every spring is there).
+    #[inline(always)]
+    fn inner<const K: u8>(&self, i: usize) -> (f64, f64) {
+        let (x, k) = (self.x, self.minus_k);
+        match K {
+            BUFFER => self.with(i, self.springs[i], self.springs[i + 1]),
+            ROPE => self.with(i, k * (x[i - 1] - x[i]), k * (x[i] - x[i + 1])),
+            _ => {
+                let ending = masked(k * (x[i - 1] - x[i]), self.linked[i - 1]);
+                self.with(i, ending, masked(k * (x[i] - x[i + 1]), self.linked[i]))
+            }
+        }
+    }
+}
+
+/// Slot `i`'s new values of `outs` (`o`, one coordinate) from its slopes `(kx, kv)` and its
+/// values in `ins` (`ix`, `iv`) and `outs` by `f` (see [`combine`]); always inlined, so that
+/// the loop over the slots vectorises.
+#[inline(always)]
+fn slot<const I: usize, const O: usize>(
+    i: usize,
+    (kx, kv): (f64, f64),
+    ix: &[&[f64]; I],
+    iv: &[&[f64]; I],
+    o: &mut [(&mut [f64], &mut [f64]); O],
+    f: &impl Fn(f64, f64, [[f64; 2]; I], [[f64; 2]; O]) -> [[f64; 2]; O],
+) {
+    let old = std::array::from_fn(|j| [o[j].0[i], o[j].1[i]]);
+    let new = f(kx, kv, std::array::from_fn(|j| [ix[j][i], iv[j][i]]), old);
+    for (j, [x, v]) in new.into_iter().enumerate() {
+        (o[j].0[i], o[j].1[i]) = (x, v);
     }
 }
 
 /// One pass of a step over every coordinate and slot: the slopes at `at` (after
 /// [`Forces::evaluate`] there) and each slot's values in `ins` and `outs` (as `[position,
 /// velocity]` of one coordinate) give the new values of `outs` by `f(x', v', ins, outs)`.
-/// Returns whether a value written to the first `check` outputs is not finite.
 #[inline(always)]
-fn combine<const I: usize, const O: usize>(
+fn combine<const K: u8, const I: usize, const O: usize>(
     forces: &Forces,
     at: &[f64],
     ins: [&[f64]; I],
     mut outs: [&mut [f64]; O],
-    check: usize,
     f: impl Fn(f64, f64, [[f64; 2]; I], [[f64; 2]; O]) -> [[f64; 2]; O],
-) -> bool {
+) {
     let n = forces.n;
-    // A count, which vectorises better than a flag.
-    let mut bad = 0_u64;
     for c in 0..3 {
-        let slopes = forces.slopes(at, c);
+        let slopes = Slopes::of(forces, at, c);
         let (ix, iv) = (ins.map(|b| part(b, n, c)), ins.map(|b| part(b, n, 3 + c)));
-        let o = outs.each_mut().map(|b| {
+        let mut o = outs.each_mut().map(|b| {
             let (xs, vs) = b.split_at_mut(3 * n);
             (&mut xs[c * n..][..n], &mut vs[c * n..][..n])
         });
-        for i in 0..n {
-            let (kx, kv) = slopes.at(i);
-            let old = std::array::from_fn(|j| [o[j].0[i], o[j].1[i]]);
-            let new = f(kx, kv, std::array::from_fn(|j| [ix[j][i], iv[j][i]]), old);
-            for (j, [x, v]) in new.into_iter().enumerate() {
-                (o[j].0[i], o[j].1[i]) = (x, v);
-                if j < check {
-                    bad += u64::from(!x.is_finite()) + u64::from(!v.is_finite());
-                }
-            }
+        if n == 0 {
+            continue;
+        }
+        slot(0, slopes.at::<K>(0), &ix, &iv, &mut o, &f);
+        if n > 1 {
+            slot(n - 1, slopes.at::<K>(n - 1), &ix, &iv, &mut o, &f);
+        }
+        for i in 1..n.saturating_sub(1) {
+            slot(i, slopes.inner::<K>(i), &ix, &iv, &mut o, &f);
         }
     }
-    bad > 0
 }
 
 impl ChainWork {
     /// Size the buffers for `model` and copy `state`'s values into them.
     fn prepare(&mut self, model: &Model, state: &super::State) {
         let n = model.n;
-        for buffer in
-            [&mut self.y, &mut self.next, &mut self.sum].into_iter().chain(self.stages.iter_mut())
+        for buffer in [&mut self.y, &mut self.next, &mut self.start, &mut self.sum]
+            .into_iter()
+            .chain(self.stages.iter_mut())
         {
             buffer.resize(6 * n, 0.0);
         }
@@ -329,12 +401,6 @@ impl ChainWork {
         forces.n = n;
         forces.base.resize(3 * n, 0.0);
         forces.external.resize(3 * n, 0.0);
-        // Entries 0 and `n` of each coordinate stay zero; the others are written by every
-        // evaluation when there are springs.
-        forces.springs.resize(3 * (n + 1), 0.0);
-        for c in 0..3 {
-            (forces.springs[c * (n + 1)], forces.springs[c * (n + 1) + n]) = (0.0, 0.0);
-        }
         forces.linked.clear();
         forces.linked.resize(n, 0);
         forces.rest.resize(n, 0.0);
@@ -348,20 +414,29 @@ impl ChainWork {
         if forces.any_external {
             by_coordinate(&state.external, &mut forces.external);
         }
-        (forces.stiffness, forces.damping, forces.linear) = (0.0, 0.0, true);
-        forces.any_spring = false;
+        (forces.stiffness, forces.damping, forces.kind) = (0.0, 0.0, GAPS);
         for force in &model.forces {
             if let Force::Springs { pairs, rest, stiffness, damping } = force {
                 for (p, &l) in pairs.iter().zip(rest) {
                     (forces.linked[p[0]], forces.rest[p[0]]) = (mask(true), l);
                 }
                 (forces.stiffness, forces.damping) = (*stiffness, *damping);
-                forces.linear = *damping == 0.0 && rest.iter().all(|&l| l == 0.0);
-                forces.any_spring = !pairs.is_empty();
+                let linear = *damping == 0.0 && rest.iter().all(|&l| l == 0.0);
+                forces.kind = match linear {
+                    false => BUFFER,
+                    true if pairs.len() + 1 == n => ROPE,
+                    true => GAPS,
+                };
             }
         }
-        if !forces.any_spring {
-            forces.springs.fill(0.0);
+        forces.minus_k = -forces.stiffness;
+        if forces.kind == BUFFER {
+            // Entries 0 and `n` of each coordinate stay zero; the others are written by every
+            // evaluation.
+            forces.springs.resize(3 * (n + 1), 0.0);
+            for c in 0..3 {
+                (forces.springs[c * (n + 1)], forces.springs[c * (n + 1) + n]) = (0.0, 0.0);
+            }
         }
         forces.varying = model.forces.iter().any(|f| matches!(f, Force::Damping { .. }));
         if !forces.varying {
@@ -369,79 +444,126 @@ impl ChainWork {
         }
     }
 
-    /// One step of `method` with step `h` from `y` into `next`; whether `next` is finite.
+    /// One step of `method` with step `h` from `y` into `next`.
     #[inline(always)]
-    fn step(&mut self, list: &[Force], method: Method, h: f64) -> bool {
-        let ChainWork { y, next, stages: [s0, s1], sum, forces } = self;
+    fn step<const K: u8>(&mut self, list: &[Force], method: Method, h: f64) {
+        let ChainWork { y, next, stages: [s0, s1], sum, forces, .. } = self;
         let (y, next, s0, s1, sum) =
             (&y[..], &mut next[..], &mut s0[..], &mut s1[..], &mut sum[..]);
         let half = 0.5 * h;
-        forces.evaluate(list, y);
+        forces.evaluate::<K>(list, y);
         match method {
             Method::ExplicitEuler => {
-                combine(forces, y, [y], [next], 1, |kx, kv, [[x, v]], _| [[x + h * kx, v + h * kv]])
-            }
-            Method::SymplecticEuler => combine(forces, y, [y], [next], 1, |_, kv, [[x, v]], _| {
-                let v1 = v + h * kv;
-                [[x + h * v1, v1]]
-            }),
-            Method::Midpoint => {
-                combine(forces, y, [y], [s0], 0, |kx, kv, [[x, v]], _| {
-                    [[x + half * kx, v + half * kv]]
-                });
-                forces.evaluate(list, s0);
-                combine(forces, s0, [y], [next], 1, |kx, kv, [[x, v]], _| {
+                combine::<K, 1, 1>(forces, y, [y], [next], |kx, kv, [[x, v]], _| {
                     [[x + h * kx, v + h * kv]]
                 })
             }
-            Method::Heun => {
-                combine(forces, y, [y], [s0, sum], 0, |kx, kv, [[x, v]], _| {
-                    [[x + h * kx, v + h * kv], [kx, kv]]
-                });
-                forces.evaluate(list, s0);
-                combine(forces, s0, [y, sum], [next], 1, |kx, kv, [[x, v], [sx, sv]], _| {
-                    [[x + half * (sx + kx), v + half * (sv + kv)]]
+            Method::SymplecticEuler => {
+                combine::<K, 1, 1>(forces, y, [y], [next], |_, kv, [[x, v]], _| {
+                    let v1 = v + h * kv;
+                    [[x + h * v1, v1]]
                 })
             }
+            Method::Midpoint => {
+                combine::<K, 1, 1>(forces, y, [y], [s0], |kx, kv, [[x, v]], _| {
+                    [[x + half * kx, v + half * kv]]
+                });
+                forces.evaluate::<K>(list, s0);
+                combine::<K, 1, 1>(forces, s0, [y], [next], |kx, kv, [[x, v]], _| {
+                    [[x + h * kx, v + h * kv]]
+                });
+            }
+            Method::Heun => {
+                combine::<K, 1, 2>(forces, y, [y], [s0, sum], |kx, kv, [[x, v]], _| {
+                    [[x + h * kx, v + h * kv], [kx, kv]]
+                });
+                forces.evaluate::<K>(list, s0);
+                combine::<K, 2, 1>(
+                    forces,
+                    s0,
+                    [y, sum],
+                    [next],
+                    |kx, kv, [[x, v], [sx, sv]], _| [[x + half * (sx + kx), v + half * (sv + kv)]],
+                );
+            }
             Method::Rk4 => {
-                combine(forces, y, [y], [s0, sum], 0, |kx, kv, [[x, v]], _| {
+                combine::<K, 1, 2>(forces, y, [y], [s0, sum], |kx, kv, [[x, v]], _| {
                     [[x + half * kx, v + half * kv], [kx, kv]]
                 });
-                forces.evaluate(list, s0);
-                combine(forces, s0, [y], [s1, sum], 0, |kx, kv, [[x, v]], [_, [sx, sv]]| {
-                    [[x + half * kx, v + half * kv], [sx + 2.0 * kx, sv + 2.0 * kv]]
-                });
-                forces.evaluate(list, s1);
-                combine(forces, s1, [y], [s0, sum], 0, |kx, kv, [[x, v]], [_, [sx, sv]]| {
-                    [[x + 1.0 * h * kx, v + 1.0 * h * kv], [sx + 2.0 * kx, sv + 2.0 * kv]]
-                });
-                forces.evaluate(list, s0);
+                forces.evaluate::<K>(list, s0);
+                combine::<K, 1, 2>(
+                    forces,
+                    s0,
+                    [y],
+                    [s1, sum],
+                    |kx, kv, [[x, v]], [_, [sx, sv]]| {
+                        [[x + half * kx, v + half * kv], [sx + 2.0 * kx, sv + 2.0 * kv]]
+                    },
+                );
+                forces.evaluate::<K>(list, s1);
+                combine::<K, 1, 2>(
+                    forces,
+                    s1,
+                    [y],
+                    [s0, sum],
+                    |kx, kv, [[x, v]], [_, [sx, sv]]| {
+                        [[x + 1.0 * h * kx, v + 1.0 * h * kv], [sx + 2.0 * kx, sv + 2.0 * kv]]
+                    },
+                );
+                forces.evaluate::<K>(list, s0);
                 let sixth = h / 6.0;
-                combine(forces, s0, [y, sum], [next], 1, |kx, kv, [[x, v], [sx, sv]], _| {
-                    [[x + sixth * (sx + kx), v + sixth * (sv + kv)]]
-                })
+                combine::<K, 2, 1>(
+                    forces,
+                    s0,
+                    [y, sum],
+                    [next],
+                    |kx, kv, [[x, v], [sx, sv]], _| {
+                        [[x + sixth * (sx + kx), v + sixth * (sv + kv)]]
+                    },
+                );
             }
             Method::VelocityVerlet => {
                 // Kick–drift–kick as `ode::Workspace`: the half kick into `next`, the drift's
-                // positions into `next` and the stage, and the stage's velocities `v + h a₀`.
-                combine(forces, y, [y], [next, s0], 0, |_, kv, [[x, v]], _| {
+                // positions into `next` and the stage, and the stage's velocities `v + h a₀`;
+                // then the second half kick at the stage.
+                combine::<K, 1, 2>(forces, y, [y], [next, s0], |_, kv, [[x, v]], _| {
                     let v_half = v + half * kv;
                     let x1 = x + h * v_half;
                     [[x1, v_half], [x1, v + h * kv]]
                 });
-                forces.evaluate(list, s0);
-                let n = forces.n;
-                let (x1, v1) = next.split_at_mut(3 * n);
-                for c in 0..3 {
-                    let slopes = forces.slopes(s0, c);
-                    for (i, v) in v1[c * n..][..n].iter_mut().enumerate() {
-                        *v += half * slopes.at(i).1;
-                    }
-                }
-                x1.iter().chain(&*v1).fold(false, |bad, x| bad | !x.is_finite())
+                forces.evaluate::<K>(list, s0);
+                combine::<K, 0, 1>(forces, s0, [], [next], |_, kv, [], [[x, v]]| {
+                    [[x, v + half * kv]]
+                });
             }
             Method::ImplicitEuler | Method::Trapezoidal | Method::Bdf2 => {
                 unreachable!("`takes` admits explicit methods only")
+            }
+        }
+    }
+
+    /// Take a step (see [`Self::step`]) and make its state the current one, with the slots
+    /// that stay put as they were.
+    #[inline(always)]
+    fn advance<const K: u8>(
+        &mut self,
+        list: &[Force],
+        still: &[(usize, [f64; 6])],
+        method: Method,
+        h: f64,
+    ) {
+        self.step::<K>(list, method, h);
+        self.swap(still);
+    }
+
+    /// Make the state `next` the current one, with the slots that stay put as they were.
+    #[inline(always)]
+    fn swap(&mut self, still: &[(usize, [f64; 6])]) {
+        let n = self.forces.n;
+        std::mem::swap(&mut self.y, &mut self.next);
+        for (i, kept) in still {
+            for (j, &value) in kept.iter().enumerate() {
+                self.y[j * n + i] = value;
             }
         }
     }
@@ -475,26 +597,51 @@ struct Run<'a> {
     steps: usize,
 }
 
+impl Run<'_> {
+    /// The steps in blocks (see the module docs): the number of good steps, and whether the
+    /// step after them failed.
+    #[inline(always)]
+    fn blocks<const K: u8>(self) -> (usize, bool) {
+        let Run { work, forces, still, method, h, steps } = self;
+        let mut done = 0;
+        while done < steps {
+            let block = (steps - done).min(BLOCK);
+            if block > 1 {
+                work.start.copy_from_slice(&work.y);
+                for _ in 0..block {
+                    work.advance::<K>(forces, still, method, h);
+                }
+                if finite(&work.y) {
+                    done += block;
+                    continue;
+                }
+                work.y.copy_from_slice(&work.start);
+            }
+            // Each step checked before it is taken in.
+            for _ in 0..block {
+                work.step::<K>(forces, method, h);
+                if !finite(&work.next) {
+                    return (done, true);
+                }
+                work.swap(still);
+                done += 1;
+            }
+        }
+        (steps, false)
+    }
+}
+
 impl pulp::WithSimd for Run<'_> {
     /// The number of good steps, and whether the step after them failed.
     type Output = (usize, bool);
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> (usize, bool) {
-        let Run { work, forces, still, method, h, steps } = self;
-        let n = work.forces.n;
-        for s in 0..steps {
-            if work.step(forces, method, h) {
-                return (s, true);
-            }
-            std::mem::swap(&mut work.y, &mut work.next);
-            for (i, kept) in still {
-                for (j, &value) in kept.iter().enumerate() {
-                    work.y[j * n + i] = value;
-                }
-            }
+        match self.work.forces.kind {
+            ROPE => self.blocks::<ROPE>(),
+            GAPS => self.blocks::<GAPS>(),
+            _ => self.blocks::<BUFFER>(),
         }
-        (steps, false)
     }
 }
 

@@ -25,6 +25,7 @@
 
 mod certify;
 mod chain;
+mod chain_implicit;
 mod collide;
 mod dynamics;
 mod emit;

@@ -4,6 +4,7 @@
 //! later step reads, so one solver advances any number of states of one [`Model`].
 
 use super::chain::{self, ChainWork};
+use super::chain_implicit::{self, ChainImplicit};
 use super::explicit::Rollback;
 use super::jacobian::JacobianWork;
 use super::linear::LinearImplicit;
@@ -34,6 +35,9 @@ pub struct Solver {
     pub(super) linear: LinearImplicit,
     /// The explicit methods' buffers for chains of springs ([`chain::takes`]).
     pub(super) chain: ChainWork,
+    /// Implicit Euler on chains of linear springs ([`chain_implicit::takes`]), with its kept
+    /// factor.
+    pub(super) chain_implicit: ChainImplicit,
     /// Counters of the last call (also of the good steps of a call that failed).
     pub(super) stats: StepStats,
 }
@@ -179,6 +183,15 @@ impl Step<'_> {
         let history = self.state.history.as_ref().expect("history created in step");
         let (model, method) = (self.model, history.method());
         let slots = *self.state.summary.slots.get_or_insert_with(crate::ode::fresh_key);
+        if sparse
+            && !age_each_step
+            && method == Method::ImplicitEuler
+            && self.model.colliders.is_empty()
+            && (self.solver.chain_implicit.prepared(model.forces_key, slots, dt)
+                || chain_implicit::takes(model))
+        {
+            return self.chain_implicit_steps(dt, steps, slots);
+        }
         let velocity_form = sparse
             && !age_each_step
             && history.method() == Method::ImplicitEuler
@@ -280,6 +293,39 @@ impl Step<'_> {
         linear.end(&mut state.y);
         state.age_pending = (dt, steps);
         Ok(())
+    }
+
+    /// `steps` steps of implicit Euler on a chain ([`chain_implicit::takes`]) without
+    /// colliders or emitters, the masses and live slots of key `slots`: nothing but the
+    /// steps, which write nothing to the slots that stay put and nothing at all when they
+    /// fail.
+    fn chain_implicit_steps(&mut self, dt: f64, steps: usize, slots: u64) -> Result<()> {
+        let (model, state, solver) = (self.model, &mut *self.state, &mut *self.solver);
+        let work = &mut solver.chain_implicit;
+        let (mass, inv_mass, alive) = (&state.mass, &state.inv_mass, &state.alive);
+        if work.prepare(model, slots, mass, inv_mass, alive, dt)? {
+            solver.stats.factorizations += 1;
+        }
+        work.begin(&state.y, &state.mass, &state.external, dt);
+        let (good, result) = work.steps(dt, steps);
+        work.end(&mut state.y);
+        let history = state.history.as_mut().expect("history created in step");
+        history.nfev += good + usize::from(result.is_err());
+        for _ in 0..good {
+            state.time += dt;
+        }
+        state.age_pending = (dt, good);
+        result.map_err(|e| {
+            state.state_changed();
+            match e {
+                Error::Diverged { index, .. } => Error::Diverged {
+                    step: good,
+                    index,
+                    reason: "non-finite particle state".into(),
+                },
+                other => other,
+            }
+        })
     }
 
     fn one_step(
