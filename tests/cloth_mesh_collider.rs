@@ -235,3 +235,58 @@ fn failed_steps_snapshots_and_shared_solvers_keep_the_meshes() {
         assert_eq!(other, alone_b);
     }
 }
+
+/// A 16² sheet of 0.8 m lying flat at y = 0.30 m, free, with a closed mesh box under it (its
+/// top 1 mm below the sheet), then the box teleported 2 cm up through the sheet by
+/// `set_mesh_collider` without velocities (the sheet's middle 8 x 8 vertices now 2 cm deep
+/// inside the box's top, nearer it than its sides): the first step pushes every one of them
+/// out over the top (to the nearest surface point plus the thickness), without turning the
+/// 2 cm into velocity, and no step after it ends with a vertex inside; a failed step before
+/// it leaves the state as it was. The same box without its top face (open, no inside) pushes
+/// nothing. Before the push-out, the first step left
+/// 64 vertices inside (seen failing).
+#[test]
+fn a_sheet_inside_a_teleported_closed_mesh_is_pushed_out() {
+    let model = sheet(16, 0.8, |x, z| DVec3::new(x, 0.30, z));
+    let half = DVec3::new(0.215, 0.15, 0.215);
+    let below = DVec3::new(0.0, 0.299 - half.y, 0.0);
+    let above = below + DVec3::new(0.0, 0.02, 0.0);
+    let options = SolveOptions::default();
+    let dt = 1.0 / 60.0;
+    for closed in [true, false] {
+        let mut state = model.state();
+        let (corners, mut faces) = box_mesh(below, half);
+        if !closed {
+            faces.retain(|t| !t.iter().all(|&v| v & 2 != 0));
+            assert_eq!(faces.len(), 10);
+        }
+        let index = state.add_mesh_collider(MeshCollider::new(corners, faces, None, 0.5).unwrap());
+        let (corners, _) = box_mesh(above, half);
+        state.set_mesh_collider(index, &corners, &[DVec3::ZERO; 8]).unwrap();
+        let deep = inside(&state, above, half);
+        assert_eq!(deep, 64);
+        let mut solver = Solver::new(&model);
+        let before = state.clone();
+        assert!(solver.step(&model, &mut state, 1e5, 1, Method::ImplicitEuler, options).is_err());
+        assert_eq!(state, before, "a failed step changed the state");
+        solver.step(&model, &mut state, dt, 1, Method::ImplicitEuler, options).unwrap();
+        if !closed {
+            assert_eq!(inside(&state, above, half), deep, "an open mesh pushed vertices out");
+            continue;
+        }
+        assert_eq!(inside(&state, above, half), 0, "vertices left inside the box");
+        let top = above.y + half.y;
+        let x = state.positions();
+        let lowest = (0..model.len())
+            .filter(|&i| x[i].x.abs() < half.x && x[i].z.abs() < half.z)
+            .map(|i| (x[i].y - top) / model.thickness())
+            .fold(f64::MAX, f64::min);
+        let fastest = state.velocities().iter().map(|v| v.length()).fold(0.0, f64::max);
+        // 2 cm in a step of 1/60 s would be 1.2 m/s.
+        assert!(lowest > 0.25 && fastest < 0.5, "lowest {lowest:.2} thicknesses, {fastest} m/s");
+        for step in 1..30 {
+            solver.step(&model, &mut state, dt, 1, Method::ImplicitEuler, options).unwrap();
+            assert_eq!(inside(&state, above, half), 0, "step {step}: vertices inside the box");
+        }
+    }
+}

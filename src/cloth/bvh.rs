@@ -4,7 +4,9 @@
 //! of the triangles' swept motion (Bridson, Fedkiw & Anderson 2002, §6.1: refitting keeps the
 //! tree valid as the cloth deforms, at a fraction of a rebuild's cost). The self-query walks
 //! the tree against itself and reports each pair of triangles whose boxes overlap once; the
-//! cross-query does the same between the cloth's tree and the mesh colliders' one.
+//! cross-query does the same between the cloth's tree and the mesh colliders' one, and the
+//! ray query lists the triangles whose boxes a ray along `+x` meets (the mesh colliders'
+//! inside test).
 
 use glam::DVec3;
 
@@ -132,6 +134,29 @@ impl Bvh {
                 (true, true) => pair(na.triangle, nb.triangle),
                 (true, false) => self.stack.extend(nb.children.map(|c| (a, c))),
                 (false, _) => self.stack.extend(na.children.map(|c| (c, b))),
+            }
+        }
+    }
+}
+
+impl Bvh {
+    /// Call `hit(j)` for every triangle `j` whose box (as last refit) meets the ray from `p`
+    /// along `+x`, in an order fixed by the tree.
+    pub(super) fn ray_x(&mut self, p: DVec3, mut hit: impl FnMut(usize)) {
+        self.stack.clear();
+        self.stack.push((0, 0));
+        while let Some((k, _)) = self.stack.pop() {
+            let node = self.nodes[k];
+            let meets = p.x <= node.hi.x
+                && (node.lo.y..=node.hi.y).contains(&p.y)
+                && (node.lo.z..=node.hi.z).contains(&p.z);
+            if !meets {
+                continue;
+            }
+            if node.triangle != usize::MAX {
+                hit(node.triangle);
+            } else {
+                self.stack.extend(node.children.map(|c| (c, 0)));
             }
         }
     }

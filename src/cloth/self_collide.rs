@@ -34,13 +34,22 @@
 //! motion that fits its vertices in the zone best). The filter runs when self-collision is on
 //! or the state has a mesh collider; with the meshes alone it makes the cloth–mesh pairs only,
 //! with [`super::SelfCollision::default`]'s passes.
+//!
+//! **A cloth that starts a step inside a mesh** (a mesh teleported, or moved faster than its
+//! velocities say) is pushed out before the three stages, which assume it does not: every free
+//! cloth vertex inside a closed mesh (one whose every edge is shared by an even number of its
+//! triangles; inside by the parity of the crossings of a ray along `+x`, decided exactly,
+//! [`ray_x_crosses_triangle`]) starts the step at the mesh's nearest surface point plus the
+//! thickness, with its motion relative to the mesh's there stripped of any approach
+//! ([`Work::push_out`]). Open meshes have no inside and push nothing; cloth edges that cross
+//! a mesh with both ends outside are not found (only vertices are tested).
 
 use super::bvh::Bvh;
 use super::strain_limit;
 use super::{Model, Solver, State, StepStats};
 use crate::geometry::ccd::{edge_edge, segment_weights, vertex_triangle, Impact};
 use crate::geometry::segment::closest_points_of_segments;
-use crate::geometry::triangle::closest_point_on_triangle;
+use crate::geometry::triangle::{closest_point_on_triangle, ray_x_crosses_triangle};
 use glam::{DMat3, DQuat, DVec3};
 
 /// The closest distance the filter keeps a pair at (CCD tolerance), as a fraction of the
@@ -80,6 +89,13 @@ pub(super) struct Work {
     mesh_friction: Vec<f64>,
     mesh_bvh: Bvh,
     gathered: Vec<[usize; 3]>,
+    /// Per mesh triangle: whether an edge of it is shared by an odd number of the meshes'
+    /// triangles (its mesh is then not closed); the first triangle of every mesh, and their
+    /// count last; whether each mesh is closed; the parity of a ray's crossings of each.
+    mesh_open: Vec<bool>,
+    mesh_start: Vec<usize>,
+    mesh_closed: Vec<bool>,
+    parity: Vec<bool>,
     /// Positions at the start of the step (m).
     x0: Vec<DVec3>,
     /// Displacements of the step (m), and as proposed by the solve (a mesh's: `velocity · h`).
@@ -141,6 +157,10 @@ impl Work {
             mesh_friction: Vec::new(),
             mesh_bvh: Bvh::default(),
             gathered: Vec::new(),
+            mesh_open: Vec::new(),
+            mesh_start: Vec::new(),
+            mesh_closed: Vec::new(),
+            parity: Vec::new(),
             x0: zero.clone(),
             d: zero.clone(),
             d_solve: zero.clone(),
@@ -186,17 +206,20 @@ impl Work {
         let heavy = MESH_MASS * model.mass.iter().sum::<f64>();
         self.gathered.clear();
         self.mesh_friction.clear();
+        self.mesh_start.clear();
         self.x0.truncate(n);
         self.d.truncate(n);
         self.m.truncate(n);
         for mesh in &state.meshes {
             let offset = self.x0.len();
+            self.mesh_start.push(self.gathered.len());
             self.gathered.extend(mesh.triangles.iter().map(|t| t.map(|v| v + offset)));
             self.mesh_friction.extend(mesh.triangles.iter().map(|_| mesh.friction));
             self.x0.extend_from_slice(&mesh.vertices);
             self.d.extend(mesh.velocities.iter().map(|&v| v * h));
             self.m.extend(mesh.vertices.iter().map(|_| heavy));
         }
+        self.mesh_start.push(self.gathered.len());
         let total = self.x0.len();
         self.d_solve.resize(total, DVec3::ZERO);
         self.x1.resize(total, DVec3::ZERO);
@@ -209,11 +232,85 @@ impl Work {
         if self.gathered != self.mesh_tris {
             std::mem::swap(&mut self.gathered, &mut self.mesh_tris);
             ownership(&self.mesh_tris, &mut self.mesh_owns);
+            open_edges(&self.mesh_tris, &mut self.mesh_open);
         }
+        let (start, open) = (&self.mesh_start, &self.mesh_open);
+        self.mesh_closed.clear();
+        self.mesh_closed.extend(start.windows(2).map(|r| !open[r[0]..r[1]].contains(&true)));
+        self.parity.resize(self.mesh_closed.len(), false);
         if !self.mesh_tris.is_empty() {
             self.mesh_bvh.build(&self.x0, &self.mesh_tris);
         }
     }
+}
+
+impl Work {
+    /// Push the cloth's free vertices that start the step inside a closed mesh collider (by
+    /// the parity of a ray's crossings, [`ray_x_crosses_triangle`]) out to the mesh's nearest
+    /// surface point plus `thickness` along the direction to it, as if they had started the
+    /// step there (their start `x₀` is moved; the continuous collision detection then sees no
+    /// crossing), with their displacement and velocity (`v`, m/s) relative to the mesh's motion
+    /// at that point stripped of any approach along that direction. Returns how many were
+    /// pushed. Vertices with a user constraint stay; open meshes push nothing (no inside).
+    fn push_out(&mut self, model: &Model, h: f64, v: &mut [DVec3]) -> usize {
+        if !self.mesh_closed.contains(&true) {
+            return 0;
+        }
+        let Work { mesh_bvh, mesh_tris, mesh_start, mesh_closed, parity, x0, d, w, .. } = self;
+        mesh_bvh.refit(mesh_tris, x0, x0, 0.0);
+        let mut pushed = 0;
+        for i in 0..model.len() {
+            if w[i] == 0.0 {
+                continue;
+            }
+            let p = x0[i];
+            parity.iter_mut().for_each(|b| *b = false);
+            mesh_bvh.ray_x(p, |j| {
+                if ray_x_crosses_triangle(p, mesh_tris[j].map(|v| x0[v])) {
+                    parity[mesh_start.partition_point(|&s| s <= j) - 1] ^= true;
+                }
+            });
+            let Some(k) = (0..parity.len()).find(|&k| parity[k] && mesh_closed[k]) else {
+                continue;
+            };
+            let mut nearest = (f64::INFINITY, DVec3::ZERO, [0.0; 3], [0; 3]);
+            for t in &mesh_tris[mesh_start[k]..mesh_start[k + 1]] {
+                let [a, b, c] = t.map(|v| x0[v]);
+                let (q, weights) = closest_point_on_triangle(p, a, b, c);
+                if (q - p).length_squared() < nearest.0 {
+                    nearest = ((q - p).length_squared(), q, weights, *t);
+                }
+            }
+            let (_, q, weights, t) = nearest;
+            let [a, b, c] = t.map(|v| x0[v]);
+            let normal = (q - p)
+                .try_normalize()
+                .or_else(|| (b - a).cross(c - a).try_normalize())
+                .unwrap_or(DVec3::Y);
+            let moved = (0..3).fold(DVec3::ZERO, |s, m| s + d[t[m]] * weights[m]);
+            x0[i] = q + normal * model.thickness;
+            let relative = d[i] - moved;
+            d[i] = moved + relative - normal * relative.dot(normal).min(0.0);
+            let relative = v[i] - moved / h;
+            v[i] -= normal * relative.dot(normal).min(0.0);
+            pushed += 1;
+        }
+        pushed
+    }
+}
+
+/// Per triangle of `tris`, into `open`: whether one of its edges is shared by an odd number of
+/// triangles (a closed surface, over which a ray's crossings have a parity, has none).
+fn open_edges(tris: &[[usize; 3]], open: &mut Vec<bool>) {
+    let mut count = std::collections::HashMap::new();
+    let edge = |t: &[usize; 3], c: usize| (t[c].min(t[(c + 1) % 3]), t[c].max(t[(c + 1) % 3]));
+    for t in tris {
+        for c in 0..3 {
+            *count.entry(edge(t, c)).or_insert(0usize) += 1;
+        }
+    }
+    open.clear();
+    open.extend(tris.iter().map(|t| (0..3).any(|c| count[&edge(t, c)] % 2 == 1)));
 }
 
 /// Per triangle of `tris`, into `owns`, bits 0–2: the triangle is the first holding its vertex
@@ -261,6 +358,7 @@ impl Solver {
             work.d[i] = s.x_new[i] - state.x[i];
             work.w[i] = if state.constraints[i].is_some() { 0.0 } else { 1.0 / model.mass[i] };
         }
+        work.push_out(model, h, &mut s.v_new);
         work.d_solve.copy_from_slice(&work.d);
         let settings = model.self_collision.unwrap_or_default();
         let self_friction = model.self_collision.map(|s| s.friction);

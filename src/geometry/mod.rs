@@ -11,7 +11,7 @@
 //! - [`material`]: the surface's [`Material`] (restitution, Coulomb friction), kept apart from
 //!   the shape so one shape can carry any material;
 //! - [`triangle`]: the closest point of a triangle, an exact triangle–triangle intersection
-//!   test on the exact predicates of [`exact`], and the search for intersecting triangles of
+//!   test on the exact predicates of [`exact`], an exact ray crossing for inside tests, and the search for intersecting triangles of
 //!   a mesh;
 //! - [`tree`]: a bounding volume hierarchy of a triangle mesh that tells whether a segment
 //!   meets the surface;

@@ -55,6 +55,10 @@ from kinema.demos import showcase
 # inverse inertia as one matrix made per pose instead of two quaternion rotations per product
 # (issue #29, session 25: the same physics, other roundings); main at 75ac94c gives the former
 # hashes.
+# "showcase" (its cloth) was re-recorded when the strain limiter started to over-relax the moves
+# of edges whose ends both move after 16 plain sweeps (issue #21, session 26: the 128² drape's
+# limit; a call that ends within 16 sweeps is unchanged, so "cloth_demo" and "cloth_shapes"
+# are); main at 9dde3fd gives the former hash.
 EXPECTED = {
     "particles_fountain": "58823ac0b8b176df3229",
     "particles_shapes": "f228e65d27a3913c9309",
@@ -63,7 +67,7 @@ EXPECTED = {
     "cloth_explicit": "90b52dd558916ee90b6c",
     "rigid_drop": "c581adf2ca03910ae758",
     "rigid_tilted": "62f1ad4bd939ca1e8eaa",
-    "showcase": "3027fa89d5b50f2d9ed3",
+    "showcase": "12c0cbc887c705e4bf5b",
 }
 
 
