@@ -5,9 +5,9 @@
 
 mod articulated;
 
-use articulated::capsule;
+use articulated::{capsule, cmu_ragdoll};
 use glam::{DQuat, DVec3};
-use kinema::character::{ragdoll, ArticulatedBody, Joint, Model, RagdollOptions, Servo, Settings};
+use kinema::character::{ArticulatedBody, Joint, Model, Servo, Settings};
 use kinema::geometry::{Cuboid, Plane, Shape};
 use kinema::snapshot::Snapshot;
 use kinema::Error;
@@ -184,18 +184,6 @@ fn a_capsule_across_a_box_edge_is_held_by_its_inner_contact() {
     }
 }
 
-/// The CMU ragdoll (07-walk.asf) data of the tests.
-fn cmu_ragdoll(settings: Settings) -> Model {
-    let text = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
-    let skeleton = kinema::mocap::parse_asf(&text, "07-walk.asf").unwrap();
-    let options = RagdollOptions {
-        scale: skeleton.metres_per_unit(),
-        clearance: 0.05,
-        ..RagdollOptions::default()
-    };
-    ragdoll(&skeleton, &options, settings).unwrap()
-}
-
 /// Steps of a staircase going down along +x: `n` boxes, step `k` from `x = k depth` to
 /// `(k + 1) depth` (the top one from `x = −1`) and from the floor `y = 0` to `(n − k) rise`.
 fn stairs(n: usize, rise: f64, depth: f64) -> Vec<Shape> {
@@ -245,7 +233,7 @@ fn deepest(body: &mut ArticulatedBody, shapes: &[Shape]) -> (f64, usize) {
 fn the_limp_cmu_ragdoll_tumbles_down_stairs_and_rests_at_the_bottom() {
     let (n, rise, depth) = (5, 0.18, 0.30);
     let settings = Settings { self_collision: true, ..Settings::default() };
-    let mut model = cmu_ragdoll(settings);
+    let mut model = cmu_ragdoll(0.05, settings);
     let shapes = stairs(n, rise, depth);
     for &s in &shapes {
         model.add_collider(s, Some(0.4)).unwrap();
@@ -305,7 +293,7 @@ fn the_limp_cmu_ragdoll_tumbles_down_stairs_and_rests_at_the_bottom() {
 /// in the snapshot); a snapshot with a collider made invalid is refused naming it.
 #[test]
 fn snapshots_keep_the_colliders() {
-    let mut model = cmu_ragdoll(Settings::default());
+    let mut model = cmu_ragdoll(0.05, Settings::default());
     let block = cuboid(DVec3::new(0.3, 0.2, 0.0), DQuat::from_rotation_z(0.2), DVec3::splat(0.4));
     model.add_collider(block, Some(0.3)).unwrap();
     let mut a = ArticulatedBody::new(model);

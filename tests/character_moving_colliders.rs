@@ -6,11 +6,9 @@
 
 mod articulated;
 
-use articulated::capsule;
+use articulated::{capsule, cmu_ragdoll};
 use glam::{DQuat, DVec3};
-use kinema::character::{
-    ragdoll, ArticulatedBody, Collider, Joint, Model, RagdollOptions, Servo, ServoMode, Settings,
-};
+use kinema::character::{ArticulatedBody, Collider, Joint, Model, Servo, ServoMode, Settings};
 use kinema::geometry::{Cuboid, Shape};
 
 /// A box of half extents `half` at `center`, level.
@@ -66,13 +64,9 @@ fn a_ball_on_a_moving_belt_rolls_at_two_sevenths_of_its_speed() {
 /// to the platform). Without the platform's velocity in the contacts it slides off behind.
 #[test]
 fn a_ragdoll_lying_on_a_moving_platform_is_carried_with_it() {
-    let text = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
-    let skeleton = kinema::mocap::parse_asf(&text, "07-walk.asf").unwrap();
-    let options = RagdollOptions { scale: skeleton.metres_per_unit(), ..RagdollOptions::default() };
     let speed = 0.5;
     for servos in [false, true] {
-        let mut r =
-            ArticulatedBody::new(ragdoll(&skeleton, &options, Settings::default()).unwrap());
+        let mut r = ArticulatedBody::new(cmu_ragdoll(0.0, Settings::default()));
         let top = 0.4;
         let deck = platform(DVec3::new(0.0, top - 0.2, 0.0), DVec3::new(3.0, 0.2, 3.0));
         r.model_mut().add_collider(deck, None).unwrap();
@@ -121,14 +115,7 @@ const GAIN: f64 = 1e4;
 /// back; the model is not written by a step).
 #[test]
 fn a_failed_step_on_a_moving_platform_changes_nothing() {
-    let text = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
-    let skeleton = kinema::mocap::parse_asf(&text, "07-walk.asf").unwrap();
-    let options = RagdollOptions {
-        scale: skeleton.metres_per_unit(),
-        clearance: 0.3,
-        ..RagdollOptions::default()
-    };
-    let mut r = ArticulatedBody::new(ragdoll(&skeleton, &options, Settings::default()).unwrap());
+    let mut r = ArticulatedBody::new(cmu_ragdoll(0.3, Settings::default()));
     let deck = platform(DVec3::new(0.0, -0.2, 0.0), DVec3::new(3.0, 0.2, 3.0));
     r.model_mut().add_collider(deck, None).unwrap();
     moving(&mut r, 0, DVec3::new(0.5, 0.0, 0.3));

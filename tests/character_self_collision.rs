@@ -4,11 +4,10 @@
 
 mod articulated;
 
-use articulated::capsule;
+use articulated::{capsule, cmu_ragdoll};
 use glam::DVec3;
-use kinema::character::{ragdoll, ArticulatedBody, Body, Model, RagdollOptions, Settings};
+use kinema::character::{ArticulatedBody, Body, Model, Settings};
 use kinema::geometry::segment::closest_points_of_segments;
-use kinema::mocap::parse_asf;
 
 /// A free ball of radius `r` (m, water density) at `at`.
 fn ball(r: f64, at: DVec3) -> Body {
@@ -82,17 +81,6 @@ fn a_collision_between_two_bodies_keeps_the_momentum() {
     assert!(v0.y < 0.0, "the off-centre hit turns the small ball's path down: {v0}");
 }
 
-fn cmu_ragdoll(settings: Settings) -> ArticulatedBody {
-    let asf = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
-    let skeleton = parse_asf(&asf, "07-walk.asf").unwrap();
-    let options = RagdollOptions {
-        scale: skeleton.metres_per_unit(),
-        clearance: 0.3,
-        ..RagdollOptions::default()
-    };
-    ArticulatedBody::new(ragdoll(&skeleton, &options, settings).unwrap())
-}
-
 /// The deepest overlap (m) of any two capsules of a collision pair at the current state.
 fn deepest_overlap(b: &mut ArticulatedBody) -> f64 {
     let model = b.model().clone();
@@ -118,7 +106,10 @@ fn deepest_overlap(b: &mut ArticulatedBody) -> f64 {
 /// overlaps itself far less with self-collision on.
 #[test]
 fn a_limp_ragdoll_does_not_fall_through_itself() {
-    let mut on = cmu_ragdoll(Settings { self_collision: true, ..Settings::default() });
+    let mut on = ArticulatedBody::new(cmu_ragdoll(
+        0.3,
+        Settings { self_collision: true, ..Settings::default() },
+    ));
     let model = on.model().clone();
     let bodies = model.bodies();
     assert!(model.collision_pairs().len() > 100);
@@ -127,7 +118,7 @@ fn a_limp_ragdoll_does_not_fall_through_itself() {
         assert!(bodies[i].parent.is_none() || bodies[i].parent != bodies[j].parent, "{i} {j}");
     }
     assert!(deepest_overlap(&mut on) <= 0.0);
-    let mut off = cmu_ragdoll(Settings::default());
+    let mut off = ArticulatedBody::new(cmu_ragdoll(0.3, Settings::default()));
     let (mut worst_on, mut worst_off) = (0.0_f64, 0.0_f64);
     for _ in 0..40 {
         on.step(1.0 / 960.0, 48).unwrap();
