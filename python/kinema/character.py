@@ -591,14 +591,29 @@ class Biped:
         Raises :class:`kinema.SimulationError` on divergence, leaving the biped as it was."""
         self._w.step(real(dt, "dt"), _index(steps, "steps"))
 
-    def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> int:
-        """Add a static collider under the feet, as :meth:`ArticulatedBody.add_collider`; the
-        controller takes a foot in it for a foot on the ground. Returns its index. A walker's
-        colliders are static: a ``velocity`` raises ``ValueError``."""
-        kind, params, friction, velocity = _collider(collider)
-        if any(velocity):
-            raise ValueError("velocity: a walker's colliders are static (velocity 0)")
-        return int(self._w.add_collider(kind, params, friction))
+    def add_collider(
+        self, collider: Plane | Sphere | Capsule | Box, angular_velocity: Any = (0.0, 0.0, 0.0)
+    ) -> int:
+        """Add a collider under the feet, static or moving (its ``velocity``, m/s, and
+        ``angular_velocity``, rad/s about its centre: a platform), as
+        :meth:`ArticulatedBody.add_collider`; the controller takes a foot in it for a foot on
+        the ground, and its balance feedback takes the centre of mass's velocity relative
+        to the surface under the stance foot (docs/character.md, "Moving colliders").
+        Returns its index (for :meth:`set_collider`)."""
+        spin = as_vector3(angular_velocity, "angular_velocity")
+        return int(self._w.add_collider(*_collider(collider), spin))
+
+    def set_collider(
+        self,
+        index: int,
+        collider: Plane | Sphere | Capsule | Box,
+        angular_velocity: Any = (0.0, 0.0, 0.0),
+    ) -> None:
+        """Move collider ``index`` to ``collider`` (same kind and size) at the biped's current
+        time, moving from then on at its ``velocity`` and ``angular_velocity``, as
+        :meth:`ArticulatedBody.set_collider`."""
+        spin = as_vector3(angular_velocity, "angular_velocity")
+        self._w.set_collider(_index(index, "index"), *_collider(collider), spin)
 
     def push(self, force: Any, duration: float, body: str | int = "torso") -> None:
         """Push ``body`` (a name or index; default the torso) with ``force`` (N, world, 3
