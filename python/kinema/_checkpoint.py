@@ -41,7 +41,15 @@ import numpy as np
 from kinema import _kinema, anim, character, cloth, crowd, flock, fluid, particles, rigid, rods
 from kinema.constraints import ConstrainedSystem
 from kinema.rotation import Rotation
-from kinema.scene import FORMAT_VERSION, AnimatedSphere, Character, CheckpointError, Scene, _Entry
+from kinema.scene import (
+    FORMAT_VERSION,
+    RECEIVERS,
+    AnimatedSphere,
+    Character,
+    CheckpointError,
+    Scene,
+    _Entry,
+)
 
 _MAGIC = b"KINEMA-SCENE\r\n\x1a\n"  # 16 bytes; the line ends catch text-mode mangling
 _HEADER = struct.Struct("<16sIQ32s")  # magic, version, payload length, SHA-256 of payload
@@ -515,7 +523,7 @@ def _check_entry(e: Any, where: str, h: float) -> None:
     )
     _need(isinstance(obj, kinds), f"{where}: a {type(obj).__name__}")
     _need(
-        e.receives == isinstance(obj, (cloth.Cloth, particles.ParticleSystem, fluid.Fluid)),
+        e.receives == isinstance(obj, RECEIVERS),
         f"{where}: receives",
     )
     _need(

@@ -57,9 +57,10 @@ __all__ = [
     "StabilityWarning",
 ]
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 """Version of the checkpoint format written by :meth:`Scene.save` (version 1 was a Python
-pickle, which can run code; such files are refused)."""
+pickle, which can run code; such files are refused; version 2 stored articulated bodies and
+bipeds as taking no colliders from the scene)."""
 
 _IMPLICIT = ("implicit_euler", "trapezoidal", "bdf2")  # A-stable: no step limit
 
@@ -179,6 +180,17 @@ def _rigid_shapes(world: _rigid.World) -> list[_Shape]:
     return shapes
 
 
+#: The systems that take the scene's colliders (the rigid worlds' bodies and the kinematic
+#: objects) as their moving colliders.
+RECEIVERS = (
+    _cloth.Cloth,
+    _particles.ParticleSystem,
+    _fluid.Fluid,
+    _character.ArticulatedBody,
+    _character.Biped,
+)
+
+
 class _Entry:
     """A system in a scene: how to step it and whether it receives colliders."""
 
@@ -187,7 +199,7 @@ class _Entry:
     def __init__(self, obj: Any, options: dict[str, Any]) -> None:
         self.obj = obj
         self.options = options
-        self.receives = isinstance(obj, (_cloth.Cloth, _particles.ParticleSystem, _fluid.Fluid))
+        self.receives = isinstance(obj, RECEIVERS)
         self.colliders: list[int] = []  # indices of the scene's colliders in obj
 
 
@@ -223,7 +235,9 @@ class Scene:
         :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
         obstacles only), :class:`kinema.character.Biped` and
         :class:`kinema.character.ArticulatedBody` (a :class:`~kinema.character.Ragdoll` too;
-        their own ground and colliders, none from the scene), :class:`kinema.character.Tracker` (no options; each
+        their own ground and colliders, and the scene's colliders as moving colliders,
+        one-way: the rigid bodies do not feel them), :class:`kinema.character.Tracker`
+        (its own ground only; no options; each
         step ``dt / substeps`` must be a whole number of the clip's frames, e.g. ``dt=1/120``
         for a CMU clip),
         :class:`kinema.rods.Rod` and :class:`kinema.rods.Hair` (their own static colliders
@@ -323,7 +337,9 @@ class Scene:
         ``velocity · h`` to find its end-of-step contacts (implicit Euler and BDF2 solve for
         the end of the step), so it gets the pose at ``t - h``: both meet the collider where
         it is at ``t``. A fluid moves its colliders by ``velocity`` over its substeps, so it
-        gets the pose at ``t - h`` too (without friction: its colliders take none). Without poses from the previous step (the first step, or a collider
+        gets the pose at ``t - h`` too (without friction: its colliders take none), and so
+        does an articulated body or a biped, whose collider is at its pose at the body's
+        time, the start of the step, and moves at ``velocity`` within it. Without poses from the previous step (the first step, or a collider
         added since), the kinematic objects' are evaluated at ``t - h``; rigid worlds have
         already stepped, so their bodies count as at rest for that one step."""
         h = self._h
@@ -334,8 +350,10 @@ class Scene:
         for e in receivers:
             is_cloth = isinstance(e.obj, _cloth.Cloth)
             is_fluid = isinstance(e.obj, _fluid.Fluid)
+            is_body = isinstance(e.obj, (_character.ArticulatedBody, _character.Biped))
             module: Any = _cloth if is_cloth else _particles
-            back = h if is_cloth or is_fluid else 0.0  # from the pose at t to the receiver's
+            # From the pose at t to the receiver's.
+            back = h if is_cloth or is_fluid or is_body else 0.0
             for k, (s, p) in enumerate(zip(shapes, previous, strict=True)):
                 friction = None if is_fluid else s[-1]
                 if s[0] == "sphere":
@@ -352,7 +370,7 @@ class Scene:
                     c = module.Capsule(a, b, s[3], friction=friction, velocity=v)
                 if k < len(e.colliders):
                     e.obj.set_collider(e.colliders[k], c)
-                elif is_cloth or is_fluid:
+                elif is_cloth or is_fluid or is_body:
                     e.colliders.append(e.obj.add_collider(c))
                 else:
                     e.obj.add(c)

@@ -14,7 +14,6 @@ use crate::character::{
     Tree, Walker as WalkerCore,
 };
 use crate::error::Error;
-use crate::geometry::Shape;
 use crate::snapshot::Snapshot;
 use glam::{DMat3, DQuat, DVec3};
 use numpy::PyArrayDyn;

@@ -743,3 +743,82 @@ def test_a_ragdolls_failed_frame_leaves_it_as_before():
         pytest.fail("the spring pair never diverged")
     assert time > 0 and scene.time == time
     assert _ragdoll_bits(bystander) == before
+
+
+def _fixed_box(centre: tuple[float, float, float], half: list[float], mu: float) -> rigid.World:
+    """A rigid world holding one fixed box (a scene's collider)."""
+    world = rigid.World()
+    world.add_body(rigid.Box(half), position=centre, fixed=True, friction=mu)
+    return world
+
+
+def test_articulated_bodies_rest_on_a_scenes_box():
+    # A ball (r = 0.1 m, no ground of its own) dropped on a rigid world's fixed box (top at
+    # y = 0.2) rests on its top sunk by the contact spring's g / ω_c² (as on its own
+    # colliders, docs/character.md): its centre at 0.2 + r - g/ω_c² to 1e-4. The limp CMU 07
+    # ragdoll dropped 0.3 m onto a box whose top is 0.5 m up (its own ground below) comes to
+    # rest on it: after 3 s its lowest capsule point within 2 cm of the top (not through it,
+    # not on its ground) and its kinetic energy under 1 J. Without the scene's colliders
+    # (receivers not including articulated bodies) both fall through.
+    scene = Scene(dt=1 / 120, substeps=4)
+    scene.add(_fixed_box((0.0, 0.1, 0.0), [1.0, 0.1, 1.0], 0.5))
+    m = character.Model()
+    radius = 0.1
+    mass = 1000.0 * 4.0 / 3.0 * np.pi * radius**3
+    m.add_body(
+        None,
+        "free",
+        mass=mass,
+        inertia=np.eye(3) * 0.4 * mass * radius**2,
+        offset=(0.0, 0.6, 0.0),
+        shape=((0, 0, 0), (0, 0, 0), radius),
+    )
+    ball = scene.add(character.ArticulatedBody(m, ground=False))
+    scene.step(240)
+    rest = 0.2 + radius - 9.81 / ball.settings["contact_frequency"] ** 2
+    height = ball.positions()[0, 1]
+    assert height == pytest.approx(rest, abs=1e-4)
+    assert len(ball.colliders()) == 1
+
+    scene = Scene(dt=1 / 120, substeps=4)
+    top = 0.5
+    scene.add(_fixed_box((0.0, top / 2, 0.0), [1.5, top / 2, 1.5], 0.5))
+    sk = mocap.read_asf(DATA / "07-walk.asf")
+    r = scene.add(character.Ragdoll.from_skeleton(sk, clearance=top + 0.3))
+    scene.step(360)
+    lowest = min(
+        (p + kinema.Rotation.from_quat(o).apply(end))[1] - c[2]
+        for p, o, c in zip(r.positions(), r.orientations(), r.capsules(), strict=True)
+        if c is not None
+        for end in c[:2]
+    )
+    kinetic, _ = r.energy()
+    print(f"ball at {height:.6f} m (rest {rest:.6f}); ragdoll lowest {lowest:.4f} m, {kinetic:.3g} J")
+    assert top - 0.02 < lowest < top + 0.02
+    assert kinetic < 1.0
+
+
+def test_a_failed_first_frame_takes_back_the_colliders_a_ragdoll_was_given():
+    # The ragdoll diverges in the first frame, after the scene gave it its collider: the
+    # collider goes with the undone frame (none left, the scene's record empty), so the next
+    # frames give it exactly one again. A checkpoint of the scene resumes bit for bit.
+    sk = mocap.read_asf(DATA / "07-walk.asf")
+    scene = Scene(dt=1 / 120, substeps=4)
+    scene.add(_fixed_box((0.0, 0.25, 0.0), [1.5, 0.25, 1.5], 0.5))
+    r = scene.add(character.Ragdoll.from_skeleton(sk, clearance=0.8))
+    _absurd_servos(r)
+    before = _ragdoll_bits(r)
+    with pytest.raises(kinema.SimulationError):
+        scene.step()
+    assert r.colliders() == [] and scene._entries[1].colliders == []
+    assert _ragdoll_bits(r) == before
+    r.configure(servo_mode="stable")
+    for b in range(1, len(r)):
+        with contextlib.suppress(ValueError):
+            r.set_servo(b, kp=None)
+    scene.step(3)
+    assert len(r.colliders()) == 1
+    copy = pickle.loads(pickle.dumps(scene))
+    scene.step(30)
+    copy.step(30)
+    assert np.array_equal(r.q, copy.systems[1].q)
