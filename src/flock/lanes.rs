@@ -11,7 +11,9 @@
 //! rules' steering from those sums (`solver::rules`: three square roots and divisions a
 //! boid, and the clamps to `max_force`) is done in the same lanes ([`Rules`]), the same
 //! operations in the same order with the branches as selects, so the accelerations too are
-//! bitwise the scalar code's.
+//! bitwise the scalar code's. Without steering behaviours the group's boids are then moved in
+//! the lanes too ([`Group::advance`]: semi-implicit Euler, the speed cap, the new cells and
+//! their bounds, [`Span`]), again the scalar operations in the same order.
 //!
 //! A candidate's position and velocity are read from the sorted copies (`cells.rs`) in
 //! sequence, each component broadcast to the lanes.
