@@ -235,7 +235,8 @@ fn bad_arguments_are_named_and_leave_the_flock_unchanged() {
 
 /// A flat flock 2³⁴ m from the origin (its cells beyond ±2³¹, which the AVX2 lanes' step
 /// leaves to the boid-by-boid cells and bounds) flies as the same flock at the origin, to the
-/// rounding of positions there (2⁻¹⁸ m): the far cells and bounds find the same neighbours.
+/// rounding of positions there (2⁻¹⁸ m): the far cells and bounds find the same neighbours
+/// (with the fallback's cells left unwritten, boid 0 is 0.14 m and 0.57 m/s off).
 #[test]
 fn far_flock_flies_as_at_the_origin() {
     let offset = DVec3::new(2f64.powi(34), -(2f64.powi(34)), 0.0);
