@@ -397,9 +397,12 @@ impl Solver {
         });
     }
 
-    /// The neighbours of particle `i` and their `∇W_ij` (of the last [`Solver::densities`]).
-    fn pairs(&self, i: usize) -> (&[u32], &[DVec3]) {
-        (self.neighbours.neighbours(i), &self.gradients[i / CHUNK][self.neighbours.span(i)])
+    /// The neighbours of particle `i`, their `∇W_ij` (of the last [`Solver::densities`]) and
+    /// how many of them are fluid particles (the first: the lists ascend).
+    fn pairs(&self, i: usize) -> (&[u32], &[DVec3], usize) {
+        let near = self.neighbours.neighbours(i);
+        let grads = &self.gradients[i / CHUNK][self.neighbours.span(i)];
+        (near, grads, fluid_count(near, self.v.len()))
     }
 
     /// `x += dt v`, then every wall and collider (where it is after the substep) puts back
@@ -434,17 +437,9 @@ impl Solver {
     }
 }
 
-/// Pair `(i, j)`'s term of the pressure's velocity change `Δv_i = -dt Σ` ([`Solver::apply`]):
-/// `V (k_i + k_j) ∇W_ij` for a fluid neighbour `j < n` (`n = k.len()`), `V_b k_i ∇W_ib` for a
-/// boundary point.
-#[inline(always)]
-fn pressure_term(gradient: DVec3, i: usize, j: usize, k: &[f64], vol: f64, vb: &[f64]) -> DVec3 {
-    let n = k.len();
-    if j < n {
-        gradient * (vol * (k[i] + k[j]))
-    } else {
-        gradient * (vb[j - n] * k[i])
-    }
+/// How many of the ascending indices `near` are below `n`: the fluid neighbours in a list.
+fn fluid_count(near: &[u32], n: usize) -> usize {
+    near.partition_point(|&j| (j as usize) < n)
 }
 
 /// Mean and largest compression `max(e, 0)` of the errors `e` (percent of 1).

@@ -13,7 +13,7 @@
 //!   to 0 with increments `(Dρ̂_i/Dt) α_i / dt`, ignoring particles with fewer than
 //!   [`SPARSE`] neighbours (a free surface, as SPlisHSPlasH does).
 
-use super::{compression, pressure_term, Solver};
+use super::{compression, Solver};
 use crate::fluid::model::Model;
 use crate::fluid::Stats;
 use glam::DVec3;
@@ -64,12 +64,16 @@ impl Solver {
     /// `Δv_i = -dt [Σ_j V (k_i + k_j) ∇W_ij + Σ_b V_b k_i ∇W_ib]` with this iteration's `k`.
     pub(super) fn apply(&mut self, model: &Model, h: f64) {
         let mut dv = std::mem::take(&mut self.dv);
-        let (vol, k, vb) = (model.volume, &self.k, &model.boundary_volume);
+        let (vol, k, vb, n) = (model.volume, &self.k, &model.boundary_volume, self.k.len());
         dv.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let mut sum = DVec3::ZERO;
-            let (near, grads) = self.pairs(i);
-            for (&j, &g) in near.iter().zip(grads) {
-                sum += pressure_term(g, i, j as usize, k, vol, vb);
+            // The fluid neighbours, then the boundary points (the lists ascend).
+            let (near, grads, fluid) = self.pairs(i);
+            let (k_i, mut sum) = (k[i], DVec3::ZERO);
+            for (&j, &g) in near[..fluid].iter().zip(grads) {
+                sum += g * (vol * (k_i + k[j as usize]));
+            }
+            for (&j, &g) in near[fluid..].iter().zip(&grads[fluid..]) {
+                sum += g * (vb[j as usize - n] * k_i);
             }
             *out = sum * -h;
         });
@@ -84,15 +88,15 @@ impl Solver {
         let (vol, n, v, density) = (model.volume, self.v.len(), &self.v, &self.density);
         let (vb, bv) = (&model.boundary_volume, &self.boundary_velocity);
         residual.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let (near, grads) = self.pairs(i);
-            let mut rate = 0.0;
-            for (&j, &g) in near.iter().zip(grads) {
-                let j = j as usize;
-                rate += if j < n {
-                    vol * (v[i] - v[j]).dot(g)
-                } else {
-                    vb[j - n] * (v[i] - bv[j - n]).dot(g)
-                };
+            // The fluid neighbours, then the boundary points (the lists ascend).
+            let (near, grads, fluid) = self.pairs(i);
+            let (v_i, mut rate) = (v[i], 0.0);
+            for (&j, &g) in near[..fluid].iter().zip(grads) {
+                rate += vol * (v_i - v[j as usize]).dot(g);
+            }
+            for (&j, &g) in near[fluid..].iter().zip(&grads[fluid..]) {
+                let b = j as usize - n;
+                rate += vb[b] * (v_i - bv[b]).dot(g);
             }
             *out = match which {
                 Solve::Density => density[i] + h * rate - 1.0,

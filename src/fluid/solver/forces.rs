@@ -3,7 +3,7 @@
 //! for WCSPH, the pressure's velocity change in the same pass; then the implicit viscosity
 //! solve (`viscosity.rs`) in XSPH's place.
 
-use super::{pressure_term, Solver};
+use super::{fluid_count, Solver};
 use crate::fluid::model::{Model, Viscosity};
 use crate::fluid::viscosity::System;
 use crate::fluid::Stats;
@@ -49,16 +49,22 @@ impl Solver {
         let viscous = nu > 0.0 || gamma > 0.0;
         dv.par_iter_mut().zip(&mut dp).enumerate().for_each(|(i, (out, out_p))| {
             let (mut sum, mut tension, mut push) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
+            // Flags and particle `i`'s values in registers, not read through the captures.
+            let (pressure, viscous, gamma, v_i, k_i) = (pressure, viscous, gamma, v[i], k[i]);
             let span = neighbours.span(i);
-            let near = neighbours.neighbours(i).iter().zip(&values[i / CHUNK][span.clone()]);
-            let near = near.zip(&gradients[i / CHUNK][span]);
-            for ((&j, &w), &gradient) in near.filter(|_| viscous || pressure) {
+            let (near, values) = (neighbours.neighbours(i), &values[i / CHUNK][span.clone()]);
+            let grads = &gradients[i / CHUNK][span];
+            // The fluid neighbours, then the boundary points (the lists ascend): no branch on
+            // the kind of a pair, the same sums in the same order.
+            let fluid = fluid_count(near, n);
+            let pairs = near[..fluid].iter().zip(&values[..fluid]).zip(&grads[..fluid]);
+            for ((&j, &w), &gradient) in pairs.filter(|_| viscous || pressure) {
                 let j = j as usize;
                 if pressure {
-                    push += pressure_term(gradient, i, j, k, vol, vb);
+                    push += gradient * (vol * (k_i + k[j]));
                 }
-                if viscous && j < n {
-                    sum += (v[j] - v[i]) * (weight[j] * w);
+                if viscous {
+                    sum += (v[j] - v_i) * (weight[j] * w);
                     let d = points[i] - points[j];
                     let r = if gamma > 0.0 { d.length() } else { 0.0 };
                     if r > 0.0 {
@@ -67,6 +73,10 @@ impl Solver {
                         tension += (cohesion + normals[i] - normals[j]) * k;
                     }
                 }
+            }
+            let walls = near[fluid..].iter().zip(&grads[fluid..]);
+            for (&j, &gradient) in walls.filter(|_| pressure) {
+                push += gradient * (vb[j as usize - n] * k_i);
             }
             *out = g + sum * nu - tension * (gamma * dt);
             *out_p = push * -dt;
@@ -121,13 +131,10 @@ impl Solver {
         normals.resize(n, DVec3::ZERO);
         let (vol, h, density) = (model.volume, model.support, &self.density);
         normals.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let (near, grads) = self.pairs(i);
+            let (near, grads, fluid) = self.pairs(i);
             let mut sum = DVec3::ZERO;
-            for (&j, &g) in near.iter().zip(grads) {
-                let j = j as usize;
-                if j < n {
-                    sum += g * (vol / density[j]);
-                }
+            for (&j, &g) in near[..fluid].iter().zip(grads) {
+                sum += g * (vol / density[j as usize]);
             }
             *out = sum * -h;
         });
