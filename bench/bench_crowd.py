@@ -1,7 +1,8 @@
 """Crowds and flocks: kinema's ORCA against the RVO2 library's Python binding (`pyrvo`, the
 `bench` extra) on RVO2's circle crossing — agents on a circle of radius 200 m going to their
-antipodes, radius 1.5 m, max speed 2 m/s, preferred speed 1 m/s (RVO2's example clips the
-goal vector to 1), neighbour distance 15 m, 10 neighbours, horizons 10 s / 10 s, dt 0.25 s —
+antipodes at the example's settings, `kinema.crowd.RVO2_CIRCLE` (radius 1.5 m, max speed
+2 m/s, preferred speed 1 m/s: RVO2's example clips the goal vector to 1; neighbour distance
+15 m, 10 neighbours, horizons 10 s / 10 s; dt 0.25 s), read by both simulators —
 from RVO2's exact starts (evenly on the circle) with its example's perturbation of every
 preferred velocity by up to 10⁻⁴ m/s (pyrvo: uniform random, as the example; kinema: its
 hashed `perturbation`; kinema at its default planning margin 0.1), in one process, until
@@ -26,7 +27,7 @@ import time
 
 import numpy as np
 
-from kinema.crowd import Crowd
+from kinema.crowd import RVO2_CIRCLE, Crowd
 from kinema.flock import Flock
 
 
@@ -38,18 +39,7 @@ def starts(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 def kinema_circle(n: int, steps: int) -> tuple[float, float, int]:
     """Steps/s, mean time to goal over the arrived, and the number arrived."""
-    c = Crowd(
-        "orca",
-        radius=1.5,
-        max_speed=2.0,
-        preferred_speed=1.0,
-        neighbour_distance=15.0,
-        max_neighbours=10,
-        time_horizon=10.0,
-        obstacle_time_horizon=10.0,
-        goal_tolerance=1.5,
-        perturbation=1e-4,
-    )
+    c = Crowd(**{**RVO2_CIRCLE, "perturbation": 1e-4})
     p, g = starts(n)
     c.add_agents(p, g)
     t0 = time.perf_counter()
@@ -65,7 +55,9 @@ def kinema_circle(n: int, steps: int) -> tuple[float, float, int]:
 def rvo2_circle(n: int, steps: int) -> tuple[float, float, int]:
     import pyrvo
 
-    sim = pyrvo.RVOSimulator(0.25, 15.0, 10, 10.0, 10.0, 1.5, 2.0)
+    s = RVO2_CIRCLE
+    keys = ("neighbour_distance", "max_neighbours", "time_horizon", "obstacle_time_horizon")
+    sim = pyrvo.RVOSimulator(0.25, *(s[k] for k in keys), s["radius"], s["max_speed"])
     p, g = starts(n)
     for x in p:
         sim.add_agent((float(x[0]), float(x[1])))
@@ -77,11 +69,11 @@ def rvo2_circle(n: int, steps: int) -> tuple[float, float, int]:
         for i in range(n):
             q = sim.get_agent_position(i)
             d = g[i] - (q.x, q.y)
-            if np.isinf(arrival[i]) and np.hypot(*d) < 1.5:
-                arrival[i] = k * 0.25
             length = np.hypot(*d)
-            if length > 1.0:
-                d = d / length
+            if np.isinf(arrival[i]) and length < s["goal_tolerance"]:
+                arrival[i] = k * 0.25
+            if length > s["preferred_speed"]:
+                d = d * s["preferred_speed"] / length
             angle, nudge = rng.uniform(0.0, 2 * np.pi), rng.uniform(0.0, 1e-4)
             d = d + nudge * np.array([np.cos(angle), np.sin(angle)])
             sim.set_agent_pref_velocity(i, (float(d[0]), float(d[1])))

@@ -798,7 +798,9 @@ fn general_path_calls_leave_the_ages_pending_and_count_only_good_steps() {
 /// 60 live particles and a few dead slots, some pinned, values with signed zeros and springs
 /// of zero length among them, gravity, damping and one set of springs from slot `a` to `a + 1`
 /// with gaps (or, for every third seed, linear and without gaps), in a random order, external
-/// forces on some. With `general`, an emitter that
+/// forces on some; for every fourth seed, one mass for every slot that moves and neither
+/// damping nor external forces (the chain path's passes then read the mass and the forces on
+/// single particles as constants). With `general`, an emitter that
 /// emits nothing routes every step through the general path (an emitter rules the chain path
 /// out) without changing any value.
 fn random_chain(seed: u64, general: bool) -> ParticleSystem {
@@ -827,8 +829,14 @@ fn random_chain(seed: u64, general: bool) -> ParticleSystem {
     let mut x: Vec<DVec3> = (0..live).map(|_| vector(1.0)).collect();
     let v: Vec<DVec3> = (0..live).map(|_| vector(3.0)).collect();
     x[1] = x[0]; // a spring of zero length, if one joins them
-    let masses: Vec<f64> =
-        (0..live).map(|_| if draw() < 0.1 { f64::INFINITY } else { 0.5 + 1.5 * draw() }).collect();
+    let uniform = seed % 4 == 1;
+    let masses: Vec<f64> = (0..live)
+        .map(|_| match draw() < 0.1 {
+            true => f64::INFINITY,
+            false if uniform => 1.25,
+            false => 0.5 + 1.5 * draw(),
+        })
+        .collect();
     let mut s = ParticleSystem::new(&x, &v, &masses, capacity).unwrap();
     // Every third seed a rope through every slot, with linear springs (no gaps, as the chain
     // path's loop without masks takes it); the others with gaps.
@@ -848,7 +856,7 @@ fn random_chain(seed: u64, general: bool) -> ParticleSystem {
     if draw() < 0.7 {
         forces.push(Force::Gravity { g: G });
     }
-    if draw() < 0.5 {
+    if draw() < 0.5 && !uniform {
         forces.push(Force::Damping { rate: 0.5 * draw() });
     }
     if draw() < 0.3 {
@@ -859,7 +867,7 @@ fn random_chain(seed: u64, general: bool) -> ParticleSystem {
     for force in forces {
         s.add_force(force).unwrap();
     }
-    if draw() < 0.5 {
+    if draw() < 0.5 && !uniform {
         let external: Vec<f64> = (0..3 * capacity).map(|_| value(&mut draw, 2.0)).collect();
         s.set_external_forces(&external).unwrap();
     }

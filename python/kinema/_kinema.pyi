@@ -254,6 +254,7 @@ def crowd_door_goals(
 def crowd_fields(
     positions: _F64, velocities: _F64, xs: _F64, ys: _F64, radius: float
 ) -> tuple[_F64, _F64]: ...
+def crowd_rvo2_circle() -> dict[str, Any]: ...
 
 # --- fluid ---
 @final

@@ -14,6 +14,8 @@ docs/crowd.md.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -21,7 +23,18 @@ import numpy as np
 from kinema import _kinema
 from kinema._array import as_batch, real
 
-__all__ = ["Crowd", "crossings", "door_goals", "fields", "flow_rate"]
+__all__ = ["RVO2_CIRCLE", "Crowd", "crossings", "door_goals", "fields", "flow_rate"]
+
+RVO2_CIRCLE: Mapping[str, Any] = MappingProxyType(_kinema.crowd_rvo2_circle())
+"""The settings of the RVO2 library's circle-crossing example (van den Berg et al.'s
+``examples/Circle.cpp``: ``setAgentDefaults(15, 10, 10, 10, 1.5, 2)`` — neighbour distance
+15 m, 10 neighbours, horizons 10 s / 10 s, radius 1.5 m, max speed 2 m/s — goal vectors
+clipped to 1 m/s, dt 0.25 s), as keyword arguments of :class:`Crowd` (read-only; from the
+Rust preset ``kinema::crowd::Settings::rvo2_circle``): ``radius``, ``max_speed``,
+``preferred_speed`` 1, ``neighbour_distance``, ``max_neighbours``, ``time_horizon``,
+``obstacle_time_horizon``, ``goal_tolerance`` (one radius), ``perturbation`` 0, ``seed`` 0 and
+kinema's ``planning_margin`` 0.1. ``Crowd(**RVO2_CIRCLE)``; to change some,
+``Crowd(**{**RVO2_CIRCLE, "perturbation": 1e-4})``."""
 
 
 def _points(value: object, name: str) -> np.ndarray:

@@ -315,6 +315,27 @@ fn crowd_fields<'py>(
     Ok((out1(py, &density)?, velocity))
 }
 
+/// The settings of RVO2's circle-crossing example (`Settings::rvo2_circle`, the one place they
+/// are written) as keyword arguments of `kinema.crowd.Crowd`: lengths in m, speeds in m/s,
+/// horizons in s.
+#[pyfunction]
+fn crowd_rvo2_circle(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let s = Settings::rvo2_circle();
+    let d = PyDict::new(py);
+    d.set_item("radius", s.radius)?;
+    d.set_item("max_speed", s.max_speed)?;
+    d.set_item("preferred_speed", s.preferred_speed)?;
+    d.set_item("neighbour_distance", s.neighbour_distance)?;
+    d.set_item("max_neighbours", s.max_neighbours)?;
+    d.set_item("time_horizon", s.time_horizon)?;
+    d.set_item("obstacle_time_horizon", s.obstacle_time_horizon)?;
+    d.set_item("goal_tolerance", s.goal_tolerance)?;
+    d.set_item("perturbation", s.perturbation)?;
+    d.set_item("seed", s.seed)?;
+    d.set_item("planning_margin", s.planning_margin)?;
+    Ok(d)
+}
+
 fn points_shaped(
     arr: &PyReadonlyArrayDyn<'_, f64>,
     arg: &str,
@@ -331,5 +352,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(crowd_crossings, m)?)?;
     m.add_function(wrap_pyfunction!(crowd_door_goals, m)?)?;
     m.add_function(wrap_pyfunction!(crowd_fields, m)?)?;
+    m.add_function(wrap_pyfunction!(crowd_rvo2_circle, m)?)?;
     m.add_class::<Crowd>()
 }

@@ -36,8 +36,8 @@
 //! that would bring the vertex to rest on the surface within the step (against its momentum
 //! and gravity), limited to `μ jₙ` with `jₙ` the normal constraint impulse of the last step,
 //! read from the residual `A Δv - b` (§5.3) — static friction when the limit is not reached,
-//! sliding otherwise. A pulling normal
-//! impulse releases the contact. Vertices dragged into a collider by their neighbours are
+//! sliding otherwise. A contact whose normal
+//! impulse pulls is released and the solve taken again, once, without it. Vertices dragged into a collider by their neighbours are
 //! projected out after the step.
 //!
 //! Self-collision (off by default) filters the motion of every implicit step after the solve

@@ -136,6 +136,18 @@ impl Bounds {
         }
     }
 
+    /// The bounds of finite boids at `z` (m), flying at a zero velocity `z`, whose cells
+    /// span `lo..=hi` along `x` and `y` in the layer `cz`.
+    pub(super) fn plane(lo: [i64; 2], hi: [i64; 2], cz: i64, z: f64) -> Bounds {
+        Bounds {
+            lo: [lo[0], lo[1], cz],
+            hi: [hi[0], hi[1], cz],
+            z: [z, z],
+            still: true,
+            bad: u32::MAX,
+        }
+    }
+
     /// The bounds of both sets of boids.
     pub(super) fn join(self, other: Bounds) -> Bounds {
         Bounds {
@@ -262,6 +274,11 @@ impl Cells {
                 let f = f as usize;
                 (*p, *v, *c) = (moved.positions[f], moved.velocities[f], moved.cells[f]);
             });
+    }
+
+    /// Inverse of the cells' size (1/m).
+    pub(super) fn inv_h(&self) -> f64 {
+        self.inv_h
     }
 
     /// Squared neighbour radius (m²).

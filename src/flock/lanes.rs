@@ -11,7 +11,9 @@
 //! rules' steering from those sums (`solver::rules`: three square roots and divisions a
 //! boid, and the clamps to `max_force`) is done in the same lanes ([`Rules`]), the same
 //! operations in the same order with the branches as selects, so the accelerations too are
-//! bitwise the scalar code's.
+//! bitwise the scalar code's. Without steering behaviours the group's boids are then moved in
+//! the lanes too ([`Group::advance`]: semi-implicit Euler, the speed cap, the new cells and
+//! their bounds, [`Span`]), again the scalar operations in the same order.
 //!
 //! A candidate's position and velocity are read from the sorted copies (`cells.rs`) in
 //! sequence, each component broadcast to the lanes.
@@ -50,8 +52,89 @@ impl Group<'_> {
     #[inline(always)]
     pub(super) fn accelerations(self, simd: pulp::x86::V3, set: &Settings) -> [DVec3; LANES] {
         use pulp::bytemuck::cast;
+        let (x, y, _, _) = self.steering(simd, set);
+        let [x, y]: [[f64; LANES]; 2] = [x, y].map(cast);
+        std::array::from_fn(|l| DVec3::new(x[l], y[l], 0.0))
+    }
+
+    /// The group's boids moved by one step of `dt` (s), as `solver::Task` moves a boid
+    /// without steering behaviours: semi-implicit Euler `v += a dt` with the speed capped at
+    /// `max_speed` (glam's `clamp_length_max`, [`Rules::clamp`]), `p += v dt`, in the lanes,
+    /// written to `p` and `v` (the group's slots), their cells (size `1 / inv_h` m) to `c`,
+    /// and the cells' `x` and `y` bounds joined into `span`. `false` (cells and `span` not
+    /// written) when a boid's position or velocity is not finite or a cell lies beyond ±2³¹
+    /// (the caller then takes the cells and bounds one by one). The flock is flat: the third
+    /// components of the scalar code are `v_z = ±0 + (+0) dt = +0` and
+    /// `p_z + (+0) dt = p_z + 0`, the same for every boid (their `p_z` are equal), and the
+    /// squared speed's `+0` leaves it unchanged; the cell's `z` is the caller's `cz`, that of
+    /// `p_z + 0`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub(super) fn advance(
+        self,
+        simd: pulp::x86::V3,
+        set: &Settings,
+        (dt, inv_h): (f64, f64),
+        cz: i64,
+        p: &mut [DVec3],
+        v: &mut [DVec3],
+        c: &mut [[i64; 3]],
+        span: &mut Span,
+    ) -> bool {
+        use pulp::bytemuck::cast;
+        use std::arch::x86_64::{_CMP_EQ_OQ, _CMP_LT_OQ};
         let avx = simd.avx;
+        let z = self.positions[self.first].z + 0.0;
+        let (ax, ay, boids, rules) = self.steering(simd, set);
+        let (mul, add) = (|a, b| avx._mm256_mul_pd(a, b), |a, b| avx._mm256_add_pd(a, b));
+        let dt = avx._mm256_set1_pd(dt);
+        let (vx, vy) = (add(boids.vx, mul(ax, dt)), add(boids.vy, mul(ay, dt)));
+        let (vx, vy) = rules.clamp(vx, vy, rules.max_speed, rules.max_speed2);
+        let (px, py) = (add(boids.px, mul(vx, dt)), add(boids.py, mul(vy, dt)));
+        let [pxs, pys, vxs, vys]: [[f64; LANES]; 4] = [px, py, vx, vy].map(cast);
+        for l in 0..LANES {
+            (p[l], v[l]) = (DVec3::new(pxs[l], pys[l], z), DVec3::new(vxs[l], vys[l], 0.0));
+        }
+        let inv_h = avx._mm256_set1_pd(inv_h);
+        let (cx, cy) = (avx._mm256_floor_pd(mul(px, inv_h)), avx._mm256_floor_pd(mul(py, inv_h)));
+        // Every velocity finite (`x - x` is zero; NaN for an infinity or NaN), so every
+        // position too (finite before, finite steps: an overflow to infinity makes its cell
+        // leave the range), and every cell within ±2³¹ (NaN fails): exact through i32, the
+        // integers `geometry::grid::floor` gives.
+        let finite = |x: __m256d| {
+            avx._mm256_cmp_pd::<_CMP_EQ_OQ>(avx._mm256_sub_pd(x, x), avx._mm256_setzero_pd())
+        };
+        let limit = avx._mm256_set1_pd(2_147_483_648.0);
+        let within = |x: __m256d| {
+            let x = avx._mm256_andnot_pd(avx._mm256_set1_pd(-0.0), x);
+            avx._mm256_cmp_pd::<_CMP_LT_OQ>(x, limit)
+        };
+        let ok = avx._mm256_and_pd(
+            avx._mm256_and_pd(finite(vx), finite(vy)),
+            avx._mm256_and_pd(within(cx), within(cy)),
+        );
+        if avx._mm256_movemask_pd(ok) != 0b1111 {
+            return false;
+        }
+        let wide = |x| -> [i64; LANES] {
+            cast(simd.avx2._mm256_cvtepi32_epi64(avx._mm256_cvttpd_epi32(x)))
+        };
+        let (ix, iy) = (wide(cx), wide(cy));
+        for l in 0..LANES {
+            c[l] = [ix[l], iy[l], cz];
+        }
+        span.lo = (avx._mm256_min_pd(span.lo.0, cx), avx._mm256_min_pd(span.lo.1, cy));
+        span.hi = (avx._mm256_max_pd(span.hi.0, cx), avx._mm256_max_pd(span.hi.1, cy));
+        true
+    }
+
+    /// The group's flocking accelerations `(x, y)` (m/s², [`Group::accelerations`]), its
+    /// boids in the lanes and the rules' constants.
+    #[inline(always)]
+    fn steering(self, simd: pulp::x86::V3, set: &Settings) -> (__m256d, __m256d, Boids, Rules) {
+        use pulp::bytemuck::cast;
         use std::arch::x86_64::_CMP_EQ_OQ;
+        let avx = simd.avx;
         let Group { positions, velocities, first, rows, h2, separation2, cos_half, full_circle } =
             self;
         let lane = |a: &[DVec3], k: usize| -> __m256d {
@@ -117,12 +200,42 @@ impl Group<'_> {
         let (x, y) = weighted(set.alignment, rules.steer(mul(ux, inv), mul(uy, inv), vx, vy));
         let (sx, sy) = (add(sx, x), add(sy, y));
         let (x, y) = weighted(set.cohesion, rules.steer(mul(ox, inv), mul(oy, inv), vx, vy));
-        let (sx, sy) = rules.clamp(add(sx, x), add(sy, y));
+        let (sx, sy) = rules.clamp(add(sx, x), add(sy, y), rules.max_force, rules.max_force2);
         // No neighbour in view: no acceleration (`+0`, as `solver::rules` returns).
         let any = avx._mm256_cmp_pd::<{ std::arch::x86_64::_CMP_NEQ_OQ }>(count, zero);
-        let [x, y]: [[f64; LANES]; 2] =
-            [avx._mm256_and_pd(any, sx), avx._mm256_and_pd(any, sy)].map(cast);
-        std::array::from_fn(|l| DVec3::new(x[l], y[l], 0.0))
+        (avx._mm256_and_pd(any, sx), avx._mm256_and_pd(any, sy), boids, rules)
+    }
+}
+
+/// The bounds of the cells a task's groups moved their boids into ([`Group::advance`]): the
+/// lowest and highest cell `x` and `y` (integers below 2³¹ as f64) per lane.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub(super) struct Span {
+    lo: (__m256d, __m256d),
+    hi: (__m256d, __m256d),
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Span {
+    /// No cell.
+    #[inline(always)]
+    pub(super) fn new(simd: pulp::x86::V3) -> Self {
+        let avx = simd.avx;
+        let (lo, hi) = (avx._mm256_set1_pd(f64::INFINITY), avx._mm256_set1_pd(f64::NEG_INFINITY));
+        Span { lo: (lo, lo), hi: (hi, hi) }
+    }
+
+    /// The lowest and highest cell `x` and `y` over the lanes (`None`: no cell).
+    pub(super) fn extent(self) -> Option<([i64; 2], [i64; 2])> {
+        use pulp::bytemuck::cast;
+        let fold = |a: __m256d, f: fn(f64, f64) -> f64| {
+            let a: [f64; LANES] = cast(a);
+            a.into_iter().reduce(f).unwrap_or(f64::NAN)
+        };
+        let lo = [fold(self.lo.0, f64::min), fold(self.lo.1, f64::min)];
+        let hi = [fold(self.hi.0, f64::max), fold(self.hi.1, f64::max)];
+        (lo[0] <= hi[0]).then(|| (lo.map(|x| x as i64), hi.map(|x| x as i64)))
     }
 }
 
@@ -242,6 +355,7 @@ impl Boids {
 struct Rules {
     simd: pulp::x86::V3,
     max_speed: __m256d,
+    max_speed2: __m256d,
     max_force: __m256d,
     max_force2: __m256d,
 }
@@ -254,6 +368,7 @@ impl Rules {
         Rules {
             simd,
             max_speed: avx._mm256_set1_pd(set.max_speed),
+            max_speed2: avx._mm256_set1_pd(set.max_speed * set.max_speed),
             max_force: avx._mm256_set1_pd(set.max_force),
             max_force2: avx._mm256_set1_pd(set.max_force * set.max_force),
         }
@@ -274,22 +389,22 @@ impl Rules {
         let scale = avx._mm256_div_pd(self.max_speed, length);
         let sx = avx._mm256_sub_pd(avx._mm256_mul_pd(x, scale), vx);
         let sy = avx._mm256_sub_pd(avx._mm256_mul_pd(y, scale), vy);
-        let (sx, sy) = self.clamp(sx, sy);
+        let (sx, sy) = self.clamp(sx, sy, self.max_force, self.max_force2);
         let some = avx
             ._mm256_cmp_pd::<{ std::arch::x86_64::_CMP_NEQ_OQ }>(length, avx._mm256_setzero_pd());
         (avx._mm256_and_pd(some, sx), avx._mm256_and_pd(some, sy))
     }
 
-    /// `(x, y)` at most `max_force` long (glam's `clamp_length_max`:
+    /// `(x, y)` at most `max` long, `max2` its square (glam's `clamp_length_max`:
     /// `max · (v / sqrt(|v|²))` where `|v|² > max²`).
     #[inline(always)]
-    fn clamp(&self, x: __m256d, y: __m256d) -> (__m256d, __m256d) {
+    fn clamp(&self, x: __m256d, y: __m256d, max: __m256d, max2: __m256d) -> (__m256d, __m256d) {
         let avx = self.simd.avx;
         let length2 = self.length2(x, y);
         let length = avx._mm256_sqrt_pd(length2);
-        let over = avx._mm256_cmp_pd::<{ std::arch::x86_64::_CMP_GT_OQ }>(length2, self.max_force2);
-        let cx = avx._mm256_mul_pd(self.max_force, avx._mm256_div_pd(x, length));
-        let cy = avx._mm256_mul_pd(self.max_force, avx._mm256_div_pd(y, length));
+        let over = avx._mm256_cmp_pd::<{ std::arch::x86_64::_CMP_GT_OQ }>(length2, max2);
+        let cx = avx._mm256_mul_pd(max, avx._mm256_div_pd(x, length));
+        let cy = avx._mm256_mul_pd(max, avx._mm256_div_pd(y, length));
         (avx._mm256_blendv_pd(x, cx, over), avx._mm256_blendv_pd(y, cy, over))
     }
 }

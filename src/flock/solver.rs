@@ -12,6 +12,8 @@
 //! semi-implicit Euler `v += a dt` (speed capped at `max_speed`), `p += v dt`.
 
 use super::cells::{Bounds, Cells, Moved};
+#[cfg(target_arch = "x86_64")]
+use super::lanes::Span;
 use super::lanes::{Group, LANES};
 use super::steering::{self, Behaviour, Steering, View};
 use super::{Model, Settings, State};
@@ -135,15 +137,35 @@ impl Task<'_> {
         let set = &model.settings;
         let flat = cells.flat();
         let mut bounds = Bounds::EMPTY;
+        // The lanes move a flat flock's groups (`Group::advance`): all at the `z` of the
+        // task's first boid (finite, else the scalar sweep, which reports it), and the cells'
+        // bounds gathered in the lanes.
+        #[cfg(target_arch = "x86_64")]
+        let z = cells.positions[first].z + 0.0;
+        #[cfg(target_arch = "x86_64")]
+        let mut span = simd.filter(|_| z.is_finite()).map(Span::new);
+        #[cfg(target_arch = "x86_64")]
+        let cz = cells.cell_of(DVec3::new(0.0, 0.0, z))[2];
         for (g, ((p, v), c)) in
             p.chunks_mut(LANES).zip(v.chunks_mut(LANES)).zip(c.chunks_mut(LANES)).enumerate()
         {
             let first = first + g * LANES;
             let mut swept: Option<[DVec3; LANES]> = None;
             #[cfg(target_arch = "x86_64")]
-            if let Some(simd) = simd {
+            if let (Some(simd), Some(span)) = (simd, &mut span) {
                 if let Some(g) = group(set, cos_half, cells, first, p.len()) {
-                    swept = Some(g.accelerations(simd, set));
+                    if !model.steering.is_empty() {
+                        swept = Some(g.accelerations(simd, set));
+                    } else if g.advance(simd, set, (dt, cells.inv_h()), cz, p, v, c, span) {
+                        continue;
+                    } else {
+                        // A boid not finite or far out: its cell and bounds one by one.
+                        for (l, ((p, v), c)) in p.iter().zip(&*v).zip(c).enumerate() {
+                            *c = cells.cell_of(*p);
+                            bounds.add(*c, *p, *v, cells.order[first + l]);
+                        }
+                        continue;
+                    }
                 }
             }
             #[cfg(not(target_arch = "x86_64"))]
@@ -166,6 +188,10 @@ impl Task<'_> {
                 *c = cells.cell_of(*p);
                 bounds.add(*c, *p, *v, i);
             }
+        }
+        #[cfg(target_arch = "x86_64")]
+        if let Some((lo, hi)) = span.and_then(Span::extent) {
+            bounds = bounds.join(Bounds::plane(lo, hi, cz, z));
         }
         bounds
     }
@@ -356,7 +382,9 @@ mod tests {
     use crate::geometry::grid::random_points;
 
     /// The lanes' sweep and rules (AVX2; skipped on a CPU without it) give every boid of a
-    /// group bitwise the acceleration of the scalar 2-D sweep and rules, with coincident
+    /// group bitwise the acceleration of the scalar 2-D sweep and rules, and the lanes' step
+    /// (`Group::advance`) bitwise its scalar velocity, position and cell, and the cells'
+    /// bounds, with coincident
     /// boids, boids at rest, narrow and full fields of view, radii whose inverse is inexact,
     /// and groups whose rows run past the end of the bucket table (without the check of
     /// `group` the test fails there: 2003 boids, radius 1.3 m); and most groups of a dense
@@ -374,8 +402,9 @@ mod tests {
             let side = (n as f64 / 0.5).sqrt();
             let mut p = random_points(n, 3 + case as u64, side);
             let mut v = random_points(n, 40 + case as u64, 2.0);
+            // Speeds up to 2.1 m/s: some are capped at `max_speed` (2 m/s) after the step.
             for (p, v) in p.iter_mut().zip(&mut v) {
-                (p.z, v.x, v.y, v.z) = (0.0, v.x - 1.0, v.y - 1.0, 0.0);
+                (p.z, v.x, v.y, v.z) = (0.0, 1.5 * (v.x - 1.0), 1.5 * (v.y - 1.0), 0.0);
             }
             (p[7], v[9], v[10]) = (p[8], DVec3::ZERO, DVec3::ZERO);
             let set = Settings {
@@ -391,19 +420,51 @@ mod tests {
             cells.sort(&moved);
             assert!(cells.flat());
             let mut grouped = 0;
+            let (dt, mut span, mut lo, mut hi) =
+                (0.05, Span::new(simd), [i64::MAX; 2], [i64::MIN; 2]);
+            let z = cells.positions[0].z + 0.0;
+            let cz = cells.cell_of(DVec3::new(0.0, 0.0, z))[2];
             for first in (0..n).step_by(LANES) {
                 let Some(g) = group(&set, cos_half, &cells, first, LANES.min(n - first)) else {
                     continue;
                 };
                 grouped += 1;
                 let got = simd.vectorize(|| g.accelerations(simd, &set));
+                let g = group(&set, cos_half, &cells, first, LANES).unwrap();
+                let (mut p, mut v, mut c) =
+                    ([DVec3::ZERO; LANES], [DVec3::ZERO; LANES], [[0; 3]; LANES]);
+                let moved = simd.vectorize(|| {
+                    g.advance(
+                        simd,
+                        &set,
+                        (dt, cells.inv_h()),
+                        cz,
+                        &mut p,
+                        &mut v,
+                        &mut c,
+                        &mut span,
+                    )
+                });
+                assert!(moved);
+                let bits = |a: DVec3| a.to_array().map(f64::to_bits);
                 for (l, &got) in got.iter().enumerate() {
                     let s = first + l;
                     let want = flocking::<DVec2>(&set, cos_half, &cells, s);
-                    let bits = |a: DVec3| a.to_array().map(f64::to_bits);
                     assert_eq!(bits(got), bits(want), "{n} boids, radius {h}, slot {s}");
+                    // Moved as `Task::run` moves a boid one by one.
+                    let vs = (cells.velocities[s] + want * dt).clamp_length_max(set.max_speed);
+                    let ps = cells.positions[s] + vs * dt;
+                    let cs = cells.cell_of(ps);
+                    assert_eq!(
+                        (bits(v[l]), bits(p[l]), c[l]),
+                        (bits(vs), bits(ps), cs),
+                        "slot {s}"
+                    );
+                    lo = [lo[0].min(cs[0]), lo[1].min(cs[1])];
+                    hi = [hi[0].max(cs[0]), hi[1].max(cs[1])];
                 }
             }
+            assert_eq!(span.extent(), Some((lo, hi)));
             assert!(grouped * LANES > 9 * n / 10, "{grouped} groups of {n} boids");
         }
     }

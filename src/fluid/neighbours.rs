@@ -6,7 +6,8 @@
 //! lists of every substep are the candidates closer than `h`. While no point has moved
 //! `skin / 2` or more since the candidates were found, no pair can have come closer than `h`
 //! without being a candidate, so the candidates are reused; otherwise (or when the points'
-//! count changed) the grid is rebuilt. Each candidate list is sorted by index when it is
+//! count changed) the grid is rebuilt. Without a skin the candidates, found by the same test,
+//! are the lists (no filter; DFSPH's and PBF's substeps mostly have none). Each candidate list is sorted by index when it is
 //! built, so every list holds exactly the points closer than `h` **in ascending index
 //! order**, whatever the skin and whenever the candidates were found: results do not depend
 //! on the history of the search, nor on the thread count. The lists use the grid's layout
@@ -70,6 +71,13 @@ impl Neighbours {
     pub fn update(&mut self, points: &[DVec3], queries: usize, fixed: usize, h: f64, skin: f64) {
         if !self.valid(points, queries, h) {
             self.rebuild(points, queries, fixed, h, skin);
+            if skin == 0.0 {
+                // The candidates within `h + 0` are the lists, by the same test: no filter.
+                // (The next update rebuilds: no point can move less than 0.)
+                std::mem::swap(&mut self.lists, &mut self.candidates);
+                std::mem::swap(&mut self.ends, &mut self.candidate_ends);
+                return;
+            }
         }
         let (h2, candidates, candidate_ends) = (h * h, &self.candidates, &self.candidate_ends);
         self.ends.resize(queries, 0);
@@ -196,6 +204,28 @@ mod tests {
             }
         }
         assert!(total > 4 * queries * 5, "too few neighbours to test: {total}");
+    }
+
+    /// Without a skin the candidates are taken as the lists: exact after a build with a skin
+    /// or without, and a later build with a skin (or without) is exact again. Every round
+    /// moves the points more than the skin, so every update builds again.
+    #[test]
+    fn lists_are_exact_without_a_skin() {
+        let (h, queries, fixed) = (0.08, 2500, 300);
+        let mut points = random_points(3000, 7, 1.0);
+        let mut near = Neighbours::default();
+        for (round, skin) in [0.0, 0.02, 0.0, 0.0, 0.02, 0.02].into_iter().enumerate() {
+            let directions = random_points(points.len(), 40 + round as u64, 2.0);
+            for (i, (p, d)) in points.iter_mut().zip(directions).enumerate() {
+                if !(queries..queries + fixed).contains(&i) {
+                    *p += d.normalize_or_zero() * 0.03;
+                }
+            }
+            near.update(&points, queries, fixed, h, skin);
+            for i in 0..queries {
+                assert_eq!(near.neighbours(i), brute_force(&points, i, h), "round {round}, {i}");
+            }
+        }
     }
 
     #[test]

@@ -2,44 +2,35 @@
 //! carries nothing a later step's result depends on (a later step may reuse the Verlet
 //! lists' candidates, but its lists are exact and in index order either way):
 //! [`Solver::step`] copies the state in, steps the copy and writes it back only when every
-//! substep succeeded.
+//! substep succeeded. This file holds the step: frames, CFL substeps, emitters and the kill
+//! box, the neighbour search, the density pass and advection; each pressure solver's
+//! substep is in `solver/` (`dfsph.rs`, `pbf.rs`, `wcsph.rs`), the other forces in
+//! `solver/forces.rs`.
 //!
 //! All quantities are per unit rest density (SPlisHSPlasH's formulation): `ρ̂ = ρ/ρ₀`,
 //! fluid particle volume `V = m/ρ₀`, boundary volume `V_b = ψ_b/ρ₀`, and `κ = p/ρ₀`.
 //!
 //! - Density (Akinci et al. 2012, eq. 6): `ρ̂_i = V W(0) + Σ_j V W_ij + Σ_b V_b W_ib`.
-//! - Pressure acceleration (symmetric, with Akinci's boundary term, eq. 10):
-//!   `a_i = -Σ_j V (κ_i/ρ̂_i² ... )` — written for DFSPH, whose `κ` already carries the
-//!   division, as `Δv_i = -dt [Σ_j V (κ_i + κ_j) ∇W_ij + Σ_b V_b κ_i ∇W_ib]`
-//!   (Bender & Koschier 2017, eq. 9 and 11); WCSPH uses `κ = p/(ρ₀ ρ̂²)`.
-//! - DFSPH factor (Bender & Koschier 2017, eq. 8): `α_i = 1 / (|Σ_j V ∇W_ij + Σ_b V_b ∇W_ib|²
-//!   + Σ_j |V ∇W_ij|²)` (0 where the sum vanishes).
-//! - Each solve is a Jacobi iteration on `κ ≥ 0` (projected, so it also relaxes the warm
-//!   start): the constant-density solve drives the predicted density
-//!   `ρ̂*_i = ρ̂_i + dt (Σ_j V (v_i - v_j)·∇W_ij + Σ_b V_b v_i·∇W_ib)` to 1 with increments
-//!   `(ρ̂*_i - 1) α_i / dt²`; the divergence-free solve drives the rate `Dρ̂_i/Dt` to 0 with
-//!   increments `(Dρ̂_i/Dt) α_i / dt`, ignoring particles with fewer than 20 neighbours
-//!   (a free surface, as SPlisHSPlasH does).
+//! - Pressure's velocity change (symmetric, with Akinci's boundary term, eq. 10):
+//!   `Δv_i = -dt [Σ_j V (κ_i + κ_j) ∇W_ij + Σ_b V_b κ_i ∇W_ib]` (Bender & Koschier 2017,
+//!   eq. 9 and 11), DFSPH's `κ` carrying the division by `ρ̂²`; WCSPH uses `κ = p/(ρ₀ ρ̂²)`.
+
+mod dfsph;
+mod forces;
+mod pbf;
+mod wcsph;
 
 use super::collider::{confine, Collider};
 use super::density::{Pass, LANES};
-use super::model::{Model, Pressure, Viscosity};
+use super::model::{Model, Pressure};
 use super::neighbours::{Neighbours, MAX_SKIN};
 use super::order::{gather, Order};
-use super::viscosity::{System, Workspace};
+use super::viscosity::Workspace;
 use super::{State, Stats};
 use crate::error::{reserve, Error, Result};
 use crate::geometry::grid::CHUNK;
 use glam::DVec3;
 use rayon::prelude::*;
-
-/// Neighbours below which a particle is left out of the divergence-free solve.
-const SPARSE: usize = 20;
-
-/// Relaxation `ω` of the Jacobi iterations: the largest eigenvalue of `α A` on a column at
-/// rest is 2.70, so `ω = 1` (the paper's) diverges and `ω` must stay under 0.74
-/// (`solver_tests.rs`); SPlisHSPlasH 2.x and IISPH (Ihmsen et al. 2014) use 0.5 too.
-const RELAXATION: f64 = 0.5;
 
 /// The largest `|g| dt² / spacing` of a substep. On the lattice at `h = 2 s` the discrete
 /// divergence cannot see layers moving alternately, so converged solves let every other
@@ -107,13 +98,6 @@ pub struct Solver {
     colliders: Vec<Collider>,
     /// The velocity (m/s) of every boundary point: 0 on walls, a collider's on its own.
     boundary_velocity: Vec<DVec3>,
-}
-
-/// Which DFSPH solve.
-#[derive(Clone, Copy, PartialEq)]
-enum Solve {
-    Divergence,
-    Density,
 }
 
 impl Solver {
@@ -304,23 +288,10 @@ impl Solver {
         if n == 0 {
             return Ok(());
         }
-        let gravity = model.settings.gravity * h;
         match model.settings.pressure {
             Pressure::Dfsph { max_iterations, divergence_tolerance, density_tolerance } => {
-                self.search(model, reach);
-                self.densities(model, true);
-                let (it, err, _) =
-                    self.solve(model, h, Solve::Divergence, max_iterations, divergence_tolerance);
-                stats.divergence_iterations += it;
-                stats.divergence_error = stats.divergence_error.max(err);
-                self.non_pressure(model, h, gravity, false, stats);
-                let (it, err, max) =
-                    self.solve(model, h, Solve::Density, max_iterations, density_tolerance);
-                stats.density_iterations += it;
-                stats.density_error = stats.density_error.max(err);
-                stats.max_density_error = stats.max_density_error.max(max);
-                self.move_colliders(h);
-                self.advect(model, h);
+                let limits = (max_iterations, divergence_tolerance, density_tolerance);
+                self.dfsph(model, h, reach, limits, stats);
             }
             Pressure::Pbf { max_iterations, density_tolerance, tensile } => {
                 // PBF's constraints act on the positions at the end of the substep.
@@ -331,22 +302,7 @@ impl Solver {
                 stats.density_error = stats.density_error.max(err);
                 stats.max_density_error = stats.max_density_error.max(max);
             }
-            Pressure::Wcsph { sound_speed } => {
-                self.search(model, reach);
-                self.densities(model, false);
-                self.residual.iter_mut().zip(&self.density).for_each(|(e, r)| *e = r - 1.0);
-                let (mean, max) = compression(&self.residual);
-                stats.density_error = stats.density_error.max(mean);
-                stats.max_density_error = stats.max_density_error.max(max);
-                let c2 = sound_speed * sound_speed / 7.0;
-                for ((p, k), &r) in self.pressure.iter_mut().zip(&mut self.k).zip(&self.density) {
-                    *p = (c2 * (r.powi(7) - 1.0)).max(0.0);
-                    *k = *p / (r * r);
-                }
-                self.non_pressure(model, h, gravity, true, stats);
-                self.move_colliders(h);
-                self.advect(model, h);
-            }
+            Pressure::Wcsph { sound_speed } => self.wcsph(model, h, reach, sound_speed, stats),
         }
         // The index reported is the particle's in the state (`order.rs`).
         let finite = |i: &usize| self.points[*i].is_finite() && self.v[*i].is_finite();
@@ -441,316 +397,12 @@ impl Solver {
         });
     }
 
-    /// The neighbours of particle `i` and their `∇W_ij` (of the last [`Solver::densities`]).
-    fn pairs(&self, i: usize) -> (&[u32], &[DVec3]) {
-        (self.neighbours.neighbours(i), &self.gradients[i / CHUNK][self.neighbours.span(i)])
-    }
-
-    /// Gravity's velocity change `g` (m/s: `dt` times gravity), XSPH viscosity
-    /// `v_i += g + ν Σ_j (V / ρ̂_j) (v_j - v_i) W_ij` (the `W_ij` of the last
-    /// [`Solver::densities`]), and over `dt` (s) surface tension (Akinci et al. 2013,
-    /// [`super::Settings::surface_tension`]); then, instead of XSPH, the implicit viscosity
-    /// solve ([`Viscosity::Implicit`], the `viscosity` module) over `dt`. With `pressure`
-    /// (WCSPH), the same pass over the pairs also finds the pressure's velocity change of
-    /// [`Solver::apply`] with the pressures `k`, added last (it reads no velocity): the same
-    /// bits as a separate pass, one pass over the pairs fewer.
-    fn non_pressure(
-        &mut self,
-        model: &Model,
-        dt: f64,
-        g: DVec3,
-        pressure: bool,
-        stats: &mut Stats,
-    ) {
-        let gamma = model.settings.surface_tension;
-        if gamma > 0.0 {
-            self.normals_now(model);
-        }
-        let (mut dv, mut dp) = (std::mem::take(&mut self.dv), std::mem::take(&mut self.dp));
-        let n = self.v.len();
-        dp.resize(n, DVec3::ZERO);
-        let mut weight = std::mem::take(&mut self.weight);
-        weight.resize(n, 0.0);
-        let vol = model.volume;
-        weight.par_iter_mut().zip(&self.density).for_each(|(w, d)| *w = vol / d);
-        let Solver { neighbours, points, v, density, normals, values, gradients, k, .. } = &*self;
-        let (sup, vb) = (model.support, &model.boundary_volume);
-        let nu = match model.settings.viscosity {
-            Viscosity::Xsph(c) => c,
-            Viscosity::Implicit(_) => 0.0,
-        };
-        let mass = model.volume * model.settings.rest_density;
-        let viscous = nu > 0.0 || gamma > 0.0;
-        dv.par_iter_mut().zip(&mut dp).enumerate().for_each(|(i, (out, out_p))| {
-            let (mut sum, mut tension, mut push) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO);
-            let span = neighbours.span(i);
-            let near = neighbours.neighbours(i).iter().zip(&values[i / CHUNK][span.clone()]);
-            let near = near.zip(&gradients[i / CHUNK][span]);
-            for ((&j, &w), &gradient) in near.filter(|_| viscous || pressure) {
-                let j = j as usize;
-                if pressure {
-                    push += pressure_term(gradient, i, j, k, vol, vb);
-                }
-                if viscous && j < n {
-                    sum += (v[j] - v[i]) * (weight[j] * w);
-                    let d = points[i] - points[j];
-                    let r = if gamma > 0.0 { d.length() } else { 0.0 };
-                    if r > 0.0 {
-                        let cohesion = d * (mass * super::kernel::cohesion(r, sup) / r);
-                        let k = 2.0 / (density[i] + density[j]);
-                        tension += (cohesion + normals[i] - normals[j]) * k;
-                    }
-                }
-            }
-            *out = g + sum * nu - tension * (gamma * dt);
-            *out_p = push * -dt;
-        });
-        self.v.par_iter_mut().zip(&dv).for_each(|(v, dv)| *v += *dv);
-        (self.dv, self.weight) = (dv, weight);
-        if let Viscosity::Implicit(nu) = model.settings.viscosity {
-            let (mut w, mut v, mut warm) = (
-                std::mem::take(&mut self.implicit),
-                std::mem::take(&mut self.v),
-                std::mem::take(&mut self.viscous),
-            );
-            let (it, err) = self.viscosity_system(model, dt * nu).solve(&mut w, &mut v, &mut warm);
-            (self.implicit, self.v, self.viscous) = (w, v, warm);
-            stats.viscosity_iterations += it;
-            stats.viscosity_error = stats.viscosity_error.max(err);
-        }
-        if pressure {
-            self.v.par_iter_mut().zip(&dp).for_each(|(v, dp)| *v += *dp);
-        }
-        self.dp = dp;
-    }
-
-    /// The implicit-viscosity system `(I - dt ν ∇²) v = v*` (Weiler et al. 2018, eq. 11)
-    /// over this substep's pairs, for `dt_nu = dt ν` (m²).
-    pub(super) fn viscosity_system<'a>(&'a self, model: &'a Model, dt_nu: f64) -> System<'a> {
-        System {
-            neighbours: &self.neighbours,
-            gradients: &self.gradients,
-            points: &self.points,
-            density: &self.density,
-            boundary_volume: &model.boundary_volume,
-            boundary_velocity: &self.boundary_velocity,
-            volume: model.volume,
-            scale: 10.0 * dt_nu,
-            epsilon: 0.01 * model.support * model.support,
-        }
-    }
-
-    /// The surface normals `n_i = -h Σ_j (V / ρ̂_j) ∇W_ij` over fluid neighbours (Akinci et
-    /// al. 2013, eq. 5), from the last [`Solver::densities`]' gradients. `∇W_ij` (with
-    /// respect to `x_i`) points towards the neighbours, so the sign makes `n` point out of
-    /// the fluid: with `n` pointing in, the curvature term pushed a cube's corners outwards
-    /// (its corner ratio in `tests/fluid_tension.rs` grew from 1.53 to 2.2 in 1 s).
-    fn normals_now(&mut self, model: &Model) {
-        let mut normals = std::mem::take(&mut self.normals);
-        let n = self.v.len();
-        normals.resize(n, DVec3::ZERO);
-        let (vol, h, density) = (model.volume, model.support, &self.density);
-        normals.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let (near, grads) = self.pairs(i);
-            let mut sum = DVec3::ZERO;
-            for (&j, &g) in near.iter().zip(grads) {
-                let j = j as usize;
-                if j < n {
-                    sum += g * (vol / density[j]);
-                }
-            }
-            *out = sum * -h;
-        });
-        self.normals = normals;
-    }
-
-    /// `Δv_i = -dt [Σ_j V (k_i + k_j) ∇W_ij + Σ_b V_b k_i ∇W_ib]` with this iteration's `k`.
-    fn apply(&mut self, model: &Model, h: f64) {
-        let mut dv = std::mem::take(&mut self.dv);
-        let (vol, k, vb) = (model.volume, &self.k, &model.boundary_volume);
-        dv.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let mut sum = DVec3::ZERO;
-            let (near, grads) = self.pairs(i);
-            for (&j, &g) in near.iter().zip(grads) {
-                sum += pressure_term(g, i, j as usize, k, vol, vb);
-            }
-            *out = sum * -h;
-        });
-        self.v.par_iter_mut().zip(&dv).for_each(|(v, dv)| *v += *dv);
-        self.dv = dv;
-    }
-
-    /// The residual of `which` solve per particle for the velocities now: the predicted
-    /// density error `ρ̂* - 1`, or the density rate `Dρ̂/Dt` (1/s, 0 for sparse particles).
-    fn residuals(&mut self, model: &Model, h: f64, which: Solve) {
-        let mut residual = std::mem::take(&mut self.residual);
-        let (vol, n, v, density) = (model.volume, self.v.len(), &self.v, &self.density);
-        let (vb, bv) = (&model.boundary_volume, &self.boundary_velocity);
-        residual.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let (near, grads) = self.pairs(i);
-            let mut rate = 0.0;
-            for (&j, &g) in near.iter().zip(grads) {
-                let j = j as usize;
-                rate += if j < n {
-                    vol * (v[i] - v[j]).dot(g)
-                } else {
-                    vb[j - n] * (v[i] - bv[j - n]).dot(g)
-                };
-            }
-            *out = match which {
-                Solve::Density => density[i] + h * rate - 1.0,
-                Solve::Divergence if near.len() < SPARSE => 0.0,
-                Solve::Divergence => rate,
-            };
-        });
-        self.residual = residual;
-    }
-
-    /// One DFSPH solve: warm start from the state's pressures, then Jacobi iterations on
-    /// `κ ≥ 0` until the mean error (percent; the divergence's per substep) is at most `tol`.
-    /// Returns the iterations, the mean and the largest error reached (percent).
-    fn solve(
-        &mut self,
-        model: &Model,
-        h: f64,
-        which: Solve,
-        max: usize,
-        tol: f64,
-    ) -> (usize, f64, f64) {
-        let density = which == Solve::Density;
-        // Errors in percent per substep, increments `r α / dt²` or `r α / dt`.
-        let (scale, step) = if density { (1.0, 1.0 / (h * h)) } else { (h, 1.0 / h) };
-        // Warm start: the last substep's pressures (the divergence impulse over this `h`).
-        let stored = if density { &self.pressure } else { &self.divergence };
-        for ((k, t), &p) in self.k.iter_mut().zip(&mut self.total).zip(stored) {
-            *t = if density { p } else { p / h };
-            *k = *t;
-        }
-        self.apply(model, h);
-        let mut iterations = 0;
-        let (mean, largest) = loop {
-            self.residuals(model, h, which);
-            // The complementarity residual: compression where κ = 0, any error where κ > 0
-            // (an over-pressure from the warm start is iterated away too).
-            let active = self.total.iter().zip(&self.residual);
-            let lcp =
-                active.map(|(&t, &r)| if t > 0.0 { r.abs() } else { r.max(0.0) }).sum::<f64>();
-            let (mean, largest) = compression(&self.residual);
-            let lcp = 100.0 * lcp / self.residual.len() as f64;
-            if lcp * scale <= tol || iterations == max {
-                break (mean * scale, largest * scale);
-            }
-            // Projected, relaxed Jacobi: κ ← max(κ + ω r α / dt^m, 0); apply the change.
-            let Solver { k, total, residual, alpha, .. } = self;
-            for (((k, t), &r), &a) in
-                k.iter_mut().zip(total.iter_mut()).zip(&*residual).zip(&*alpha)
-            {
-                let new = (*t + RELAXATION * r * a * step).max(0.0);
-                *k = new - *t;
-                *t = new;
-            }
-            self.apply(model, h);
-            iterations += 1;
-        };
-        let stored = if density { &mut self.pressure } else { &mut self.divergence };
-        for (s, &t) in stored.iter_mut().zip(&self.total) {
-            *s = if density { t } else { t * h };
-        }
-        (iterations, mean, largest)
-    }
-
-    /// One PBF substep of length `h` (s) (Macklin & Müller 2013, algorithm 1): predict
-    /// `v += h g`, `x* = x + h v` (walls confine `x*`), then until the mean compression is
-    /// at most `tol` percent (or `max` iterations): `λ_i = -max(ρ̂_i - 1, 0) α_i` (unrelaxed Jacobi, as in the paper) and
-    /// [`Solver::displace`]; then `v = (x* - x) / h`, the walls again, XSPH viscosity.
-    /// The pressure stored is `κ = -Σ λ / h²` (the pressure whose DFSPH impulse over `h`
-    /// gives the same displacement). Returns the iterations, the mean and the largest
-    /// compression reached (percent).
-    #[allow(clippy::too_many_arguments)]
-    fn pbf(
-        &mut self,
-        model: &Model,
-        h: f64,
-        reach: f64,
-        max: usize,
-        tol: f64,
-        tensile: f64,
-        stats: &mut Stats,
-    ) -> (usize, f64, f64) {
-        let n = self.v.len();
-        self.x0.clear();
-        self.x0.extend_from_slice(&self.points[..n]);
-        let g = model.settings.gravity * h;
-        self.v.iter_mut().for_each(|v| *v += g);
-        self.advect(model, h);
-        self.search(model, reach);
-        self.total.fill(0.0);
-        let corr = tensile * model.lattice_factor();
-        let mut iterations = 0;
-        let (mean, largest) = loop {
-            self.densities(model, true);
-            let Solver { residual, density, .. } = self;
-            residual.iter_mut().zip(&*density).for_each(|(r, d)| *r = d - 1.0);
-            let (mean, largest) = compression(&self.residual);
-            if mean <= tol || iterations == max {
-                break (mean, largest);
-            }
-            let Solver { k, total, residual, alpha, .. } = self;
-            for (((k, t), &r), &a) in
-                k.iter_mut().zip(total.iter_mut()).zip(&*residual).zip(&*alpha)
-            {
-                *k = -r.max(0.0) * a;
-                *t += *k;
-            }
-            self.displace(model, corr);
-            iterations += 1;
-        };
-        let Solver { points, v, x0, pressure, total, colliders, .. } = self;
-        for ((v, x), x0) in v.iter_mut().zip(&points[..n]).zip(&*x0) {
-            *v = (*x - *x0) / h;
-        }
-        for (p, t) in pressure.iter_mut().zip(&*total) {
-            *p = -t / (h * h);
-        }
-        let margin = 0.25 * model.settings.spacing;
-        let colliders = &**colliders;
-        points[..n].par_iter_mut().zip(v).for_each(|(x, v)| {
-            for wall in &model.walls {
-                wall.confine(x, v, margin);
-            }
-            for c in colliders {
-                confine(c, x, v, margin);
-            }
-        });
-        self.non_pressure(model, h, DVec3::ZERO, false, stats);
-        (iterations, mean, largest)
-    }
-
-    /// PBF's position correction (Macklin & Müller 2013, eq. 12-14) with this iteration's
-    /// `λ` (in `k`): `Δx_i = Σ_j V (λ_i + λ_j + s_corr) ∇W_ij + Σ_b V_b λ_i ∇W_ib`,
-    /// `s_corr = -corr (W_ij / W(0.2 h))⁴`, added to the positions. `corr` (m²) is `k`
-    /// times the lattice's `α`: the artificial pressure of a compression `k` at `r = 0.2 h`.
-    fn displace(&mut self, model: &Model, corr: f64) {
-        let Solver { neighbours, points, k, dv, .. } = self;
-        let (sup, kernel, vol, n) = (model.support, model.settings.kernel, model.volume, k.len());
-        let vb = &model.boundary_volume;
-        let w_dq = kernel.value(0.2 * sup, sup);
-        dv.par_iter_mut().enumerate().for_each(|(i, out)| {
-            let mut sum = DVec3::ZERO;
-            for &j in neighbours.neighbours(i) {
-                let j = j as usize;
-                let d = points[i] - points[j];
-                let g = kernel.gradient(d, sup);
-                sum += if j < n {
-                    let q = kernel.value(d.length(), sup) / w_dq;
-                    g * (vol * (k[i] + k[j] - corr * (q * q) * (q * q)))
-                } else {
-                    g * (vb[j - n] * k[i])
-                };
-            }
-            *out = sum;
-        });
-        points[..n].par_iter_mut().zip(&*dv).for_each(|(x, d)| *x += *d);
+    /// The neighbours of particle `i`, their `∇W_ij` (of the last [`Solver::densities`]) and
+    /// how many of them are fluid particles (the first: the lists ascend).
+    fn pairs(&self, i: usize) -> (&[u32], &[DVec3], usize) {
+        let near = self.neighbours.neighbours(i);
+        let grads = &self.gradients[i / CHUNK][self.neighbours.span(i)];
+        (near, grads, fluid_count(near, self.v.len()))
     }
 
     /// `x += dt v`, then every wall and collider (where it is after the substep) puts back
@@ -785,17 +437,9 @@ impl Solver {
     }
 }
 
-/// Pair `(i, j)`'s term of the pressure's velocity change `Δv_i = -dt Σ` ([`Solver::apply`]):
-/// `V (k_i + k_j) ∇W_ij` for a fluid neighbour `j < n` (`n = k.len()`), `V_b k_i ∇W_ib` for a
-/// boundary point.
-#[inline(always)]
-fn pressure_term(gradient: DVec3, i: usize, j: usize, k: &[f64], vol: f64, vb: &[f64]) -> DVec3 {
-    let n = k.len();
-    if j < n {
-        gradient * (vol * (k[i] + k[j]))
-    } else {
-        gradient * (vb[j - n] * k[i])
-    }
+/// How many of the ascending indices `near` are below `n`: the fluid neighbours in a list.
+fn fluid_count(near: &[u32], n: usize) -> usize {
+    near.partition_point(|&j| (j as usize) < n)
 }
 
 /// Mean and largest compression `max(e, 0)` of the errors `e` (percent of 1).

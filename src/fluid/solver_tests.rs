@@ -1,10 +1,11 @@
-//! Why the DFSPH solves are relaxed (`ω = 0.5`, [`super::RELAXATION`]): the Jacobi
+//! Why the DFSPH solves are relaxed (`ω = 0.5`, [`super::dfsph::RELAXATION`]): the Jacobi
 //! iteration `κ ← κ + ω α (r₀/dt² − A κ)` converges only if `ω λ_max(α A) < 2`, and on the
 //! column at rest the largest eigenvalue of `α A` (`α_i = 1/A_ii`, Bender & Koschier 2017,
 //! eq. 8) is measured here above 2 (2.70): the paper's `ω = 1` diverges there.
 //! SPlisHSPlasH (2.x, `TimeStepDFSPH::pressureSolveIteration`)
 //! also relaxes by 0.5 and projects on `κ ≥ 0`.
 
+use super::dfsph::{Solve, RELAXATION};
 use super::*;
 use crate::fluid::{Fluid, Settings, Wall};
 

@@ -16,7 +16,12 @@
 //! couple the coordinates through their length and are evaluated first, in a pass of their
 //! own over the springs (each spring's force on its first end, `+0` where none starts), which
 //! the stage's pass reads at `a - 1` and `a`. Velocity damping makes the forces on single
-//! particles a pass of its own per evaluation. Every loop runs over contiguous arrays and is
+//! particles a pass of its own per evaluation. Without it, when every slot that moves has the
+//! same mass and the same forces on itself (a rope of equal masses under gravity), the passes
+//! read that mass and force as constants instead of per slot, and the slots that stay put are
+//! taken apart from the loop (the slopes `(0, 0)`) instead of masked in it: two loads and two
+//! masks fewer per slot and coordinate, the same operations on the same values otherwise.
+//! Every loop runs over contiguous arrays and is
 //! compiled for AVX2 where the CPU has it ([`crate::batch::vectorize`]; no fused multiply-add
 //! is introduced).
 //!
@@ -124,6 +129,15 @@ struct Forces {
     mass: Vec<f64>,
     inv_mass: Vec<f64>,
     movable: Vec<u64>,
+    /// Whether every slot that moves has the same inverse mass and the same forces on itself
+    /// (bit for bit, fixed for the call: no damping), which the passes then read as the
+    /// constants `uniform_base` (N, by coordinate) and `uniform_inv_mass` (1/kg) instead of
+    /// per slot, with `still` (the slots `0 < i < n - 1` that stay put, in order) taken apart
+    /// from the loop instead of masked in it.
+    uniform: bool,
+    uniform_base: [f64; 3],
+    uniform_inv_mass: f64,
+    still: Vec<usize>,
 }
 
 /// `value` where `mask` has all bits set, `+0` where it has none: a select without a branch.
@@ -176,6 +190,30 @@ fn finite(values: &[f64]) -> bool {
 }
 
 impl Forces {
+    /// Set [`Forces::uniform`] and its constants, and [`Forces::still`], after the rest of
+    /// the call's set-up. Taken only when few slots stay put (at most one in 8), so that the
+    /// runs between them stay long.
+    fn find_uniform(&mut self) {
+        let n = self.n;
+        self.still.clear();
+        self.still.extend((1..n.saturating_sub(1)).filter(|&i| self.movable[i] == 0));
+        let first = (0..n).find(|&i| self.movable[i] != 0);
+        self.uniform = false;
+        let (Some(first), false) = (first, self.varying) else { return };
+        self.uniform_base = std::array::from_fn(|c| self.base[c * n + first]);
+        self.uniform_inv_mass = self.inv_mass[first];
+        let bits =
+            [self.uniform_inv_mass, self.uniform_base[0], self.uniform_base[1]].map(f64::to_bits);
+        let (bits_z, (x, yz)) = (self.uniform_base[2].to_bits(), self.base.split_at(n));
+        let (y, z) = yz.split_at(n);
+        let slots = self.movable.iter().zip(&self.inv_mass).zip(x).zip(y).zip(z);
+        self.uniform = 8 * self.still.len() <= n
+            && slots.fold(true, |same, ((((&moves, inv), x), y), z)| {
+                let slot = [inv, x, y].map(|v| v.to_bits()) == bits && z.to_bits() == bits_z;
+                same & (moves == 0 || slot)
+            });
+    }
+
     /// The evaluations that precede a stage's pass at `at` (laid out as [`ChainWork::y`]):
     /// the forces on single particles when they depend on the velocities, and the springs'
     /// forces when they are read from [`Forces::springs`].
@@ -273,6 +311,9 @@ struct Slopes<'a> {
     minus_k: f64,
     inv_mass: &'a [f64],
     movable: &'a [u64],
+    /// [`Forces::uniform_base`] of this coordinate and [`Forces::uniform_inv_mass`].
+    uniform_base: f64,
+    uniform_inv_mass: f64,
 }
 
 impl Slopes<'_> {
@@ -291,14 +332,22 @@ impl Slopes<'_> {
             minus_k: forces.minus_k,
             inv_mass: &forces.inv_mass[..n],
             movable: &forces.movable[..n],
+            uniform_base: forces.uniform_base[c],
+            uniform_inv_mass: forces.uniform_inv_mass,
         }
     }
 
     /// Slot `i`'s slopes with the force `ending` of the spring that ends at it on its first
     /// end and `starting` of the one that starts at it: `(v, ((base - ending) + starting) /
-    /// m)`, or `(0, 0)` when it stays put (`particles/dynamics.rs`'s accelerations).
+    /// m)`, or `(0, 0)` when it stays put (`particles/dynamics.rs`'s accelerations). With `U`
+    /// ([`Forces::uniform`]) the slot is one that moves and its base force and inverse mass
+    /// are the constants.
     #[inline(always)]
-    fn with(&self, i: usize, ending: f64, starting: f64) -> (f64, f64) {
+    fn with<const U: bool>(&self, i: usize, ending: f64, starting: f64) -> (f64, f64) {
+        if U {
+            let f = (self.uniform_base - ending) + starting;
+            return (self.v[i], f * self.uniform_inv_mass);
+        }
         let f = (self.base[i] - ending) + starting;
         let movable = self.movable[i];
         (masked(self.v[i], movable), masked(f * self.inv_mass[i], movable))
@@ -309,25 +358,25 @@ impl Slopes<'_> {
     fn at<const K: u8>(&self, i: usize) -> (f64, f64) {
         let n = self.x.len();
         if K == BUFFER {
-            return self.with(i, self.springs[i], self.springs[i + 1]);
+            return self.with::<false>(i, self.springs[i], self.springs[i + 1]);
         }
         let spring = |a: usize| masked(self.minus_k * (self.x[a] - self.x[a + 1]), self.linked[a]);
         let ending = if i > 0 { spring(i - 1) } else { 0.0 };
         let starting = if i + 1 < n { spring(i) } else { 0.0 };
-        self.with(i, ending, starting)
+        self.with::<false>(i, ending, starting)
     }
 
     /// Slot `i`'s slopes for `0 < i < n - 1`, the springs computed without branches (and
-    /// with [`ROPE`] without masks: every spring is there).
+    /// with [`ROPE`] without masks: every spring is there); with `U`, of a slot that moves.
     #[inline(always)]
-    fn inner<const K: u8>(&self, i: usize) -> (f64, f64) {
+    fn inner<const K: u8, const U: bool>(&self, i: usize) -> (f64, f64) {
         let (x, k) = (self.x, self.minus_k);
         match K {
-            BUFFER => self.with(i, self.springs[i], self.springs[i + 1]),
-            ROPE => self.with(i, k * (x[i - 1] - x[i]), k * (x[i] - x[i + 1])),
+            BUFFER => self.with::<U>(i, self.springs[i], self.springs[i + 1]),
+            ROPE => self.with::<U>(i, k * (x[i - 1] - x[i]), k * (x[i] - x[i + 1])),
             _ => {
                 let ending = masked(k * (x[i - 1] - x[i]), self.linked[i - 1]);
-                self.with(i, ending, masked(k * (x[i] - x[i + 1]), self.linked[i]))
+                self.with::<U>(i, ending, masked(k * (x[i] - x[i + 1]), self.linked[i]))
             }
         }
     }
@@ -356,7 +405,7 @@ fn slot<const I: usize, const O: usize>(
 /// [`Forces::evaluate`] there) and each slot's values in `ins` and `outs` (as `[position,
 /// velocity]` of one coordinate) give the new values of `outs` by `f(x', v', ins, outs)`.
 #[inline(always)]
-fn combine<const K: u8, const I: usize, const O: usize>(
+fn combine<const K: u8, const U: bool, const I: usize, const O: usize>(
     forces: &Forces,
     at: &[f64],
     ins: [&[f64]; I],
@@ -378,8 +427,24 @@ fn combine<const K: u8, const I: usize, const O: usize>(
         if n > 1 {
             slot(n - 1, slopes.at::<K>(n - 1), &ix, &iv, &mut o, &f);
         }
-        for i in 1..n.saturating_sub(1) {
-            slot(i, slopes.inner::<K>(i), &ix, &iv, &mut o, &f);
+        if !U {
+            for i in 1..n.saturating_sub(1) {
+                slot(i, slopes.inner::<K, false>(i), &ix, &iv, &mut o, &f);
+            }
+            continue;
+        }
+        // The slots that stay put get the slopes `(0, 0)`, the runs between them the loop
+        // without per-slot masses, forces or masks.
+        let mut from = 1;
+        for &still in &forces.still {
+            for i in from..still {
+                slot(i, slopes.inner::<K, true>(i), &ix, &iv, &mut o, &f);
+            }
+            slot(still, (0.0, 0.0), &ix, &iv, &mut o, &f);
+            from = still + 1;
+        }
+        for i in from..n.saturating_sub(1) {
+            slot(i, slopes.inner::<K, true>(i), &ix, &iv, &mut o, &f);
         }
     }
 }
@@ -442,11 +507,12 @@ impl ChainWork {
         if !forces.varying {
             forces.single(&model.forces, &self.y);
         }
+        forces.find_uniform();
     }
 
     /// One step of `method` with step `h` from `y` into `next`.
     #[inline(always)]
-    fn step<const K: u8>(&mut self, list: &[Force], method: Method, h: f64) {
+    fn step<const K: u8, const U: bool>(&mut self, list: &[Force], method: Method, h: f64) {
         let ChainWork { y, next, stages: [s0, s1], sum, forces, .. } = self;
         let (y, next, s0, s1, sum) =
             (&y[..], &mut next[..], &mut s0[..], &mut s1[..], &mut sum[..]);
@@ -454,31 +520,31 @@ impl ChainWork {
         forces.evaluate::<K>(list, y);
         match method {
             Method::ExplicitEuler => {
-                combine::<K, 1, 1>(forces, y, [y], [next], |kx, kv, [[x, v]], _| {
+                combine::<K, U, 1, 1>(forces, y, [y], [next], |kx, kv, [[x, v]], _| {
                     [[x + h * kx, v + h * kv]]
                 })
             }
             Method::SymplecticEuler => {
-                combine::<K, 1, 1>(forces, y, [y], [next], |_, kv, [[x, v]], _| {
+                combine::<K, U, 1, 1>(forces, y, [y], [next], |_, kv, [[x, v]], _| {
                     let v1 = v + h * kv;
                     [[x + h * v1, v1]]
                 })
             }
             Method::Midpoint => {
-                combine::<K, 1, 1>(forces, y, [y], [s0], |kx, kv, [[x, v]], _| {
+                combine::<K, U, 1, 1>(forces, y, [y], [s0], |kx, kv, [[x, v]], _| {
                     [[x + half * kx, v + half * kv]]
                 });
                 forces.evaluate::<K>(list, s0);
-                combine::<K, 1, 1>(forces, s0, [y], [next], |kx, kv, [[x, v]], _| {
+                combine::<K, U, 1, 1>(forces, s0, [y], [next], |kx, kv, [[x, v]], _| {
                     [[x + h * kx, v + h * kv]]
                 });
             }
             Method::Heun => {
-                combine::<K, 1, 2>(forces, y, [y], [s0, sum], |kx, kv, [[x, v]], _| {
+                combine::<K, U, 1, 2>(forces, y, [y], [s0, sum], |kx, kv, [[x, v]], _| {
                     [[x + h * kx, v + h * kv], [kx, kv]]
                 });
                 forces.evaluate::<K>(list, s0);
-                combine::<K, 2, 1>(
+                combine::<K, U, 2, 1>(
                     forces,
                     s0,
                     [y, sum],
@@ -487,11 +553,11 @@ impl ChainWork {
                 );
             }
             Method::Rk4 => {
-                combine::<K, 1, 2>(forces, y, [y], [s0, sum], |kx, kv, [[x, v]], _| {
+                combine::<K, U, 1, 2>(forces, y, [y], [s0, sum], |kx, kv, [[x, v]], _| {
                     [[x + half * kx, v + half * kv], [kx, kv]]
                 });
                 forces.evaluate::<K>(list, s0);
-                combine::<K, 1, 2>(
+                combine::<K, U, 1, 2>(
                     forces,
                     s0,
                     [y],
@@ -501,7 +567,7 @@ impl ChainWork {
                     },
                 );
                 forces.evaluate::<K>(list, s1);
-                combine::<K, 1, 2>(
+                combine::<K, U, 1, 2>(
                     forces,
                     s1,
                     [y],
@@ -512,7 +578,7 @@ impl ChainWork {
                 );
                 forces.evaluate::<K>(list, s0);
                 let sixth = h / 6.0;
-                combine::<K, 2, 1>(
+                combine::<K, U, 2, 1>(
                     forces,
                     s0,
                     [y, sum],
@@ -526,13 +592,13 @@ impl ChainWork {
                 // Kick–drift–kick as `ode::Workspace`: the half kick into `next`, the drift's
                 // positions into `next` and the stage, and the stage's velocities `v + h a₀`;
                 // then the second half kick at the stage.
-                combine::<K, 1, 2>(forces, y, [y], [next, s0], |_, kv, [[x, v]], _| {
+                combine::<K, U, 1, 2>(forces, y, [y], [next, s0], |_, kv, [[x, v]], _| {
                     let v_half = v + half * kv;
                     let x1 = x + h * v_half;
                     [[x1, v_half], [x1, v + h * kv]]
                 });
                 forces.evaluate::<K>(list, s0);
-                combine::<K, 0, 1>(forces, s0, [], [next], |_, kv, [], [[x, v]]| {
+                combine::<K, U, 0, 1>(forces, s0, [], [next], |_, kv, [], [[x, v]]| {
                     [[x, v + half * kv]]
                 });
             }
@@ -545,14 +611,14 @@ impl ChainWork {
     /// Take a step (see [`Self::step`]) and make its state the current one, with the slots
     /// that stay put as they were.
     #[inline(always)]
-    fn advance<const K: u8>(
+    fn advance<const K: u8, const U: bool>(
         &mut self,
         list: &[Force],
         still: &[(usize, [f64; 6])],
         method: Method,
         h: f64,
     ) {
-        self.step::<K>(list, method, h);
+        self.step::<K, U>(list, method, h);
         self.swap(still);
     }
 
@@ -601,7 +667,7 @@ impl Run<'_> {
     /// The steps in blocks (see the module docs): the number of good steps, and whether the
     /// step after them failed.
     #[inline(always)]
-    fn blocks<const K: u8>(self) -> (usize, bool) {
+    fn blocks<const K: u8, const U: bool>(self) -> (usize, bool) {
         let Run { work, forces, still, method, h, steps } = self;
         let mut done = 0;
         while done < steps {
@@ -609,7 +675,7 @@ impl Run<'_> {
             if block > 1 {
                 work.start.copy_from_slice(&work.y);
                 for _ in 0..block {
-                    work.advance::<K>(forces, still, method, h);
+                    work.advance::<K, U>(forces, still, method, h);
                 }
                 if finite(&work.y) {
                     done += block;
@@ -619,7 +685,7 @@ impl Run<'_> {
             }
             // Each step checked before it is taken in.
             for _ in 0..block {
-                work.step::<K>(forces, method, h);
+                work.step::<K, U>(forces, method, h);
                 if !finite(&work.next) {
                     return (done, true);
                 }
@@ -637,10 +703,13 @@ impl pulp::WithSimd for Run<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _: S) -> (usize, bool) {
-        match self.work.forces.kind {
-            ROPE => self.blocks::<ROPE>(),
-            GAPS => self.blocks::<GAPS>(),
-            _ => self.blocks::<BUFFER>(),
+        match (self.work.forces.kind, self.work.forces.uniform) {
+            (ROPE, true) => self.blocks::<ROPE, true>(),
+            (ROPE, false) => self.blocks::<ROPE, false>(),
+            (GAPS, true) => self.blocks::<GAPS, true>(),
+            (GAPS, false) => self.blocks::<GAPS, false>(),
+            (_, true) => self.blocks::<BUFFER, true>(),
+            (_, false) => self.blocks::<BUFFER, false>(),
         }
     }
 }

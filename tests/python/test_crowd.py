@@ -7,7 +7,17 @@ import numpy as np
 import pytest
 
 import kinema
-from kinema.crowd import Crowd, crossings, door_goals, fields, flow_rate
+from kinema.crowd import RVO2_CIRCLE, Crowd, crossings, door_goals, fields, flow_rate
+
+# pyrvo.RVOSimulator(dt, ...)'s arguments after the step, in its order.
+RVO2_ARGUMENTS = (
+    "neighbour_distance",
+    "max_neighbours",
+    "time_horizon",
+    "obstacle_time_horizon",
+    "radius",
+    "max_speed",
+)
 
 
 def circle(n: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -234,6 +244,35 @@ def test_fields_match_a_direct_numpy_sum() -> None:
             fields(**(args | kwargs))
 
 
+def test_rvo2_circle_preset_is_the_examples() -> None:
+    """`RVO2_CIRCLE` holds the settings of RVO2's examples/Circle.cpp (setAgentDefaults(15, 10,
+    10, 10, 1.5, 2), goal vectors clipped to 1, arrived within one radius) and kinema's
+    planning margin, read-only, and builds an ORCA crowd with them."""
+    assert dict(RVO2_CIRCLE) == {
+        "radius": 1.5,
+        "max_speed": 2.0,
+        "preferred_speed": 1.0,
+        "neighbour_distance": 15.0,
+        "max_neighbours": 10,
+        "time_horizon": 10.0,
+        "obstacle_time_horizon": 10.0,
+        "goal_tolerance": 1.5,
+        "perturbation": 0.0,
+        "seed": 0,
+        "planning_margin": 0.1,
+    }
+    with pytest.raises(TypeError):
+        RVO2_CIRCLE["radius"] = 1.0  # type: ignore[index]
+    c = Crowd(**RVO2_CIRCLE)
+    c.add_agents([[-10.0, 0.0], [10.0, 0.0]], [[10.0, 0.0], [-10.0, 0.0]])
+    c.step(0.25, 120)
+    m = c.metrics()
+    # Head-on at 1 m/s over 20 m less one radius each, plus the detour; the discs of 1.5 m
+    # plan with 1.65 m, so they pass at least 3.3 m apart.
+    assert m["arrived"] == 2 and m["agent_collisions"] == 0
+    assert 18.5 < m["mean_time_to_goal"] < 21.0
+
+
 def test_orca_against_rvo2_when_pyrvo_installs() -> None:
     """The issue's comparison run in the test when the RVO2 library's binding installs
     (pyrvo 0.4.3, the `bench` extra; recorded figures for the 250-agent example are in
@@ -250,9 +289,10 @@ def test_orca_against_rvo2_when_pyrvo_installs() -> None:
     ring = 60.0 * np.stack([np.cos(a), np.sin(a)], axis=1)
     start, goal = ring.copy(), -ring
     start[:, 0] += 3e-2 * ((np.arange(n) * 7919 % 13) - 6.0)
+    s = RVO2_CIRCLE
     for seed in (0, 1):
         rng = np.random.default_rng(seed)
-        sim = pyrvo.RVOSimulator(dt, 15.0, 10, 10.0, 10.0, 1.5, 2.0)
+        sim = pyrvo.RVOSimulator(dt, *(s[k] for k in RVO2_ARGUMENTS))
         for x in start:
             sim.add_agent((float(x[0]), float(x[1])))
         arrival = np.full(n, np.inf)
@@ -261,9 +301,9 @@ def test_orca_against_rvo2_when_pyrvo_installs() -> None:
                 q = sim.get_agent_position(i)
                 d = goal[i] - (q.x, q.y)
                 length = np.hypot(*d)
-                if np.isinf(arrival[i]) and length < 1.5:
+                if np.isinf(arrival[i]) and length < s["goal_tolerance"]:
                     arrival[i] = k * dt
-                d = d / length if length > 1.0 else d
+                d = d * s["preferred_speed"] / length if length > s["preferred_speed"] else d
                 turn = rng.uniform(0.0, 2 * np.pi)
                 d = d + rng.uniform(0.0, 1e-4) * np.array([np.cos(turn), np.sin(turn)])
                 sim.set_agent_pref_velocity(i, (float(d[0]), float(d[1])))
@@ -271,19 +311,7 @@ def test_orca_against_rvo2_when_pyrvo_installs() -> None:
                 break
             sim.do_step()
         assert np.isfinite(arrival).all()
-        c = Crowd(
-            "orca",
-            radius=1.5,
-            max_speed=2.0,
-            preferred_speed=1.0,
-            neighbour_distance=15.0,
-            max_neighbours=10,
-            time_horizon=10.0,
-            obstacle_time_horizon=10.0,
-            goal_tolerance=1.5,
-            perturbation=1e-4,
-            seed=seed,
-        )
+        c = Crowd(**{**RVO2_CIRCLE, "perturbation": 1e-4, "seed": seed})
         c.add_agents(start, goal)
         for _ in range(500):
             if np.isfinite(c.metrics()["arrival_times"]).all():

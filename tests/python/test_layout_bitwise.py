@@ -59,15 +59,21 @@ from kinema.demos import showcase
 # of edges whose ends both move after 16 plain sweeps (issue #21, session 26: the 128² drape's
 # limit; a call that ends within 16 sweeps is unchanged, so "cloth_demo" and "cloth_shapes"
 # are); main at 9dde3fd gives the former hash.
+# "cloth_demo", "cloth_shapes" and "showcase" were re-recorded when a contact whose constraint
+# impulse pulls in a solve started to be released within the step, the solve taken again
+# without it (issue #21, session 27: at a landing's substeps the pulling contacts added
+# momentum towards the collider; tests/cloth_landing.rs). A different motion, not a rounding:
+# the scenes without colliders (the hanging sheet of "cloth_explicit") are unchanged; main at
+# c83214f gives the former hashes.
 EXPECTED = {
     "particles_fountain": "58823ac0b8b176df3229",
     "particles_shapes": "f228e65d27a3913c9309",
-    "cloth_demo": "7e20932924132ce63c5d",
-    "cloth_shapes": "d8076ca0b12dc4b3b02a",
+    "cloth_demo": "e423465d06cec2e0fcc1",
+    "cloth_shapes": "2cbd297e400966e0fb7f",
     "cloth_explicit": "90b52dd558916ee90b6c",
     "rigid_drop": "c581adf2ca03910ae758",
     "rigid_tilted": "62f1ad4bd939ca1e8eaa",
-    "showcase": "12c0cbc887c705e4bf5b",
+    "showcase": "b99d15090e61680ded0b",
 }
 
 

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from kinema import mocap
-from kinema.crowd import Crowd, crossings, door_goals, flow_rate
+from kinema.crowd import RVO2_CIRCLE, Crowd, crossings, door_goals, flow_rate
 from kinema.flock import Flock
 from kinema.geometry import Sphere
 from kinema.walkcycle import WalkCycle
@@ -49,16 +49,7 @@ def _gif(frames: list[np.ndarray], radius: float, walls: list[Any], title: str, 
 
 def _circle(out_dir: Path, quick: bool) -> dict[str, object]:
     n, r = (24, 30.0) if quick else (64, 60.0)
-    c = Crowd(
-        "orca",
-        radius=1.5,
-        max_speed=2.0,
-        preferred_speed=1.0,
-        neighbour_distance=15.0,
-        time_horizon=10.0,
-        obstacle_time_horizon=10.0,
-        goal_tolerance=1.5,
-    )
+    c = Crowd(**RVO2_CIRCLE)
     a = np.arange(n) * 2 * np.pi / n
     start = r * np.stack([np.cos(a), np.sin(a)], axis=1)
     # Starts moved by up to 0.5 m: an exactly symmetric ring deadlocks (docs/crowd.md).
@@ -68,7 +59,9 @@ def _circle(out_dir: Path, quick: bool) -> dict[str, object]:
     for _ in range(100 if quick else 250):
         c.step(0.25, 4)
         frames.append(c.positions.copy())
-    _gif(frames[::2], 1.5, [], "ORCA circle crossing", out_dir / "crowd_circle.gif")
+    _gif(
+        frames[::2], RVO2_CIRCLE["radius"], [], "ORCA circle crossing", out_dir / "crowd_circle.gif"
+    )
     m = c.metrics()
     return {
         "circle: agents arrived": f"{m['arrived']} of {n}",
