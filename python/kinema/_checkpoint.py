@@ -126,6 +126,7 @@ _SCHEMAS: dict[str, _Schema] = {
                 "friction": _Number,
                 "_joints": _Array,
                 "_bones": _Array,
+                "_chains": _Array,
             },
         ),
         _Schema(
@@ -570,6 +571,13 @@ def _check_kinematic(k: AnimatedSphere | Character) -> None:
         and b.shape[1] == 2
         and bool(((b >= 0) & (b < j.shape[1])).all()),
         f"{where}: bones",
+    )
+    c = k._chains
+    _need(
+        c.dtype == np.float64
+        and c.shape == (j.shape[1], j.shape[1])
+        and bool(((c == 0.0) | (c == 1.0)).all()),
+        f"{where}: chains",
     )
     _need(math.isfinite(float(k.motion.frame_rate)) and k.motion.frame_rate > 0, f"{where}: rate")
 

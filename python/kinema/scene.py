@@ -116,7 +116,11 @@ class Character:
 
     Joint positions are the skeleton's forward kinematics times ``scale`` (file units to m;
     default: the skeleton's ``metres_per_unit`` for Acclaim files, 1 for BVH) plus ``offset``
-    (m), linearly interpolated between frames. Cloth and particles collide with the capsules."""
+    (m). Between frames the root moves linearly and every bone turns at a constant rate in the
+    plane of its two frames' directions (the slerp of the bone's vector), so bones keep their
+    lengths (a linear blend of joint positions would shorten a turning bone by
+    ``1 - cos(θ/2)``). Cloth, particles, articulated bodies and bipeds collide with the
+    capsules."""
 
     skeleton: Any
     motion: Any
@@ -127,6 +131,7 @@ class Character:
     friction: float = 0.5
     _joints: np.ndarray = field(init=False, repr=False)
     _bones: np.ndarray = field(init=False, repr=False)
+    _chains: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.radius) and self.radius > 0):
@@ -140,6 +145,15 @@ class Character:
         self._joints = np.asarray(positions, dtype=np.float64) * self.scale + offset
         parents = np.asarray(self.skeleton.parents)
         self._bones = np.array([(p, j) for j, p in enumerate(parents) if p >= 0], dtype=np.int64)
+        # Every joint is its root plus the vectors of the bones from that root to it:
+        # _chains[j, k] is 1 when k is j's root or the bone ending at k lies on that path.
+        self._chains = np.zeros((len(parents), len(parents)))
+        for j in range(len(parents)):
+            k = j
+            while parents[k] >= 0:
+                self._chains[j, k] = 1.0
+                k = int(parents[k])
+            self._chains[j, k] = 1.0
 
     def joints(self, t: float) -> np.ndarray:
         """Joint positions at time ``t`` (s), ``(J, 3)`` m."""
@@ -150,8 +164,26 @@ class Character:
         u = min(max(u, 0.0), frames - 1.0)
         i = min(int(u), frames - 2) if frames > 1 else 0
         w = u - i if frames > 1 else 0.0
-        j0 = self._joints[i]
-        return j0 if frames == 1 else (1.0 - w) * j0 + w * self._joints[i + 1]
+        if frames == 1:
+            return self._joints[0]
+        j0, j1 = self._joints[i], self._joints[i + 1]
+        parent, child = self._bones.T
+        d0, d1 = j0[child] - j0[parent], j1[child] - j1[parent]
+        # The angle between each bone's two vectors, atan2(|d0 x d1|, d0 . d1) (accurate at
+        # small angles), and the slerp weights sin((1 - w) θ) / sin θ, sin(w θ) / sin θ; where
+        # sin θ is below 1e-6 the linear weights: a bone that barely turns (shortened by
+        # θ² / 8 < 1e-12 relative), of zero length, or turning by half a turn in one frame
+        # (no plane to turn in).
+        theta = np.arctan2(np.linalg.norm(np.cross(d0, d1), axis=1), np.sum(d0 * d1, axis=1))
+        s = np.sin(theta)
+        turning = s > 1e-6
+        s = np.where(turning, s, 1.0)
+        a = np.where(turning, np.sin((1.0 - w) * theta) / s, 1.0 - w)
+        b = np.where(turning, np.sin(w * theta) / s, w)
+        # The roots blended linearly, the bones' vectors by the slerp, summed along the chains.
+        x = (1.0 - w) * j0 + w * j1
+        x[child] = a[:, None] * d0 + b[:, None] * d1
+        return self._chains @ x
 
     def _shapes(self, t: float) -> list[_Shape]:
         j = self.joints(t)
