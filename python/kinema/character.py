@@ -707,8 +707,11 @@ class Tracker:
     the total mass and torque likewise with the body's rotational inertia about the root.
     Each frame is ``substeps`` steps of ``1 / (frame rate × substeps)`` s (default 4 at the
     CMU 120 Hz: 1/480 s). The clip is lifted onto the ground and looped (between its two
-    most alike frames, see :attr:`loop_span`) when tracked longer than it lasts. Ragdoll
-    options (``density``, ``scale``, ...) as :meth:`Ragdoll.from_skeleton`.
+    most alike frames, see :attr:`loop_span`) when tracked longer than it lasts. The ragdoll
+    starts at clip frame ``start_frame`` (its pose, rates and servo targets; below the loop's
+    end, ``loop_span[1]``); the lift and the loop are the whole clip's, so it tracks what a
+    tracker started at frame 0 tracks from that frame on. Ragdoll options (``density``,
+    ``scale``, ...) as :meth:`Ragdoll.from_skeleton`.
     """
 
     def __init__(
@@ -727,6 +730,7 @@ class Tracker:
         radius_ratio: float = 0.15,
         min_radius: float = 0.02,
         damping: float = 2.0,
+        start_frame: int = 0,
     ) -> None:
         if not isinstance(skeleton, (_kinema.AsfSkeleton, _kinema.BvhSkeleton)):
             raise TypeError(
@@ -758,6 +762,7 @@ class Tracker:
             real(assist_frequency, "assist_frequency"),
             real(assist_damping, "assist_damping"),
             _index(substeps, "substeps"),
+            _index(start_frame, "start_frame"),
         )
 
     def step(self, frames: int = 1) -> dict[str, np.ndarray]:
@@ -782,7 +787,7 @@ class Tracker:
 
     @property
     def frame(self) -> int:
-        """Frames tracked so far."""
+        """The clip frame the ragdoll is at: ``start_frame`` plus the frames tracked."""
         return int(self._t.frame)
 
     @property
