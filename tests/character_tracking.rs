@@ -137,3 +137,51 @@ fn a_restored_tracker_continues_bit_for_bit() {
     assert_eq!(t.body().state(), back.body().state());
     assert_eq!(t.reference_q(), back.reference_q());
 }
+
+/// A tracker started at frame k (`start_at`) is at the clip's frame k, pose and rates, and
+/// tracks as the tracker of the clip sliced at k (the way before `start_at`), up to the
+/// clip's lift onto the ground, which the slice takes again from its own frames: without the
+/// ground, which alone sees the height, the two differ by that lift, to 1e-9, for 60 frames.
+/// A frame at or past the loop's end is refused, naming `start_frame`.
+#[test]
+fn starting_at_a_frame_tracks_as_the_clip_sliced_there() {
+    let (skeleton, motion) = walk();
+    let ragdoll = RagdollOptions { scale: skeleton.metres_per_unit(), ..RagdollOptions::default() };
+    let settings = Settings { ground: false, ..Settings::default() };
+    let new = |m: &Motion| {
+        Tracker::new(&skeleton, m, &ragdoll, settings, TrackingOptions::default()).unwrap()
+    };
+    let k = 40;
+    let mut at = new(&motion);
+    at.start_at(k).unwrap();
+    let mut cut = new(&motion.slice(k, motion.frames).unwrap());
+    assert_eq!((at.frame(), cut.frame()), (k, 0));
+    let lift = at.reference_q()[1] - cut.reference_q()[1];
+    let apart = |a: &Tracker, b: &Tracker| -> f64 {
+        let (sa, sb) = (a.body().state(), b.body().state());
+        let q = sa.q().iter().zip(sb.q()).enumerate();
+        let dq = q.map(|(i, (x, y))| (x - y - if i == 1 { lift } else { 0.0 }).abs());
+        let dv = sa.qd().iter().zip(sb.qd()).map(|(x, y)| (x - y).abs());
+        dq.chain(dv).fold(0.0, f64::max)
+    };
+    assert!(apart(&at, &cut) < 1e-9, "start {}", apart(&at, &cut));
+    assert!(lift.abs() > 1e-4, "the slice is lifted by {lift} m: the test needs a difference");
+    for f in 0..60 {
+        let (a, b) = (at.step().unwrap(), cut.step().unwrap());
+        let reports = [
+            (a.root_error, b.root_error),
+            (a.joint_error, b.joint_error),
+            (a.assist_force, b.assist_force),
+            (a.assist_torque, b.assist_torque),
+        ];
+        for (x, y) in reports {
+            assert!((x - y).abs() < 1e-9 * (1.0 + x.abs()), "frame {f}: {x} and {y}");
+        }
+        assert!(apart(&at, &cut) < 1e-9, "frame {f}: {}", apart(&at, &cut));
+    }
+    assert_eq!(at.frame(), k + 60);
+    let end = at.loop_span().1;
+    let err = at.start_at(end).unwrap_err().to_string();
+    assert!(err.contains("start_frame"), "{err}");
+    assert_eq!(at.frame(), k + 60);
+}

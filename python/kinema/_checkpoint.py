@@ -41,7 +41,15 @@ import numpy as np
 from kinema import _kinema, anim, character, cloth, crowd, flock, fluid, particles, rigid, rods
 from kinema.constraints import ConstrainedSystem
 from kinema.rotation import Rotation
-from kinema.scene import FORMAT_VERSION, AnimatedSphere, Character, CheckpointError, Scene, _Entry
+from kinema.scene import (
+    FORMAT_VERSION,
+    RECEIVERS,
+    AnimatedSphere,
+    Character,
+    CheckpointError,
+    Scene,
+    _Entry,
+)
 
 _MAGIC = b"KINEMA-SCENE\r\n\x1a\n"  # 16 bytes; the line ends catch text-mode mangling
 _HEADER = struct.Struct("<16sIQ32s")  # magic, version, payload length, SHA-256 of payload
@@ -118,6 +126,7 @@ _SCHEMAS: dict[str, _Schema] = {
                 "friction": _Number,
                 "_joints": _Array,
                 "_bones": _Array,
+                "_chains": _Array,
             },
         ),
         _Schema(
@@ -515,7 +524,7 @@ def _check_entry(e: Any, where: str, h: float) -> None:
     )
     _need(isinstance(obj, kinds), f"{where}: a {type(obj).__name__}")
     _need(
-        e.receives == isinstance(obj, (cloth.Cloth, particles.ParticleSystem, fluid.Fluid)),
+        e.receives == isinstance(obj, RECEIVERS),
         f"{where}: receives",
     )
     _need(
@@ -562,6 +571,13 @@ def _check_kinematic(k: AnimatedSphere | Character) -> None:
         and b.shape[1] == 2
         and bool(((b >= 0) & (b < j.shape[1])).all()),
         f"{where}: bones",
+    )
+    c = k._chains
+    _need(
+        c.dtype == np.float64
+        and c.shape == (j.shape[1], j.shape[1])
+        and bool(((c == 0.0) | (c == 1.0)).all()),
+        f"{where}: chains",
     )
     _need(math.isfinite(float(k.motion.frame_rate)) and k.motion.frame_rate > 0, f"{where}: rate")
 

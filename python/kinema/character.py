@@ -591,14 +591,29 @@ class Biped:
         Raises :class:`kinema.SimulationError` on divergence, leaving the biped as it was."""
         self._w.step(real(dt, "dt"), _index(steps, "steps"))
 
-    def add_collider(self, collider: Plane | Sphere | Capsule | Box) -> int:
-        """Add a static collider under the feet, as :meth:`ArticulatedBody.add_collider`; the
-        controller takes a foot in it for a foot on the ground. Returns its index. A walker's
-        colliders are static: a ``velocity`` raises ``ValueError``."""
-        kind, params, friction, velocity = _collider(collider)
-        if any(velocity):
-            raise ValueError("velocity: a walker's colliders are static (velocity 0)")
-        return int(self._w.add_collider(kind, params, friction))
+    def add_collider(
+        self, collider: Plane | Sphere | Capsule | Box, angular_velocity: Any = (0.0, 0.0, 0.0)
+    ) -> int:
+        """Add a collider under the feet, static or moving (its ``velocity``, m/s, and
+        ``angular_velocity``, rad/s about its centre: a platform), as
+        :meth:`ArticulatedBody.add_collider`; the controller takes a foot in it for a foot on
+        the ground, and its balance feedback takes the centre of mass's velocity relative
+        to the surface under the stance foot (docs/character.md, "Moving colliders").
+        Returns its index (for :meth:`set_collider`)."""
+        spin = as_vector3(angular_velocity, "angular_velocity")
+        return int(self._w.add_collider(*_collider(collider), spin))
+
+    def set_collider(
+        self,
+        index: int,
+        collider: Plane | Sphere | Capsule | Box,
+        angular_velocity: Any = (0.0, 0.0, 0.0),
+    ) -> None:
+        """Move collider ``index`` to ``collider`` (same kind and size) at the biped's current
+        time, moving from then on at its ``velocity`` and ``angular_velocity``, as
+        :meth:`ArticulatedBody.set_collider`."""
+        spin = as_vector3(angular_velocity, "angular_velocity")
+        self._w.set_collider(_index(index, "index"), *_collider(collider), spin)
 
     def push(self, force: Any, duration: float, body: str | int = "torso") -> None:
         """Push ``body`` (a name or index; default the torso) with ``force`` (N, world, 3
@@ -692,8 +707,11 @@ class Tracker:
     the total mass and torque likewise with the body's rotational inertia about the root.
     Each frame is ``substeps`` steps of ``1 / (frame rate × substeps)`` s (default 4 at the
     CMU 120 Hz: 1/480 s). The clip is lifted onto the ground and looped (between its two
-    most alike frames, see :attr:`loop_span`) when tracked longer than it lasts. Ragdoll
-    options (``density``, ``scale``, ...) as :meth:`Ragdoll.from_skeleton`.
+    most alike frames, see :attr:`loop_span`) when tracked longer than it lasts. The ragdoll
+    starts at clip frame ``start_frame`` (its pose, rates and servo targets; below the loop's
+    end, ``loop_span[1]``); the lift and the loop are the whole clip's, so it tracks what a
+    tracker started at frame 0 tracks from that frame on. Ragdoll options (``density``,
+    ``scale``, ...) as :meth:`Ragdoll.from_skeleton`.
     """
 
     def __init__(
@@ -712,6 +730,7 @@ class Tracker:
         radius_ratio: float = 0.15,
         min_radius: float = 0.02,
         damping: float = 2.0,
+        start_frame: int = 0,
     ) -> None:
         if not isinstance(skeleton, (_kinema.AsfSkeleton, _kinema.BvhSkeleton)):
             raise TypeError(
@@ -743,6 +762,7 @@ class Tracker:
             real(assist_frequency, "assist_frequency"),
             real(assist_damping, "assist_damping"),
             _index(substeps, "substeps"),
+            _index(start_frame, "start_frame"),
         )
 
     def step(self, frames: int = 1) -> dict[str, np.ndarray]:
@@ -767,7 +787,7 @@ class Tracker:
 
     @property
     def frame(self) -> int:
-        """Frames tracked so far."""
+        """The clip frame the ragdoll is at: ``start_frame`` plus the frames tracked."""
         return int(self._t.frame)
 
     @property

@@ -24,7 +24,8 @@ as read. Bone ``dof`` lines may list ``tx ty tz`` (a slide along the bone frame'
 values in file order, rotations in radians, positions in file units). Rotation channels
 compose intrinsically in the order listed (``Zrotation Yrotation Xrotation`` is
 ``Rz @ Ry @ Rx``); position channels replace the matching ``OFFSET`` component. ``write_bvh``
-writes them back (read → write → read is the identity). Details in docs/mocap.md.
+writes them back (read → write → read is the identity); ``asf_to_bvh(skeleton, motion)`` converts
+an ASF/AMC clip to a BVH hierarchy and motion (to write with it). Details in docs/mocap.md.
 
 ``motion.pose(i)`` is frame ``i`` as a pose (its values), which ``forward_kinematics`` also
 accepts (then returning ``(joints, 3)`` and ``(joints, 4)``) and ``kinema.ik.solve`` takes.
@@ -53,6 +54,7 @@ __all__ = [
     "SAMPLE_DIR",
     "BvhSkeleton",
     "Skeleton",
+    "asf_to_bvh",
     "blend",
     "bone_length_error",
     "read_amc",
@@ -125,6 +127,19 @@ def read_bvh(path: str | os.PathLike[str]) -> tuple[Any, Any]:
     """Read a BVH file: ``(skeleton, motion)``; ``skeleton.frame_time`` is its Frame Time in
     seconds, ``motion.frames`` its frame count."""
     return _kinema.mocap_parse_bvh(_text(path), os.fspath(path))
+
+
+def asf_to_bvh(skeleton: Any, motion: Any) -> tuple[Any, Any]:
+    """The BVH ``(skeleton, motion)`` of an ASF ``skeleton`` and its ``motion``: a joint
+    ``root`` and one per bone at the bone's base, turned as the bone (three rotation channels
+    ``Z Y X`` where the bone has rotation dofs), lengths in the ASF's units, at the motion's
+    frame rate; forward kinematics agree. :func:`write_bvh` stores them. Bones with
+    translation or length dofs raise ``ValueError`` naming ``skeleton``."""
+    if not isinstance(skeleton, _kinema.AsfSkeleton):
+        raise ValueError("skeleton: expected a skeleton from kinema.mocap.read_asf")
+    if not isinstance(motion, _kinema.AmcMotion):
+        raise ValueError("motion: expected a motion from kinema.mocap.read_amc")
+    return _kinema.mocap_asf_to_bvh(skeleton, motion)
 
 
 def write_bvh(skeleton: Any, motion: Any, path: str | os.PathLike[str]) -> None:

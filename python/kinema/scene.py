@@ -57,9 +57,10 @@ __all__ = [
     "StabilityWarning",
 ]
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 """Version of the checkpoint format written by :meth:`Scene.save` (version 1 was a Python
-pickle, which can run code; such files are refused)."""
+pickle, which can run code; such files are refused; version 2 stored articulated bodies and
+bipeds as taking no colliders from the scene)."""
 
 _IMPLICIT = ("implicit_euler", "trapezoidal", "bdf2")  # A-stable: no step limit
 
@@ -115,7 +116,11 @@ class Character:
 
     Joint positions are the skeleton's forward kinematics times ``scale`` (file units to m;
     default: the skeleton's ``metres_per_unit`` for Acclaim files, 1 for BVH) plus ``offset``
-    (m), linearly interpolated between frames. Cloth and particles collide with the capsules."""
+    (m). Between frames the root moves linearly and every bone turns at a constant rate in the
+    plane of its two frames' directions (the slerp of the bone's vector), so bones keep their
+    lengths (a linear blend of joint positions would shorten a turning bone by
+    ``1 - cos(θ/2)``). Cloth, particles, articulated bodies and bipeds collide with the
+    capsules."""
 
     skeleton: Any
     motion: Any
@@ -126,6 +131,7 @@ class Character:
     friction: float = 0.5
     _joints: np.ndarray = field(init=False, repr=False)
     _bones: np.ndarray = field(init=False, repr=False)
+    _chains: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.radius) and self.radius > 0):
@@ -139,6 +145,15 @@ class Character:
         self._joints = np.asarray(positions, dtype=np.float64) * self.scale + offset
         parents = np.asarray(self.skeleton.parents)
         self._bones = np.array([(p, j) for j, p in enumerate(parents) if p >= 0], dtype=np.int64)
+        # Every joint is its root plus the vectors of the bones from that root to it:
+        # _chains[j, k] is 1 when k is j's root or the bone ending at k lies on that path.
+        self._chains = np.zeros((len(parents), len(parents)))
+        for j in range(len(parents)):
+            k = j
+            while parents[k] >= 0:
+                self._chains[j, k] = 1.0
+                k = int(parents[k])
+            self._chains[j, k] = 1.0
 
     def joints(self, t: float) -> np.ndarray:
         """Joint positions at time ``t`` (s), ``(J, 3)`` m."""
@@ -149,8 +164,26 @@ class Character:
         u = min(max(u, 0.0), frames - 1.0)
         i = min(int(u), frames - 2) if frames > 1 else 0
         w = u - i if frames > 1 else 0.0
-        j0 = self._joints[i]
-        return j0 if frames == 1 else (1.0 - w) * j0 + w * self._joints[i + 1]
+        if frames == 1:
+            return self._joints[0]
+        j0, j1 = self._joints[i], self._joints[i + 1]
+        parent, child = self._bones.T
+        d0, d1 = j0[child] - j0[parent], j1[child] - j1[parent]
+        # The angle between each bone's two vectors, atan2(|d0 x d1|, d0 . d1) (accurate at
+        # small angles), and the slerp weights sin((1 - w) θ) / sin θ, sin(w θ) / sin θ; where
+        # sin θ is below 1e-6 the linear weights: a bone that barely turns (shortened by
+        # θ² / 8 < 1e-12 relative), of zero length, or turning by half a turn in one frame
+        # (no plane to turn in).
+        theta = np.arctan2(np.linalg.norm(np.cross(d0, d1), axis=1), np.sum(d0 * d1, axis=1))
+        s = np.sin(theta)
+        turning = s > 1e-6
+        s = np.where(turning, s, 1.0)
+        a = np.where(turning, np.sin((1.0 - w) * theta) / s, 1.0 - w)
+        b = np.where(turning, np.sin(w * theta) / s, w)
+        # The roots blended linearly, the bones' vectors by the slerp, summed along the chains.
+        x = (1.0 - w) * j0 + w * j1
+        x[child] = a[:, None] * d0 + b[:, None] * d1
+        return self._chains @ x
 
     def _shapes(self, t: float) -> list[_Shape]:
         j = self.joints(t)
@@ -179,6 +212,17 @@ def _rigid_shapes(world: _rigid.World) -> list[_Shape]:
     return shapes
 
 
+#: The systems that take the scene's colliders (the rigid worlds' bodies and the kinematic
+#: objects) as their moving colliders.
+RECEIVERS = (
+    _cloth.Cloth,
+    _particles.ParticleSystem,
+    _fluid.Fluid,
+    _character.ArticulatedBody,
+    _character.Biped,
+)
+
+
 class _Entry:
     """A system in a scene: how to step it and whether it receives colliders."""
 
@@ -187,7 +231,7 @@ class _Entry:
     def __init__(self, obj: Any, options: dict[str, Any]) -> None:
         self.obj = obj
         self.options = options
-        self.receives = isinstance(obj, (_cloth.Cloth, _particles.ParticleSystem, _fluid.Fluid))
+        self.receives = isinstance(obj, RECEIVERS)
         self.colliders: list[int] = []  # indices of the scene's colliders in obj
 
 
@@ -223,7 +267,9 @@ class Scene:
         :class:`kinema.crowd.Crowd`, :class:`kinema.flock.Flock` (their own
         obstacles only), :class:`kinema.character.Biped` and
         :class:`kinema.character.ArticulatedBody` (a :class:`~kinema.character.Ragdoll` too;
-        their own ground and colliders, none from the scene), :class:`kinema.character.Tracker` (no options; each
+        their own ground and colliders, and the scene's colliders as moving colliders,
+        one-way: the rigid bodies do not feel them), :class:`kinema.character.Tracker`
+        (its own ground only; no options; each
         step ``dt / substeps`` must be a whole number of the clip's frames, e.g. ``dt=1/120``
         for a CMU clip),
         :class:`kinema.rods.Rod` and :class:`kinema.rods.Hair` (their own static colliders
@@ -323,7 +369,9 @@ class Scene:
         ``velocity · h`` to find its end-of-step contacts (implicit Euler and BDF2 solve for
         the end of the step), so it gets the pose at ``t - h``: both meet the collider where
         it is at ``t``. A fluid moves its colliders by ``velocity`` over its substeps, so it
-        gets the pose at ``t - h`` too (without friction: its colliders take none). Without poses from the previous step (the first step, or a collider
+        gets the pose at ``t - h`` too (without friction: its colliders take none), and so
+        does an articulated body or a biped, whose collider is at its pose at the body's
+        time, the start of the step, and moves at ``velocity`` within it. Without poses from the previous step (the first step, or a collider
         added since), the kinematic objects' are evaluated at ``t - h``; rigid worlds have
         already stepped, so their bodies count as at rest for that one step."""
         h = self._h
@@ -334,8 +382,10 @@ class Scene:
         for e in receivers:
             is_cloth = isinstance(e.obj, _cloth.Cloth)
             is_fluid = isinstance(e.obj, _fluid.Fluid)
+            is_body = isinstance(e.obj, (_character.ArticulatedBody, _character.Biped))
             module: Any = _cloth if is_cloth else _particles
-            back = h if is_cloth or is_fluid else 0.0  # from the pose at t to the receiver's
+            # From the pose at t to the receiver's.
+            back = h if is_cloth or is_fluid or is_body else 0.0
             for k, (s, p) in enumerate(zip(shapes, previous, strict=True)):
                 friction = None if is_fluid else s[-1]
                 if s[0] == "sphere":
@@ -352,7 +402,7 @@ class Scene:
                     c = module.Capsule(a, b, s[3], friction=friction, velocity=v)
                 if k < len(e.colliders):
                     e.obj.set_collider(e.colliders[k], c)
-                elif is_cloth or is_fluid:
+                elif is_cloth or is_fluid or is_body:
                     e.colliders.append(e.obj.add_collider(c))
                 else:
                     e.obj.add(c)

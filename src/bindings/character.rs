@@ -14,7 +14,6 @@ use crate::character::{
     Tree, Walker as WalkerCore,
 };
 use crate::error::Error;
-use crate::geometry::Shape;
 use crate::snapshot::Snapshot;
 use glam::{DMat3, DQuat, DVec3};
 use numpy::PyArrayDyn;
@@ -165,30 +164,29 @@ pub(super) fn orientations<'py>(
 #[pyclass(module = "kinema._kinema")]
 pub struct ArticulatedBody {
     body: Core,
-    /// The state at the last `_mark` (a scene's undo point).
-    saved: Option<State>,
+    /// The state and the colliders at the last `_mark` (a scene's undo point).
+    saved: Option<(State, Vec<Collider>)>,
 }
 
-impl ArticulatedBody {
-    /// A collider of `shape` at the body's current time, moving at `velocity` and turning at
-    /// `angular_velocity` (each checked finite here, so that adding one cannot fail halfway).
-    fn collider(
-        &self,
-        shape: Shape,
-        friction: Option<f64>,
-        velocity: [f64; 3],
-        angular_velocity: [f64; 3],
-    ) -> PyResult<Collider> {
-        let (velocity, angular_velocity) =
-            (DVec3::from_array(velocity), DVec3::from_array(angular_velocity));
-        for (name, v) in [("velocity", velocity), ("angular_velocity", angular_velocity)] {
-            if !v.is_finite() {
-                return Err(Error::invalid(name, "must be finite").into());
-            }
+/// A collider of the shape of kind `kind` with parameters `p` (`super::geometry::shape`) at
+/// time `since` (s, the bodies' clock), moving at `velocity` and turning at
+/// `angular_velocity` (each checked finite here, so that adding one cannot fail halfway).
+pub(super) fn moving_collider(
+    (kind, p): (&str, &[f64]),
+    friction: Option<f64>,
+    velocity: [f64; 3],
+    angular_velocity: [f64; 3],
+    since: f64,
+) -> PyResult<Collider> {
+    let (shape, _) = super::geometry::shape(kind, p, 0)?;
+    let (velocity, angular_velocity) =
+        (DVec3::from_array(velocity), DVec3::from_array(angular_velocity));
+    for (name, v) in [("velocity", velocity), ("angular_velocity", angular_velocity)] {
+        if !v.is_finite() {
+            return Err(Error::invalid(name, "must be finite").into());
         }
-        let since = self.body.state().time();
-        Ok(Collider { shape, friction, velocity, angular_velocity, since })
     }
+    Ok(Collider { shape, friction, velocity, angular_velocity, since })
 }
 
 #[pymethods]
@@ -311,10 +309,10 @@ impl ArticulatedBody {
         velocity: [f64; 3],
         angular_velocity: [f64; 3],
     ) -> PyResult<usize> {
-        let (shape, _) = super::geometry::shape(kind, &p, 0)?;
-        let collider = self.collider(shape, friction, velocity, angular_velocity)?;
-        let index = self.body.model_mut().add_collider(shape, friction)?;
-        self.body.model_mut().set_collider(index, collider)?;
+        let since = self.body.state().time();
+        let c = moving_collider((kind, &p), friction, velocity, angular_velocity, since)?;
+        let index = self.body.model_mut().add_collider(c.shape, friction)?;
+        self.body.model_mut().set_collider(index, c)?;
         Ok(index)
     }
 
@@ -331,9 +329,9 @@ impl ArticulatedBody {
         angular_velocity: [f64; 3],
     ) -> PyResult<()> {
         let index = index.count("index")?;
-        let (shape, _) = super::geometry::shape(kind, &p, 0)?;
-        let collider = self.collider(shape, friction, velocity, angular_velocity)?;
-        Ok(self.body.model_mut().set_collider(index, collider)?)
+        let since = self.body.state().time();
+        let c = moving_collider((kind, &p), friction, velocity, angular_velocity, since)?;
+        Ok(self.body.model_mut().set_collider(index, c)?)
     }
 
     /// Set (or with `kp` None remove) the PD servo of body `body`'s joint.
@@ -350,19 +348,26 @@ impl ArticulatedBody {
     }
 
     /// Remember the state (a scene's undo point): coordinates, rates, time, targets, torques
-    /// and pushes.
+    /// and pushes; and the colliders (their poses and count).
     fn _mark(&mut self) {
+        let body = &self.body;
         match &mut self.saved {
-            Some(state) => state.clone_from(self.body.state()),
-            None => self.saved = Some(self.body.state().clone()),
+            Some((state, colliders)) => {
+                state.clone_from(body.state());
+                colliders.clear();
+                colliders.extend_from_slice(body.model().colliders());
+            }
+            None => self.saved = Some((body.state().clone(), body.model().colliders().to_vec())),
         }
     }
 
-    /// Put the state back as it was at the last [`ArticulatedBody::_mark`], in place (views
-    /// of `q` and `qd` stay valid).
+    /// Put the state and the colliders (a scene's, moved and added during the frame) back as
+    /// they were at the last [`ArticulatedBody::_mark`], in place (views of `q` and `qd` stay
+    /// valid).
     fn _rollback(&mut self) {
-        if let Some(state) = &self.saved {
+        if let Some((state, colliders)) = &self.saved {
             self.body.state_mut().clone_from(state);
+            self.body.model_mut().restore_colliders(colliders);
         }
     }
 

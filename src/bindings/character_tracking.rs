@@ -26,7 +26,8 @@ pub struct Tracker {
 #[pymethods]
 impl Tracker {
     /// The tracker of `motion` by the ragdoll of `skeleton` (ragdoll options as
-    /// `ArticulatedBody.ragdoll`; gains and stepping as `TrackingOptions`).
+    /// `ArticulatedBody.ragdoll`; gains and stepping as `TrackingOptions`), started at clip
+    /// frame `start_frame` (`Tracker::start_at`).
     #[new]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -40,6 +41,7 @@ impl Tracker {
         assist_frequency: f64,
         assist_damping: f64,
         substeps: Int,
+        start_frame: Int,
     ) -> PyResult<Self> {
         let (skeleton, unit): (TrackedSkeleton, _) = if let Ok(sk) = skeleton.cast::<PySkeleton>() {
             let sk = &sk.borrow().skeleton;
@@ -63,7 +65,10 @@ impl Tracker {
             assist_damping,
             substeps: substeps.count("substeps")?,
         };
-        let tracker = Core::new(skeleton, &motion.motion, &ragdoll, Settings::default(), options)?;
+        let start = start_frame.count("start_frame")?;
+        let mut tracker =
+            Core::new(skeleton, &motion.motion, &ragdoll, Settings::default(), options)?;
+        tracker.start_at(start)?;
         Ok(Tracker { tracker, saved: None })
     }
 
@@ -131,7 +136,7 @@ impl Tracker {
         self.tracker.reference_q().to_vec()
     }
 
-    /// Frames tracked so far.
+    /// The clip frame the ragdoll is at (the start frame plus the frames tracked).
     #[getter]
     fn frame(&self) -> usize {
         self.tracker.frame()

@@ -4,8 +4,8 @@ use super::args::Int;
 use super::pickle::{reduce, Reduced};
 use crate::error::Error;
 use crate::mocap::{
-    parse_amc, parse_asf, parse_bvh, write_amc, write_asf, write_bvh, BvhSkeleton, Dof, Edit,
-    Motion, Skeleton,
+    asf_to_bvh, parse_amc, parse_asf, parse_bvh, write_amc, write_asf, write_bvh, BvhSkeleton, Dof,
+    Edit, Motion, Skeleton,
 };
 use crate::snapshot::Snapshot;
 use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArrayLike1, PyArrayMethods};
@@ -482,8 +482,22 @@ fn mocap_write_bvh(
     super::error::detached(py, || write_bvh(&skeleton.skeleton, &motion.motion))
 }
 
+/// The BVH hierarchy and motion of an ASF skeleton and its motion (`kinema::mocap::asf_to_bvh`).
+#[pyfunction]
+fn mocap_asf_to_bvh(
+    py: Python<'_>,
+    skeleton: &PySkeleton,
+    motion: &PyMotion,
+) -> PyResult<(Py<PyBvhSkeleton>, PyMotion)> {
+    let (skeleton, motion) =
+        super::error::detached(py, || asf_to_bvh(&skeleton.skeleton, &motion.motion))?;
+    let skeleton = Py::new(py, PyBvhSkeleton { skeleton })?;
+    Ok((skeleton.clone_ref(py), PyMotion { motion, skeleton: skeleton.into_any() }))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyBvhSkeleton>()?;
+    m.add_function(wrap_pyfunction!(mocap_asf_to_bvh, m)?)?;
     m.add_function(wrap_pyfunction!(mocap_parse_bvh, m)?)?;
     m.add_function(wrap_pyfunction!(mocap_write_bvh, m)?)?;
     m.add_function(wrap_pyfunction!(mocap_write_asf, m)?)?;

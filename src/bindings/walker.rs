@@ -10,8 +10,13 @@ macro_rules! walker_class {
         #[pyclass(module = "kinema._kinema")]
         pub struct $name {
             walker: $core,
-            /// The undo point of `_mark` (state and phase; none before the first).
-            saved: Option<(crate::character::State, crate::character::Phase)>,
+            /// The undo point of `_mark` (state, phase and colliders; none before the
+            /// first).
+            saved: Option<(
+                crate::character::State,
+                crate::character::Phase,
+                Vec<crate::character::Collider>,
+            )>,
         }
 
         #[pymethods]
@@ -30,22 +35,30 @@ macro_rules! walker_class {
                 Ok(Self { walker: <$core>::from_snapshot(data)?, saved: None })
             }
 
-            /// Remember the state and the controller's phase (a scene's undo point).
+            /// Remember the state, the controller's phase and the colliders (a scene's
+            /// undo point).
             fn _mark(&mut self) {
-                let phase = self.walker.phase();
+                let (walker, phase) = (&self.walker, self.walker.phase());
                 match &mut self.saved {
-                    Some((state, saved)) => {
-                        state.clone_from(self.walker.state());
+                    Some((state, saved, colliders)) => {
+                        state.clone_from(walker.state());
                         *saved = phase;
+                        colliders.clear();
+                        colliders.extend_from_slice(walker.model().colliders());
                     }
-                    None => self.saved = Some((self.walker.state().clone(), phase)),
+                    None => {
+                        let colliders = walker.model().colliders().to_vec();
+                        self.saved = Some((walker.state().clone(), phase, colliders));
+                    }
                 }
             }
 
-            /// Put the state and the phase back as they were at the last `_mark`.
+            /// Put the state, the phase and the colliders back as they were at the last
+            /// `_mark`.
             fn _rollback(&mut self) {
-                if let Some((state, phase)) = &self.saved {
+                if let Some((state, phase, colliders)) = &self.saved {
                     self.walker.restore(state, *phase);
+                    self.walker.restore_colliders(colliders);
                 }
             }
 
@@ -66,12 +79,45 @@ macro_rules! walker_class {
                 super::error::detached(py, || walker.step(dt, steps))
             }
 
-            /// Add a static collider of kind `kind` with the shape's parameters `p`
-            /// (`super::geometry::shape`) and Coulomb `friction` (None: the ground's);
-            /// returns its index.
-            fn add_collider(&mut self, kind: &str, p: Vec<f64>, friction: Option<f64>) -> PyResult<usize> {
-                let (shape, _) = super::geometry::shape(kind, &p, 0)?;
-                Ok(self.walker.add_collider(shape, friction)?)
+            /// Add a collider of kind `kind` with the shape's parameters `p`
+            /// (`super::geometry::shape`), Coulomb `friction` (None: the ground's),
+            /// `velocity` (m/s, world) and `angular_velocity` (rad/s, world, about its
+            /// centre; it is at `p` now); returns its index.
+            fn add_collider(
+                &mut self,
+                kind: &str,
+                p: Vec<f64>,
+                friction: Option<f64>,
+                velocity: [f64; 3],
+                angular_velocity: [f64; 3],
+            ) -> PyResult<usize> {
+                let since = self.walker.state().time();
+                let c = super::character::moving_collider(
+                    (kind, &p), friction, velocity, angular_velocity, since,
+                )?;
+                let index = self.walker.add_collider(c.shape, friction)?;
+                self.walker.set_collider(index, c)?;
+                Ok(index)
+            }
+
+            /// Move collider `index` to the shape `p` of kind `kind` (same kind and size) at
+            /// the walker's current time, translating at `velocity` (m/s, world) and turning
+            /// at `angular_velocity` (rad/s, world, about its centre) from then on.
+            fn set_collider(
+                &mut self,
+                index: super::args::Int,
+                kind: &str,
+                p: Vec<f64>,
+                friction: Option<f64>,
+                velocity: [f64; 3],
+                angular_velocity: [f64; 3],
+            ) -> PyResult<()> {
+                let index = index.count("index")?;
+                let since = self.walker.state().time();
+                let c = super::character::moving_collider(
+                    (kind, &p), friction, velocity, angular_velocity, since,
+                )?;
+                Ok(self.walker.set_collider(index, c)?)
             }
 
             /// Push the torso (body 0) or another body with `force` (N, world) for

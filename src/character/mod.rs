@@ -1,9 +1,9 @@
 //! Articulated characters in reduced coordinates: a kinematic tree of rigid bodies joined by
 //! revolute, ball, free and fixed joints, its dynamics by Featherstone's recursive
 //! algorithms ("Rigid Body Dynamics Algorithms", 2008: RNEA, CRBA, ABA), contact with the
-//! ground and with static colliders (planes, spheres, capsules, boxes: a staircase), joint
-//! limits, PD and stable PD servos (Tan, Liu & Turk 2011), and ragdolls built from
-//! motion-capture skeletons.
+//! ground and with static or moving colliders (planes, spheres, capsules, boxes: a
+//! staircase), joint limits, PD and stable PD servos (Tan, Liu & Turk 2011), and ragdolls
+//! built from motion-capture skeletons.
 //!
 //! Conventions, stated once: spatial vectors are **angular first** (`[ω; v]`, `[n; f]`) in
 //! body coordinates ([`spatial`]); quaternion coordinates are `(w, x, y, z)`; a ball joint's
@@ -18,7 +18,7 @@
 //! - `joints.rs`: joint transforms and motion subspaces (Table 4.1), `⊕`/`⊖` on coordinates.
 //! - `dynamics.rs`: kinematics, RNEA (Table 5.1), CRBA (Table 6.2), ABA (Table 7.1).
 //! - `forces.rs`: damping, joint limits, pushes, penalty contact with friction against the
-//!   ground and static colliders (planes, spheres, capsules, boxes).
+//!   ground and static or moving colliders (planes, spheres, capsules, boxes).
 //! - `servo.rs`: PD and stable PD (Tan et al. 2011, eq. 5–8).
 //! - `solver.rs`: the [`Solver`] (forward dynamics of a step, symplectic Euler, RK4).
 //! - `ragdoll.rs`: a model from an ASF or a BVH skeleton.

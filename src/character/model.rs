@@ -397,6 +397,15 @@ impl Model {
         &self.colliders
     }
 
+    /// Put back colliders saved from this model's [`Model::colliders`] (a scene's undo: the
+    /// poses, and the count, of colliders added since), reusing the storage.
+    pub fn restore_colliders(&mut self, saved: &[Collider]) {
+        self.colliders.truncate(saved.len());
+        let kept = self.colliders.len();
+        self.colliders.clone_from_slice(&saved[..kept]);
+        self.colliders.extend_from_slice(&saved[kept..]);
+    }
+
     /// The bodies, parents first.
     pub fn bodies(&self) -> &[Body] {
         &self.bodies

@@ -25,7 +25,7 @@
 
 use super::biped::{planar_biped, LEFT, RIGHT, TORSO};
 use super::dynamics::Tree;
-use super::model::{Model, Servo, Settings};
+use super::model::{Collider, Model, Servo, Settings};
 use super::solver::Solver;
 use super::state::State;
 use crate::error::{Error, Result};
@@ -207,8 +207,9 @@ impl Walker {
         &self.model
     }
 
-    /// Add a static collider under the feet ([`Model::add_collider`]); the controller takes
-    /// a foot in it for a foot on the ground. Returns its index.
+    /// Add a static collider under the feet ([`Model::add_collider`]; [`Walker::set_collider`]
+    /// moves it); the controller takes a foot in it for a foot on the ground. Returns its
+    /// index.
     ///
     /// # Errors
     /// Those of [`Model::add_collider`].
@@ -218,6 +219,17 @@ impl Walker {
         friction: Option<f64>,
     ) -> Result<usize> {
         self.model.add_collider(shape, friction)
+    }
+
+    /// Move collider `index` ([`Model::set_collider`]: a kinematic collider, translating and
+    /// turning at constant velocities from `collider.since`). The balance feedback takes the
+    /// centre of mass's velocity relative to the surface under the stance foot
+    /// ([`ground_velocity`]).
+    ///
+    /// # Errors
+    /// Those of [`Model::set_collider`]; the walker is then unchanged.
+    pub fn set_collider(&mut self, index: usize, collider: Collider) -> Result<()> {
+        self.model.set_collider(index, collider)
     }
 
     /// The biped's state (coordinates `[x, y, θ, hip, knee, ankle (right), hip, knee,
@@ -240,6 +252,11 @@ impl Walker {
     pub fn restore(&mut self, state: &State, phase: Phase) {
         self.state.clone_from(state);
         self.phase = phase;
+    }
+
+    /// Put back colliders saved from this walker's model ([`Model::restore_colliders`]).
+    pub fn restore_colliders(&mut self, saved: &[Collider]) {
+        self.model.restore_colliders(saved);
     }
 
     /// Advance `steps` steps of `dt` seconds: each runs the FSM's transitions, the
@@ -341,6 +358,34 @@ pub(super) fn touches(model: &Model, tree: &Tree, foot: usize, time: f64) -> boo
             .any(|k| k.distance(a.lerp(b, k.deepest_on_segment(a, b))).0 < c.radius)
 }
 
+/// The velocity (m/s, world) of the surface under body `foot`'s capsule where the colliders
+/// are at `time`: that of the collider nearest the capsule's axis (its surface velocity,
+/// [`Collider::surface_velocity`], at the point of it nearest the axis's deepest point) when
+/// it is nearer than the ground plane (at rest; none without a ground), else zero. The
+/// balance feedback takes the centre of mass's velocity relative to it, so that a walk on a
+/// platform moving at a constant velocity is the walk on still ground carried along
+/// (Galilean invariance; SIMBICON's `v` is against the stance foot's ground).
+pub(super) fn ground_velocity(model: &Model, tree: &Tree, foot: usize, time: f64) -> DVec3 {
+    let Some(c) = model.bodies()[foot].shape else { return DVec3::ZERO };
+    if model.colliders().is_empty() {
+        return DVec3::ZERO;
+    }
+    let (pos, rot) = (tree.positions()[foot], tree.orientations()[foot]);
+    let (a, b) = (pos + rot * c.a, pos + rot * c.b);
+    let mut nearest = if model.settings.ground { a.y.min(b.y) } else { f64::INFINITY };
+    let mut velocity = DVec3::ZERO;
+    for collider in model.colliders() {
+        let at = collider.at(time);
+        let p = a.lerp(b, at.deepest_on_segment(a, b));
+        let (d, n) = at.distance(p);
+        if d < nearest {
+            nearest = d;
+            velocity = collider.surface_velocity(&at, p - d * n);
+        }
+    }
+    velocity
+}
+
 /// The legs as (swing, stance) in FSM state `state`.
 fn legs(state: u8) -> ([usize; 3], [usize; 3]) {
     if state < 2 {
@@ -409,7 +454,7 @@ fn control(gait: &Gait, phase: &Phase, model: &Model, tree: &Tree, state: &mut S
     let limit = gait.max_torque;
     let (lin, mass) = (tree.momentum(model).1, model.mass());
     let d = (tree.com(model) - tree.positions()[stance[2]]).dot(ahead);
-    let v = lin.dot(ahead) / mass;
+    let v = lin.dot(ahead) / mass - ground_velocity(model, tree, stance[2], state.time).dot(ahead);
     // The swing hip's target is measured from the ground's normal (the slope adjustment:
     // on a slope of α it is θ_d + α from the vertical), the torso's from the vertical.
     let target_hip = pose.swing_hip + pose.cd * d + pose.cv * v - tilt;

@@ -36,8 +36,10 @@
 use super::biped3d::{biped3d, LEFT_3D, RIGHT_3D, TORSO_3D};
 use super::dynamics::Tree;
 use super::forces::{contacts, implicit};
-use super::model::{Model, Servo, Settings};
-use super::simbicon::{advance, check_gravity, touches, vertical, walk, Gait, Phase};
+use super::model::{Collider, Model, Servo, Settings};
+use super::simbicon::{
+    advance, check_gravity, ground_velocity, touches, vertical, walk, Gait, Phase,
+};
 use super::solver::Solver;
 use super::spatial::angular;
 use super::state::State;
@@ -150,8 +152,9 @@ impl Walker3d {
         &self.model
     }
 
-    /// Add a static collider under the feet ([`Model::add_collider`]); the controller takes
-    /// a foot in it for a foot on the ground. Returns its index.
+    /// Add a static collider under the feet ([`Model::add_collider`]; [`Walker3d::set_collider`]
+    /// moves it); the controller takes a foot in it for a foot on the ground. Returns its
+    /// index.
     ///
     /// # Errors
     /// Those of [`Model::add_collider`].
@@ -161,6 +164,17 @@ impl Walker3d {
         friction: Option<f64>,
     ) -> Result<usize> {
         self.model.add_collider(shape, friction)
+    }
+
+    /// Move collider `index` ([`Model::set_collider`]: a kinematic collider, translating and
+    /// turning at constant velocities from `collider.since`). The balance feedback takes the
+    /// centre of mass's velocity relative to the surface under the stance foot
+    /// ([`super::simbicon::ground_velocity`], of the heel).
+    ///
+    /// # Errors
+    /// Those of [`Model::set_collider`]; the walker is then unchanged.
+    pub fn set_collider(&mut self, index: usize, collider: Collider) -> Result<()> {
+        self.model.set_collider(index, collider)
     }
 
     /// The biped's state (coordinates as [`biped3d`]'s).
@@ -182,6 +196,11 @@ impl Walker3d {
     pub fn restore(&mut self, state: &State, phase: Phase) {
         self.state.clone_from(state);
         self.phase = phase;
+    }
+
+    /// Put back colliders saved from this walker's model ([`Model::restore_colliders`]).
+    pub fn restore_colliders(&mut self, saved: &[Collider]) {
+        self.model.restore_colliders(saved);
     }
 
     /// Advance `steps` steps of `dt` seconds: each runs the FSM's transitions, the
@@ -312,7 +331,8 @@ fn control(
     let pose = if phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
     let (swing, stance, side) = legs(phase.state);
     let (_, ahead, tilt) = vertical(model);
-    let vel = tree.momentum(model).1 / model.mass();
+    let vel = tree.momentum(model).1 / model.mass()
+        - ground_velocity(model, tree, stance[2], state.time());
     let r = tree.com(model) - tree.positions()[stance[2]];
     let sagittal = pose.swing_hip + pose.cd * r.dot(ahead) + pose.cv * vel.dot(ahead);
     let lateral = side * coronal.swing_hip + coronal.cd * r.z + coronal.cv * vel.z;

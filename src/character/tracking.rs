@@ -249,12 +249,33 @@ impl Tracker {
         };
         t.lift_to_ground();
         t.find_loop();
-        t.reference(0);
-        let state = &mut t.body.state;
-        state.q.copy_from_slice(&t.q_ref);
-        state.qd.copy_from_slice(&t.v_ref);
-        state.targets.copy_from_slice(&t.q_ref);
+        t.start_at(0)?;
         Ok(t)
+    }
+
+    /// Put the ragdoll at frame `frame` of the clip: its coordinates, rates and servo
+    /// targets become `q̄_k`, `q̄̇_k`, `q̄_k` of that frame, which the next [`Tracker::step`]
+    /// tracks from (`new` starts at frame 0). The clip's lift and loop are the whole clip's,
+    /// so starting at `k` tracks what a tracker started at 0 tracks from frame `k` on; the
+    /// body's time and pushes are kept.
+    ///
+    /// # Errors
+    /// `start_frame` not before the loop's end `b` ([`Tracker::loop_span`]; the frames from
+    /// `b` on are not played).
+    pub fn start_at(&mut self, frame: usize) -> Result<()> {
+        if frame >= self.loop_span.1 {
+            return Err(Error::invalid(
+                "start_frame",
+                format!("must be below the loop's end, frame {}", self.loop_span.1),
+            ));
+        }
+        self.frame = frame;
+        self.reference(frame);
+        let state = &mut self.body.state;
+        state.q.copy_from_slice(&self.q_ref);
+        state.qd.copy_from_slice(&self.v_ref);
+        state.targets.copy_from_slice(&self.q_ref);
+        Ok(())
     }
 
     /// Shift the clip vertically so that the median over its frames of the ragdoll's lowest
@@ -542,7 +563,7 @@ impl Tracker {
         &self.q_ref
     }
 
-    /// Frames tracked so far.
+    /// The clip frame the ragdoll is at: the start frame plus the frames tracked.
     pub fn frame(&self) -> usize {
         self.frame
     }

@@ -1,4 +1,5 @@
-//! Biovision hierarchy (BVH): reader and forward kinematics; the writer is in `bvh/write.rs`.
+//! Biovision hierarchy (BVH): reader and forward kinematics; the writer is in `bvh/write.rs`,
+//! the conversion from an Acclaim skeleton and motion in `bvh/from_asf.rs`.
 //!
 //! A BVH file is a `HIERARCHY` of joints — each with an `OFFSET` from its parent joint (in the
 //! parent's frame), a list of `CHANNELS` and optionally an `End Site` — followed by a `MOTION`
@@ -39,7 +40,9 @@ use super::{Dof, Motion};
 use crate::error::{Error, Result};
 use glam::{DQuat, DVec3};
 
+mod from_asf;
 mod write;
+pub use from_asf::asf_to_bvh;
 pub use write::write_bvh;
 
 /// One joint of a BVH hierarchy, as read.

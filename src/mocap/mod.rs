@@ -29,7 +29,7 @@ mod parse;
 mod snapshot;
 mod write;
 
-pub use bvh::{parse_bvh, write_bvh, BvhJoint, BvhSkeleton};
+pub use bvh::{asf_to_bvh, parse_bvh, write_bvh, BvhJoint, BvhSkeleton};
 pub use edit::Edit;
 pub use parse::{parse_amc, parse_asf};
 pub use write::{write_amc, write_asf};

@@ -137,3 +137,25 @@ def test_write_checks_its_arguments(tmp_path):
         mocap.write_bvh(sk, amc, tmp_path / "x.bvh")
     with pytest.raises(ValueError, match="values per frame"):
         sk.forward_kinematics(amc)
+
+
+def test_an_asf_clip_converted_to_bvh_poses_its_joints_as_the_bones(tmp_path):
+    # CMU 07_05 through asf_to_bvh and write_bvh: every joint of the file read back at its
+    # bone's base (the parent's tip) to 1e-9 units, on every frame; it is the repository's
+    # 07_05-walk.bvh; arguments of the wrong kind are named.
+    sk = mocap.read_asf(DATA / "07-walk.asf")
+    motion = mocap.read_amc(DATA / "07_05-walk.amc", sk)
+    mocap.write_bvh(*mocap.asf_to_bvh(sk, motion), tmp_path / "walk.bvh")
+    assert (tmp_path / "walk.bvh").read_bytes() == (DATA / "07_05-walk.bvh").read_bytes()
+    bvh, clip = mocap.read_bvh(tmp_path / "walk.bvh")
+    pos, _ = sk.forward_kinematics(motion)
+    ours, _ = bvh.forward_kinematics(clip)
+    row = {name: i for i, name in enumerate(sk.joint_names)}
+    for j, (name, parent) in enumerate(zip(bvh.joint_names, bvh.parents, strict=True)):
+        base = 0 if parent < 0 else row[bvh.joint_names[parent]]
+        assert name in row
+        np.testing.assert_allclose(ours[:, j], pos[:, base], atol=1e-9)
+    with pytest.raises(ValueError, match="skeleton"):
+        mocap.asf_to_bvh(bvh, clip)
+    with pytest.raises(ValueError, match="motion"):
+        mocap.asf_to_bvh(sk, None)

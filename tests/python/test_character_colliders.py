@@ -98,8 +98,6 @@ def test_bad_colliders_name_the_argument():
             character.Biped().add_collider(shape)
     with pytest.raises(TypeError, match="collider"):
         b.add_collider((0, 0, 0))
-    with pytest.raises(ValueError, match="velocity"):  # a walker's colliders are static
-        character.Biped().add_collider(geometry.Box((0, 0, 0), (1, 1, 1), velocity=(1, 0, 0)))
     b.step(1 / 480, 480)
     assert b.q[1] < -1.0  # none of them was added
     b.add_collider(geometry.Box((0, -3, 0), (1, 1, 1), velocity=(0, -1, 0)))
@@ -117,6 +115,20 @@ def test_bad_colliders_name_the_argument():
     (box,) = b.colliders()  # as it was: at (0, -3, 0) when added, moving down
     np.testing.assert_allclose(box.center, (0.0, -3.0, 0.0), atol=1e-12)
     np.testing.assert_allclose(box.velocity, (0.0, -1.0, 0.0))
+    # The walkers take moving colliders with the same arguments, and refuse the same.
+    w = character.Biped(dims=3)
+    w.add_collider(geometry.Box((3, -0.5, 0), (1, 0.5, 1), velocity=(0.5, 0, 0)), (0, 0.1, 0))
+    for shape, name in [
+        (geometry.Box((0, 0, 0), (1, 2, 1)), "shape"),
+        (geometry.Box((0, 0, 0), (1, 0.5, 1), velocity=(0, nan, 0)), "velocity"),
+    ]:
+        with pytest.raises(ValueError, match=name):
+            w.set_collider(0, shape)
+    with pytest.raises(ValueError, match="angular_velocity"):
+        w.add_collider(geometry.Box((0, 0, 0), (1, 1, 1)), angular_velocity=(0, nan, 0))
+    with pytest.raises(ValueError, match="index"):
+        w.set_collider(1, geometry.Box((0, 0, 0), (1, 0.5, 1)))
+    w.set_collider(0, geometry.Box((3, -0.5, 0), (1, 0.5, 1), velocity=(0.4, 0, 0)))
 
 
 def test_a_capsule_on_a_platform_moved_every_frame_follows_it():

@@ -61,6 +61,33 @@ def test_tracker_arguments_are_named(walk):
         character.Tracker(sk, mocap.read_bvh(DATA / "01_01.bvh")[1])
 
 
+def test_a_tracker_started_at_a_frame_is_at_that_frame_of_the_clip(walk):
+    """``start_frame=k`` puts the ragdoll at the clip's frame k with its rates: as the tracker
+    of the clip sliced at k (the way before), apart from the lift onto the ground (the
+    slice's from its own frames, the start's from the whole clip's); tracking from there is
+    checked against the slice in tests/character_tracking.rs. Bad start frames are named."""
+    sk, motion = walk
+    k = 40
+    at = character.Tracker(sk, motion, start_frame=k)
+    cut = character.Tracker(sk, motion.slice(k, motion.frames))
+    assert at.frame == k and cut.frame == 0
+    lift = np.zeros(len(at.q))
+    lift[1] = at.q[1] - cut.q[1]
+    assert abs(lift[1]) > 1e-4  # the slice is lifted by a different median
+    np.testing.assert_allclose(at.q, cut.q + lift, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(at.reference_q, cut.reference_q + lift, rtol=0, atol=1e-12)
+    first = character.Tracker(sk, motion)
+    assert not np.allclose(first.q[7:], at.q[7:], atol=1e-3)  # frame 40 is another pose
+    at.step(4)
+    assert at.frame == k + 4 and at.time == pytest.approx(4 / 120)
+    with pytest.raises(ValueError, match="start_frame"):
+        character.Tracker(sk, motion, start_frame=-1)
+    with pytest.raises(ValueError, match="start_frame"):
+        character.Tracker(sk, motion, start_frame=first.loop_span[1])
+    with pytest.raises(TypeError, match="start_frame"):
+        character.Tracker(sk, motion, start_frame=1.5)
+
+
 def test_a_bvh_ragdoll_has_a_body_per_joint_and_falls_limp():
     sk, _ = mocap.read_bvh(DATA / "01_01.bvh")
     with pytest.raises(ValueError, match="scale"):

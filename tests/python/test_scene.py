@@ -421,8 +421,26 @@ def test_character_capsules_follow_the_motion():
     fk, _ = skel.forward_kinematics(motion)
     j = walker.joints(10 / motion.frame_rate)
     np.testing.assert_allclose(j, fk[10] * 0.0254 / 0.45, atol=1e-12)
+    # Half way between frames the root is half way and every bone is as long as in the
+    # frames, along the bisector of its two directions (a linear blend of the joints shortened
+    # the right toes by 5.4 %, which the biped's collider check refused).
     mid = walker.joints(10.5 / motion.frame_rate)
-    np.testing.assert_allclose(mid, 0.5 * (fk[10] + fk[11]) * 0.0254 / 0.45, atol=1e-12)
+    np.testing.assert_allclose(mid[0], 0.5 * (fk[10, 0] + fk[11, 0]) * 0.0254 / 0.45, atol=1e-12)
+    a, b = walker._bones.T
+    d0, d1, d = ((x[b] - x[a]) for x in (fk[10] * 0.0254 / 0.45, fk[11] * 0.0254 / 0.45, mid))
+    lengths = np.linalg.norm(d0, axis=1)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), lengths, rtol=1e-12, atol=1e-15)
+    bisector = d0 / lengths[:, None] + d1 / lengths[:, None]
+    np.testing.assert_allclose(np.cross(d, bisector), 0.0, atol=1e-12)
+    assert (np.sum(d * bisector, axis=1) >= 0).all()
+    # A quarter of the way, the bone has turned a quarter of the angle.
+    quarter = walker.joints(10.25 / motion.frame_rate)
+    dq = quarter[b] - quarter[a]
+    turned, whole = (
+        np.arctan2(np.linalg.norm(np.cross(d0, x), axis=1), np.sum(d0 * x, axis=1))
+        for x in (dq, d1)
+    )
+    np.testing.assert_allclose(turned, whole / 4, atol=1e-9)
     assert len(walker._shapes(0.0)) == sum(p >= 0 for p in skel.parents)
     scene = Scene(dt=1 / 30)
     c = scene.add(cloth.Cloth.grid(6, 6, 0.4, 0.4))
@@ -430,6 +448,32 @@ def test_character_capsules_follow_the_motion():
     scene.add(walker)
     scene.run(frames=3, progress=False)
     assert np.isfinite(c.positions).all()
+
+
+def test_a_biped_takes_a_characters_bones_frame_after_frame(tmp_path: Path):
+    # The scene hands the character's bones to the biped as colliders every step; the
+    # biped refuses a collider whose size changed, so the bones must keep their lengths
+    # between frames (the second step raised "shape: must be of the collider's kind and
+    # size" when joints were blended linearly). The character walks 3 m to the side, out of
+    # reach: the biped walks bit for bit as without it. Saved and loaded, the scene goes on
+    # bit for bit.
+    skel = mocap.read_asf(DATA / "07-walk.asf")
+    walker = Character(skel, mocap.read_amc(DATA / "07_05-walk.amc", skel), offset=(0, 0, 3))
+    scenes = [Scene(dt=1 / 120, substeps=4) for _ in range(2)]
+    bipeds = [s.add(character.Biped()) for s in scenes]
+    scenes[0].add(walker)
+    for s in scenes:
+        s.step(12)
+    assert len(scenes[0]._entries[0].colliders) == len(walker._bones)
+    assert np.array_equal(bipeds[0].q, bipeds[1].q) and np.array_equal(bipeds[0].qd, bipeds[1].qd)
+    assert bipeds[0].time == pytest.approx(0.1)
+    scenes[0].save(tmp_path / "walkers.kin")
+    loaded = Scene.load(tmp_path / "walkers.kin")
+    scenes[0].step(6)
+    loaded.step(6)
+    assert np.array_equal(bipeds[0].q, loaded.systems[0].q)
+    t = 0.123
+    assert np.array_equal(walker.joints(t), loaded.systems[1].joints(t))
 
 
 def test_recording_and_diagnostics():
@@ -743,3 +787,83 @@ def test_a_ragdolls_failed_frame_leaves_it_as_before():
         pytest.fail("the spring pair never diverged")
     assert time > 0 and scene.time == time
     assert _ragdoll_bits(bystander) == before
+
+
+def _fixed_box(centre: tuple[float, float, float], half: list[float], mu: float) -> rigid.World:
+    """A rigid world holding one fixed box (a scene's collider)."""
+    world = rigid.World()
+    world.add_body(rigid.Box(half), position=centre, fixed=True, friction=mu)
+    return world
+
+
+def test_articulated_bodies_rest_on_a_scenes_box():
+    # A ball (r = 0.1 m, no ground of its own) dropped on a rigid world's fixed box (top at
+    # y = 0.2) rests on its top sunk by the contact spring's g / ω_c² (as on its own
+    # colliders, docs/character.md): its centre at 0.2 + r - g/ω_c² to 1e-4. The limp CMU 07
+    # ragdoll dropped 0.3 m onto a box whose top is 0.5 m up (its own ground below) comes to
+    # rest on it: after 3 s its lowest capsule point within 2 cm of the top (not through it,
+    # not on its ground) and its kinetic energy under 1 J. Without the scene's colliders
+    # (receivers not including articulated bodies) both fall through.
+    scene = Scene(dt=1 / 120, substeps=4)
+    scene.add(_fixed_box((0.0, 0.1, 0.0), [1.0, 0.1, 1.0], 0.5))
+    m = character.Model()
+    radius = 0.1
+    mass = 1000.0 * 4.0 / 3.0 * np.pi * radius**3
+    m.add_body(
+        None,
+        "free",
+        mass=mass,
+        inertia=np.eye(3) * 0.4 * mass * radius**2,
+        offset=(0.0, 0.6, 0.0),
+        shape=((0, 0, 0), (0, 0, 0), radius),
+    )
+    ball = scene.add(character.ArticulatedBody(m, ground=False))
+    scene.step(240)
+    rest = 0.2 + radius - 9.81 / ball.settings["contact_frequency"] ** 2
+    height = ball.positions()[0, 1]
+    assert height == pytest.approx(rest, abs=1e-4)
+    assert len(ball.colliders()) == 1
+
+    scene = Scene(dt=1 / 120, substeps=4)
+    top = 0.5
+    scene.add(_fixed_box((0.0, top / 2, 0.0), [1.5, top / 2, 1.5], 0.5))
+    sk = mocap.read_asf(DATA / "07-walk.asf")
+    r = scene.add(character.Ragdoll.from_skeleton(sk, clearance=top + 0.3))
+    scene.step(360)
+    lowest = min(
+        (p + kinema.Rotation.from_quat(o).apply(end))[1] - c[2]
+        for p, o, c in zip(r.positions(), r.orientations(), r.capsules(), strict=True)
+        if c is not None
+        for end in c[:2]
+    )
+    kinetic, _ = r.energy()
+    print(f"ball at {height:.6f} m (rest {rest:.6f}); ragdoll lowest {lowest:.4f} m, ", end="")
+    print(f"{kinetic:.3g} J")
+    assert top - 0.02 < lowest < top + 0.02
+    assert kinetic < 1.0
+
+
+def test_a_failed_first_frame_takes_back_the_colliders_a_ragdoll_was_given():
+    # The ragdoll diverges in the first frame, after the scene gave it its collider: the
+    # collider goes with the undone frame (none left, the scene's record empty), so the next
+    # frames give it exactly one again. A checkpoint of the scene resumes bit for bit.
+    sk = mocap.read_asf(DATA / "07-walk.asf")
+    scene = Scene(dt=1 / 120, substeps=4)
+    scene.add(_fixed_box((0.0, 0.25, 0.0), [1.5, 0.25, 1.5], 0.5))
+    r = scene.add(character.Ragdoll.from_skeleton(sk, clearance=0.8))
+    _absurd_servos(r)
+    before = _ragdoll_bits(r)
+    with pytest.raises(kinema.SimulationError):
+        scene.step()
+    assert r.colliders() == [] and scene._entries[1].colliders == []
+    assert _ragdoll_bits(r) == before
+    r.configure(servo_mode="stable")
+    for b in range(1, len(r)):
+        with contextlib.suppress(ValueError):
+            r.set_servo(b, kp=None)
+    scene.step(3)
+    assert len(r.colliders()) == 1
+    copy = pickle.loads(pickle.dumps(scene))
+    scene.step(30)
+    copy.step(30)
+    assert np.array_equal(r.q, copy.systems[1].q)
