@@ -19,10 +19,11 @@
 //! step reads the sorted boids ([`Cells`]) and writes the moved ones ([`Moved`]) in the same
 //! slots, with their new cells and the bounds of those cells, and the next step re-sorts them
 //! from that order, which is nearly the new one (boids move less than a cell a step), so the
-//! counting sort and the copy into the new order read memory nearly in sequence instead of
-//! at random (Green 2008 keeps particles sorted the same way). Buffers only grow.
+//! counting sort's scatter, which copies each boid into its new slot, reads and writes memory
+//! nearly in sequence instead of at random (Green 2008 keeps particles sorted the same way).
+//! Buffers only grow.
 
-use crate::geometry::grid::{cell_of, sort_by_bucket};
+use crate::geometry::grid::cell_of;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -174,10 +175,10 @@ pub(super) struct Cells {
     pub(super) velocities: Vec<DVec3>,
     /// Cells in sorted order.
     cells: Vec<[i64; 3]>,
-    /// Scratch of a sort: the bucket of each slot before it, the slot each new slot comes
-    /// from, and the order after it (swapped with `order`).
+    /// Scratch of a sort: the bucket of each slot before it, the next free slot of each
+    /// bucket, and the order after it (swapped with `order`).
     bucket: Vec<u32>,
-    from: Vec<u32>,
+    end: Vec<u32>,
     next_order: Vec<u32>,
     /// Start of each bucket in the sorted order (`buckets + 1` entries).
     start: Vec<u32>,
@@ -222,7 +223,12 @@ impl Cells {
         &self.rank
     }
 
-    /// Sort the `moved` boids, in the slots of this order, into cells.
+    /// Sort the `moved` boids, in the slots of this order, into cells: a counting sort by
+    /// bucket whose scatter copies each boid's position, velocity and cell into its sorted
+    /// slot (no separate gather), and inserts it by index among the boids of its bucket
+    /// already placed, so the order is by bucket, then by index. The scatter visits the boids
+    /// in the last order, which was by index within a bucket, so only a boid that changed
+    /// bucket ever moves others (a few shifts a step).
     pub(super) fn sort(&mut self, moved: &Moved) {
         let n = moved.positions.len();
         let Bounds { lo, hi, z, still, .. } = moved.bounds;
@@ -241,39 +247,52 @@ impl Cells {
         let buckets = (boxed.min(2 * n as u64).max(4) as usize).next_power_of_two();
         self.mask = buckets as u64 - 1;
         self.dense = boxed <= buckets as u64;
-        let mut bucket = std::mem::take(&mut self.bucket);
+        // Count the boids of each bucket (keeping each one's bucket), then each bucket's
+        // first slot: `start[b]`, and `end[b]` the next free slot of the scatter.
+        let (mut bucket, mut start, mut end) = (
+            std::mem::take(&mut self.bucket),
+            std::mem::take(&mut self.start),
+            std::mem::take(&mut self.end),
+        );
         bucket.clear();
-        bucket.extend(moved.cells.iter().map(|&c| self.bucket_of(c)));
-        self.bucket = bucket;
-        // Stable by the slot before: within a bucket still in the previous order, which was by
-        // index; a boid that changed bucket is moved into place by index (a few swaps).
-        sort_by_bucket(&self.bucket, buckets, &mut self.start, &mut self.from, |_, _| {});
-        let (order, next, from, bucket) =
-            (&self.order, &mut self.next_order, &mut self.from, &self.bucket);
-        next.resize(n, 0);
-        for k in 0..n {
-            next[k] = order[from[k] as usize];
-            let mut j = k;
-            while j > 0
-                && bucket[from[j - 1] as usize] == bucket[from[j] as usize]
-                && next[j - 1] > next[j]
-            {
-                next.swap(j - 1, j);
-                from.swap(j - 1, j);
-                j -= 1;
-            }
+        start.clear();
+        start.resize(buckets + 1, 0);
+        for &c in &moved.cells {
+            let b = self.bucket_of(c);
+            bucket.push(b);
+            start[b as usize + 1] += 1;
         }
-        std::mem::swap(&mut self.order, &mut self.next_order);
+        for k in 0..buckets {
+            start[k + 1] += start[k];
+        }
+        end.clear();
+        end.extend_from_slice(&start[..buckets]);
+        self.next_order.resize(n, 0);
         self.positions.resize(n, DVec3::ZERO);
         self.velocities.resize(n, DVec3::ZERO);
         self.cells.resize(n, [0; 3]);
-        (&mut self.positions, &mut self.velocities, &mut self.cells)
-            .into_par_iter()
-            .zip(&self.from)
-            .for_each(|((p, v, c), &f)| {
-                let f = f as usize;
-                (*p, *v, *c) = (moved.positions[f], moved.velocities[f], moved.cells[f]);
-            });
+        let (order, next) = (&self.order, &mut self.next_order);
+        let (positions, velocities, cells) =
+            (&mut self.positions, &mut self.velocities, &mut self.cells);
+        for (f, &b) in bucket.iter().enumerate() {
+            let b = b as usize;
+            let (first, mut s) = (start[b] as usize, end[b] as usize);
+            end[b] += 1;
+            let boid = order[f];
+            while s > first && next[s - 1] > boid {
+                next[s] = next[s - 1];
+                positions[s] = positions[s - 1];
+                velocities[s] = velocities[s - 1];
+                cells[s] = cells[s - 1];
+                s -= 1;
+            }
+            next[s] = boid;
+            positions[s] = moved.positions[f];
+            velocities[s] = moved.velocities[f];
+            cells[s] = moved.cells[f];
+        }
+        std::mem::swap(&mut self.order, &mut self.next_order);
+        (self.bucket, self.start, self.end) = (bucket, start, end);
     }
 
     /// Inverse of the cells' size (1/m).

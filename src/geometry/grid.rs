@@ -73,15 +73,8 @@ fn floor(x: f64) -> i64 {
 
 /// Counting sort of the items `0..bucket.len()` by their `bucket` (of `buckets`), stable (by
 /// index within a bucket): `sorted` gets the items in order and `start[b]` the first slot of
-/// bucket `b` (`buckets + 1` entries); `placed(i, slot)` is called as item `i` takes `slot`.
-/// Also the flock's cells (`flock/cells.rs`). Buffers only grow.
-pub(crate) fn sort_by_bucket(
-    bucket: &[u32],
-    buckets: usize,
-    start: &mut Vec<u32>,
-    sorted: &mut Vec<u32>,
-    mut placed: impl FnMut(usize, u32),
-) {
+/// bucket `b` (`buckets + 1` entries). Buffers only grow.
+fn sort_by_bucket(bucket: &[u32], buckets: usize, start: &mut Vec<u32>, sorted: &mut Vec<u32>) {
     start.clear();
     start.resize(buckets + 1, 0);
     for &b in bucket {
@@ -94,7 +87,6 @@ pub(crate) fn sort_by_bucket(
     for (i, &b) in bucket.iter().enumerate() {
         let slot = &mut start[b as usize];
         sorted[*slot as usize] = i as u32;
-        placed(i, *slot);
         *slot += 1;
     }
     // The scatter advanced each start to the next bucket's start: shift back.
@@ -132,7 +124,7 @@ impl Grid {
         });
         let layer = self.cell.first().map_or(0, |c| c[2]);
         self.planar = self.cell.par_iter().all(|c| c[2] == layer);
-        sort_by_bucket(&self.bucket, buckets, &mut self.start, &mut self.sorted, |_, _| {});
+        sort_by_bucket(&self.bucket, buckets, &mut self.start, &mut self.sorted);
         self.sorted_points.resize(n, DVec3::ZERO);
         self.sorted_cells.resize(n, [0; 3]);
         let cell = &self.cell;
