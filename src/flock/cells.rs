@@ -23,7 +23,7 @@
 //! nearly in sequence instead of at random (Green 2008 keeps particles sorted the same way).
 //! Buffers only grow.
 
-use crate::geometry::grid::cell_of;
+use crate::geometry::grid::{bucket_starts, cell_of};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -247,24 +247,16 @@ impl Cells {
         let buckets = (boxed.min(2 * n as u64).max(4) as usize).next_power_of_two();
         self.mask = buckets as u64 - 1;
         self.dense = boxed <= buckets as u64;
-        // Count the boids of each bucket (keeping each one's bucket), then each bucket's
-        // first slot: `start[b]`, and `end[b]` the next free slot of the scatter.
+        // Each boid's bucket, each bucket's first slot `start[b]`, and `end[b]` the next free
+        // slot of the scatter.
         let (mut bucket, mut start, mut end) = (
             std::mem::take(&mut self.bucket),
             std::mem::take(&mut self.start),
             std::mem::take(&mut self.end),
         );
         bucket.clear();
-        start.clear();
-        start.resize(buckets + 1, 0);
-        for &c in &moved.cells {
-            let b = self.bucket_of(c);
-            bucket.push(b);
-            start[b as usize + 1] += 1;
-        }
-        for k in 0..buckets {
-            start[k + 1] += start[k];
-        }
+        bucket.extend(moved.cells.iter().map(|&c| self.bucket_of(c)));
+        bucket_starts(&bucket, buckets, &mut start);
         end.clear();
         end.extend_from_slice(&start[..buckets]);
         self.next_order.resize(n, 0);

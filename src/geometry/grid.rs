@@ -71,10 +71,11 @@ fn floor(x: f64) -> i64 {
     }
 }
 
-/// Counting sort of the items `0..bucket.len()` by their `bucket` (of `buckets`), stable (by
-/// index within a bucket): `sorted` gets the items in order and `start[b]` the first slot of
-/// bucket `b` (`buckets + 1` entries). Buffers only grow.
-fn sort_by_bucket(bucket: &[u32], buckets: usize, start: &mut Vec<u32>, sorted: &mut Vec<u32>) {
+/// The counting pass of a counting sort of the items `0..bucket.len()` by their `bucket` (of
+/// `buckets`): `start[b]` gets the first slot of bucket `b` in the sorted order (`buckets + 1`
+/// entries, the last `bucket.len()`). Also the flock's cells (`flock/cells.rs`), whose
+/// scatter copies the boids. The buffer only grows.
+pub(crate) fn bucket_starts(bucket: &[u32], buckets: usize, start: &mut Vec<u32>) {
     start.clear();
     start.resize(buckets + 1, 0);
     for &b in bucket {
@@ -83,6 +84,13 @@ fn sort_by_bucket(bucket: &[u32], buckets: usize, start: &mut Vec<u32>, sorted: 
     for k in 0..buckets {
         start[k + 1] += start[k];
     }
+}
+
+/// Counting sort of the items `0..bucket.len()` by their `bucket` (of `buckets`), stable (by
+/// index within a bucket): `sorted` gets the items in order and `start[b]` the first slot of
+/// bucket `b` (`buckets + 1` entries). Buffers only grow.
+fn sort_by_bucket(bucket: &[u32], buckets: usize, start: &mut Vec<u32>, sorted: &mut Vec<u32>) {
+    bucket_starts(bucket, buckets, start);
     sorted.resize(bucket.len(), 0);
     for (i, &b) in bucket.iter().enumerate() {
         let slot = &mut start[b as usize];
