@@ -20,12 +20,6 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
 ROOT_BOUND, JOINT_BOUND, LIMP_BOUND = 0.15, 0.15, 0.8
 
 
-@pytest.fixture(scope="module")
-def walk() -> tuple[object, object]:
-    sk = mocap.read_asf(DATA / "07-walk.asf")
-    return sk, mocap.read_amc(DATA / "07_05-walk.amc", sk)
-
-
 def test_tracking_reports_every_frame_and_follows_the_clip(walk):
     sk, motion = walk
     t = character.Tracker(sk, motion)

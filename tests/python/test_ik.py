@@ -2,29 +2,19 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kinema import Rotation, ik, mocap
+from kinema import Rotation, ik
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
 H = np.pi / 2
 ARM_LIMITS = [(-H, H), (-H, H), (-H, H), (0.0, 2.6), (-H, H), (-0.8, 0.8), (-0.8, 0.8)]
 
 
 def arm(limits=ARM_LIMITS):
     return ik.chain([0.3, 0.25, 0.1], ["xyz", "z", "xyz"], limits)
-
-
-@pytest.fixture(scope="module")
-def walk():
-    assert DATA.is_dir(), f"motion-capture data expected at {DATA}"
-    sk = mocap.read_asf(DATA / "07-walk.asf")
-    return sk, mocap.read_amc(DATA / "07_05-walk.amc", sk)
 
 
 def within(limits, pose):

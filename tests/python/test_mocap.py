@@ -13,13 +13,6 @@ from kinema import mocap
 DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
 
 
-@pytest.fixture(scope="module")
-def walk():
-    assert DATA.is_dir(), f"motion-capture data expected at {DATA}"
-    sk = mocap.read_asf(DATA / "07-walk.asf")
-    return sk, mocap.read_amc(DATA / "07_05-walk.amc", sk)
-
-
 def test_forward_kinematics_of_a_walk(walk):
     sk, motion = walk
     pos, ori = sk.forward_kinematics(motion)

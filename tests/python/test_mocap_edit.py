@@ -13,12 +13,6 @@ from kinema import mocap
 DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
 
 
-@pytest.fixture(scope="module")
-def walk():
-    sk = mocap.read_asf(DATA / "07-walk.asf")
-    return sk, mocap.read_amc(DATA / "07_05-walk.amc", sk)
-
-
 def test_editing_keeps_bone_lengths_and_hits_its_targets(walk):
     sk, m = walk
     a, b = m.slice(0, 200), m.slice(250, 450)

@@ -17,10 +17,9 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "mocap"
 
 
 @pytest.fixture(scope="module")
-def walk():
-    sk = mocap.read_asf(DATA / "07-walk.asf")
-    motion = mocap.read_amc(DATA / "07_05-walk.amc", sk).slice(0, 60)
-    return sk, motion
+def short_walk(walk):
+    sk, motion = walk
+    return sk, motion.slice(0, 60)
 
 
 def tubes(sk, radius=0.6, rings=6, sides=8):
@@ -55,8 +54,8 @@ def skinning_matrices(sk, pose_p, pose_q, bind_p, bind_q):
     return frames(pose_p, pose_q) @ np.linalg.inv(frames(bind_p, bind_q))
 
 
-def test_the_bind_pose_gives_the_mesh_back(walk):
-    sk, _ = walk
+def test_the_bind_pose_gives_the_mesh_back(short_walk):
+    sk, _ = short_walk
     verts = tubes(sk)
     for method in ("dqs", "lbs"):
         s = skin.Skin(verts, sk, method=method)
@@ -70,8 +69,8 @@ def test_the_bind_pose_gives_the_mesh_back(walk):
     assert s.deform(bmotion.slice(0, 3)).shape == (3, len(verts), 3)
 
 
-def test_linear_blend_matches_an_einsum_oracle(walk):
-    sk, motion = walk
+def test_linear_blend_matches_an_einsum_oracle(short_walk):
+    sk, motion = short_walk
     verts = tubes(sk)
     s = skin.Skin(verts, sk, method="lbs")
     assert np.allclose(s.weights.sum(axis=1), 1.0, atol=1e-15)
@@ -88,8 +87,8 @@ def test_linear_blend_matches_an_einsum_oracle(walk):
         np.testing.assert_allclose(ours[f], expected, atol=1e-9)
 
 
-def test_one_bone_per_vertex_is_rigid_with_both_methods(walk):
-    sk, motion = walk
+def test_one_bone_per_vertex_is_rigid_with_both_methods(short_walk):
+    sk, motion = short_walk
     verts = tubes(sk)
     near = skin.Skin(verts, sk, influences=1)
     weights = (near.bones, np.ones_like(near.weights))
@@ -103,8 +102,8 @@ def test_one_bone_per_vertex_is_rigid_with_both_methods(walk):
     np.testing.assert_allclose(d, d0, atol=1e-9)
 
 
-def test_a_walk_keeps_the_skin_near_its_bones(walk):
-    sk, motion = walk
+def test_a_walk_keeps_the_skin_near_its_bones(short_walk):
+    sk, motion = short_walk
     verts = tubes(sk, radius=0.6)
     pos, ori = sk.forward_kinematics(motion)
     # Bind distance 0.6 (file units, ~3.4 cm). One bone per vertex: rigid, exactly kept.
@@ -122,8 +121,8 @@ def test_a_walk_keeps_the_skin_near_its_bones(walk):
             assert distance.max() < bound, f"{influences} bones, frame {f}: {distance.max()}"
 
 
-def test_pickling_keeps_the_skin(walk):
-    sk, motion = walk
+def test_pickling_keeps_the_skin(short_walk):
+    sk, motion = short_walk
     s = skin.Skin(tubes(sk), sk)
     back = pickle.loads(pickle.dumps(s._skin))
     pos, ori = sk.forward_kinematics(motion)
@@ -131,8 +130,8 @@ def test_pickling_keeps_the_skin(walk):
     np.testing.assert_array_equal(back.deform(*args), s._skin.deform(*args))
 
 
-def test_bad_arguments_name_the_argument(walk):
-    sk, _ = walk
+def test_bad_arguments_name_the_argument(short_walk):
+    sk, _ = short_walk
     verts = tubes(sk)
     with pytest.raises(ValueError, match="method"):
         skin.Skin(verts, sk, method="slerp")
