@@ -186,9 +186,9 @@ fn box_box(a: PlacedBox, b: PlacedBox, margin: f64, out: &mut Vec<(usize, Touch)
     }
     // Edge–edge axes; preferred over the faces only when clearly better, like b's faces.
     let mut edge = (f64::NEG_INFINITY, DVec3::Y, 0, 0);
-    for i in 0..3 {
-        for j in 0..3 {
-            let axis = axes_a[i].cross(axes_b[j]);
+    for (i, axis_a) in axes_a.into_iter().enumerate() {
+        for (j, axis_b) in axes_b.into_iter().enumerate() {
+            let axis = axis_a.cross(axis_b);
             let len = axis.length();
             if len < 1e-6 {
                 continue; // parallel edges: a face axis separates as well
