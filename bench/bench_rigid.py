@@ -14,11 +14,16 @@ call), PyBullet one ``stepSimulation`` per step (its only way). Peers that are n
 are skipped.
 
 Run: python bench/bench_rigid.py [--quick]
+
+A/B of the box drops alone (kinema and MuJoCo alternated, best and median of R runs each, and a
+hash of kinema's end state, which must not change when a change is meant to be bitwise):
+python bench/bench_rigid.py --drops 100 400 1000 --repeat R
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import time
 
 import numpy as np
@@ -92,7 +97,8 @@ def kinema_free(n: int, steps: int) -> tuple[float, tuple[float, float]]:
     )
 
 
-def kinema_drop(n: int, steps: int) -> tuple[float, float, float]:
+def kinema_drop(n: int, steps: int) -> tuple[float, float, float, str]:
+    """Seconds, deepest penetration, largest end speed and a hash of the end state."""
     world = World()
     world.add_ground(friction=0.5)
     for p in drop_state(n):
@@ -102,7 +108,10 @@ def kinema_drop(n: int, steps: int) -> tuple[float, float, float]:
     seconds = time.perf_counter() - start
     lowest = _lowest_corner(world.positions, world.orientations)
     speed = float(np.linalg.norm(world.velocities, axis=1).max())
-    return seconds, max(0.0, -lowest), speed
+    digest = hashlib.sha256()
+    for a in (world.positions, world.velocities, world.orientations, world.angular_velocities):
+        digest.update(np.ascontiguousarray(a).tobytes())
+    return seconds, max(0.0, -lowest), speed, digest.hexdigest()[:16]
 
 
 def _lowest_corner(x: np.ndarray, q: np.ndarray) -> float:
@@ -249,10 +258,40 @@ def bullet_drop(n: int, steps: int) -> tuple[float, float, float] | None:
     return seconds, max(0.0, -_lowest_corner(x, q)), float(np.linalg.norm(v, axis=1).max())
 
 
+def drops_ab(sizes: list[int], steps: int, repeat: int) -> None:
+    """The box drops alone, kinema and MuJoCo alternated `repeat` times: steps/s best and
+    median, penetration, end speed and the hash of kinema's end state."""
+    print(f"box drops, {steps} steps of 1/240 s, {repeat} alternated runs each\n")
+    print("| boxes | engine | steps/s best | steps/s median | penetration (m) | end speed (m/s) |")
+    print("|---:|---|---:|---:|---:|---:|")
+    for n in sizes:
+        runs: dict[str, list[tuple]] = {"kinema": [], "MuJoCo": []}
+        for _ in range(repeat):
+            runs["kinema"].append(kinema_drop(n, steps))
+            peer = mujoco_drop(n, steps)
+            if peer is not None:
+                runs["MuJoCo"].append(peer)
+        for name, r in runs.items():
+            if r:
+                rates = [steps / x[0] for x in r]
+                best, median = max(rates), float(np.median(rates))
+                print(
+                    f"| {n} | {name} | {best:.0f} | {median:.0f} | {r[0][1]:.1e} | {r[0][2]:.1e} |"
+                )
+        hashes = {x[3] for x in runs["kinema"]}
+        print(f"| {n} | kinema end-state hash | {', '.join(sorted(hashes))} | | | |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="small sizes, short runs")
+    parser.add_argument("--drops", type=int, nargs="+", help="only these box drops, A/B form")
+    parser.add_argument("--repeat", type=int, default=5, help="runs of each drop with --drops")
+    parser.add_argument("--steps", type=int, default=480, help="steps of each drop with --drops")
     args = parser.parse_args()
+    if args.drops:
+        drops_ab(args.drops, args.steps, args.repeat)
+        return
     n_free, free_steps = (200, 240) if args.quick else (1000, 2400)
     drops, drop_steps = ([100], 240) if args.quick else ([100, 400, 1000], 480)
 

@@ -98,20 +98,20 @@ impl Bodies<'_> {
     /// masses and normal–tangent couplings.
     pub fn prepare(&self, c: &mut Contact) {
         let dirs = [c.n, c.t1, c.t2];
-        c.spin[0] = dirs.map(|d| self.inv_inertia(c.a, c.ra.cross(d)));
+        // The arms `r × d` of each body, made once for the spins, compliances and couplings.
+        let arms = [dirs.map(|d| c.ra.cross(d)), dirs.map(|d| c.rb.cross(d))];
+        c.spin[0] = arms[0].map(|arm| self.inv_inertia(c.a, arm));
         c.spin[1] = match c.b {
-            Some(b) => dirs.map(|d| self.inv_inertia(b, c.rb.cross(d))),
+            Some(b) => arms[1].map(|arm| self.inv_inertia(b, arm)),
             None => [DVec3::ZERO; 3],
         };
         // `1/m + (r × d) · I⁻¹ (r × d)` of each body, `I⁻¹ (r × d)` being the spin just made.
         c.compliance = std::array::from_fn(|k| {
-            let own =
-                |i: usize, r: DVec3, spin: DVec3| self.inv_mass[i] + r.cross(dirs[k]).dot(spin);
-            own(c.a, c.ra, c.spin[0][k]) + c.b.map_or(0.0, |b| own(b, c.rb, c.spin[1][k]))
+            let own = |i: usize, side: usize| self.inv_mass[i] + arms[side][k].dot(c.spin[side][k]);
+            own(c.a, 0) + c.b.map_or(0.0, |b| own(b, 1))
         });
         c.mass = c.compliance.map(|k| if k > 0.0 { 1.0 / k } else { 0.0 });
-        let (arm_a, arm_b) = (c.ra.cross(c.n), c.rb.cross(c.n));
-        c.coupling = [1, 2].map(|d| arm_a.dot(c.spin[0][d]) + arm_b.dot(c.spin[1][d]));
+        c.coupling = [1, 2].map(|d| arms[0][0].dot(c.spin[0][d]) + arms[1][0].dot(c.spin[1][d]));
     }
 
     /// Apply impulses `j` along `n`, `t1`, `t2` to `a` and their opposites to `b`, with the
@@ -236,10 +236,13 @@ pub(crate) struct Islands {
     /// Contact indices, island by island, in detection order within an island.
     order: Vec<usize>,
     /// Workspaces of shock propagation ([`Islands::propagate_shock`]), rebuilt every step:
-    /// contacts of the islands that did not converge, then sorted by layer; each body's
-    /// layer (contact-graph depth from the supports); the bodies in breadth-first order;
-    /// neighbours in compressed rows; inverse masses with the lower layers held fixed.
+    /// contacts of the islands that did not converge; the supported ones of those as
+    /// `(layer, contact)`, sorted (bottom up, by contact within a layer; each layer read once,
+    /// not in every comparison of the sort); each body's layer (contact-graph depth from the
+    /// supports); the bodies in breadth-first order; neighbours in compressed rows; inverse
+    /// masses with the lower layers held fixed.
     unsettled: Vec<usize>,
+    layered: Vec<(usize, usize)>,
     depth: Vec<usize>,
     queue: Vec<usize>,
     neighbours: (Vec<usize>, Vec<usize>),
@@ -353,18 +356,23 @@ impl Islands {
             let of = |i: usize| if moving(i) { depth[i] } else { 0 };
             c.b.map_or(of(c.a), |b| of(c.a).max(of(b)))
         };
-        self.unsettled.retain(|&k| layer(&contacts[k]) != UNSUPPORTED);
-        self.unsettled.sort_unstable_by_key(|&k| (layer(&contacts[k]), k));
+        self.layered.clear();
+        self.layered.extend(
+            self.unsettled
+                .iter()
+                .map(|&k| (layer(&contacts[k]), k))
+                .filter(|&(level, _)| level != UNSUPPORTED),
+        );
+        self.layered.sort_unstable();
         let (inv_mass, inv_inertia) = &mut self.held;
         inv_mass.clear();
         inv_mass.extend_from_slice(bodies.inv_mass);
         inv_inertia.clear();
         inv_inertia.extend_from_slice(bodies.inv_inertia);
         let (mut from, mut frozen) = (0, 0);
-        while from < self.unsettled.len() {
-            let level = layer(&contacts[self.unsettled[from]]);
-            let to =
-                from + self.unsettled[from..].partition_point(|&k| layer(&contacts[k]) == level);
+        while from < self.layered.len() {
+            let level = self.layered[from].0;
+            let to = from + self.layered[from..].partition_point(|&(l, _)| l == level);
             // Hold every body below this layer.
             while frozen < self.queue.len() && depth[self.queue[frozen]] < level {
                 inv_mass[self.queue[frozen]] = 0.0;
@@ -376,7 +384,7 @@ impl Islands {
             let held =
                 Bodies { inv_mass: inv_mass.as_slice(), inv_inertia: inv_inertia.as_slice() };
             self.layer.clear();
-            self.layer.extend(self.unsettled[from..to].iter().map(|&k| contacts[k]));
+            self.layer.extend(self.layered[from..to].iter().map(|&(_, k)| contacts[k]));
             for c in self.layer.iter_mut() {
                 held.prepare(c);
             }
@@ -389,7 +397,7 @@ impl Islands {
                     break;
                 }
             }
-            for (c, &k) in self.layer.iter().zip(&self.unsettled[from..to]) {
+            for (c, &(_, k)) in self.layer.iter().zip(&self.layered[from..to]) {
                 contacts[k].impulse = c.impulse;
             }
             from = to;

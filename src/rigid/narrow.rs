@@ -128,11 +128,15 @@ fn sphere_box(c: DVec3, r: f64, bc: DVec3, bq: DQuat, h: DVec3) -> Touch {
     }
 }
 
+/// The corners of box `(c, q, h)`, corner `i` at `(±h.x, ±h.y, ±h.z)` with `+` where bit 0,
+/// 1, 2 of `i` is set. Opposite corners `i` and `7 − i` share one rotation: `q (−p) = −(q p)`
+/// exactly (every term of the rotation is odd in `p`), so four rotations give all eight.
 fn corners(c: DVec3, q: DQuat, h: DVec3) -> [DVec3; 8] {
-    std::array::from_fn(|i| {
+    let lower: [DVec3; 4] = std::array::from_fn(|i| {
         let sign = |b: usize| if i & b == 0 { -1.0 } else { 1.0 };
-        c + q * DVec3::new(sign(1) * h.x, sign(2) * h.y, sign(4) * h.z)
-    })
+        q * DVec3::new(sign(1) * h.x, sign(2) * h.y, -h.z)
+    });
+    std::array::from_fn(|i| if i < 4 { c + lower[i] } else { c + -lower[7 - i] })
 }
 
 type PlacedBox = (DVec3, DQuat, DVec3);
@@ -157,19 +161,20 @@ fn box_box(a: PlacedBox, b: PlacedBox, margin: f64, out: &mut Vec<(usize, Touch)
     let (cb, qb, hb) = b;
     let d = ca - cb;
     let radius = |q: DQuat, h: DVec3, l: DVec3| (q.conjugate() * l).abs().dot(h);
+    // Each box's axes in the world, turned once for the face and the edge axes.
+    let (axes_a, axes_b) = (DVec3::AXES.map(|e| qa * e), DVec3::AXES.map(|e| qb * e));
     // Least overlap among each box's face axes; b's face is the reference only when clearly
     // better (Box2D's tolerances), so resting contacts keep their reference face and warm
     // starting finds them again.
-    let least = |q: DQuat| {
-        (0..3)
-            .map(|k| {
-                let axis = q * DVec3::AXES[k];
+    let least = |axes: [DVec3; 3]| {
+        axes.into_iter()
+            .map(|axis| {
                 let gap = d.dot(axis).abs() - radius(qa, ha, axis) - radius(qb, hb, axis);
                 (gap, if d.dot(axis) >= 0.0 { axis } else { -axis })
             })
             .fold((f64::NEG_INFINITY, DVec3::Y), |best, g| if g.0 > best.0 { g } else { best })
     };
-    let (from_a, from_b) = (least(qa), least(qb));
+    let (from_a, from_b) = (least(axes_a), least(axes_b));
     let best = if from_b.0 > 0.95 * from_a.0 + 0.01 * ha.min_element() {
         (from_b.0, from_b.1, false)
     } else {
@@ -181,9 +186,9 @@ fn box_box(a: PlacedBox, b: PlacedBox, margin: f64, out: &mut Vec<(usize, Touch)
     }
     // Edge–edge axes; preferred over the faces only when clearly better, like b's faces.
     let mut edge = (f64::NEG_INFINITY, DVec3::Y, 0, 0);
-    for i in 0..3 {
-        for j in 0..3 {
-            let axis = (qa * DVec3::AXES[i]).cross(qb * DVec3::AXES[j]);
+    for (i, axis_a) in axes_a.into_iter().enumerate() {
+        for (j, axis_b) in axes_b.into_iter().enumerate() {
+            let axis = axis_a.cross(axis_b);
             let len = axis.length();
             if len < 1e-6 {
                 continue; // parallel edges: a face axis separates as well
@@ -374,6 +379,23 @@ pub(crate) fn touches(a: &Placed, b: &Placed, margin: f64, out: &mut Vec<(usize,
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The corners shared by opposite pairs are bit for bit those rotated one by one, for
+    /// turned boxes away from the origin (a sign slip or a wrong pairing fails this).
+    #[test]
+    fn corners_are_bitwise_the_rotated_offsets() {
+        for k in 0..50 {
+            let t = k as f64;
+            let axis = DVec3::new(t.sin(), (1.7 * t).cos(), 0.3 + (0.4 * t).sin()).normalize();
+            let q = DQuat::from_axis_angle(axis, 0.37 * t + 0.1);
+            let (c, h) = (DVec3::new(1.3, -0.2 * t, 7.0), DVec3::new(0.1, 0.27, 0.05 + 0.01 * t));
+            for (i, p) in corners(c, q, h).into_iter().enumerate() {
+                let sign = |b: usize| if i & b == 0 { -1.0 } else { 1.0 };
+                let direct = c + q * DVec3::new(sign(1) * h.x, sign(2) * h.y, sign(4) * h.z);
+                assert_eq!(p.to_array().map(f64::to_bits), direct.to_array().map(f64::to_bits));
+            }
+        }
+    }
 
     #[test]
     fn boxes_crossing_edge_on_edge_touch_at_the_crossing_with_the_edges_normal() {

@@ -32,7 +32,8 @@ pub struct Solver {
     /// this identifies the multiplier pattern built for it.
     fitted: Option<(usize, usize)>,
     scratch: Box<Scratch>,
-    /// This step's contacts and the previous (sub)step's, whose impulses warm-start them.
+    /// This (sub)step's contacts and, with substeps, the previous substep's, whose impulses
+    /// warm-start them (a step's first substep reads its warm starts from the state).
     contacts: Vec<Contact>,
     previous: Vec<Contact>,
     islands: contact::Islands,
@@ -43,7 +44,8 @@ pub struct Solver {
     placed: Vec<Placed>,
     dx: Vec<DVec3>,
     dtheta: Vec<DVec3>,
-    order: Vec<usize>,
+    /// The broad phase's bodies as `(lowest x of the grown bound, body)`, sorted (m).
+    order: Vec<(f64, usize)>,
     touches: Vec<(usize, Touch)>,
     /// Body pairs whose bounds overlap, `(min, max)`.
     pairs: Vec<(usize, usize)>,
@@ -132,14 +134,15 @@ impl Solver {
                 .filter(|s| !matches!(s, Solid::Cylinder { .. } | Solid::Mesh { .. }))
                 .count()
                 > 1;
+        let coupled = pairs || !model.planes.is_empty() || !model.joints.is_empty();
         for s in 0..steps {
             self.begin(state);
-            if model.planes.is_empty() && !pairs && model.joints.is_empty() {
+            if !coupled {
                 self.free_step(model, state, dt);
             } else {
                 let detect = pairs || !model.planes.is_empty();
-                for _ in 0..substeps {
-                    self.coupled_step(model, state, dt / substeps as f64, detect)?;
+                for substep in 0..substeps {
+                    self.coupled_step(model, state, dt / substeps as f64, detect, substep)?;
                     if self.first_non_finite(model).is_some() {
                         break; // reported below, before any contact sees the bad state
                     }
@@ -148,31 +151,35 @@ impl Solver {
             if let Some(i) = self.first_non_finite(model) {
                 return Err(diverged(model, s, i));
             }
-            self.commit(state);
+            self.commit(state, coupled);
         }
         Ok(())
     }
 
-    /// Copy what the step reads of `state` into the scratch: the bodies and the warm starts.
+    /// Copy what the step changes of `state` into the scratch: the bodies and the impulse
+    /// joints' accumulated impulses. The contacts are not copied: the step's first (sub)step
+    /// reads their warm starts from `state` itself and makes new ones.
     fn begin(&mut self, state: &State) {
         let (x, v, q, pi) = &mut *self.scratch;
         x.clone_from(&state.x);
         v.clone_from(&state.v);
         q.clone_from(&state.q);
         pi.clone_from(&state.pi);
-        self.contacts.clone_from(&state.contacts);
         self.joint_impulse.clone_from(&state.joint_impulse);
     }
 
-    /// Make the scratch the new state (buffers exchanged, no copy) and clear the applied
-    /// forces.
-    fn commit(&mut self, state: &mut State) {
+    /// Make the scratch the new state (buffers exchanged, no copy), with the step's contacts
+    /// when it was `coupled` (a free step makes none and leaves the state's), and clear the
+    /// applied forces.
+    fn commit(&mut self, state: &mut State, coupled: bool) {
         let (x, v, q, pi) = &mut *self.scratch;
         std::mem::swap(&mut state.x, x);
         std::mem::swap(&mut state.v, v);
         std::mem::swap(&mut state.q, q);
         std::mem::swap(&mut state.pi, pi);
-        std::mem::swap(&mut state.contacts, &mut self.contacts);
+        if coupled {
+            std::mem::swap(&mut state.contacts, &mut self.contacts);
+        }
         std::mem::swap(&mut state.joint_impulse, &mut self.joint_impulse);
         state.force.fill(DVec3::ZERO);
         state.torque.fill(DVec3::ZERO);

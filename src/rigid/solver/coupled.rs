@@ -83,23 +83,29 @@ fn clear_corrections(dx: &mut Vec<DVec3>, dtheta: &mut Vec<DVec3>, n: usize) {
 }
 
 impl Solver {
-    /// One step (or substep) of `h` seconds with contacts (when `detect`) and joints, on the
-    /// scratch state; `state` gives the applied forces.
+    /// One step (or substep number `substep`) of `h` seconds with contacts (when `detect`) and
+    /// joints, on the scratch state; `state` gives the applied forces and, in the first
+    /// substep, the warm starts (the previous substep's contacts give them after that).
     pub(super) fn coupled_step(
         &mut self,
         model: &Model,
         state: &State,
         h: f64,
         detect: bool,
+        substep: usize,
     ) -> Result<()> {
         let methods = Methods::of(model);
         self.joint_forces(model, state, h, methods)?;
         self.kick(model, state, h, detect);
-        std::mem::swap(&mut self.contacts, &mut self.previous);
+        if substep > 0 {
+            std::mem::swap(&mut self.contacts, &mut self.previous);
+        }
         self.contacts.clear();
         if detect {
             self.detect_contacts(model, h)?;
         }
+        let previous = if substep == 0 { &state.contacts } else { &self.previous };
+        contact::warm_start(&mut self.contacts, previous);
         self.solve_velocities(model, h, methods)?;
         self.drift(model, h);
         if methods.lagrange {
@@ -194,7 +200,7 @@ impl Solver {
         }
     }
 
-    /// Sequential impulses: the contacts warm-started from the previous (sub)step, the impulse
+    /// Sequential impulses: the contacts (warm-started in [`Solver::coupled_step`]), the impulse
     /// joints from their accumulated impulses, then the sweeps (island by island without
     /// joints, shared with the impulse joints otherwise) and the alternation with the
     /// Lagrange joints' velocity projection.
@@ -206,7 +212,6 @@ impl Solver {
         for c in self.contacts.iter_mut() {
             bodies.prepare(c);
         }
-        contact::warm_start(&mut self.contacts, &self.previous);
         contact::apply_impulses(&self.contacts, &bodies, v, &mut self.omega);
         let sweeps = sweeps(&self.contacts, model, m.impulse);
         if m.impulse {

@@ -20,34 +20,49 @@ struct Approach<'a> {
     resting_speed: f64,
 }
 
+/// A point of body `a` at which it may touch `b` (or a plane): the lever arms from the centres
+/// of mass (m) and the normal velocity of `a` relative to `b` there (m/s).
+struct Approaching {
+    a: usize,
+    b: Option<usize>,
+    ra: DVec3,
+    rb: DVec3,
+    vn: f64,
+}
+
 impl Approach<'_> {
-    /// The contact of body `a` against `b` (or a plane) at `touch`, with restitution `e` and
-    /// friction `mu`, and its normal approach velocity `vn` (m/s).
-    fn contact(
-        &self,
-        key: (usize, usize, usize),
-        a: usize,
-        b: Option<usize>,
-        touch: Touch,
-        e: f64,
-        mu: f64,
-    ) -> (f64, Contact) {
-        let (p, nrm, gap) = touch;
+    /// How body `a` approaches `b` (or a plane) at point `p` along the normal `nrm`: read
+    /// before a contact is made, so that points that will not touch within the step cost no
+    /// more.
+    fn approaching(&self, a: usize, b: Option<usize>, p: DVec3, nrm: DVec3) -> Approaching {
         let (x, v, w) = (self.x, self.v, self.w);
         let (ra, rb) = (p - x[a], b.map_or(DVec3::ZERO, |b| p - x[b]));
         let vel = v[a] + w[a].cross(ra) - b.map_or(DVec3::ZERO, |b| v[b] + w[b].cross(rb));
-        let vn = vel.dot(nrm);
+        Approaching { a, b, ra, rb, vn: vel.dot(nrm) }
+    }
+
+    /// The contact of the approach `at` with `touch`, restitution `e` and friction `mu`.
+    fn contact(
+        &self,
+        key: (usize, usize, usize),
+        at: &Approaching,
+        touch: Touch,
+        e: f64,
+        mu: f64,
+    ) -> Contact {
+        let (_, nrm, gap) = touch;
+        let vn = at.vn;
         // Bounce when approaching fast (landing within this step or touching); otherwise
         // close any gap exactly and stop (overlaps are undone by the position pass).
         let target =
             if vn < -self.resting_speed && e > 0.0 { -e * vn } else { -gap.max(0.0) / self.h };
         let t1 = nrm.any_orthonormal_vector();
-        let c = Contact {
+        Contact {
             key,
-            a,
-            b,
-            ra,
-            rb,
+            a: at.a,
+            b: at.b,
+            ra: at.ra,
+            rb: at.rb,
             n: nrm,
             t1,
             t2: nrm.cross(t1),
@@ -59,8 +74,7 @@ impl Approach<'_> {
             gap,
             mu,
             impulse: [0.0; 3],
-        };
-        (vn, c)
+        }
     }
 }
 
@@ -89,15 +103,15 @@ impl Solver {
                 self.points.clear();
                 let shape = &model.shape[i];
                 narrow::candidate_points(shape, origin, orient, plane.normal, &mut self.points);
+                let e = model.restitution[i].max(material.restitution);
+                let mu = (model.friction[i] * material.friction).sqrt();
                 for (j, &p) in self.points.iter().enumerate() {
                     let (gap, _) = plane.distance(p);
-                    let e = model.restitution[i].max(material.restitution);
-                    let mu = (model.friction[i] * material.friction).sqrt();
-                    let (vn, c) =
-                        approach.contact((i, k, j), i, None, (p, plane.normal, gap), e, mu);
-                    if gap <= (-vn * h).max(0.0) + 1e-9 {
-                        resolvable(vn, gap, h, resting_speed, i)?;
-                        self.contacts.push(c);
+                    let at = approach.approaching(i, None, p, plane.normal);
+                    if gap <= (-at.vn * h).max(0.0) + 1e-9 {
+                        resolvable(at.vn, gap, h, resting_speed, i)?;
+                        let touch = (p, plane.normal, gap);
+                        self.contacts.push(approach.contact((i, k, j), &at, touch, e, mu));
                     }
                 }
             }
@@ -118,15 +132,17 @@ impl Solver {
         let reach = &self.reach;
         self.order.clear();
         if model.collisions {
-            self.order.extend((0..n).filter(|&i| !matches!(self.placed[i], Placed::Other)));
+            self.order.extend(
+                (0..n)
+                    .filter(|&i| !matches!(self.placed[i], Placed::Other))
+                    .map(|i| (x[i].x - reach[i], i)),
+            );
         }
-        self.order.sort_unstable_by(|&i, &j| {
-            (x[i].x - reach[i]).total_cmp(&(x[j].x - reach[j])).then(i.cmp(&j))
-        });
+        self.order.sort_unstable_by(|p, q| p.0.total_cmp(&q.0).then(p.1.cmp(&q.1)));
         self.pairs.clear();
-        for (k, &i) in self.order.iter().enumerate() {
-            for &j in &self.order[k + 1..] {
-                if x[j].x - reach[j] > x[i].x + reach[i] {
+        for (k, &(_, i)) in self.order.iter().enumerate() {
+            for &(low, j) in &self.order[k + 1..] {
+                if low > x[i].x + reach[i] {
                     break;
                 }
                 let (a, b) = (i.min(j), i.max(j));
@@ -155,11 +171,11 @@ impl Solver {
             let e = model.restitution[a].max(model.restitution[b]);
             let mu = (model.friction[a] * model.friction[b]).sqrt();
             for &(f, touch) in &self.touches {
-                let (vn, c) = approach.contact((a, np + b, f), a, Some(b), touch, e, mu);
-                let gap = touch.2;
-                if gap <= (-vn * h).max(0.0) + contact::SLOP {
-                    resolvable(vn, gap, h, resting_speed, a)?;
-                    self.contacts.push(c);
+                let (p, nrm, gap) = touch;
+                let at = approach.approaching(a, Some(b), p, nrm);
+                if gap <= (-at.vn * h).max(0.0) + contact::SLOP {
+                    resolvable(at.vn, gap, h, resting_speed, a)?;
+                    self.contacts.push(approach.contact((a, np + b, f), &at, touch, e, mu));
                 }
             }
         }
