@@ -1,8 +1,9 @@
 //! The implicit step of the cloth (Baraff & Witkin 1998, §4–§5): implicit Euler or the
 //! variable-step BDF2 of Choi & Ko (2002) share one assembly of `(M − γh ∂f/∂v − (γh)² ∂f/∂x)`
 //! with history terms, solved by the modified PCG with the constraint filter (§5.3) or by
-//! sparse Cholesky ([`super::linear`]); a step that strains the cloth too much is refused
-//! here and redone as two half steps by [`Solver::step`].
+//! sparse Cholesky ([`super::linear`]), with Newton iterations where the one linearised solve
+//! adds energy; a step that strains the cloth too much is refused here and redone as two half
+//! steps by [`Solver::step`].
 
 use super::elements::Accumulator;
 use super::solver::Implicit;
