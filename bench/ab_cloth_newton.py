@@ -72,7 +72,9 @@ def main() -> None:
             f"{p}: best {1e3 * min(t):.2f}, median {1e3 * statistics.median(t):.2f} ms; "
             f"hash {digest}; whole-step landing energy (J) {energies}"
         )
-    print("hash of the hashes:", hashlib.sha256(repr(sorted(seen.values())).encode()).hexdigest()[:16])
+    print(
+        "hash of the hashes:", hashlib.sha256(repr(sorted(seen.values())).encode()).hexdigest()[:16]
+    )
 
 
 if __name__ == "__main__":
