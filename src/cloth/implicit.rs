@@ -213,9 +213,9 @@ impl Solver {
     fn assemble(&mut self, model: &Model, state: &State, h_eff: f64, at_iterate: bool) -> f64 {
         let (s, air) = (&mut self.scratch, model.material.air_damping);
         let (x, v) = if at_iterate { (&s.x_new, &s.v_new) } else { (&state.x, &state.v) };
-        for i in 0..state.len() {
-            s.u[i] = if at_iterate { DVec3::ZERO } else { s.hx[i] + h_eff * v[i] + s.y[i] };
-            s.f[i] = (model.gravity - air * v[i]) * model.mass[i];
+        for (i, &vi) in v.iter().enumerate() {
+            s.u[i] = if at_iterate { DVec3::ZERO } else { s.hx[i] + h_eff * vi + s.y[i] };
+            s.f[i] = (model.gravity - air * vi) * model.mass[i];
             s.ku[i] = DVec3::ZERO;
         }
         let blocks = &mut self.matrix.blocks;
