@@ -378,7 +378,8 @@ class Cloth:
     @property
     def stats(self) -> dict[str, Any]:
         """Numbers of the last step: ``iterations`` (PCG), ``residual`` (relative),
-        ``converged``, ``contacts``, ``substeps``, self-collision's ``proximities`` (pairs
+        ``converged``, ``contacts``, ``substeps``, ``newton_iterations`` (solves beyond the
+        first where the linearised solve added energy), self-collision's ``proximities`` (pairs
         closer than the thickness), ``ccd_iterations`` (passes that found collisions) and
         ``impact_zones``, and seconds spent in ``assemble_seconds``, ``solve_seconds``,
         ``collide_seconds``, ``self_collision_seconds``."""

@@ -435,6 +435,7 @@ impl ClothCore {
         d.set_item("converged", s.converged)?;
         d.set_item("contacts", s.contacts)?;
         d.set_item("substeps", s.substeps)?;
+        d.set_item("newton_iterations", s.newton_iterations)?;
         d.set_item("assemble_seconds", s.assemble_seconds)?;
         d.set_item("solve_seconds", s.solve_seconds)?;
         d.set_item("collide_seconds", s.collide_seconds)?;

@@ -89,6 +89,9 @@ pub struct StepStats {
     pub contacts: usize,
     /// Implicit steps taken (more than one when the step was subdivided).
     pub substeps: usize,
+    /// Newton iterations (solves beyond the first of a substep, after the release of pulling
+    /// contacts) taken where the one linearised solve added energy (issue #21).
+    pub newton_iterations: usize,
     /// Seconds spent assembling forces and the matrix.
     pub assemble_seconds: f64,
     /// Seconds in the linear solve.

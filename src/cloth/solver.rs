@@ -129,7 +129,7 @@ impl Solver {
 
     /// Advance `state` of `model` by `steps` steps of `dt` seconds with `method`:
     /// [`Method::ImplicitEuler`] and [`Method::Bdf2`] take the linearised implicit step (one
-    /// Newton step, `options` choose the linear solver); the explicit methods of
+    /// Newton step, more where it adds energy; `options` choose the linear solver); the explicit methods of
     /// [`crate::ode`] integrate `ẍ = M⁻¹ f` with the filter applied to accelerations and
     /// collisions resolved by projection after each step. Returns the numbers of the last
     /// step.
