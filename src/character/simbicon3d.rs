@@ -331,8 +331,7 @@ fn control(
     let pose = if phase.state.is_multiple_of(2) { &gait.lift } else { &gait.strike };
     let (swing, stance, side) = legs(phase.state);
     let (_, ahead, tilt) = vertical(model);
-    let vel = tree.momentum(model).1 / model.mass()
-        - ground_velocity(model, tree, stance[2], state.time());
+    let vel = tree.com_velocity(model) - ground_velocity(model, tree, stance[2], state.time());
     let r = tree.com(model) - tree.positions()[stance[2]];
     let sagittal = pose.swing_hip + pose.cd * r.dot(ahead) + pose.cv * vel.dot(ahead);
     let lateral = side * coronal.swing_hip + coronal.cd * r.z + coronal.cv * vel.z;
