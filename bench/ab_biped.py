@@ -10,7 +10,8 @@ runs (x real time and µs a step), and the walk's x after 20 s and a hash of its
 builds' results can be compared too.
 
 Run: KINEMA_NUM_THREADS=1 python bench/ab_biped.py A_DIR B_DIR [--runs 30] [--seconds 20]
-(e.g. ``/work/main/python /work/wt/biped/python``).
+[--coronal-cv 0.4] (e.g. ``/work/main/python /work/wt/biped/python``; ``--coronal-cv``
+walks both builds with the same gain when their defaults differ).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ import hashlib, json, sys, time
 import numpy as np
 from kinema.character import Biped
 steps = round({seconds} / {dt})
-b = Biped(dims=3)
+b = Biped(dims=3, **{kw})
 t = time.process_time()
 b.step({dt}, steps)
 cpu = time.process_time() - t
@@ -40,10 +41,10 @@ print(json.dumps({{"cpu": cpu, "steps": steps, "x": repr(float(b.com[0])),
 """
 
 
-def run(path: str, seconds: float) -> dict:
+def run(path: str, seconds: float, kw: dict[str, float]) -> dict:
     """One walk in a fresh interpreter with ``path`` first on ``PYTHONPATH``."""
     env = dict(os.environ, PYTHONPATH=path, KINEMA_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    code = CHILD.format(seconds=seconds, dt=DT)
+    code = CHILD.format(seconds=seconds, dt=DT, kw=repr(kw))
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
     if out.returncode != 0:
         raise SystemExit(f"{path}: {out.stderr}")
@@ -56,15 +57,19 @@ def main() -> None:
     parser.add_argument("b")
     parser.add_argument("--runs", type=int, default=30)
     parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument(
+        "--coronal-cv", type=float, help="coronal_cv for both builds (default: each one's own)"
+    )
     args = parser.parse_args()
+    kw = {} if args.coronal_cv is None else {"coronal_cv": args.coronal_cv}
     results: dict[str, list[dict]] = {"A": [], "B": []}
     for _ in range(args.runs):
         for name, path in (("A", args.a), ("B", args.b)):
-            results[name].append(run(path, args.seconds))
+            results[name].append(run(path, args.seconds, kw))
     load = os.getloadavg()
     print(
         f"3-D walker, dt = {DT} s, {args.seconds} s walked in one call, CPU time, "
-        f"{args.runs} interleaved runs each, load {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}"
+        f"{kw or 'defaults'}, {args.runs} interleaved runs each, load {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}"
     )
     for name in ("A", "B"):
         rs = results[name]
