@@ -2,7 +2,7 @@
 planar one, one process, one thread.
 
 Settings (every figure): ``Biped(dims=3)`` and ``Biped()`` at their defaults (the paper's
-gait; the 3-D walk with torso_kp = 1000, torso_kd = 100, coronal cv = 0.4; contact at
+gait; the 3-D walk with torso_kp = 1000, torso_kd = 100, coronal cv = 0.3; contact at
 200 rad/s, stable PD at knees and ankles, symplectic Euler), dt = 1e-3 s (the 3-D walker's
 step; the planar one walks at 1e-3 too; the 3-D one also at 2e-3 s: it walks 20 s at every
 step of 1–3.5 ms, within 0.6 % of the same distance), 20 s simulated in one ``step`` call (no Python per

@@ -124,8 +124,7 @@ fn without_coronal_feedback_the_3d_walk_falls_sideways() {
 }
 
 /// Two phases of the sweep of `bench/bench_biped.py --pushes` (0.2 s on the torso at
-/// t = 4.0 … 4.6 s), the paper's 350 N from the front and from behind, 150 N from each
-/// side. 350 N from behind failed at every phase before the stance hip's torque about the
+/// t = 4.0 … 4.6 s), the paper's 350 N from the front, from behind and from each side. 350 N from behind failed at every phase before the stance hip's torque about the
 /// stance leg's axis was capped by the foot's grip (session 23: the trailing stance foot,
 /// lifted in the flight after the push, spun the leg about its axis, checked: it falls at
 /// 4.0 and 4.4 s without the cap).
@@ -135,8 +134,8 @@ fn pushes_from_every_side_are_survived() {
         for force in [
             DVec3::new(-350.0, 0.0, 0.0),
             DVec3::new(350.0, 0.0, 0.0),
-            DVec3::new(0.0, 0.0, 150.0),
-            DVec3::new(0.0, 0.0, -150.0),
+            DVec3::new(0.0, 0.0, 350.0),
+            DVec3::new(0.0, 0.0, -350.0),
         ] {
             let w = walk(Coronal::default(), 0.0, 7.0, Some((at, force)));
             assert!(!w.fell(), "fell after {force} N at {at} s");
@@ -180,31 +179,33 @@ fn the_3d_walk_is_deterministic_and_a_refused_step_changes_nothing() {
     assert_eq!((a.state(), a.phase()), (b.state(), b.phase()));
 }
 
-/// The paper's 350 N from each side (0.2 s on the torso) at the phases where it fell
-/// before (session 23: from the left at 4.5 and 4.6 s, from the right at 4.2 s).
+/// 450 N from each side (0.2 s on the torso; the paper's pushes are 350 N), walking on to
+/// 9 s, at the phases where the margin was thinnest: with the coronal `c_v` of 0.4
+/// (sessions 24–28) 350 N was the largest survived there (from the left at 4.5 and 4.6 s,
+/// from the right at 4.2 s); with 0.3, 500–600 N are.
 #[test]
-fn side_pushes_of_350_newtons_are_survived() {
+fn side_pushes_of_450_newtons_are_survived() {
     for (at, side) in [(4.5, 1.0), (4.6, 1.0), (4.2, -1.0)] {
-        let force = DVec3::new(0.0, 0.0, 350.0 * side);
-        let w = walk(Coronal::default(), 0.0, 7.0, Some((at, force)));
+        let force = DVec3::new(0.0, 0.0, 450.0 * side);
+        let w = walk(Coronal::default(), 0.0, 9.0, Some((at, force)));
         assert!(!w.fell(), "fell after {force} N at {at} s");
     }
 }
 
-/// Every phase of `bench/bench_biped.py --pushes` (4.0 … 4.6 s), 350 N from each side,
+/// Every phase of `bench/bench_biped.py --pushes` (4.0 … 4.6 s), 450 N from each side,
 /// walking on to 9 s.
 #[test]
 #[ignore = "full size: 14 walks of 9 s"]
-fn side_pushes_of_350_newtons_are_survived_at_every_phase() {
+fn side_pushes_of_450_newtons_are_survived_at_every_phase() {
     let mut fell = vec![];
     for k in 0..7 {
         let at = 4.0 + 0.1 * k as f64;
         for side in [1.0, -1.0] {
-            let force = DVec3::new(0.0, 0.0, 350.0 * side);
+            let force = DVec3::new(0.0, 0.0, 450.0 * side);
             if walk(Coronal::default(), 0.0, 9.0, Some((at, force))).fell() {
                 fell.push((at, side));
             }
         }
     }
-    assert!(fell.is_empty(), "fell after 350 N at (time, side): {fell:?}");
+    assert!(fell.is_empty(), "fell after 450 N at (time, side): {fell:?}");
 }

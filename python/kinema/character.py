@@ -463,7 +463,7 @@ _WALK = {  # the defaults of kinema::character::Gait (the paper's walk, Table 1)
 }
 
 
-_CORONAL = {"coronal_cd": 0.0, "coronal_cv": 0.4, "coronal_swing_hip": 0.0}
+_CORONAL = {"coronal_cd": 0.0, "coronal_cv": 0.3, "coronal_swing_hip": 0.0}
 
 
 class Biped:

@@ -19,7 +19,7 @@ fn store(q: DQuat, out: &mut [f64]) {
 }
 
 /// The body's orientation relative to its parent and the joint's translation (parent axes),
-/// from the joint's coordinates `q`.
+/// from the joint's coordinates `q` (`X_J` is `Transform::new` of the two).
 pub(super) fn relative(joint: Joint, q: &[f64]) -> (DQuat, DVec3) {
     match joint {
         Joint::Fixed => (DQuat::IDENTITY, DVec3::ZERO),
@@ -28,12 +28,6 @@ pub(super) fn relative(joint: Joint, q: &[f64]) -> (DQuat, DVec3) {
         Joint::Free => (quat(&q[3..7]), DVec3::new(q[0], q[1], q[2])),
         Joint::Planar => (DQuat::from_rotation_z(q[2]), DVec3::new(q[0], q[1], 0.0)),
     }
-}
-
-/// `X_J` of the joint, from the parent's joint frame to the body frame.
-pub(super) fn transform(joint: Joint, q: &[f64]) -> Transform {
-    let (r, p) = relative(joint, q);
-    Transform::new(r, p)
 }
 
 /// The motion subspace `S` (body coordinates, its `nv` columns padded with zeros to 6) of the
@@ -57,6 +51,50 @@ pub(super) fn subspace(joint: Joint, x_j: &Transform) -> SMat {
         }
     }
     s
+}
+
+/// Where column `k` of a joint's motion subspace ([`subspace`]) is not zero: every joint's
+/// columns are angular only or linear only, and a ball joint's, a free joint's angular and
+/// a planar joint's turning column are unit vectors.
+enum Column {
+    /// The unit vector along spatial axis `r`.
+    Unit(usize),
+    /// Rows 0–2 only.
+    Angular,
+    /// Rows 3–5 only.
+    Linear,
+}
+
+fn column(joint: Joint, k: usize) -> Column {
+    match joint {
+        Joint::Ball => Column::Unit(k),
+        Joint::Free if k < 3 => Column::Unit(k),
+        Joint::Planar if k == 2 => Column::Unit(2),
+        Joint::Revolute { .. } => Column::Angular,
+        Joint::Free | Joint::Planar | Joint::Fixed => Column::Linear,
+    }
+}
+
+/// `I sₖ`: the 6 × 6 `inertia` times column `k` of `joint`'s motion subspace `s`
+/// ([`subspace`]), with the products by the column's zero half left out (the CRBA's
+/// `F = I S`, Featherstone 2008 Table 6.2; the same sums as the full product, whose other
+/// terms are zeros).
+pub(super) fn inertia_times_column(joint: Joint, inertia: &SMat, s: &SMat, k: usize) -> SVec {
+    match column(joint, k) {
+        Column::Unit(r) => inertia.column(r).into_owned(),
+        Column::Angular => inertia.fixed_columns::<3>(0) * s.fixed_view::<3, 1>(0, k),
+        Column::Linear => inertia.fixed_columns::<3>(3) * s.fixed_view::<3, 1>(3, k),
+    }
+}
+
+/// `sₖᵀ f`: column `k` of `joint`'s motion subspace `s` ([`subspace`]) dotted with the
+/// spatial force `f`, reading only the column's non-zero half (the CRBA's `Sᵀ F`).
+pub(super) fn column_dot(joint: Joint, s: &SMat, k: usize, f: &SVec) -> f64 {
+    match column(joint, k) {
+        Column::Unit(r) => f[r],
+        Column::Angular => s.fixed_view::<3, 1>(0, k).dot(&f.fixed_rows::<3>(0)),
+        Column::Linear => s.fixed_view::<3, 1>(3, k).dot(&f.fixed_rows::<3>(3)),
+    }
 }
 
 /// `c_J = Ṡ q̇` (body coordinates): zero but for free and planar joints, whose linear rate `v`
@@ -177,6 +215,35 @@ pub(super) fn difference_joint(joint: Joint, t: &[f64], q: &[f64], out: &mut [f6
         Joint::Planar => {
             for k in 0..3 {
                 out[k] = t[k] - q[k];
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The CRBA's products with a motion subspace's non-zero half are bitwise the full
+    /// products `I sₖ` and `sₖᵀ f` (the left-out terms are products with zeros), for every
+    /// joint kind at a turned pose.
+    #[test]
+    fn products_with_a_subspace_column_equal_the_full_products() {
+        let inertia =
+            SMat::from_fn(|r, c| ((r * 6 + c) as f64 * 0.7).sin() + f64::from(u8::from(r == c)));
+        let f = SVec::from_fn(|r, _| (r as f64 * 1.3).cos() - 0.2);
+        let axis = DVec3::new(0.3, -0.5, 0.8).normalize();
+        let q = [0.2, -0.4, 0.6, 0.9, 0.3, -0.2, 0.25];
+        let quat = DQuat::from_xyzw(q[4], q[5], q[6], q[3]).normalize();
+        let q = [q[0], q[1], q[2], quat.w, quat.x, quat.y, quat.z];
+        for joint in [Joint::Revolute { axis }, Joint::Ball, Joint::Free, Joint::Planar] {
+            let at = if joint == Joint::Ball { &q[3..] } else { &q[..] };
+            let (rel, shift) = relative(joint, at);
+            let s = subspace(joint, &Transform::new(rel, shift));
+            for k in 0..joint.nv() {
+                let full = inertia * s.column(k);
+                assert_eq!(inertia_times_column(joint, &inertia, &s, k), full, "{joint:?} {k}");
+                assert_eq!(column_dot(joint, &s, k, &f), s.column(k).dot(&f), "{joint:?} {k}");
             }
         }
     }

@@ -134,28 +134,39 @@ fn solve(tree: &mut Tree, w: &ServoWork, tau: &[f64], qdd: &mut [f64]) -> bool {
 pub(super) const NO_PARENT: usize = usize::MAX;
 
 /// Every degree of freedom's path to the root: its ancestors `λ(k), λ(λ(k)), …` in
-/// Featherstone's expanded parent array (2008, §6.5), one slice per degree of freedom, so
-/// that [`ltl`] and [`ltl_solve`] read them in order instead of walking the parent array
-/// (a chain of dependent loads).
+/// Featherstone's expanded parent array (2008, §6.5), stored as runs of consecutive indices
+/// (a joint's degrees of freedom and the chain above it are numbered in a row, so the 3-D
+/// biped's paths are one or two runs), so that [`ltl`] and [`ltl_solve`] update contiguous
+/// slices instead of gathering index by index (bounds-checked loads, no vector code).
 #[derive(Clone, Debug, Default)]
 pub(super) struct Paths {
     starts: Vec<usize>,
-    flat: Vec<usize>,
+    /// Runs `lo..end`, each read from `end − 1` down to `lo` (nearest ancestor first).
+    runs: Vec<(usize, usize)>,
 }
 
 impl Paths {
     /// The paths of the parent array `lambda` (`lambda[i] < i`, [`NO_PARENT`] for none).
     pub(super) fn build(&mut self, lambda: &[usize]) {
         self.starts.clear();
-        self.flat.clear();
+        self.runs.clear();
         self.starts.push(0);
         for &parent in lambda {
             let mut j = parent;
+            let mut run: Option<(usize, usize)> = None;
             while j != NO_PARENT {
-                self.flat.push(j);
+                run = match run {
+                    Some((lo, end)) if j + 1 == lo => Some((j, end)),
+                    Some(done) => {
+                        self.runs.push(done);
+                        Some((j, j + 1))
+                    }
+                    None => Some((j, j + 1)),
+                };
                 j = lambda[j];
             }
-            self.starts.push(self.flat.len());
+            self.runs.extend(run);
+            self.starts.push(self.runs.len());
         }
     }
 
@@ -164,17 +175,21 @@ impl Paths {
         self.starts.len().saturating_sub(1)
     }
 
-    /// The ancestors of degree of freedom `k`, nearest first.
-    fn of(&self, k: usize) -> &[usize] {
-        &self.flat[self.starts[k]..self.starts[k + 1]]
+    /// The ancestors of degree of freedom `k` as runs `lo..end`, nearest first.
+    fn of(&self, k: usize) -> &[(usize, usize)] {
+        &self.runs[self.starts[k]..self.starts[k + 1]]
     }
 }
 
 /// Factor symmetric positive definite `a` in place as `a = Lᵀ L`, `L` lower triangular with
 /// the tree's branch-induced sparsity: Featherstone's LTL factorisation (2008, §6.5, Table
-/// 6.3), along each degree of freedom's path to the root ([`Paths`], `Tree::dof_paths`);
-/// only the entries `(i, j)` with `j` on `i`'s path are read or written, so the cost is
-/// `Σ depth²` instead of `n³ / 6` (two legs do not couple). `false` if `a` is not positive
+/// 6.3), along each degree of freedom's path to the root ([`Paths`], `Tree::dof_paths`).
+/// `a` must have that sparsity (zeros off the paths, as the CRBA writes it). Step `k` updates
+/// only the columns `i` on `k`'s path, `Σ depth` of them instead of `n² / 2` (two legs do
+/// not couple); each such column is updated in its rows `0..=i` in one contiguous run, the
+/// rows off the path taking `x − L(k, i)·0 = x` (the factor's zeros stay zeros), so the
+/// results are bitwise those of updating the path's rows only (the same instructions a step
+/// on the 3-D biped, measured, docs/character.md, "Speed"). `false` if `a` is not positive
 /// definite.
 ///
 /// Storage (for [`ltl_solve`]): `L(i, j)`, `j < i`, is written at `(j, i)`, in column `i`
@@ -193,14 +208,16 @@ pub(super) fn ltl(a: &mut DMatrix<f64>, paths: &Paths) -> bool {
         }
         let r = 1.0 / d.sqrt();
         col_k[k] = r;
-        let path = paths.of(k);
-        for &i in path {
-            col_k[i] *= r;
+        let runs = paths.of(k);
+        for &(lo, end) in runs {
+            col_k[lo..end].iter_mut().for_each(|v| *v *= r);
         }
-        for (m, &i) in path.iter().enumerate() {
-            let (lki, col_i) = (col_k[i], &mut before[i * n..(i + 1) * n]);
-            for &j in &path[m..] {
-                col_i[j] -= lki * col_k[j];
+        for &(lo, end) in runs {
+            for i in lo..end {
+                let (lki, col_i) = (col_k[i], &mut before[i * n..=i * n + i]);
+                for (y, &x) in col_i.iter_mut().zip(&col_k[..=i]) {
+                    *y -= lki * x;
+                }
             }
         }
     }
@@ -217,15 +234,18 @@ pub(super) fn ltl_solve(l: &DMatrix<f64>, paths: &Paths, b: &mut [f64]) {
         let col = &l[i * n..(i + 1) * n];
         let x = b[i] * col[i];
         b[i] = x;
-        for &j in paths.of(i) {
-            b[j] -= col[j] * x;
+        for &(lo, end) in paths.of(i) {
+            for (y, &c) in b[lo..end].iter_mut().zip(&col[lo..end]) {
+                *y -= c * x;
+            }
         }
     }
     for i in 0..paths.len() {
         let col = &l[i * n..(i + 1) * n];
         let mut x = b[i];
-        for &j in paths.of(i) {
-            x -= col[j] * b[j];
+        // Nearest ancestor first.
+        for &(lo, end) in paths.of(i) {
+            x = col[lo..end].iter().zip(&b[lo..end]).rev().fold(x, |x, (c, v)| x - c * v);
         }
         b[i] = x * col[i];
     }

@@ -452,9 +452,9 @@ fn control(gait: &Gait, phase: &Phase, model: &Model, tree: &Tree, state: &mut S
     let (q, qd) = (state.q(), state.qd());
     let dof = |body: usize| model.starts(body).1;
     let limit = gait.max_torque;
-    let (lin, mass) = (tree.momentum(model).1, model.mass());
     let d = (tree.com(model) - tree.positions()[stance[2]]).dot(ahead);
-    let v = lin.dot(ahead) / mass - ground_velocity(model, tree, stance[2], state.time).dot(ahead);
+    let v = tree.com_velocity(model).dot(ahead)
+        - ground_velocity(model, tree, stance[2], state.time).dot(ahead);
     // The swing hip's target is measured from the ground's normal (the slope adjustment:
     // on a slope of α it is θ_d + α from the vertical), the torso's from the vertical.
     let target_hip = pose.swing_hip + pose.cd * d + pose.cv * v - tilt;
