@@ -6,16 +6,11 @@ use glam::{DQuat, DVec3};
 use kinema::character::{
     FrameReport, RagdollOptions, Settings, Solver, State, Tracker, TrackingOptions,
 };
-use kinema::mocap::{parse_amc, parse_asf, Motion, Skeleton};
+use kinema::mocap::Motion;
 use kinema::snapshot::Snapshot;
 
-fn walk() -> (Skeleton, Motion) {
-    let asf = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
-    let amc = std::fs::read_to_string("tests/data/mocap/07_05-walk.amc").unwrap();
-    let skeleton = parse_asf(&asf, "07-walk.asf").unwrap();
-    let motion = parse_amc(&amc, "07_05-walk.amc", &skeleton).unwrap();
-    (skeleton, motion)
-}
+mod cmu;
+use cmu::walk;
 
 fn tracker(options: TrackingOptions) -> Tracker {
     let (skeleton, motion) = walk();

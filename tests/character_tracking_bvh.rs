@@ -9,6 +9,8 @@ use kinema::character::{
 };
 use kinema::mocap::{parse_bvh, BvhSkeleton, Motion};
 
+mod cmu;
+
 /// Metres per unit of the CMU conversions (the ASF's length unit, 1/0.45 inch).
 const SCALE: f64 = 0.0254 / 0.45;
 
@@ -107,10 +109,7 @@ fn track_walk(bvh: bool, frames: usize) -> (Vec<FrameReport>, f64) {
         let options = TrackingOptions::default();
         Tracker::new(&skeleton, &motion, &ragdoll, Settings::default(), options).unwrap()
     } else {
-        let asf = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
-        let amc = std::fs::read_to_string("tests/data/mocap/07_05-walk.amc").unwrap();
-        let skeleton = kinema::mocap::parse_asf(&asf, "07-walk.asf").unwrap();
-        let motion = kinema::mocap::parse_amc(&amc, "07_05-walk.amc", &skeleton).unwrap();
+        let (skeleton, motion) = cmu::walk();
         let ragdoll = RagdollOptions { scale: SCALE, ..RagdollOptions::default() };
         let options = TrackingOptions::default();
         Tracker::new(&skeleton, &motion, &ragdoll, Settings::default(), options).unwrap()

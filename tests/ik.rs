@@ -3,16 +3,17 @@
 //! method (success rates asserted at the levels measured), unreachable targets, limits,
 //! singular configurations, the null-space objective, bad input, and no allocation per solve.
 
+mod cmu;
 mod common;
+use cmu::walk;
 use common::thread_allocations;
 
 use glam::{DQuat, DVec3};
 use kinema::ik::{self, Method, Options, Solver, Target};
-use kinema::mocap::{parse_amc, parse_asf, Motion, Skeleton};
+use kinema::mocap::{Motion, Skeleton};
 use kinema::Error;
 use proptest::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI};
-use std::path::PathBuf;
 
 /// SplitMix64: a small deterministic generator for the random poses.
 struct Rng(u64);
@@ -41,18 +42,6 @@ fn chain20() -> Skeleton {
     let dofs: Vec<&str> = (0..20).map(|i| if i % 2 == 0 { "z" } else { "y" }).collect();
     let limits = vec![(-PI / 4.0, PI / 4.0); 20];
     ik::chain(&[0.05; 20], &dofs, Some(&limits)).unwrap()
-}
-
-fn data(name: &str) -> String {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap");
-    assert!(dir.is_dir(), "the motion-capture data is expected at {}", dir.display());
-    String::from_utf8_lossy(&std::fs::read(dir.join(name)).unwrap()).into_owned()
-}
-
-fn walk() -> (Skeleton, Motion) {
-    let sk = parse_asf(&data("07-walk.asf"), "07-walk.asf").unwrap();
-    let m = parse_amc(&data("07_05-walk.amc"), "07_05-walk.amc", &sk).unwrap();
-    (sk, m)
 }
 
 fn joint(sk: &Skeleton, name: &str) -> usize {

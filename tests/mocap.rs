@@ -5,6 +5,8 @@ use kinema::mocap::{parse_amc, parse_asf, Edit, Motion, Skeleton};
 use kinema::Error;
 use std::path::PathBuf;
 
+mod cmu;
+
 fn data(name: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap");
     assert!(dir.is_dir(), "the motion-capture data is expected at {}", dir.display());
@@ -154,8 +156,7 @@ fn forward_kinematics_matches_an_independent_matrix_implementation() {
 
 #[test]
 fn walking_feet_touch_a_common_ground() {
-    let sk = parse_asf(&read("07-walk.asf"), "07-walk.asf").unwrap();
-    let m = parse_amc(&read("07_05-walk.amc"), "07_05-walk.amc", &sk).unwrap();
+    let (sk, m) = cmu::walk();
     let (p, _) = fk(&sk, &m);
     let joints = 1 + sk.bones.len();
     let names = sk.joint_names();

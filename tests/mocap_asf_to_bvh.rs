@@ -3,17 +3,10 @@
 //! `07_05-walk.bvh` is what the conversion and the writer make of CMU 07_05.
 
 use glam::{DQuat, DVec3};
-use kinema::mocap::{
-    asf_to_bvh, parse_amc, parse_asf, parse_bvh, write_bvh, Dof, Motion, Skeleton,
-};
+use kinema::mocap::{asf_to_bvh, parse_bvh, write_bvh, Dof, Motion};
 
-fn walk() -> (Skeleton, Motion) {
-    let asf = std::fs::read_to_string("tests/data/mocap/07-walk.asf").unwrap();
-    let amc = std::fs::read_to_string("tests/data/mocap/07_05-walk.amc").unwrap();
-    let skeleton = parse_asf(&asf, "07-walk.asf").unwrap();
-    let motion = parse_amc(&amc, "07_05-walk.amc", &skeleton).unwrap();
-    (skeleton, motion)
-}
+mod cmu;
+use cmu::walk;
 
 fn quat(q: [f64; 4]) -> DQuat {
     DQuat::from_xyzw(q[1], q[2], q[3], q[0])

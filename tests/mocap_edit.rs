@@ -4,17 +4,8 @@
 use kinema::mocap::{parse_amc, parse_asf, Edit, Motion, Skeleton};
 use std::path::PathBuf;
 
-fn load(asf: &str, amc: &str) -> (Skeleton, Motion) {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/mocap");
-    let text = |n: &str| String::from_utf8_lossy(&std::fs::read(dir.join(n)).unwrap()).into_owned();
-    let sk = parse_asf(&text(asf), asf).unwrap();
-    let m = parse_amc(&text(amc), amc, &sk).unwrap();
-    (sk, m)
-}
-
-fn walk() -> (Skeleton, Motion) {
-    load("07-walk.asf", "07_05-walk.amc")
-}
+mod cmu;
+use cmu::walk;
 
 fn positions(sk: &Skeleton, m: &Motion) -> Vec<[f64; 3]> {
     let joints = 1 + sk.bones.len();
